@@ -1,0 +1,92 @@
+/**
+ * @file att_ars.h
+ * @brief Quaternion complementary attitude reference system (ARS), after the KITECH design.
+ *
+ * Per step:
+ *  1. gyro bias w_m as a running mean w_m := (n w_m + w) / (n + 1) with n capped at bias_n_max
+ *     (mode ATT_BIAS_RUNNING), or only while the sensor is at rest (ATT_BIAS_AT_REST, default),
+ *     or frozen at bias_init (ATT_BIAS_FROZEN), or zero (ATT_BIAS_OFF);
+ *  2. integration q := q * dq with the rotation (w - w_m) dt, either as the exponential map of the
+ *     rotation vector (ATT_INTEGRATE_ROTVEC, default, exact for constant rate) or as the ZYX Euler
+ *     quaternion Q(dphi, dtheta, dpsi) of the increments (ATT_INTEGRATE_EULER, the KITECH literal);
+ *  3. accel correction: rotate the specific force a (sensor frame) into the earth frame, a_e = q a q*,
+ *     take the axis n = a_e x z / |a_e x z| and the angle phi_e between a_e and z = (0, 0, 1) (up),
+ *     the gain K_a = k / (1 + c (|a|/g - 1)^2), and q := Q(K_a phi_e, n) * q. The axis is horizontal,
+ *     so yaw is never changed by the accelerometer.
+ *
+ * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
+ */
+#ifndef ATT_ARS_H
+#define ATT_ARS_H
+
+#include "attica/att_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ATT_CDEF_BEGIN */
+/** How the gyro bias estimate w_m is maintained. */
+typedef enum {
+    ATT_BIAS_OFF = 0,      /**< w_m = 0 */
+    ATT_BIAS_FROZEN = 1,   /**< w_m = bias_init, never updated */
+    ATT_BIAS_RUNNING = 2,  /**< running mean of every valid gyro sample (KITECH literal) */
+    ATT_BIAS_AT_REST = 3   /**< running mean of samples taken while at rest */
+} att_bias_mode_t;
+
+/** How the gyro rate is turned into an attitude increment. */
+typedef enum {
+    ATT_INTEGRATE_ROTVEC = 0, /**< exponential map of (w - w_m) dt */
+    ATT_INTEGRATE_EULER = 1   /**< Q(dphi, dtheta, dpsi), ZYX Euler increments (KITECH literal) */
+} att_integration_t;
+
+/** Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields. */
+typedef struct {
+    float dt;                      /**< sample period, s; 0 < dt <= 1 */
+    float gain;                    /**< k: per-sample accel gain at |a| = g, [0, 1]; used when tau == 0 */
+    float tau;                     /**< accel correction time constant, s (>= 0); > 0 sets k = dt/(tau+dt) */
+    float gain_c;                  /**< c in K_a = k / (1 + c (|a|/g - 1)^2); >= 0 */
+    float gravity;                 /**< g, m/s^2; > 0 */
+    float accel_reject;            /**< skip correction when ||a|/g - 1| > this; 0 = never skip */
+    float accel_range;             /**< |a| above this is saturation: correction skipped, m/s^2 */
+    float gyro_range;              /**< any |w_i| above this: integration skipped, rad/s */
+    att_bias_mode_t bias_mode;     /**< gyro bias estimation mode */
+    uint32_t bias_n_max;           /**< cap on n in the running mean; 1 .. 2^24 */
+    att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame */
+    float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro, rad/s ... */
+    float rest_accel;              /**< ... and ||a| - g| < rest_accel, m/s^2 ... */
+    float rest_time;               /**< ... for at least rest_time, s (>= 0) */
+    att_integration_t integration; /**< gyro integration method */
+    bool init_from_accel;          /**< take roll/pitch from the first valid accel sample (yaw 0) */
+    att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth */
+} att_ars_settings_t;
+
+/** State of one complementary ARS instance (no heap; copy freely). */
+typedef struct {
+    att_ars_settings_t s;  /**< validated copy of the settings */
+    float k;               /**< effective per-sample accel gain at |a| = g */
+    uint32_t rest_n;       /**< samples at rest needed before the bias is updated */
+    att_quat_t q;          /**< attitude, unit, sensor-to-earth (ENU) */
+    att_vec3_t bias;       /**< gyro bias estimate w_m, rad/s, sensor frame */
+    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
+    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
+    bool initialised;      /**< q holds a valid attitude */
+    uint32_t steps;        /**< steps taken since init/reset (wraps) */
+    uint32_t flags;        /**< flags of the last step */
+} att_ars_t;
+
+/** Default settings for sample period dt (s): k = 0.1, c = 100, bias at rest, rotvec integration. */
+void att_ars_settings_default(att_ars_settings_t *settings, float dt);
+/** Validate settings and initialise f. On error f is left unchanged. */
+att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);
+/** Back to the state right after att_ars_init, keeping the settings. */
+void att_ars_reset(att_ars_t *f);
+/** One update with gyro (rad/s) and accel (m/s^2), sensor frame; returns ATT_FLAG_* bits. */
+uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc);
+/* ATT_CDEF_END */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_ARS_H */

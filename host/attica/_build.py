@@ -1,0 +1,122 @@
+"""Build the cffi API-mode extension ``attica._native`` from the firmware sources.
+
+The firmware sources (firmware/src/*.c) and the host batch kernels (host/attica/csrc/*.c) are
+compiled to objects with exactly the flags in firmware/cflags.txt (the same as every other build)
+and linked into the extension; only the cffi wrapper itself is compiled with Python's flags. The C
+declarations given to cffi are the ``ATT_CDEF_BEGIN``/``ATT_CDEF_END`` sections of the headers, so
+the headers are the single source of the API.
+
+Run ``python -m attica._build`` (``make build`` does); :mod:`attica.native` also builds on first
+import when the extension is missing or older than its sources.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parent
+ROOT = PKG.parent.parent
+FIRMWARE = ROOT / "firmware"
+INCLUDE = FIRMWARE / "include"
+CSRC = PKG / "csrc"
+BUILD = ROOT / "build" / "native"
+STAMP = PKG / "_native.stamp"
+
+_CDEF = re.compile(r"/\* ATT_CDEF_BEGIN \*/(.*?)/\* ATT_CDEF_END \*/", re.S)
+
+
+def firmware_sources() -> list[Path]:
+    """The firmware C sources (sorted)."""
+    return sorted((FIRMWARE / "src").glob("*.c"))
+
+
+def headers() -> list[Path]:
+    """Public headers, att_types.h first, then the rest sorted, then the host header."""
+    hs = sorted((INCLUDE / "attica").glob("*.h"))
+    first = [h for h in hs if h.name == "att_types.h"]
+    return first + [h for h in hs if h.name != "att_types.h"] + [CSRC / "att_host.h"]
+
+
+def cflags() -> list[str]:
+    """The strict firmware flags (firmware/cflags.txt)."""
+    return shlex.split((FIRMWARE / "cflags.txt").read_text())
+
+
+def cdef_text() -> str:
+    """Declarations for cffi, taken from the headers' ATT_CDEF sections."""
+    parts = []
+    for h in headers():
+        for block in _CDEF.findall(h.read_text()):
+            parts.append(block)
+    text = "\n".join(parts)
+    return re.sub(r"/\*.*?\*/", "", text, flags=re.S)
+
+
+def inputs_digest() -> str:
+    """Hash over everything the extension is built from (sources, headers, flags, this file)."""
+    h = hashlib.sha256()
+    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + sorted((FIRMWARE / "src").glob("*.h"))
+    for f in files + [FIRMWARE / "cflags.txt", Path(__file__)]:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    h.update(os.environ.get("CC", "cc").encode())
+    return h.hexdigest()
+
+
+def compile_objects(cc: str, opt: str = "-O2") -> list[Path]:
+    """Compile firmware and host kernels with the strict flags; return the object paths."""
+    BUILD.mkdir(parents=True, exist_ok=True)
+    objs = []
+    for src in firmware_sources() + sorted(CSRC.glob("*.c")):
+        obj = BUILD / (src.stem + ".o")
+        cmd = [cc, *cflags(), opt, "-fPIC", "-I", str(INCLUDE), "-I", str(CSRC), "-c", str(src), "-o", str(obj)]
+        subprocess.run(cmd, check=True)
+        objs.append(obj)
+    return objs
+
+
+def build(verbose: bool = False) -> Path:
+    """Build the extension into the package folder; return its path."""
+    from cffi import FFI
+
+    cc = os.environ.get("CC", "cc")
+    objs = compile_objects(cc)
+    ffi = FFI()
+    ffi.cdef(cdef_text())
+    includes = "".join(f'#include "{h.name}"\n' if h.parent == CSRC else f'#include "attica/{h.name}"\n'
+                       for h in headers())
+    ffi.set_source(
+        "attica._native",
+        includes,
+        include_dirs=[str(INCLUDE), str(CSRC)],
+        extra_objects=[str(o) for o in objs],
+    )
+    tmp = BUILD / "cffi"
+    tmp.mkdir(parents=True, exist_ok=True)
+    built = Path(ffi.compile(tmpdir=str(tmp), verbose=verbose))
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    target = PKG / ("_native" + suffix)
+    shutil.copy2(built, target)
+    STAMP.write_text(inputs_digest() + "\n")
+    return target
+
+
+def is_stale() -> bool:
+    """True when the extension is missing or was built from other inputs."""
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    if not (PKG / ("_native" + suffix)).exists() or not STAMP.exists():
+        return True
+    return STAMP.read_text().strip() != inputs_digest()
+
+
+if __name__ == "__main__":
+    path = build(verbose="-v" in sys.argv)
+    print(f"built {path.relative_to(ROOT)}")

@@ -1,0 +1,157 @@
+/**
+ * @file att_host.c
+ * @brief Host-only batch kernels (see att_host.h).
+ */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
+#include "att_host.h"
+
+#include "attica/att_sensor.h"
+
+static att_vec3_t att_host_v3(const float *p)
+{
+    att_vec3_t v;
+    v.x = p[0];
+    v.y = p[1];
+    v.z = p[2];
+    return v;
+}
+
+static att_quat_t att_host_q(const float *p)
+{
+    att_quat_t q;
+    q.w = p[0];
+    q.x = p[1];
+    q.y = p[2];
+    q.z = p[3];
+    return q;
+}
+
+static void att_host_put_v3(float *p, att_vec3_t v)
+{
+    p[0] = v.x;
+    p[1] = v.y;
+    p[2] = v.z;
+}
+
+static void att_host_put_q(float *p, att_quat_t q)
+{
+    p[0] = q.w;
+    p[1] = q.x;
+    p[2] = q.y;
+    p[3] = q.z;
+}
+
+int att_host_map1(int fn, const float *x, float *y, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        switch (fn) {
+        case ATT_HOST_SIN:
+            y[i] = att_sinf(x[i]);
+            break;
+        case ATT_HOST_COS:
+            y[i] = att_cosf(x[i]);
+            break;
+        case ATT_HOST_ASIN:
+            y[i] = att_asinf(x[i]);
+            break;
+        case ATT_HOST_ACOS:
+            y[i] = att_acosf(x[i]);
+            break;
+        case ATT_HOST_SQRT:
+            y[i] = att_sqrtf(x[i]);
+            break;
+        case ATT_HOST_WRAP_PI:
+            y[i] = att_wrap_pi(x[i]);
+            break;
+        default:
+            return -1;
+        }
+    }
+    return 0;
+}
+
+void att_host_atan2(const float *a, const float *b, float *y, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        y[i] = att_atan2f(a[i], b[i]);
+    }
+}
+
+static const size_t att_host_widths[][2] = {
+    {8u, 4u}, {4u, 5u}, {7u, 3u}, {3u, 4u}, {4u, 3u}, {4u, 9u},
+    {3u, 4u}, {4u, 4u}, {3u, 4u}, {6u, 3u}, {3u, 3u},
+};
+
+int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t out_width, size_t n)
+{
+    size_t i;
+    if (fn < 0 || fn > ATT_HOST_SENSOR_TILT || att_host_widths[fn][0] != in_width ||
+        att_host_widths[fn][1] != out_width) {
+        return -1;
+    }
+    for (i = 0; i < n; i++) {
+        const float *p = in + i * in_width;
+        float *o = out + i * out_width;
+        bool ok;
+        att_quat_t q;
+        att_vec3_t v;
+        switch (fn) {
+        case ATT_HOST_QUAT_MUL:
+            att_host_put_q(o, att_quat_mul(att_host_q(p), att_host_q(p + 4)));
+            break;
+        case ATT_HOST_QUAT_NORMALIZE:
+            ok = att_quat_normalize(att_host_q(p), &q);
+            att_host_put_q(o, q);
+            o[4] = ok ? 1.0f : 0.0f;
+            break;
+        case ATT_HOST_QUAT_ROTATE:
+            att_host_put_v3(o, att_quat_rotate(att_host_q(p), att_host_v3(p + 4)));
+            break;
+        case ATT_HOST_QUAT_FROM_EULER:
+            att_host_put_q(o, att_quat_from_euler(p[0], p[1], p[2]));
+            break;
+        case ATT_HOST_QUAT_TO_EULER:
+            att_host_put_v3(o, att_quat_to_euler(att_host_q(p)));
+            break;
+        case ATT_HOST_QUAT_TO_MATRIX:
+            att_quat_to_matrix(att_host_q(p), o);
+            break;
+        case ATT_HOST_QUAT_FROM_ROTVEC:
+            att_host_put_q(o, att_quat_from_rotvec(att_host_v3(p)));
+            break;
+        case ATT_HOST_QUAT_FROM_AXIS_ANGLE:
+            att_host_put_q(o, att_quat_from_axis_angle(att_host_v3(p), p[3]));
+            break;
+        case ATT_HOST_VEC3_NORMALIZE:
+            ok = att_vec3_normalize(att_host_v3(p), &v);
+            att_host_put_v3(o, v);
+            o[3] = ok ? 1.0f : 0.0f;
+            break;
+        case ATT_HOST_VEC3_CROSS:
+            att_host_put_v3(o, att_vec3_cross(att_host_v3(p), att_host_v3(p + 3)));
+            break;
+        default: /* ATT_HOST_SENSOR_TILT */
+            att_host_put_v3(o, att_sensor_tilt(att_host_v3(p)));
+            break;
+        }
+    }
+    return 0;
+}
+
+void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n, float *quat, float *bias,
+                      uint32_t *flags)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        flags[i] = att_ars_step(f, att_host_v3(gyr + 3u * i), att_host_v3(acc + 3u * i));
+        att_host_put_q(quat + 4u * i, f->q);
+        if (bias != NULL) {
+            att_host_put_v3(bias + 3u * i, f->bias);
+        }
+    }
+}

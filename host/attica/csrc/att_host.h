@@ -1,0 +1,48 @@
+/**
+ * @file att_host.h
+ * @brief Host-only batch kernels for the Python binding: loop in C over numpy buffers (zero copy).
+ *
+ * Not part of the firmware; compiled with the same strict flags as the firmware.
+ */
+#ifndef ATT_HOST_H
+#define ATT_HOST_H
+
+#include "attica/att_ars.h"
+#include "attica/att_math.h"
+
+/* ATT_CDEF_BEGIN */
+/** Scalar functions for att_host_map1: y[i] = fn(x[i]). */
+enum {
+    ATT_HOST_SIN = 0,
+    ATT_HOST_COS = 1,
+    ATT_HOST_ASIN = 2,
+    ATT_HOST_ACOS = 3,
+    ATT_HOST_SQRT = 4,
+    ATT_HOST_WRAP_PI = 5
+};
+/** Vector/quaternion kernels for att_host_mapq. */
+enum {
+    ATT_HOST_QUAT_MUL = 0,        /**< in: a(4) b(4) -> out 4 */
+    ATT_HOST_QUAT_NORMALIZE = 1,  /**< in: q(4) -> out 4 + ok(1) */
+    ATT_HOST_QUAT_ROTATE = 2,     /**< in: q(4) v(3) -> out 3 */
+    ATT_HOST_QUAT_FROM_EULER = 3, /**< in: e(3) -> out 4 */
+    ATT_HOST_QUAT_TO_EULER = 4,   /**< in: q(4) -> out 3 */
+    ATT_HOST_QUAT_TO_MATRIX = 5,  /**< in: q(4) -> out 9 */
+    ATT_HOST_QUAT_FROM_ROTVEC = 6,/**< in: rv(3) -> out 4 */
+    ATT_HOST_QUAT_FROM_AXIS_ANGLE = 7, /**< in: axis(3) angle(1) -> out 4 */
+    ATT_HOST_VEC3_NORMALIZE = 8,  /**< in: v(3) -> out 3 + ok(1) */
+    ATT_HOST_VEC3_CROSS = 9,      /**< in: a(3) b(3) -> out 3 */
+    ATT_HOST_SENSOR_TILT = 10     /**< in: a(3) -> out 3 */
+};
+/** y[i] = fn(x[i]) for i < n; returns 0, or -1 for an unknown fn. */
+int att_host_map1(int fn, const float *x, float *y, size_t n);
+/** y[i] = atan2f(a[i], b[i]). */
+void att_host_atan2(const float *a, const float *b, float *y, size_t n);
+/** Row-wise kernel: in rows of in_width floats, out rows of out_width; -1 for bad fn/widths. */
+int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t out_width, size_t n);
+/** n ARS steps: gyr, acc (n x 3), quat out (n x 4), flags out (n); bias out (n x 3) may be NULL. */
+void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n, float *quat, float *bias,
+                      uint32_t *flags);
+/* ATT_CDEF_END */
+
+#endif /* ATT_HOST_H */

@@ -1,0 +1,232 @@
+"""cffi binding of the attica firmware (the same C sources, built with the same strict flags).
+
+The extension is built by ``make build`` (``python -m attica._build``); if it is missing or older
+than the firmware sources, importing this module builds it first (needs a C compiler).
+
+Scalar and batch entry points take float32 numpy arrays and loop in C without copying
+(``ffi.from_buffer``); arrays of another dtype or layout are converted once.
+"""
+
+from __future__ import annotations
+
+import fcntl
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica import _build
+from attica.settings import ArsSettings, to_dict
+
+
+def _load() -> tuple[Any, Any]:
+    lock_path = _build.ROOT / "build" / ".native.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if _build.is_stale():
+            _build.build()
+    from attica import _native  # type: ignore[attr-defined]
+
+    return _native.ffi, _native.lib
+
+
+ffi, lib = _load()
+
+
+def _f32(x: Any) -> NDArray[np.float32]:
+    return np.ascontiguousarray(x, dtype=np.float32)
+
+
+def _fptr(a: NDArray[Any]) -> Any:
+    return ffi.from_buffer("float[]", a)
+
+
+def _map1(fn: int, x: Any) -> NDArray[np.float32]:
+    xa = _f32(x)
+    y = np.empty_like(xa)
+    if lib.att_host_map1(fn, _fptr(xa), _fptr(y), xa.size) != 0:
+        raise ValueError(f"unknown function {fn}")
+    return y
+
+
+def sinf(x: Any) -> NDArray[np.float32]:
+    """att_sinf over an array."""
+    return _map1(lib.ATT_HOST_SIN, x)
+
+
+def cosf(x: Any) -> NDArray[np.float32]:
+    """att_cosf over an array."""
+    return _map1(lib.ATT_HOST_COS, x)
+
+
+def asinf(x: Any) -> NDArray[np.float32]:
+    """att_asinf over an array."""
+    return _map1(lib.ATT_HOST_ASIN, x)
+
+
+def acosf(x: Any) -> NDArray[np.float32]:
+    """att_acosf over an array."""
+    return _map1(lib.ATT_HOST_ACOS, x)
+
+
+def sqrtf(x: Any) -> NDArray[np.float32]:
+    """att_sqrtf over an array."""
+    return _map1(lib.ATT_HOST_SQRT, x)
+
+
+def wrap_pi(x: Any) -> NDArray[np.float32]:
+    """att_wrap_pi over an array."""
+    return _map1(lib.ATT_HOST_WRAP_PI, x)
+
+
+def atan2f(y: Any, x: Any) -> NDArray[np.float32]:
+    """att_atan2f over arrays of equal shape."""
+    ya, xa = np.broadcast_arrays(_f32(y), _f32(x))
+    ya, xa = _f32(ya), _f32(xa)
+    out = np.empty_like(ya)
+    lib.att_host_atan2(_fptr(ya), _fptr(xa), _fptr(out), ya.size)
+    return out
+
+
+_MAPQ = {
+    "quat_mul": (0, 8, 4),
+    "quat_normalize": (1, 4, 5),
+    "quat_rotate": (2, 7, 3),
+    "quat_from_euler": (3, 3, 4),
+    "quat_to_euler": (4, 4, 3),
+    "quat_to_matrix": (5, 4, 9),
+    "quat_from_rotvec": (6, 3, 4),
+    "quat_from_axis_angle": (7, 4, 4),
+    "vec3_normalize": (8, 3, 4),
+    "vec3_cross": (9, 6, 3),
+    "sensor_tilt": (10, 3, 3),
+}
+
+
+def mapq(name: str, rows: Any) -> NDArray[np.float32]:
+    """Run a vector/quaternion kernel row by row.
+
+    ``rows`` has shape (n, in_width) with the inputs concatenated (e.g. ``quat_mul``: a then b,
+    width 8); returns (n, out_width). Kernels that report success (``*_normalize``) append 1.0 or
+    0.0 as the last output column.
+    """
+    fn, win, wout = _MAPQ[name]
+    a = _f32(rows)
+    if a.ndim != 2 or a.shape[1] != win:
+        raise ValueError(f"{name}: expected shape (n, {win}), got {a.shape}")
+    out = np.empty((a.shape[0], wout), np.float32)
+    if lib.att_host_mapq(fn, _fptr(a), win, _fptr(out), wout, a.shape[0]) != 0:
+        raise ValueError(f"{name}: kernel refused its arguments")
+    return out
+
+
+class NativeError(RuntimeError):
+    """A C function returned an error status."""
+
+
+def _check(status: int, what: str) -> None:
+    if status == lib.ATT_ERR_NULL:
+        raise NativeError(f"{what}: NULL argument")
+    if status == lib.ATT_ERR_SETTINGS:
+        raise NativeError(f"{what}: a setting is out of range or not finite")
+    if status != lib.ATT_OK:
+        raise NativeError(f"{what}: status {status}")
+
+
+def _fill(struct: Any, values: dict[str, Any]) -> None:
+    """Copy dataclass values into a cffi struct (tuples into nested vec3/quat fields)."""
+    for name, value in values.items():
+        if isinstance(value, tuple):
+            sub = getattr(struct, name)
+            keys = ("x", "y", "z") if len(value) == 3 else ("w", "x", "y", "z")
+            for k, v in zip(keys, value):
+                setattr(sub, k, float(v))
+        elif isinstance(value, bool):
+            setattr(struct, name, value)
+        elif isinstance(value, int):
+            setattr(struct, name, int(value))
+        else:
+            setattr(struct, name, float(value))
+
+
+def ars_default_settings(dt: float) -> dict[str, Any]:
+    """The C defaults (att_ars_settings_default) as a dict, for comparison with ArsSettings."""
+    s = ffi.new("att_ars_settings_t *")
+    lib.att_ars_settings_default(s, dt)
+    out: dict[str, Any] = {}
+    for name in to_dict(ArsSettings()):
+        v = getattr(s, name)
+        if name == "bias_init":
+            v = (v.x, v.y, v.z)
+        elif name == "q_init":
+            v = (v.w, v.x, v.y, v.z)
+        out[name] = v
+    return out
+
+
+class Ars:
+    """The C complementary ARS (``att_ars_t``), one instance."""
+
+    def __init__(self, settings: ArsSettings | None = None) -> None:
+        self.settings = settings if settings is not None else ArsSettings()
+        self._s = ffi.new("att_ars_settings_t *")
+        lib.att_ars_settings_default(self._s, float(self.settings.dt))
+        _fill(self._s, to_dict(self.settings))
+        self._f = ffi.new("att_ars_t *")
+        _check(lib.att_ars_init(self._f, self._s), "att_ars_init")
+
+    def reset(self) -> None:
+        """att_ars_reset: back to the initial state, same settings."""
+        lib.att_ars_reset(self._f)
+
+    def step(self, gyr: Any, acc: Any) -> int:
+        """One update; gyr (rad/s) and acc (m/s^2) are 3-sequences in the sensor frame. Returns flags."""
+        g = _f32(gyr)
+        a = _f32(acc)
+        return int(lib.att_ars_step(self._f, (g[0], g[1], g[2]), (a[0], a[1], a[2])))
+
+    @property
+    def quat(self) -> NDArray[np.float32]:
+        """Attitude (4,), w,x,y,z, sensor-to-earth."""
+        q = self._f.q
+        return np.array([q.w, q.x, q.y, q.z], np.float32)
+
+    @property
+    def gyro_bias(self) -> NDArray[np.float32]:
+        """Gyro bias estimate (3,), rad/s, sensor frame."""
+        b = self._f.bias
+        return np.array([b.x, b.y, b.z], np.float32)
+
+    @property
+    def flags(self) -> int:
+        """Flags of the last step."""
+        return int(self._f.flags)
+
+    def run(
+        self, gyr: Any, acc: Any, with_bias: bool = False
+    ) -> tuple[NDArray[np.float32], NDArray[np.uint32]] | tuple[
+        NDArray[np.float32], NDArray[np.uint32], NDArray[np.float32]
+    ]:
+        """Step through N samples in C: gyr, acc (N, 3). Returns quats (N, 4), flags (N,)
+        and, with ``with_bias``, the bias estimates (N, 3)."""
+        g = _f32(gyr)
+        a = _f32(acc)
+        if g.ndim != 2 or g.shape[1] != 3 or a.shape != g.shape:
+            raise ValueError(f"gyr and acc must both have shape (N, 3); got {g.shape} and {a.shape}")
+        n = g.shape[0]
+        quats = np.empty((n, 4), np.float32)
+        flags = np.empty(n, np.uint32)
+        bias = np.empty((n, 3), np.float32) if with_bias else None
+        lib.att_host_ars_run(
+            self._f,
+            _fptr(g),
+            _fptr(a),
+            n,
+            _fptr(quats),
+            _fptr(bias) if bias is not None else ffi.NULL,
+            ffi.from_buffer("uint32_t[]", flags),
+        )
+        if bias is not None:
+            return quats, flags, bias
+        return quats, flags

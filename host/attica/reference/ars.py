@@ -1,0 +1,172 @@
+"""Mirror of firmware/src/att_ars.c: the quaternion complementary ARS, many instances in lockstep."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.reference import detmath as dm
+from attica.reference import sensor
+from attica.reference._common import as_batch, setting, split3, stack
+from attica.settings import ArsSettings, BiasMode, Flag, Integration
+
+_U0 = np.uint32(0)
+
+
+def _u(flag: Flag) -> np.uint32:
+    return np.uint32(flag.value)
+
+
+class Ars:
+    """Complementary ARS reference: ``n`` independent instances sharing one settings object.
+
+    Settings fields may be scalars or length-``n`` sequences (one value per instance).
+    """
+
+    def __init__(self, settings: ArsSettings | None = None, n: int = 1) -> None:
+        s = settings if settings is not None else ArsSettings()
+        self.settings = s
+        self.n = n
+        self.dt = setting(s.dt, n)
+        gain = setting(s.gain, n)
+        tau = setting(s.tau, n)
+        self.gain_c = setting(s.gain_c, n)
+        self.gravity = setting(s.gravity, n)
+        self.accel_reject = setting(s.accel_reject, n)
+        self.accel_range = setting(s.accel_range, n)
+        self.gyro_range = setting(s.gyro_range, n)
+        self.bias_mode = setting(int(s.bias_mode), n, np.int32)
+        self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
+        self.bias_init = split3(s.bias_init, n)
+        self.rest_gyro = setting(s.rest_gyro, n)
+        self.rest_accel = setting(s.rest_accel, n)
+        self.rest_time = setting(s.rest_time, n)
+        self.integration = setting(int(s.integration), n, np.int32)
+        self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
+        self.q_init = tuple(setting(v, n) for v in np.broadcast_to(np.asarray(s.q_init, np.float32), (4,)))
+        with np.errstate(all="ignore"):
+            self.k = np.where(tau > dm.ZERO, self.dt / (tau + self.dt), gain).astype(np.float32)
+        self.rest_n = sensor.samples(self.rest_time, self.dt)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the state after construction (att_ars_reset)."""
+        n = self.n
+        _, self.q = dm.quat_normalize(self.q_init)
+        off = self.bias_mode == BiasMode.OFF
+        self.bias = dm.vec3_where(off, dm.vec3(np.zeros(n), np.zeros(n), np.zeros(n)), self.bias_init)
+        self.bias_n = np.zeros(n, np.uint32)
+        self.rest_count = np.zeros(n, np.uint32)
+        self.initialised = ~self.init_from_accel
+        self.steps = np.zeros(n, np.uint32)
+        self.flags = np.zeros(n, np.uint32)
+
+    def _increment(self, rate: dm.Vec3) -> dm.Quat:
+        rv = dm.vec3_scale(rate, self.dt)
+        q_euler = dm.quat_from_euler(rv[0], rv[1], rv[2])
+        q_rotvec = dm.quat_from_rotvec(rv)
+        return dm.quat_where(self.integration == Integration.EULER, q_euler, q_rotvec)
+
+    def _correct(self, q: dm.Quat, acc: dm.Vec3, norm: Any) -> dm.Quat:
+        ae = dm.quat_rotate(q, acc)
+        with np.errstate(all="ignore"):
+            axy = dm.sqrtf(ae[0] * ae[0] + ae[1] * ae[1])
+            angle = dm.atan2f(axy, ae[2])
+            e = norm / self.gravity - dm.ONE
+            ka = self.k / (dm.ONE + self.gain_c * e * e)
+            pos = axy > dm.ZERO
+            axis = (
+                np.where(pos, ae[1] / axy, dm.ONE),
+                np.where(pos, -ae[0] / axy, dm.ZERO),
+                np.zeros(self.n, np.float32),
+            )
+        return dm.quat_mul(dm.quat_from_axis_angle(axis, ka * angle), q)
+
+    def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
+        """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
+        g = split3(gyr, self.n)
+        a = split3(acc, self.n)
+        flags = sensor.check_gyro(g, self.gyro_range)
+        gyro_ok = flags == _U0
+        accel_flags, norm = sensor.check_accel(a, self.accel_range)
+        accel_ok = accel_flags == _U0
+        flags = flags | accel_flags
+        with np.errstate(all="ignore"):
+            e = norm / self.gravity - dm.ONE
+            rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
+            flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
+
+            rest = (
+                gyro_ok
+                & accel_ok
+                & (dm.vec3_norm(dm.vec3_sub(g, self.bias)) < self.rest_gyro)
+                & (dm.absf(norm - self.gravity) < self.rest_accel)
+            )
+            self.rest_count = np.where(
+                ~rest,
+                _U0,
+                np.where(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count),
+            ).astype(np.uint32)
+            at_rest = rest & (self.rest_count >= self.rest_n)
+            flags = flags | np.where(at_rest, _u(Flag.AT_REST), _U0)
+            update = gyro_ok & (
+                (self.bias_mode == BiasMode.RUNNING) | ((self.bias_mode == BiasMode.AT_REST) & at_rest)
+            )
+            nf = self.bias_n.astype(np.float32)
+            den = nf + dm.ONE
+            new_bias = tuple((nf * b + w) / den for b, w in zip(self.bias, g))
+            self.bias = dm.vec3_where(update, new_bias, self.bias)  # type: ignore[arg-type]
+            self.bias_n = np.where(
+                update & (self.bias_n < self.bias_n_max), self.bias_n + np.uint32(1), self.bias_n
+            ).astype(np.uint32)
+            flags = flags | np.where(update, _u(Flag.BIAS_UPDATED), _U0)
+
+            # not yet initialised: attitude from the first valid accel sample
+            waiting = ~self.initialised
+            init_now = waiting & accel_ok
+            t = sensor.tilt(a)
+            _, q_tilt = dm.quat_normalize(dm.quat_from_euler(t[0], t[1], np.zeros(self.n, np.float32)))
+            flags = flags | np.where(
+                waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
+            )
+
+            q = self.q
+            q1 = dm.quat_where(gyro_ok, dm.quat_mul(q, self._increment(dm.vec3_sub(g, self.bias))), q)
+            q2 = dm.quat_where(accel_ok & ~rejected, self._correct(q1, a, norm), q1)
+            ok, qn = dm.quat_normalize(q2)
+            flags = flags | np.where(~waiting & ~ok, _u(Flag.NUMERIC), _U0)
+            q_run = dm.quat_where(ok, qn, q)
+            self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_tilt, q), q_run)
+        self.initialised = self.initialised | init_now
+        self.steps = self.steps + np.uint32(1)
+        self.flags = flags.astype(np.uint32)
+        return self.flags
+
+    @property
+    def quat(self) -> NDArray[np.float32]:
+        """Attitudes (n, 4), w,x,y,z, sensor-to-earth."""
+        return stack(self.q)
+
+    @property
+    def gyro_bias(self) -> NDArray[np.float32]:
+        """Gyro bias estimates (n, 3), rad/s, sensor frame."""
+        return stack(self.bias)
+
+    def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
+        """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3).
+
+        Returns quats (N, 4) or (N, n, 4) and flags (N,) or (N, n).
+        """
+        g, multi = as_batch(gyr, 3)
+        a, _ = as_batch(acc, 3)
+        count = g.shape[0]
+        quats = np.empty((count, self.n, 4), np.float32)
+        flags = np.empty((count, self.n), np.uint32)
+        for i in range(count):
+            flags[i] = self.step(g[i], a[i])
+            quats[i] = self.quat
+        if multi:
+            return quats, flags
+        return quats[:, 0, :], flags[:, 0]

@@ -1,0 +1,56 @@
+"""Mirror of firmware/src/att_sensor.c: sample checks and tilt from gravity."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from attica.reference import detmath as dm
+from attica.settings import Flag
+
+_U0 = np.uint32(0)
+
+
+def check_gyro(gyr: dm.Vec3, rng: Any) -> Any:
+    """att_sensor_check_gyro: flags (uint32)."""
+    rng = dm.f32(rng)
+    finite = dm.vec3_isfinite(gyr)
+    over = (dm.absf(gyr[0]) > rng) | (dm.absf(gyr[1]) > rng) | (dm.absf(gyr[2]) > rng)
+    return np.where(~finite, np.uint32(Flag.GYRO_INVALID), np.where(over, np.uint32(Flag.GYRO_RANGE), _U0))
+
+
+def check_accel(acc: dm.Vec3, rng: Any) -> tuple[Any, Any]:
+    """att_sensor_check_accel: (flags, norm)."""
+    rng = dm.f32(rng)
+    with np.errstate(all="ignore"):
+        finite = dm.vec3_isfinite(acc)
+        n2 = dm.vec3_dot(acc, acc)
+        small = ~(n2 >= dm.NORM2_MIN)
+        n = dm.sqrtf(n2)
+        invalid = ~finite | small
+        flags = np.where(
+            invalid, np.uint32(Flag.ACCEL_INVALID), np.where(n > rng, np.uint32(Flag.ACCEL_RANGE), _U0)
+        )
+        return flags, np.where(invalid, dm.ZERO, n).astype(np.float32)
+
+
+def tilt(acc: dm.Vec3) -> dm.Vec3:
+    """att_sensor_tilt: (phi, theta, 0) from specific force."""
+    ax, ay, az = acc
+    with np.errstate(all="ignore"):
+        phi = dm.atan2f(ay, az)
+        theta = dm.atan2f(-ax, dm.sqrtf(ay * ay + az * az))
+    return (phi, theta, np.zeros(np.shape(phi), np.float32))
+
+
+def samples(seconds: Any, dt: Any) -> Any:
+    """att_sensor_samples: ceil(seconds / dt) limited to [0, 2^24] (uint32)."""
+    with np.errstate(all="ignore"):
+        ratio = dm.f32(seconds) / dm.f32(dt)
+        pos = ratio > dm.ZERO
+        ratio = np.where(ratio > dm.c("0x1p+24"), dm.c("0x1p+24"), ratio)
+        ratio = np.where(pos, ratio, dm.ZERO)
+        n = np.asarray(ratio).astype(np.uint32)
+        n = np.where(n.astype(np.float32) < ratio, n + np.uint32(1), n)
+        return np.where(pos, n, _U0).astype(np.uint32)
