@@ -45,6 +45,30 @@ uint32_t att_sensor_check_accel(att_vec3_t acc, float range, float *norm)
     return flags;
 }
 
+uint32_t att_sensor_check_mag(att_vec3_t mag, float range, float *norm)
+{
+    float n2;
+    float n = 0.0f;
+    uint32_t flags = 0u;
+    if (mag.x != mag.x || mag.y != mag.y || mag.z != mag.z ||
+        (mag.x == 0.0f && mag.y == 0.0f && mag.z == 0.0f)) {
+        flags = ATT_FLAG_MAG_ABSENT;
+    } else if (!att_vec3_isfinite(mag)) {
+        flags = ATT_FLAG_MAG_INVALID;
+    } else {
+        n2 = att_vec3_dot(mag, mag);
+        n = att_sqrtf(n2);
+        if (!(n2 >= ATT_NORM2_MIN) || n > range) {
+            flags = ATT_FLAG_MAG_INVALID;
+            n = 0.0f;
+        }
+    }
+    if (norm != NULL) {
+        *norm = n;
+    }
+    return flags;
+}
+
 att_vec3_t att_sensor_tilt(att_vec3_t acc)
 {
     att_vec3_t e;

@@ -38,11 +38,30 @@ def firmware_sources() -> list[Path]:
     return sorted((FIRMWARE / "src").glob("*.c"))
 
 
+_INCLUDE_RE = re.compile(r'^#include "(?:attica/)?(att_\w+\.h)"', re.M)
+
+
 def headers() -> list[Path]:
-    """Public headers, att_types.h first, then the rest sorted, then the host header."""
-    hs = sorted((INCLUDE / "attica").glob("*.h"))
-    first = [h for h in hs if h.name == "att_types.h"]
-    return first + [h for h in hs if h.name != "att_types.h"] + [CSRC / "att_host.h"]
+    """Public headers then host headers, each after the headers it includes (dependency order)."""
+    pool = {h.name: h for h in sorted((INCLUDE / "attica").glob("*.h"))}
+    pool.update({h.name: h for h in sorted(CSRC.glob("*.h"))})
+    ordered: list[Path] = []
+    visiting: set[str] = set()
+
+    def visit(name: str) -> None:
+        if name not in pool or pool[name] in ordered:
+            return
+        if name in visiting:
+            raise RuntimeError(f"include cycle through {name}")
+        visiting.add(name)
+        for dep in _INCLUDE_RE.findall(pool[name].read_text()):
+            visit(dep)
+        visiting.discard(name)
+        ordered.append(pool[name])
+
+    for name in pool:
+        visit(name)
+    return ordered
 
 
 def cflags() -> list[str]:
@@ -91,8 +110,9 @@ def build(verbose: bool = False) -> Path:
     objs = compile_objects(cc)
     ffi = FFI()
     ffi.cdef(cdef_text())
-    includes = "".join(f'#include "{h.name}"\n' if h.parent == CSRC else f'#include "attica/{h.name}"\n'
-                       for h in headers())
+    includes = "".join(
+        f'#include "{h.name}"\n' if h.parent == CSRC else f'#include "attica/{h.name}"\n' for h in headers()
+    )
     ffi.set_source(
         "attica._native",
         includes,

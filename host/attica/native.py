@@ -16,7 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica import _build
-from attica.settings import ArsSettings, to_dict
+from attica.outputs import OUTPUT_DTYPE
+from attica.settings import ArsSettings, FilterKind, make_settings, to_dict
 
 
 def _load() -> tuple[Any, Any]:
@@ -230,3 +231,87 @@ class Ars:
         if bias is not None:
             return quats, flags, bias
         return quats, flags
+
+
+def default_settings(kind: str | int | FilterKind, dt: float = 0.01) -> dict[str, Any]:
+    """The C defaults (att_filter_settings_default) of a kind as a dict of its settings fields."""
+    k = FilterKind.parse(kind)
+    s = ffi.new("att_filter_settings_t *")
+    _check(lib.att_filter_settings_default(int(k), dt, s), "att_filter_settings_default")
+    member = getattr(s, k.label)
+    out: dict[str, Any] = {}
+    for name in to_dict(make_settings(k)):
+        v = getattr(member, name)
+        if isinstance(v, ffi.CData) and ffi.typeof(v).kind == "struct":
+            keys = [fname for fname, _ in ffi.typeof(v).fields]
+            v = tuple(getattr(v, key) for key in keys)
+        out[name] = v
+    return out
+
+
+class Filter:
+    """Any C filter through the unified interface (``att_filter_t``).
+
+    Parameters
+    ----------
+    kind
+        ``"ars"``, ``"gyro"``, ``"tilt"``... or a :class:`FilterKind`.
+    settings
+        A settings dataclass for the kind (defaults when None).
+    dt
+        Sample period in s (overrides ``settings.dt``).
+    **overrides
+        Settings fields to change.
+    """
+
+    def __init__(self, kind: str | int | FilterKind, settings: Any = None, dt: float | None = None,
+                 **overrides: Any) -> None:
+        self.kind = FilterKind.parse(kind)
+        self.settings = make_settings(self.kind, settings, dt, **overrides)
+        self._s = ffi.new("att_filter_settings_t *")
+        _check(lib.att_filter_settings_default(int(self.kind), 0.01, self._s), "att_filter_settings_default")
+        _fill(getattr(self._s, self.kind.label), to_dict(self.settings))
+        self._f = ffi.new("att_filter_t *")
+        _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
+        self._in = ffi.new("att_sample_t *")
+
+    def reset(self) -> None:
+        """att_filter_reset."""
+        lib.att_filter_reset(self._f)
+
+    def output(self) -> NDArray[np.void]:
+        """att_filter_output: the current output record (shape ())."""
+        out = np.zeros((), OUTPUT_DTYPE)
+        lib.att_filter_output(self._f, ffi.from_buffer("att_output_t[]", out))
+        return out
+
+    def step(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+        """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record."""
+        for name, v in (("gyr", gyr), ("acc", acc), ("mag", mag if mag is not None else (0.0, 0.0, 0.0))):
+            a = _f32(v)
+            if a.shape != (3,):
+                raise ValueError(f"{name} must have 3 components, got shape {a.shape}")
+            dst = getattr(self._in, name)
+            dst.x, dst.y, dst.z = float(a[0]), float(a[1]), float(a[2])
+        out = np.zeros((), OUTPUT_DTYPE)
+        lib.att_filter_step(self._f, self._in, ffi.from_buffer("att_output_t[]", out))
+        return out
+
+    def run(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+        """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records."""
+        g = _f32(gyr)
+        a = _f32(acc)
+        m = _f32(mag) if mag is not None else None
+        if g.ndim != 2 or g.shape[1] != 3 or a.shape != g.shape or (m is not None and m.shape != g.shape):
+            shapes = ", ".join(str(x.shape) for x in (g, a, m) if x is not None)
+            raise ValueError(f"gyr, acc (and mag) must all have shape (N, 3); got {shapes}")
+        out = np.zeros(g.shape[0], OUTPUT_DTYPE)
+        lib.att_host_filter_run(
+            self._f,
+            _fptr(g),
+            _fptr(a),
+            _fptr(m) if m is not None else ffi.NULL,
+            g.shape[0],
+            ffi.from_buffer("att_output_t[]", out),
+        )
+        return out

@@ -7,7 +7,7 @@ the C ``att_*_settings_default`` functions; ``tests/test_settings.py`` checks th
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 
@@ -99,3 +99,65 @@ class TiltSettings:
 def to_dict(settings: Any) -> dict[str, Any]:
     """Field name to value of a settings dataclass."""
     return {f.name: getattr(settings, f.name) for f in fields(settings)}
+
+
+class FilterKind(enum.IntEnum):
+    """``att_filter_kind_t`` (values are part of the CAN contract)."""
+
+    ARS = 1
+    MARS = 2
+    KF = 3
+    EKF = 4
+    GYRO = 5
+    TILT = 6
+
+    @property
+    def label(self) -> str:
+        """Lower-case name used on the command line (``ars``, ``kf`` ...)."""
+        return self.name.lower()
+
+    @classmethod
+    def parse(cls, value: str | int | FilterKind) -> FilterKind:
+        """A kind from its name (any case) or number; ValueError listing the choices otherwise."""
+        if isinstance(value, FilterKind):
+            return value
+        if isinstance(value, int):
+            return cls(value)
+        try:
+            return cls[value.upper()]
+        except KeyError:
+            choices = ", ".join(k.label for k in cls)
+            raise ValueError(f"unknown filter {value!r}; choose one of: {choices}") from None
+
+
+SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
+    FilterKind.ARS: ArsSettings,
+    FilterKind.GYRO: GyroSettings,
+    FilterKind.TILT: TiltSettings,
+}
+"""Settings dataclass of each implemented kind."""
+
+
+def implemented_kinds() -> list[FilterKind]:
+    """The kinds with a C and reference implementation, in kind order."""
+    return [k for k in FilterKind if k in SETTINGS_CLASS]
+
+
+def make_settings(kind: FilterKind, settings: Any = None, dt: float | None = None, **overrides: Any) -> Any:
+    """Settings for ``kind``: the given object (or defaults), with ``dt`` and field overrides.
+
+    ``dt`` is ignored by kinds without a sample period (tilt). Unknown fields raise TypeError.
+    """
+    cls = SETTINGS_CLASS.get(kind)
+    if cls is None:
+        raise ValueError(f"filter {kind.label!r} is not implemented yet")
+    base = settings if settings is not None else cls()
+    if not isinstance(base, cls):
+        raise TypeError(f"settings for {kind.label} must be {cls.__name__}, got {type(base).__name__}")
+    names = {f.name for f in fields(cls)}
+    if dt is not None and "dt" in names:
+        overrides = {"dt": dt, **overrides}
+    unknown = sorted(set(overrides) - names)
+    if unknown:
+        raise TypeError(f"{cls.__name__} has no field(s) {', '.join(unknown)}; fields: {', '.join(sorted(names))}")
+    return replace(base, **overrides)

@@ -24,6 +24,12 @@ uint32_t att_sensor_check_gyro(att_vec3_t gyr, float range);
  */
 uint32_t att_sensor_check_accel(att_vec3_t acc, float range, float *norm);
 /**
+ * Check a magnetometer sample (uT, sensor frame): ATT_FLAG_MAG_ABSENT when a component is NaN or the
+ * vector is exactly zero (the "no sample" encodings), else ATT_FLAG_MAG_INVALID when a component is
+ * +-Inf or |m| > range (or |m|^2 < 2^-100); 0 when usable. *norm = |m| (0 when not usable); may be NULL.
+ */
+uint32_t att_sensor_check_mag(att_vec3_t mag, float range, float *norm);
+/**
  * Roll and pitch (rad) of the sensor from the specific force acc (sensor frame, +g up at rest),
  * ZYX convention: phi = atan2(ay, az), theta = atan2(-ax, sqrt(ay^2 + az^2)); returned as
  * (phi, theta, 0). Well defined for any non-zero vector; caller checks validity first.

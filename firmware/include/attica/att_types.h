@@ -43,7 +43,8 @@ typedef struct {
 typedef enum {
     ATT_OK = 0,            /**< success */
     ATT_ERR_NULL = -1,     /**< a required pointer argument was NULL */
-    ATT_ERR_SETTINGS = -2  /**< a setting is out of range or not finite; nothing was changed */
+    ATT_ERR_SETTINGS = -2, /**< a setting is out of range or not finite; nothing was changed */
+    ATT_ERR_KIND = -3      /**< unknown filter kind */
 } att_status_t;
 
 /**

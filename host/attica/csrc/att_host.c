@@ -155,3 +155,25 @@ void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n
         }
     }
 }
+
+size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
+                           att_output_t *out)
+{
+    size_t i;
+    att_sample_t in;
+    if (f == NULL || gyr == NULL || acc == NULL || out == NULL) {
+        return 0u;
+    }
+    in.mag.x = 0.0f;
+    in.mag.y = 0.0f;
+    in.mag.z = 0.0f;
+    for (i = 0; i < n; i++) {
+        in.gyr = att_host_v3(gyr + 3u * i);
+        in.acc = att_host_v3(acc + 3u * i);
+        if (mag != NULL) {
+            in.mag = att_host_v3(mag + 3u * i);
+        }
+        (void)att_filter_step(f, &in, out + i);
+    }
+    return n;
+}

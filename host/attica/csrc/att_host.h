@@ -8,6 +8,7 @@
 #define ATT_HOST_H
 
 #include "attica/att_ars.h"
+#include "attica/att_filter.h"
 #include "attica/att_math.h"
 
 /* ATT_CDEF_BEGIN */
@@ -43,6 +44,12 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
 /** n ARS steps: gyr, acc (n x 3), quat out (n x 4), flags out (n); bias out (n x 3) may be NULL. */
 void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n, float *quat, float *bias,
                       uint32_t *flags);
+/**
+ * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records.
+ * Returns the number of steps run (n), or 0 when f or an input is NULL.
+ */
+size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
+                           att_output_t *out);
 /* ATT_CDEF_END */
 
 #endif /* ATT_HOST_H */

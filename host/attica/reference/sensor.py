@@ -54,3 +54,17 @@ def samples(seconds: Any, dt: Any) -> Any:
         n = np.asarray(ratio).astype(np.uint32)
         n = np.where(n.astype(np.float32) < ratio, n + np.uint32(1), n)
         return np.where(pos, n, _U0).astype(np.uint32)
+
+
+def check_mag(mag: dm.Vec3, rng: Any) -> tuple[Any, Any]:
+    """att_sensor_check_mag: (flags, norm)."""
+    mx, my, mz = mag
+    rng = dm.f32(rng)
+    with np.errstate(all="ignore"):
+        absent = (mx != mx) | (my != my) | (mz != mz) | ((mx == dm.ZERO) & (my == dm.ZERO) & (mz == dm.ZERO))
+        finite = dm.vec3_isfinite(mag)
+        n2 = dm.vec3_dot(mag, mag)
+        n = dm.sqrtf(n2)
+        bad = ~absent & (~finite | ~(n2 >= dm.NORM2_MIN) | (n > rng))
+        flags = np.where(absent, np.uint32(Flag.MAG_ABSENT), np.where(bad, np.uint32(Flag.MAG_INVALID), _U0))
+        return flags, np.where(flags == _U0, n, dm.ZERO).astype(np.float32)

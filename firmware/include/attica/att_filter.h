@@ -1,0 +1,95 @@
+/**
+ * @file att_filter.h
+ * @brief One interface for every attica filter: a tagged union, no heap.
+ *
+ *     att_filter_settings_t s;
+ *     att_filter_t f;
+ *     att_output_t out;
+ *     att_filter_settings_default(ATT_FILTER_ARS, 0.0035f, &s);   // dt = 1 / 285.714 Hz
+ *     s.ars.tau = 1.0f;                                           // change what you need
+ *     if (att_filter_init(&f, ATT_FILTER_ARS, &s) != ATT_OK) { ... }
+ *     for (;;) { att_sample_t in = read_imu(); att_filter_step(&f, &in, &out); use(out.q); }
+ *
+ * A sample carries gyro (rad/s), accel (m/s^2) and mag (uT), all sensor frame; a mag vector that is
+ * exactly zero or has a NaN component means "no mag sample". Filters ignore inputs they do not use.
+ */
+#ifndef ATT_FILTER_H
+#define ATT_FILTER_H
+
+#include "attica/att_ars.h"
+#include "attica/att_gyro.h"
+#include "attica/att_tilt.h"
+#include "attica/att_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ATT_CDEF_BEGIN */
+/** Filter kinds (values are part of the CAN contract: do not renumber). */
+typedef enum {
+    ATT_FILTER_NONE = 0,
+    ATT_FILTER_ARS = 1,  /**< quaternion complementary ARS, 6-axis (att_ars.h) */
+    ATT_FILTER_MARS = 2, /**< 9-axis complementary filter with magnetometer */
+    ATT_FILTER_KF = 3,   /**< linear quaternion Kalman filter, 6-axis */
+    ATT_FILTER_EKF = 4,  /**< Euler-angle extended Kalman filter, 6-axis */
+    ATT_FILTER_GYRO = 5, /**< gyro-only Euler-rate integration baseline (att_gyro.h) */
+    ATT_FILTER_TILT = 6  /**< accel-only tilt baseline (att_tilt.h) */
+} att_filter_kind_t;
+
+/** One IMU sample, sensor frame. */
+typedef struct {
+    att_vec3_t gyr; /**< angular rate, rad/s */
+    att_vec3_t acc; /**< specific force, m/s^2 (+g up at rest) */
+    att_vec3_t mag; /**< magnetic field, uT; zero vector or NaN = absent */
+} att_sample_t;
+
+/** What every filter reports after a step. */
+typedef struct {
+    att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU) */
+    att_vec3_t euler;     /**< ZYX (roll phi, pitch theta, yaw psi), rad */
+    att_vec3_t gyro_bias; /**< gyro bias estimate, rad/s, sensor frame (0 if not estimated) */
+    float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi, 0) rad^2; else 0 */
+    uint32_t flags;       /**< ATT_FLAG_* of the step */
+    uint32_t steps;       /**< steps since init/reset (wraps) */
+} att_output_t;
+
+/** Settings of any filter; the member named after the kind is used. */
+typedef union {
+    att_ars_settings_t ars;
+    att_gyro_settings_t gyro;
+    att_tilt_settings_t tilt;
+} att_filter_settings_t;
+
+/** State of any filter; the member named after the kind is used. */
+typedef union {
+    att_ars_t ars;
+    att_gyro_t gyro;
+    att_tilt_t tilt;
+} att_filter_state_t;
+
+/** A filter of any kind. */
+typedef struct {
+    att_filter_kind_t kind; /**< which member of u is live; ATT_FILTER_NONE before init */
+    att_filter_state_t u;   /**< the filter state */
+} att_filter_t;
+
+/** Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind. */
+att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_filter_settings_t *settings);
+/** Initialise f as the given kind; on error f is unchanged. */
+att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings);
+/** Reset to the state right after init. */
+void att_filter_reset(att_filter_t *f);
+/** One step; fills out (may be NULL) and returns the flags (ATT_FLAG_BAD_ARG for NULL/uninitialised). */
+uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out);
+/** The current output without stepping (flags and steps of the last step). */
+void att_filter_output(const att_filter_t *f, att_output_t *out);
+/** Short lower-case name of a kind ("ars", "mars", "kf", "ekf", "gyro", "tilt"; "?" if unknown). */
+const char *att_filter_name(att_filter_kind_t kind);
+/* ATT_CDEF_END */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_FILTER_H */

@@ -1,0 +1,100 @@
+"""Mirror of firmware/src/att_filter.c: one interface over every reference filter."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.outputs import OUTPUT_DTYPE
+from attica.reference import detmath as dm
+from attica.reference._common import as_batch, stack
+from attica.reference.ars import Ars
+from attica.reference.gyro import Gyro
+from attica.reference.tilt import Tilt
+from attica.settings import FilterKind, make_settings
+
+
+class Filter:
+    """Any reference filter by kind, ``n`` instances in lockstep, with the C interface's outputs.
+
+    Parameters
+    ----------
+    kind
+        ``"ars"``, ``"gyro"``, ``"tilt"``... or a :class:`FilterKind`.
+    settings
+        A settings dataclass for the kind (defaults when None).
+    n
+        Number of independent instances stepped in lockstep.
+    dt
+        Sample period in s (overrides ``settings.dt``).
+    **overrides
+        Settings fields to change.
+    """
+
+    def __init__(self, kind: str | int | FilterKind, settings: Any = None, n: int = 1,
+                 dt: float | None = None, **overrides: Any) -> None:
+        self.kind = FilterKind.parse(kind)
+        self.settings = make_settings(self.kind, settings, dt, **overrides)
+        self.n = n
+        impl: Any
+        if self.kind == FilterKind.ARS:
+            impl = Ars(self.settings, n)
+        elif self.kind == FilterKind.GYRO:
+            impl = Gyro(self.settings, n)
+        elif self.kind == FilterKind.TILT:
+            impl = Tilt(self.settings, n)
+        else:  # pragma: no cover - make_settings refuses unimplemented kinds
+            raise ValueError(f"filter {self.kind.label} has no reference implementation")
+        self.impl = impl
+
+    def reset(self) -> None:
+        """att_filter_reset."""
+        self.impl.reset()
+
+    def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
+        f = self.impl
+        if self.kind == FilterKind.ARS:
+            return f.step(gyr, acc)  # type: ignore[no-any-return]
+        if self.kind == FilterKind.GYRO:
+            return f.step(gyr)  # type: ignore[no-any-return]
+        return f.step(acc)  # type: ignore[no-any-return]
+
+    def output(self) -> NDArray[np.void]:
+        """att_filter_output for every instance: (n,) records of OUTPUT_DTYPE."""
+        f = self.impl
+        out = np.zeros(self.n, OUTPUT_DTYPE)
+        out["q"] = stack(f.q)
+        if self.kind == FilterKind.ARS:
+            out["euler"] = stack(dm.quat_to_euler(f.q))
+            out["gyro_bias"] = stack(f.bias)
+        else:
+            out["euler"] = stack(f.euler)
+        out["flags"] = f.flags
+        out["steps"] = f.steps
+        return out
+
+    def step(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+        """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records."""
+        if mag is None:
+            mag = np.zeros(3, np.float32)
+        self._step_impl(gyr, acc, mag)
+        return self.output()
+
+    def run(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+        """Step through N samples: inputs (N, 3) (all instances fed the same) or (N, n, 3).
+
+        Returns (N,) records for n == 1 and 2-D inputs, else (N, n).
+        """
+        g, multi = as_batch(gyr, 3)
+        a, _ = as_batch(acc, 3)
+        m = as_batch(mag, 3)[0] if mag is not None else np.zeros((g.shape[0], 1, 3), np.float32)
+        if a.shape[0] != g.shape[0] or m.shape[0] != g.shape[0]:
+            raise ValueError("gyr, acc and mag must have the same number of samples")
+        out = np.empty((g.shape[0], self.n), OUTPUT_DTYPE)
+        for i in range(g.shape[0]):
+            out[i] = self.step(g[i], a[i], m[i])
+        if not multi and self.n == 1:
+            return out[:, 0]
+        return out

@@ -1,0 +1,81 @@
+"""Mirror of firmware/src/att_gyro.c: gyro-only ZYX Euler-rate integration, instances in lockstep."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.reference import detmath as dm
+from attica.reference import sensor
+from attica.reference._common import setting, split3, stack
+from attica.settings import Flag, GyroSettings
+
+_U0 = np.uint32(0)
+_PI = dm.c("0x1.921fb6p+1")
+_PIO2 = dm.c("0x1.921fb6p+0")
+
+
+class Gyro:
+    """Gyro-only baseline reference; ``n`` instances sharing one settings object."""
+
+    def __init__(self, settings: GyroSettings | None = None, n: int = 1) -> None:
+        s = settings if settings is not None else GyroSettings()
+        self.settings = s
+        self.n = n
+        self.dt = setting(s.dt, n)
+        self.gyro_range = setting(s.gyro_range, n)
+        self.cos_min = setting(s.cos_min, n)
+        self.euler_init = split3(s.euler_init, n)
+        self.reset()
+
+    def reset(self) -> None:
+        """att_gyro_reset."""
+        e0 = self.euler_init
+        self.euler: dm.Vec3 = (dm.wrap_pi(e0[0]), e0[1].copy(), dm.wrap_pi(e0[2]))
+        self.q = dm.quat_from_euler(*self.euler)
+        self.steps = np.zeros(self.n, np.uint32)
+        self.flags = np.zeros(self.n, np.uint32)
+
+    def step(self, gyr: Any) -> NDArray[np.uint32]:
+        """One update with gyro (n, 3) or (3,), rad/s. Returns flags (n,)."""
+        p, q, r = split3(gyr, self.n)
+        flags = sensor.check_gyro((p, q, r), self.gyro_range)
+        ok = flags == _U0
+        phi, theta, psi = self.euler
+        dt = self.dt
+        with np.errstate(all="ignore"):
+            sphi = dm.sinf(phi)
+            cphi = dm.cosf(phi)
+            sth = dm.sinf(theta)
+            cth = dm.cosf(theta)
+            gimbal = dm.absf(cth) < self.cos_min
+            cth = np.where(gimbal, np.where(cth < dm.ZERO, -self.cos_min, self.cos_min), cth)
+            flags = flags | np.where(ok & gimbal, np.uint32(Flag.GIMBAL), _U0)
+            tth = sth / cth
+            ex = phi + (p + sphi * tth * q + cphi * tth * r) * dt
+            ey = theta + (cphi * q - sphi * r) * dt
+            ez = psi + (sphi / cth * q + cphi / cth * r) * dt
+            over = ey > _PIO2
+            under = ey < -_PIO2
+            flip = over | under
+            ey = np.where(over, _PI - ey, np.where(under, -_PI - ey, ey))
+            ex = np.where(flip, ex + _PI, ex)
+            ez = np.where(flip, ez + _PI, ez)
+            ex = dm.wrap_pi(ex)
+            ez = dm.wrap_pi(ez)
+            e = (ex, ey, ez)
+            finite = dm.vec3_isfinite(e)
+            flags = flags | np.where(ok & ~finite, np.uint32(Flag.NUMERIC), _U0)
+            take = ok & finite
+            self.euler = dm.vec3_where(take, e, self.euler)
+            self.q = dm.quat_where(take, dm.quat_from_euler(ex, ey, ez), self.q)
+        self.steps = self.steps + np.uint32(1)
+        self.flags = flags.astype(np.uint32)
+        return self.flags
+
+    @property
+    def quat(self) -> NDArray[np.float32]:
+        """Attitudes (n, 4)."""
+        return stack(self.q)

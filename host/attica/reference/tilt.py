@@ -1,0 +1,63 @@
+"""Mirror of firmware/src/att_tilt.c: accel-only tilt, instances in lockstep."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.reference import detmath as dm
+from attica.reference import sensor
+from attica.reference._common import setting, split3, stack
+from attica.settings import Flag, TiltSettings
+
+_U0 = np.uint32(0)
+
+
+class Tilt:
+    """Accel-only tilt reference; ``n`` instances sharing one settings object."""
+
+    def __init__(self, settings: TiltSettings | None = None, n: int = 1) -> None:
+        s = settings if settings is not None else TiltSettings()
+        self.settings = s
+        self.n = n
+        self.gravity = setting(s.gravity, n)
+        self.accel_range = setting(s.accel_range, n)
+        self.normalise = setting(s.normalise, n, np.bool_)
+        self.reset()
+
+    def reset(self) -> None:
+        """att_tilt_reset."""
+        z = np.zeros(self.n, np.float32)
+        self.euler: dm.Vec3 = (z, z.copy(), z.copy())
+        self.q = dm.quat_identity((self.n,))
+        self.valid = np.zeros(self.n, np.bool_)
+        self.steps = np.zeros(self.n, np.uint32)
+        self.flags = np.zeros(self.n, np.uint32)
+
+    def step(self, acc: Any) -> NDArray[np.uint32]:
+        """One update with accel (n, 3) or (3,), m/s^2. Returns flags (n,)."""
+        a = split3(acc, self.n)
+        flags, norm = sensor.check_accel(a, self.accel_range)
+        ok = flags == _U0
+        with np.errstate(all="ignore"):
+            s = -a[0] / np.where(self.normalise, norm, self.gravity)
+            clamp = dm.absf(s) > dm.ONE
+            s = np.where(clamp, np.where(s < dm.ZERO, -dm.ONE, dm.ONE), s)
+            flags = flags | np.where(ok & clamp, np.uint32(Flag.CLAMPED), _U0)
+            phi = dm.atan2f(a[1], a[2])
+            theta = dm.asinf(s)
+            zero = np.zeros(self.n, np.float32)
+            self.euler = dm.vec3_where(ok, (phi, theta, zero), self.euler)
+            self.q = dm.quat_where(ok, dm.quat_from_euler(phi, theta, zero), self.q)
+        flags = flags | np.where(~ok & ~self.valid, np.uint32(Flag.NOT_READY), _U0)
+        self.valid = self.valid | ok
+        self.steps = self.steps + np.uint32(1)
+        self.flags = flags.astype(np.uint32)
+        return self.flags
+
+    @property
+    def quat(self) -> NDArray[np.float32]:
+        """Attitudes (n, 4)."""
+        return stack(self.q)
