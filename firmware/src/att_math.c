@@ -26,6 +26,10 @@
 #define ATT_PIO4_HI 0x1.921fb6p-1f
 #define ATT_PIO4_LO (-0x1.777a5cp-26f)
 #define ATT_TWOPI_HI 0x1.921fb6p+2f
+/* 2 pi = 4 (P1 + P2 + P3): the same exact split as pi/2, scaled by 4 */
+#define ATT_TWOPI_P1 0x1.92p+2f
+#define ATT_TWOPI_P2 0x1.fb4p-10f
+#define ATT_TWOPI_P3 0x1.4442d2p-22f
 #define ATT_TWOPI_LO (-0x1.777a5cp-23f)
 #define ATT_TAN_PIO8 0x1.a8279ap-2f
 /* Adding and subtracting 1.5 * 2^23 rounds a float of magnitude < 2^22 to the nearest integer
@@ -207,7 +211,7 @@ float att_wrap_pi(float a)
         return NAN;
     }
     kf = (a * ATT_INV_TWO_PI + ATT_ROUND_MAGIC) - ATT_ROUND_MAGIC;
-    r = (a - kf * ATT_TWOPI_HI) - kf * ATT_TWOPI_LO;
+    r = ((a - kf * ATT_TWOPI_P1) - kf * ATT_TWOPI_P2) - kf * ATT_TWOPI_P3;
     if (r <= -ATT_PI_HI) {
         r = (r + ATT_TWOPI_HI) + ATT_TWOPI_LO;
     } else if (r > ATT_PI_HI) {

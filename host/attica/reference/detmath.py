@@ -58,6 +58,9 @@ PIO4_HI = c("0x1.921fb6p-1")
 PIO4_LO = c("-0x1.777a5cp-26")
 TWOPI_HI = c("0x1.921fb6p+2")
 TWOPI_LO = c("-0x1.777a5cp-23")
+TWOPI_P1 = c("0x1.92p+2")
+TWOPI_P2 = c("0x1.fb4p-10")
+TWOPI_P3 = c("0x1.4442d2p-22")
 TAN_PIO8 = c("0x1.a8279ap-2")
 ROUND_MAGIC = c("0x1.8p+23")
 TRIG_MAX_ARG = c("0x1p+13")
@@ -200,7 +203,7 @@ def wrap_pi(a: F32) -> Any:
     with _quiet():
         ok = absf(a) <= TRIG_MAX_ARG
         kf = (a * INV_TWO_PI + ROUND_MAGIC) - ROUND_MAGIC
-        r = (a - kf * TWOPI_HI) - kf * TWOPI_LO
+        r = ((a - kf * TWOPI_P1) - kf * TWOPI_P2) - kf * TWOPI_P3
         r = np.where(
             r <= -PI_HI, (r + TWOPI_HI) + TWOPI_LO, np.where(r > PI_HI, (r - TWOPI_HI) - TWOPI_LO, r)
         )
