@@ -61,7 +61,19 @@ def headers() -> list[Path]:
 
     for name in pool:
         visit(name)
-    return ordered
+    return [h for h in ordered if _has_source(h)]
+
+
+def _has_source(header: Path) -> bool:
+    """A header with prototypes is bound only once its module source exists (att_x.h -> att_x.c)."""
+    decls = re.sub(r"/\*.*?\*/", "", "".join(_CDEF.findall(header.read_text())), flags=re.S)
+    if "(" not in decls:
+        return True  # types and constants only
+    src_dir = CSRC if header.parent == CSRC else FIRMWARE / "src"
+    if (src_dir / (header.stem + ".c")).exists():
+        return True
+    print(f"attica build: skipping {header.name}: no {header.stem}.c yet", file=sys.stderr)
+    return False
 
 
 def cflags() -> list[str]:
@@ -124,7 +136,10 @@ def build(verbose: bool = False) -> Path:
     built = Path(ffi.compile(tmpdir=str(tmp), verbose=verbose))
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
     target = PKG / ("_native" + suffix)
-    shutil.copy2(built, target)
+    # replace atomically: processes that already loaded the old file keep its inode
+    tmp_target = target.with_name(target.name + f".{os.getpid()}.tmp")
+    shutil.copy2(built, tmp_target)
+    os.replace(tmp_target, target)
     STAMP.write_text(inputs_digest() + "\n")
     return target
 

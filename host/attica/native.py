@@ -297,8 +297,17 @@ class Filter:
         lib.att_filter_step(self._f, self._in, ffi.from_buffer("att_output_t[]", out))
         return out
 
-    def run(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
-        """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records."""
+    @property
+    def state(self) -> Any:
+        """The C state (``att_filter_t *``; live, not a copy)."""
+        return self._f
+
+    def run(self, gyr: Any, acc: Any, mag: Any = None, snapshot_every: int = 0) -> Any:
+        """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
+
+        With ``snapshot_every`` > 0 returns ``(records, snapshots)`` where snapshots is a cffi array
+        of ``att_filter_t`` holding the state just before steps 0, k, 2k, ...
+        """
         g = _f32(gyr)
         a = _f32(acc)
         m = _f32(mag) if mag is not None else None
@@ -306,6 +315,8 @@ class Filter:
             shapes = ", ".join(str(x.shape) for x in (g, a, m) if x is not None)
             raise ValueError(f"gyr, acc (and mag) must all have shape (N, 3); got {shapes}")
         out = np.zeros(g.shape[0], OUTPUT_DTYPE)
+        every = max(int(snapshot_every), 0)
+        snaps = ffi.new("att_filter_t[]", -(-g.shape[0] // every)) if every else ffi.NULL
         lib.att_host_filter_run(
             self._f,
             _fptr(g),
@@ -313,5 +324,9 @@ class Filter:
             _fptr(m) if m is not None else ffi.NULL,
             g.shape[0],
             ffi.from_buffer("att_output_t[]", out),
+            every,
+            snaps,
         )
+        if every:
+            return out, snaps
         return out

@@ -157,7 +157,7 @@ void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n
 }
 
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out)
+                           att_output_t *out, size_t every, att_filter_t *snaps)
 {
     size_t i;
     att_sample_t in;
@@ -168,6 +168,9 @@ size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, 
     in.mag.y = 0.0f;
     in.mag.z = 0.0f;
     for (i = 0; i < n; i++) {
+        if (snaps != NULL && every > 0u && i % every == 0u) {
+            snaps[i / every] = *f;
+        }
         in.gyr = att_host_v3(gyr + 3u * i);
         in.acc = att_host_v3(acc + 3u * i);
         if (mag != NULL) {

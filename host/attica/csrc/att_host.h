@@ -46,10 +46,11 @@ void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n
                       uint32_t *flags);
 /**
  * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records.
- * Returns the number of steps run (n), or 0 when f or an input is NULL.
+ * With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before step
+ * j * every (ceil(n / every) snapshots). Returns n, or 0 when f or an input is NULL.
  */
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out);
+                           att_output_t *out, size_t every, att_filter_t *snaps);
 /* ATT_CDEF_END */
 
 #endif /* ATT_HOST_H */

@@ -36,3 +36,66 @@ def as_batch(x: Any, width: int) -> tuple[NDArray[np.float32], bool]:
     if a.ndim == 3 and a.shape[2] == width:
         return a, True
     raise ValueError(f"expected shape (N, {width}) or (N, M, {width}), got {a.shape}")
+
+
+StateSpec = dict[str, str]
+"""Reference attribute name -> layout of the C state field of the same name.
+
+Layouts: ``quat`` (w,x,y,z tuple of (n,) float32), ``vec3`` (x,y,z tuple), ``f32``, ``u32``, ``bool``,
+``f32xN`` (tuple of N (n,) float32 arrays from a C ``float[N]`` or ``float[a][b]`` field).
+"""
+
+_QUAT_KEYS = ("w", "x", "y", "z")
+_VEC_KEYS = ("x", "y", "z")
+
+
+def _c_values(layout: str, value: Any) -> list[Any]:
+    if layout == "quat":
+        return [getattr(value, k) for k in _QUAT_KEYS]
+    if layout == "vec3":
+        return [getattr(value, k) for k in _VEC_KEYS]
+    if layout.startswith("f32x"):
+        count = int(layout[4:])
+        flat: list[Any] = []
+
+        def walk(v: Any) -> None:
+            try:
+                for item in v:
+                    walk(item)
+            except TypeError:
+                flat.append(v)
+
+        walk(value)
+        if len(flat) != count:
+            raise ValueError(f"layout {layout}: C field has {len(flat)} values")
+        return flat
+    return [value]
+
+
+def load_c_state(obj: Any, spec: StateSpec, i: int, c_state: Any) -> None:
+    """Set instance ``i`` of reference object ``obj`` from a cffi C state struct."""
+    for name, layout in spec.items():
+        vals = _c_values(layout, getattr(c_state, name))
+        cur = getattr(obj, name)
+        if isinstance(cur, tuple):
+            for arr, v in zip(cur, vals):
+                arr[i] = v
+        else:
+            cur[i] = vals[0]
+
+
+def state_values(obj: Any, spec: StateSpec, i: int) -> list[Any]:
+    """Instance ``i``'s state as a flat list (numpy scalars), in spec order."""
+    out: list[Any] = []
+    for name in spec:
+        cur = getattr(obj, name)
+        out.extend([a[i] for a in cur] if isinstance(cur, tuple) else [cur[i]])
+    return out
+
+
+def c_state_values(spec: StateSpec, c_state: Any) -> list[Any]:
+    """A C state struct as a flat list in the same order as :func:`state_values`."""
+    out: list[Any] = []
+    for name, layout in spec.items():
+        out.extend(_c_values(layout, getattr(c_state, name)))
+    return out

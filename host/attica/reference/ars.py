@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import as_batch, setting, split3, stack
+from attica.reference._common import StateSpec, as_batch, setting, split3, stack
 from attica.settings import ArsSettings, BiasMode, Flag, Integration
 
 _U0 = np.uint32(0)
@@ -24,6 +24,9 @@ class Ars:
 
     Settings fields may be scalars or length-``n`` sequences (one value per instance).
     """
+
+    STATE: StateSpec = {"q": "quat", "bias": "vec3", "bias_n": "u32", "rest_count": "u32", "initialised": "bool", "steps": "u32", "flags": "u32"}
+    """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: ArsSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else ArsSettings()

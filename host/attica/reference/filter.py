@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.outputs import OUTPUT_DTYPE
 from attica.reference import detmath as dm
-from attica.reference._common import as_batch, stack
+from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
 from attica.reference.gyro import Gyro
 from attica.reference.tilt import Tilt
@@ -52,6 +52,27 @@ class Filter:
     def reset(self) -> None:
         """att_filter_reset."""
         self.impl.reset()
+
+    def load_c_states(self, states: Any) -> None:
+        """Set instance i from ``states[i]``, a C ``att_filter_t`` of the same kind (cffi)."""
+        for i in range(self.n):
+            st = states[i]
+            if int(st.kind) != int(self.kind):
+                raise ValueError(f"state {i} is a {int(st.kind)} filter, expected {self.kind.label}")
+            load_c_state(self.impl, self.impl.STATE, i, getattr(st.u, self.kind.label))
+
+    def state_matches(self, i: int, c_state: Any) -> bool:
+        """True when instance i's state equals the C ``att_filter_t`` bit for bit (NaN == NaN)."""
+        ours = state_values(self.impl, self.impl.STATE, i)
+        theirs = c_state_values(self.impl.STATE, getattr(c_state.u, self.kind.label))
+        for a, b in zip(ours, theirs):
+            if isinstance(a, np.floating):
+                fb = np.float32(b)
+                if not ((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32)):
+                    return False
+            elif int(a) != int(b):
+                return False
+        return True
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         f = self.impl

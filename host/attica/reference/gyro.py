@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import setting, split3, stack
+from attica.reference._common import StateSpec, setting, split3, stack
 from attica.settings import Flag, GyroSettings
 
 _U0 = np.uint32(0)
@@ -19,6 +19,9 @@ _PIO2 = dm.c("0x1.921fb6p+0")
 
 class Gyro:
     """Gyro-only baseline reference; ``n`` instances sharing one settings object."""
+
+    STATE: StateSpec = {"euler": "vec3", "q": "quat", "steps": "u32", "flags": "u32"}
+    """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: GyroSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else GyroSettings()

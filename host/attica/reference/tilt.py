@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import setting, split3, stack
+from attica.reference._common import StateSpec, setting, split3, stack
 from attica.settings import Flag, TiltSettings
 
 _U0 = np.uint32(0)
@@ -17,6 +17,9 @@ _U0 = np.uint32(0)
 
 class Tilt:
     """Accel-only tilt reference; ``n`` instances sharing one settings object."""
+
+    STATE: StateSpec = {"euler": "vec3", "q": "quat", "valid": "bool", "steps": "u32", "flags": "u32"}
+    """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: TiltSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else TiltSettings()
