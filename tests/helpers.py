@@ -60,9 +60,34 @@ def special_values() -> np.ndarray:
     one_up = np.nextafter(f(1), f(2))
     one_down = np.nextafter(f(1), f(0))
     vals = [
-        0.0, -0.0, np.nan, np.inf, -np.inf, 1.0, -1.0, one_up, -one_up, one_down, -one_down,
-        tiny, -tiny, tiny / 4, -tiny / 4, 1e-45, big, -big, 1e30, -1e30, 8192.0, -8192.0,
-        np.nextafter(f(8192), f(9000)), 0.5, -0.5, 2.0, 1e-20, 1e-8,
+        0.0,
+        -0.0,
+        np.nan,
+        np.inf,
+        -np.inf,
+        1.0,
+        -1.0,
+        one_up,
+        -one_up,
+        one_down,
+        -one_down,
+        tiny,
+        -tiny,
+        tiny / 4,
+        -tiny / 4,
+        1e-45,
+        big,
+        -big,
+        1e30,
+        -1e30,
+        8192.0,
+        -8192.0,
+        np.nextafter(f(8192), f(9000)),
+        0.5,
+        -0.5,
+        2.0,
+        1e-20,
+        1e-8,
     ]
     pio2 = np.float32(np.pi / 2)
     vals += [k * pio2 for k in range(-8, 9)] + [k * np.float32(np.pi / 4) for k in range(-8, 9)]

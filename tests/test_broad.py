@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import pytest
-from helpers import broad_trials
 
 from attica.crosscheck import Stream, crosscheck
 from attica.data import load_recording
 from attica.settings import FilterKind, implemented_kinds, make_settings
+
+from helpers import broad_trials
 
 
 @pytest.fixture(scope="module")

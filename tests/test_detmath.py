@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
-from helpers import adversarial_floats, assert_same_bits
 
 from attica import native
 from attica.reference import detmath as dm
+
+from helpers import adversarial_floats, assert_same_bits
 
 N = 1_000_000
 RNG = np.random.default_rng(20261123)
@@ -30,7 +32,9 @@ ACCURACY_CASES: list[tuple[str, Callable[..., Any], Callable[..., Any], np.ndarr
 
 
 @pytest.mark.parametrize("name,ours,ref,x", ACCURACY_CASES, ids=[c[0] for c in ACCURACY_CASES])
-def test_accuracy_below_1e6(name: str, ours: Callable[..., Any], ref: Callable[..., Any], x: np.ndarray) -> None:
+def test_accuracy_below_1e6(
+    name: str, ours: Callable[..., Any], ref: Callable[..., Any], x: np.ndarray
+) -> None:
     err = np.abs(ours(x).astype(np.float64) - ref(x.astype(np.float64)))
     print(f"\n{name}: max abs error {err.max():.3e} over {x.size} inputs")
     assert err.max() < 1e-6
@@ -38,8 +42,12 @@ def test_accuracy_below_1e6(name: str, ours: Callable[..., Any], ref: Callable[.
 
 def test_accuracy_edges() -> None:
     """asin/acos near +-1, trig at multiples of pi/2, exact values where they are exact."""
-    x = np.concatenate([np.nextafter(np.float32(1), np.float32(0)) - np.arange(2000, dtype=np.float32) * 6e-8,
-                        np.linspace(0.999, 1.0, 10001, dtype=np.float32)])
+    x = np.concatenate(
+        [
+            np.nextafter(np.float32(1), np.float32(0)) - np.arange(2000, dtype=np.float32) * 6e-8,
+            np.linspace(0.999, 1.0, 10001, dtype=np.float32),
+        ]
+    )
     x = np.concatenate([x, -x])
     for ours, ref in ((dm.asinf, np.arcsin), (dm.acosf, np.arccos)):
         err = np.abs(ours(x).astype(np.float64) - ref(x.astype(np.float64)))
@@ -52,8 +60,12 @@ def test_accuracy_edges() -> None:
 
 
 def test_atan2_accuracy() -> None:
-    y = np.concatenate([_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1e5, 100_000).astype(np.float32)])
-    x = np.concatenate([_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1, 100_000).astype(np.float32)])
+    y = np.concatenate(
+        [_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1e5, 100_000).astype(np.float32)]
+    )
+    x = np.concatenate(
+        [_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1, 100_000).astype(np.float32)]
+    )
     err = np.abs(dm.atan2f(y, x).astype(np.float64) - np.arctan2(y.astype(np.float64), x.astype(np.float64)))
     print(f"\natan2: max abs error {err.max():.3e} over {y.size} inputs")
     assert err.max() < 1e-6
@@ -80,8 +92,14 @@ def test_wrap_pi() -> None:
     assert dm.wrap_pi(-pi32) == np.nextafter(pi32, np.float32(0))
 
 
-SCALAR = [("sin", native.sinf, dm.sinf), ("cos", native.cosf, dm.cosf), ("asin", native.asinf, dm.asinf),
-          ("acos", native.acosf, dm.acosf), ("sqrt", native.sqrtf, dm.sqrtf), ("wrap_pi", native.wrap_pi, dm.wrap_pi)]
+SCALAR = [
+    ("sin", native.sinf, dm.sinf),
+    ("cos", native.cosf, dm.cosf),
+    ("asin", native.asinf, dm.asinf),
+    ("acos", native.acosf, dm.acosf),
+    ("sqrt", native.sqrtf, dm.sqrtf),
+    ("wrap_pi", native.wrap_pi, dm.wrap_pi),
+]
 
 
 @pytest.mark.parametrize("name,c_fn,ref_fn", SCALAR, ids=[s[0] for s in SCALAR])
@@ -156,7 +174,11 @@ def test_vector_kernels_bit_exact(name: str) -> None:
     _, width, _ = native._MAPQ[name]
     rng = np.random.default_rng(len(name))
     normal = rng.normal(0, 2, (600_000, width)).astype(np.float32)
-    if name.startswith("quat_") and name not in ("quat_from_euler", "quat_from_rotvec", "quat_from_axis_angle"):
+    if name.startswith("quat_") and name not in (
+        "quat_from_euler",
+        "quat_from_rotvec",
+        "quat_from_axis_angle",
+    ):
         normal[:, :4] = _quats(600_000, 3)
     rows = np.concatenate([normal, _adversarial_rows(500_000, width, 7)])
     assert_same_bits(native.mapq(name, rows), _ref_mapq(name, rows), name)

@@ -108,7 +108,20 @@ def compile_objects(cc: str, opt: str = "-O2") -> list[Path]:
     objs = []
     for src in firmware_sources() + sorted(CSRC.glob("*.c")):
         obj = BUILD / (src.stem + ".o")
-        cmd = [cc, *cflags(), opt, "-fPIC", "-I", str(INCLUDE), "-I", str(CSRC), "-c", str(src), "-o", str(obj)]
+        cmd = [
+            cc,
+            *cflags(),
+            opt,
+            "-fPIC",
+            "-I",
+            str(INCLUDE),
+            "-I",
+            str(CSRC),
+            "-c",
+            str(src),
+            "-o",
+            str(obj),
+        ]
         subprocess.run(cmd, check=True)
         objs.append(obj)
     return objs

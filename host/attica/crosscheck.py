@@ -10,8 +10,9 @@ snapshot: no hidden state can drift without being seen.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,7 +52,7 @@ class CrossCheck:
 
 def records_equal(a: NDArray[np.void], b: NDArray[np.void]) -> NDArray[np.bool_]:
     """Per record: all float fields bit-identical (NaN == NaN), flags and steps equal."""
-    ok = (a["flags"] == b["flags"]) & (a["steps"] == b["steps"])
+    ok: NDArray[np.bool_] = (a["flags"] == b["flags"]) & (a["steps"] == b["steps"])
     for name in FLOAT_FIELDS:
         x = a[name]
         y = b[name]
@@ -82,6 +83,7 @@ def crosscheck(
         Steps per reference lockstep segment (smaller = more instances, fewer sequential steps).
     progress
         Called as ``progress(done, total)`` with reference steps done.
+
     """
     k = FilterKind.parse(kind)
     s = make_settings(k, settings, **overrides)
@@ -131,7 +133,7 @@ def crosscheck(
         rec = ref.step(gyr[t], acc[t], mag[t])
         bad = ~records_equal(rec, expected[t]) & valid[t]
         if bad.any() and not result.first_mismatch:
-            col = int(np.argmax(bad))
+            col = int(np.argmax(bad).item())
             si, start, _ = segs[col][1]
             result.first_mismatch = (
                 f"stream {si} ({streams[si].name or 'unnamed'}) step {start + t}: C {expected[t, col]!r} "
@@ -140,9 +142,9 @@ def crosscheck(
         result.mismatched_steps += int(bad.sum())
         result.steps += int(valid[t].sum())
         # segments ending after this step: compare full state with the next C snapshot
-        for col in np.nonzero(lengths == t + 1)[0]:
-            seg_index = segs[col][0]
-            if not ref.state_matches(int(col), snapshots[seg_index + 1]):
+        for end_col in np.nonzero(lengths == t + 1)[0].tolist():
+            seg_index = segs[end_col][0]
+            if not ref.state_matches(end_col, snapshots[seg_index + 1]):
                 result.state_mismatches += 1
                 if not result.first_mismatch:
                     result.first_mismatch = f"state differs at the end of segment {seg_index}"

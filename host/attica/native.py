@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from attica import _build
 from attica.outputs import OUTPUT_DTYPE
-from attica.settings import ArsSettings, FilterKind, make_settings, to_dict
+from attica.settings import FilterKind, make_settings, to_dict
 
 
 def _load() -> tuple[Any, Any]:
@@ -151,88 +151,6 @@ def _fill(struct: Any, values: dict[str, Any]) -> None:
             setattr(struct, name, float(value))
 
 
-def ars_default_settings(dt: float) -> dict[str, Any]:
-    """The C defaults (att_ars_settings_default) as a dict, for comparison with ArsSettings."""
-    s = ffi.new("att_ars_settings_t *")
-    lib.att_ars_settings_default(s, dt)
-    out: dict[str, Any] = {}
-    for name in to_dict(ArsSettings()):
-        v = getattr(s, name)
-        if name == "bias_init":
-            v = (v.x, v.y, v.z)
-        elif name == "q_init":
-            v = (v.w, v.x, v.y, v.z)
-        out[name] = v
-    return out
-
-
-class Ars:
-    """The C complementary ARS (``att_ars_t``), one instance."""
-
-    def __init__(self, settings: ArsSettings | None = None) -> None:
-        self.settings = settings if settings is not None else ArsSettings()
-        self._s = ffi.new("att_ars_settings_t *")
-        lib.att_ars_settings_default(self._s, float(self.settings.dt))
-        _fill(self._s, to_dict(self.settings))
-        self._f = ffi.new("att_ars_t *")
-        _check(lib.att_ars_init(self._f, self._s), "att_ars_init")
-
-    def reset(self) -> None:
-        """att_ars_reset: back to the initial state, same settings."""
-        lib.att_ars_reset(self._f)
-
-    def step(self, gyr: Any, acc: Any) -> int:
-        """One update; gyr (rad/s) and acc (m/s^2) are 3-sequences in the sensor frame. Returns flags."""
-        g = _f32(gyr)
-        a = _f32(acc)
-        return int(lib.att_ars_step(self._f, (g[0], g[1], g[2]), (a[0], a[1], a[2])))
-
-    @property
-    def quat(self) -> NDArray[np.float32]:
-        """Attitude (4,), w,x,y,z, sensor-to-earth."""
-        q = self._f.q
-        return np.array([q.w, q.x, q.y, q.z], np.float32)
-
-    @property
-    def gyro_bias(self) -> NDArray[np.float32]:
-        """Gyro bias estimate (3,), rad/s, sensor frame."""
-        b = self._f.bias
-        return np.array([b.x, b.y, b.z], np.float32)
-
-    @property
-    def flags(self) -> int:
-        """Flags of the last step."""
-        return int(self._f.flags)
-
-    def run(
-        self, gyr: Any, acc: Any, with_bias: bool = False
-    ) -> tuple[NDArray[np.float32], NDArray[np.uint32]] | tuple[
-        NDArray[np.float32], NDArray[np.uint32], NDArray[np.float32]
-    ]:
-        """Step through N samples in C: gyr, acc (N, 3). Returns quats (N, 4), flags (N,)
-        and, with ``with_bias``, the bias estimates (N, 3)."""
-        g = _f32(gyr)
-        a = _f32(acc)
-        if g.ndim != 2 or g.shape[1] != 3 or a.shape != g.shape:
-            raise ValueError(f"gyr and acc must both have shape (N, 3); got {g.shape} and {a.shape}")
-        n = g.shape[0]
-        quats = np.empty((n, 4), np.float32)
-        flags = np.empty(n, np.uint32)
-        bias = np.empty((n, 3), np.float32) if with_bias else None
-        lib.att_host_ars_run(
-            self._f,
-            _fptr(g),
-            _fptr(a),
-            n,
-            _fptr(quats),
-            _fptr(bias) if bias is not None else ffi.NULL,
-            ffi.from_buffer("uint32_t[]", flags),
-        )
-        if bias is not None:
-            return quats, flags, bias
-        return quats, flags
-
-
 def default_settings(kind: str | int | FilterKind, dt: float = 0.01) -> dict[str, Any]:
     """The C defaults (att_filter_settings_default) of a kind as a dict of its settings fields."""
     k = FilterKind.parse(kind)
@@ -262,10 +180,12 @@ class Filter:
         Sample period in s (overrides ``settings.dt``).
     **overrides
         Settings fields to change.
+
     """
 
-    def __init__(self, kind: str | int | FilterKind, settings: Any = None, dt: float | None = None,
-                 **overrides: Any) -> None:
+    def __init__(
+        self, kind: str | int | FilterKind, settings: Any = None, dt: float | None = None, **overrides: Any
+    ) -> None:
         self.kind = FilterKind.parse(kind)
         self.settings = make_settings(self.kind, settings, dt, **overrides)
         self._s = ffi.new("att_filter_settings_t *")

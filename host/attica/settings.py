@@ -159,5 +159,7 @@ def make_settings(kind: FilterKind, settings: Any = None, dt: float | None = Non
         overrides = {"dt": dt, **overrides}
     unknown = sorted(set(overrides) - names)
     if unknown:
-        raise TypeError(f"{cls.__name__} has no field(s) {', '.join(unknown)}; fields: {', '.join(sorted(names))}")
+        raise TypeError(
+            f"{cls.__name__} has no field(s) {', '.join(unknown)}; fields: {', '.join(sorted(names))}"
+        )
     return replace(base, **overrides)

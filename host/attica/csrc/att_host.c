@@ -143,19 +143,6 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
     return 0;
 }
 
-void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n, float *quat, float *bias,
-                      uint32_t *flags)
-{
-    size_t i;
-    for (i = 0; i < n; i++) {
-        flags[i] = att_ars_step(f, att_host_v3(gyr + 3u * i), att_host_v3(acc + 3u * i));
-        att_host_put_q(quat + 4u * i, f->q);
-        if (bias != NULL) {
-            att_host_put_v3(bias + 3u * i, f->bias);
-        }
-    }
-}
-
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
                            att_output_t *out, size_t every, att_filter_t *snaps)
 {

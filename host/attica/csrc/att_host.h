@@ -7,7 +7,6 @@
 #ifndef ATT_HOST_H
 #define ATT_HOST_H
 
-#include "attica/att_ars.h"
 #include "attica/att_filter.h"
 #include "attica/att_math.h"
 
@@ -41,9 +40,6 @@ int att_host_map1(int fn, const float *x, float *y, size_t n);
 void att_host_atan2(const float *a, const float *b, float *y, size_t n);
 /** Row-wise kernel: in rows of in_width floats, out rows of out_width; -1 for bad fn/widths. */
 int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t out_width, size_t n);
-/** n ARS steps: gyr, acc (n x 3), quat out (n x 4), flags out (n); bias out (n x 3) may be NULL. */
-void att_host_ars_run(att_ars_t *f, const float *gyr, const float *acc, size_t n, float *quat, float *bias,
-                      uint32_t *flags);
 /**
  * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records.
  * With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before step

@@ -25,7 +25,15 @@ class Ars:
     Settings fields may be scalars or length-``n`` sequences (one value per instance).
     """
 
-    STATE: StateSpec = {"q": "quat", "bias": "vec3", "bias_n": "u32", "rest_count": "u32", "initialised": "bool", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {
+        "q": "quat",
+        "bias": "vec3",
+        "bias_n": "u32",
+        "rest_count": "u32",
+        "initialised": "bool",
+        "steps": "u32",
+        "flags": "u32",
+    }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: ArsSettings | None = None, n: int = 1) -> None:
@@ -48,7 +56,12 @@ class Ars:
         self.rest_time = setting(s.rest_time, n)
         self.integration = setting(int(s.integration), n, np.int32)
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
-        self.q_init = tuple(setting(v, n) for v in np.broadcast_to(np.asarray(s.q_init, np.float32), (4,)))
+        self.q_init: dm.Quat = (
+            setting(s.q_init[0], n),
+            setting(s.q_init[1], n),
+            setting(s.q_init[2], n),
+            setting(s.q_init[3], n),
+        )
         with np.errstate(all="ignore"):
             self.k = np.where(tau > dm.ZERO, self.dt / (tau + self.dt), gain).astype(np.float32)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
@@ -120,7 +133,7 @@ class Ars:
             nf = self.bias_n.astype(np.float32)
             den = nf + dm.ONE
             new_bias = tuple((nf * b + w) / den for b, w in zip(self.bias, g))
-            self.bias = dm.vec3_where(update, new_bias, self.bias)  # type: ignore[arg-type]
+            self.bias = dm.vec3_where(update, (new_bias[0], new_bias[1], new_bias[2]), self.bias)
             self.bias_n = np.where(
                 update & (self.bias_n < self.bias_n_max), self.bias_n + np.uint32(1), self.bias_n
             ).astype(np.uint32)

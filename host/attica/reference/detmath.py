@@ -12,12 +12,12 @@ whole batch of independent instances runs in lockstep when the components are ar
 
 from __future__ import annotations
 
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-F32 = Union[np.float32, NDArray[np.float32]]
+F32 = np.float32 | NDArray[np.float32]
 """A float32 scalar or array."""
 Vec3 = tuple[Any, Any, Any]
 """(x, y, z), float32 components."""

@@ -31,10 +31,17 @@ class Filter:
         Sample period in s (overrides ``settings.dt``).
     **overrides
         Settings fields to change.
+
     """
 
-    def __init__(self, kind: str | int | FilterKind, settings: Any = None, n: int = 1,
-                 dt: float | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        kind: str | int | FilterKind,
+        settings: Any = None,
+        n: int = 1,
+        dt: float | None = None,
+        **overrides: Any,
+    ) -> None:
         self.kind = FilterKind.parse(kind)
         self.settings = make_settings(self.kind, settings, dt, **overrides)
         self.n = n

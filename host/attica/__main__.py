@@ -1,0 +1,7 @@
+"""``python -m attica``: the same as the ``attica`` command."""
+
+import sys
+
+from attica.cli import main
+
+sys.exit(main())
