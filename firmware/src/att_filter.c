@@ -16,6 +16,12 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
     case ATT_FILTER_ARS:
         att_ars_settings_default(&settings->ars, dt);
         return ATT_OK;
+    case ATT_FILTER_MARS:
+        att_mars_settings_default(&settings->mars, dt);
+        return ATT_OK;
+    case ATT_FILTER_KF:
+        att_kf_settings_default(&settings->kf, dt);
+        return ATT_OK;
     case ATT_FILTER_GYRO:
         att_gyro_settings_default(&settings->gyro, dt);
         return ATT_OK;
@@ -37,6 +43,12 @@ att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_
     switch (kind) {
     case ATT_FILTER_ARS:
         st = att_ars_init(&u.ars, &settings->ars);
+        break;
+    case ATT_FILTER_MARS:
+        st = att_mars_init(&u.mars, &settings->mars);
+        break;
+    case ATT_FILTER_KF:
+        st = att_kf_init(&u.kf, &settings->kf);
         break;
     case ATT_FILTER_GYRO:
         st = att_gyro_init(&u.gyro, &settings->gyro);
@@ -62,6 +74,12 @@ void att_filter_reset(att_filter_t *f)
     switch (f->kind) {
     case ATT_FILTER_ARS:
         att_ars_reset(&f->u.ars);
+        break;
+    case ATT_FILTER_MARS:
+        att_mars_reset(&f->u.mars);
+        break;
+    case ATT_FILTER_KF:
+        att_kf_reset(&f->u.kf);
         break;
     case ATT_FILTER_GYRO:
         att_gyro_reset(&f->u.gyro);
@@ -107,6 +125,23 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         out->flags = f->u.ars.flags;
         out->steps = f->u.ars.steps;
         break;
+    case ATT_FILTER_MARS:
+        out->q = f->u.mars.q;
+        out->euler = att_quat_to_euler(f->u.mars.q);
+        out->gyro_bias = f->u.mars.s.bias_init; /* the fixed bias subtracted, not estimated */
+        out->flags = f->u.mars.flags;
+        out->steps = f->u.mars.steps;
+        break;
+    case ATT_FILTER_KF:
+        out->q = f->u.kf.q;
+        out->euler = att_quat_to_euler(f->u.kf.q);
+        out->cov[0] = f->u.kf.p[0][0];
+        out->cov[1] = f->u.kf.p[1][1];
+        out->cov[2] = f->u.kf.p[2][2];
+        out->cov[3] = f->u.kf.p[3][3];
+        out->flags = f->u.kf.flags;
+        out->steps = f->u.kf.steps;
+        break;
     case ATT_FILTER_GYRO:
         out->q = f->u.gyro.q;
         out->euler = f->u.gyro.euler;
@@ -138,6 +173,12 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
     switch (f->kind) {
     case ATT_FILTER_ARS:
         flags = att_ars_step(&f->u.ars, in->gyr, in->acc);
+        break;
+    case ATT_FILTER_MARS:
+        flags = att_mars_step(&f->u.mars, in->gyr, in->acc, in->mag);
+        break;
+    case ATT_FILTER_KF:
+        flags = att_kf_step(&f->u.kf, in->gyr, in->acc);
         break;
     case ATT_FILTER_GYRO:
         flags = att_gyro_step(&f->u.gyro, in->gyr);

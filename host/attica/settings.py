@@ -101,6 +101,60 @@ def to_dict(settings: Any) -> dict[str, Any]:
     return {f.name: getattr(settings, f.name) for f in fields(settings)}
 
 
+class KfYawMode(enum.IntEnum):
+    """``att_kf_yaw_mode_t``: yaw of the accelerometer measurement quaternion."""
+
+    STATE = 0
+    ZERO = 1
+
+
+@dataclass
+class KfSettings:
+    """Linear quaternion KF settings (``att_kf_settings_t``); see att_kf.h for meanings."""
+
+    dt: float = 0.01
+    q_noise: float = 1e-4
+    r_noise: float = 10.0
+    p0: float = 1.0
+    gravity: float = 9.80665
+    accel_reject: float = 0.1
+    accel_range: float = 156.9064
+    gyro_range: float = 34.906586
+    yaw_mode: KfYawMode = KfYawMode.STATE
+    init_from_accel: bool = True
+    q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
+
+
+class MagMode(enum.IntEnum):
+    """``att_mars_mag_mode_t``."""
+
+    HORIZONTAL = 0
+    FULL = 1
+
+
+@dataclass
+class MarsSettings:
+    """9-axis complementary filter settings (``att_mars_settings_t``); see att_mars.h for meanings."""
+
+    dt: float = 0.01
+    alpha_acc: float = 0.02
+    alpha_mag: float = 0.01
+    tau_acc: float = 0.0
+    tau_mag: float = 0.0
+    mag_mode: MagMode = MagMode.HORIZONTAL
+    gravity: float = 9.80665
+    accel_reject: float = 0.1
+    accel_range: float = 156.9064
+    gyro_range: float = 34.906586
+    mag_range: float = 1000.0
+    mag_norm_reject: float = 0.2
+    mag_dip_reject: float = 0.17
+    bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    init_from_sensors: bool = True
+    q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
+    m0_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class FilterKind(enum.IntEnum):
     """``att_filter_kind_t`` (values are part of the CAN contract)."""
 
@@ -132,6 +186,8 @@ class FilterKind(enum.IntEnum):
 
 SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
     FilterKind.ARS: ArsSettings,
+    FilterKind.MARS: MarsSettings,
+    FilterKind.KF: KfSettings,
     FilterKind.GYRO: GyroSettings,
     FilterKind.TILT: TiltSettings,
 }

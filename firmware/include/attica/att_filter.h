@@ -18,6 +18,8 @@
 
 #include "attica/att_ars.h"
 #include "attica/att_gyro.h"
+#include "attica/att_kf.h"
+#include "attica/att_mars.h"
 #include "attica/att_tilt.h"
 #include "attica/att_types.h"
 
@@ -57,6 +59,8 @@ typedef struct {
 /** Settings of any filter; the member named after the kind is used. */
 typedef union {
     att_ars_settings_t ars;
+    att_mars_settings_t mars;
+    att_kf_settings_t kf;
     att_gyro_settings_t gyro;
     att_tilt_settings_t tilt;
 } att_filter_settings_t;
@@ -64,6 +68,8 @@ typedef union {
 /** State of any filter; the member named after the kind is used. */
 typedef union {
     att_ars_t ars;
+    att_mars_t mars;
+    att_kf_t kf;
     att_gyro_t gyro;
     att_tilt_t tilt;
 } att_filter_state_t;

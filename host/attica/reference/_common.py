@@ -72,24 +72,32 @@ def _c_values(layout: str, value: Any) -> list[Any]:
     return [value]
 
 
+def _arrays(value: Any) -> list[Any]:
+    """The (n,) arrays of a reference state attribute, flattening tuples and nested lists."""
+    if isinstance(value, (tuple, list)):
+        out: list[Any] = []
+        for item in value:
+            out.extend(_arrays(item))
+        return out
+    return [value]
+
+
 def load_c_state(obj: Any, spec: StateSpec, i: int, c_state: Any) -> None:
     """Set instance ``i`` of reference object ``obj`` from a cffi C state struct."""
     for name, layout in spec.items():
         vals = _c_values(layout, getattr(c_state, name))
-        cur = getattr(obj, name)
-        if isinstance(cur, tuple):
-            for arr, v in zip(cur, vals):
-                arr[i] = v
-        else:
-            cur[i] = vals[0]
+        arrays = _arrays(getattr(obj, name))
+        if len(arrays) != len(vals):
+            raise ValueError(f"state field {name}: {len(arrays)} reference arrays, {len(vals)} C values")
+        for arr, v in zip(arrays, vals):
+            arr[i] = v
 
 
 def state_values(obj: Any, spec: StateSpec, i: int) -> list[Any]:
     """Instance ``i``'s state as a flat list (numpy scalars), in spec order."""
     out: list[Any] = []
     for name in spec:
-        cur = getattr(obj, name)
-        out.extend([a[i] for a in cur] if isinstance(cur, tuple) else [cur[i]])
+        out.extend(a[i] for a in _arrays(getattr(obj, name)))
     return out
 
 

@@ -12,6 +12,8 @@ from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
 from attica.reference.gyro import Gyro
+from attica.reference.kf import Kf
+from attica.reference.mars import Mars
 from attica.reference.tilt import Tilt
 from attica.settings import FilterKind, make_settings
 
@@ -48,6 +50,10 @@ class Filter:
         impl: Any
         if self.kind == FilterKind.ARS:
             impl = Ars(self.settings, n)
+        elif self.kind == FilterKind.MARS:
+            impl = Mars(self.settings, n)
+        elif self.kind == FilterKind.KF:
+            impl = Kf(self.settings, n)
         elif self.kind == FilterKind.GYRO:
             impl = Gyro(self.settings, n)
         elif self.kind == FilterKind.TILT:
@@ -83,8 +89,10 @@ class Filter:
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         f = self.impl
-        if self.kind == FilterKind.ARS:
+        if self.kind in (FilterKind.ARS, FilterKind.KF):
             return f.step(gyr, acc)  # type: ignore[no-any-return]
+        if self.kind == FilterKind.MARS:
+            return f.step(gyr, acc, mag)  # type: ignore[no-any-return]
         if self.kind == FilterKind.GYRO:
             return f.step(gyr)  # type: ignore[no-any-return]
         return f.step(acc)  # type: ignore[no-any-return]
@@ -94,11 +102,16 @@ class Filter:
         f = self.impl
         out = np.zeros(self.n, OUTPUT_DTYPE)
         out["q"] = stack(f.q)
-        if self.kind == FilterKind.ARS:
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
             out["euler"] = stack(dm.quat_to_euler(f.q))
-            out["gyro_bias"] = stack(f.bias)
         else:
             out["euler"] = stack(f.euler)
+        if self.kind == FilterKind.ARS:
+            out["gyro_bias"] = stack(f.bias)
+        elif self.kind == FilterKind.MARS:
+            out["gyro_bias"] = stack(f.bias_init)
+        elif self.kind == FilterKind.KF:
+            out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], f.p[3][3]))
         out["flags"] = f.flags
         out["steps"] = f.steps
         return out
