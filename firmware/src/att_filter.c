@@ -22,6 +22,9 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
     case ATT_FILTER_KF:
         att_kf_settings_default(&settings->kf, dt);
         return ATT_OK;
+    case ATT_FILTER_EKF:
+        att_ekf_settings_default(&settings->ekf, dt);
+        return ATT_OK;
     case ATT_FILTER_GYRO:
         att_gyro_settings_default(&settings->gyro, dt);
         return ATT_OK;
@@ -49,6 +52,9 @@ att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_
         break;
     case ATT_FILTER_KF:
         st = att_kf_init(&u.kf, &settings->kf);
+        break;
+    case ATT_FILTER_EKF:
+        st = att_ekf_init(&u.ekf, &settings->ekf);
         break;
     case ATT_FILTER_GYRO:
         st = att_gyro_init(&u.gyro, &settings->gyro);
@@ -80,6 +86,9 @@ void att_filter_reset(att_filter_t *f)
         break;
     case ATT_FILTER_KF:
         att_kf_reset(&f->u.kf);
+        break;
+    case ATT_FILTER_EKF:
+        att_ekf_reset(&f->u.ekf);
         break;
     case ATT_FILTER_GYRO:
         att_gyro_reset(&f->u.gyro);
@@ -142,6 +151,15 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         out->flags = f->u.kf.flags;
         out->steps = f->u.kf.steps;
         break;
+    case ATT_FILTER_EKF:
+        out->q = f->u.ekf.q;
+        out->euler = f->u.ekf.euler;
+        out->cov[0] = f->u.ekf.p[0][0];
+        out->cov[1] = f->u.ekf.p[1][1];
+        out->cov[2] = f->u.ekf.p[2][2];
+        out->flags = f->u.ekf.flags;
+        out->steps = f->u.ekf.steps;
+        break;
     case ATT_FILTER_GYRO:
         out->q = f->u.gyro.q;
         out->euler = f->u.gyro.euler;
@@ -179,6 +197,9 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
         break;
     case ATT_FILTER_KF:
         flags = att_kf_step(&f->u.kf, in->gyr, in->acc);
+        break;
+    case ATT_FILTER_EKF:
+        flags = att_ekf_step(&f->u.ekf, in->gyr, in->acc);
         break;
     case ATT_FILTER_GYRO:
         flags = att_gyro_step(&f->u.gyro, in->gyr);

@@ -155,6 +155,27 @@ class MarsSettings:
     m0_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+@dataclass
+class EkfSettings:
+    """Euler-angle EKF settings (``att_ekf_settings_t``); see att_ekf.h for meanings."""
+
+    dt: float = 0.01
+    q_phi: float = 0.0001
+    q_theta: float = 0.0001
+    q_psi: float = 0.1
+    r_phi: float = 6.0
+    r_theta: float = 6.0
+    p0: float = 1.0
+    p_max: float = 1000000.0
+    gravity: float = 9.80665
+    accel_reject: float = 0.1
+    accel_range: float = 156.9064
+    gyro_range: float = 34.906586
+    cos_min: float = 0.001
+    init_from_accel: bool = True
+    euler_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class FilterKind(enum.IntEnum):
     """``att_filter_kind_t`` (values are part of the CAN contract)."""
 
@@ -188,6 +209,7 @@ SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
     FilterKind.ARS: ArsSettings,
     FilterKind.MARS: MarsSettings,
     FilterKind.KF: KfSettings,
+    FilterKind.EKF: EkfSettings,
     FilterKind.GYRO: GyroSettings,
     FilterKind.TILT: TiltSettings,
 }

@@ -17,6 +17,7 @@
 #define ATT_FILTER_H
 
 #include "attica/att_ars.h"
+#include "attica/att_ekf.h"
 #include "attica/att_gyro.h"
 #include "attica/att_kf.h"
 #include "attica/att_mars.h"
@@ -61,6 +62,7 @@ typedef union {
     att_ars_settings_t ars;
     att_mars_settings_t mars;
     att_kf_settings_t kf;
+    att_ekf_settings_t ekf;
     att_gyro_settings_t gyro;
     att_tilt_settings_t tilt;
 } att_filter_settings_t;
@@ -70,6 +72,7 @@ typedef union {
     att_ars_t ars;
     att_mars_t mars;
     att_kf_t kf;
+    att_ekf_t ekf;
     att_gyro_t gyro;
     att_tilt_t tilt;
 } att_filter_state_t;

@@ -11,6 +11,7 @@ from attica.outputs import OUTPUT_DTYPE
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
+from attica.reference.ekf import Ekf
 from attica.reference.gyro import Gyro
 from attica.reference.kf import Kf
 from attica.reference.mars import Mars
@@ -54,6 +55,8 @@ class Filter:
             impl = Mars(self.settings, n)
         elif self.kind == FilterKind.KF:
             impl = Kf(self.settings, n)
+        elif self.kind == FilterKind.EKF:
+            impl = Ekf(self.settings, n)
         elif self.kind == FilterKind.GYRO:
             impl = Gyro(self.settings, n)
         elif self.kind == FilterKind.TILT:
@@ -89,7 +92,7 @@ class Filter:
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         f = self.impl
-        if self.kind in (FilterKind.ARS, FilterKind.KF):
+        if self.kind in (FilterKind.ARS, FilterKind.KF, FilterKind.EKF):
             return f.step(gyr, acc)  # type: ignore[no-any-return]
         if self.kind == FilterKind.MARS:
             return f.step(gyr, acc, mag)  # type: ignore[no-any-return]
@@ -112,6 +115,9 @@ class Filter:
             out["gyro_bias"] = stack(f.bias_init)
         elif self.kind == FilterKind.KF:
             out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], f.p[3][3]))
+        elif self.kind == FilterKind.EKF:
+            zero = np.zeros(self.n, np.float32)
+            out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))
         out["flags"] = f.flags
         out["steps"] = f.steps
         return out
