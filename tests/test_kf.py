@@ -11,9 +11,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from attica.native import ffi, lib
 from attica.reference.kf import Kf, KfSettings, KfYawMode
 from attica.settings import Flag
+
 from helpers import adversarial_floats, assert_same_bits
 
 G = 9.80665

@@ -12,7 +12,6 @@ from attica.reference import sensor
 from attica.reference._common import StateSpec, as_batch, setting, split3, stack
 from attica.settings import EkfSettings, Flag
 
-
 _U0 = np.uint32(0)
 _PI = dm.c("0x1.921fb6p+1")
 _PIO2 = dm.c("0x1.921fb6p+0")
@@ -121,7 +120,14 @@ class Ekf:
     Settings fields may be scalars or length-``n`` sequences (one value per instance).
     """
 
-    STATE: StateSpec = {"euler": "vec3", "q": "quat", "p": "f32x9", "initialised": "bool", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {
+        "euler": "vec3",
+        "q": "quat",
+        "p": "f32x9",
+        "initialised": "bool",
+        "steps": "u32",
+        "flags": "u32",
+    }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: EkfSettings | None = None, n: int = 1) -> None:

@@ -16,7 +16,6 @@ from attica.reference import sensor
 from attica.reference._common import StateSpec, as_batch, setting, split3, stack
 from attica.settings import Flag, KfSettings, KfYawMode
 
-
 _U0 = np.uint32(0)
 Mat = list[list[Any]]
 """A 4x4 matrix: rows of per-instance float32 arrays."""

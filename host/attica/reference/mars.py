@@ -12,7 +12,6 @@ from attica.reference import sensor
 from attica.reference._common import StateSpec, as_batch, setting, split3, stack
 from attica.settings import Flag, MagMode, MarsSettings
 
-
 _U0 = np.uint32(0)
 
 _M0Parts = tuple[Any, Any, Any, dm.Vec3, dm.Vec3, Any]
@@ -63,7 +62,19 @@ class Mars:
     may be given as (3,)/(4,) or (n, 3)/(n, 4).
     """
 
-    STATE: StateSpec = {"q": "quat", "m0": "vec3", "m0_norm": "f32", "m0_dip": "f32", "m0_ref": "vec3", "m0_perp": "vec3", "m0_ref_ok": "bool", "m0_valid": "bool", "initialised": "bool", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {
+        "q": "quat",
+        "m0": "vec3",
+        "m0_norm": "f32",
+        "m0_dip": "f32",
+        "m0_ref": "vec3",
+        "m0_perp": "vec3",
+        "m0_ref_ok": "bool",
+        "m0_valid": "bool",
+        "initialised": "bool",
+        "steps": "u32",
+        "flags": "u32",
+    }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: MarsSettings | None = None, n: int = 1) -> None:
