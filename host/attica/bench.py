@@ -1,0 +1,232 @@
+"""Benchmarks of the firmware filters: ``python -m attica.bench`` (``make bench``).
+
+Prints, per filter of :data:`FILTERS`:
+
+- ns/step of the native batch run (:meth:`attica.native.Filter.run`, firmware built with the strict
+  flags at -O2) over simulated samples, best of several repeats;
+- instructions/step counted by valgrind's callgrind in ``att_filter_step`` (and everything it calls)
+  of tests/c/att_bench.c, as (I(N2) - I(N1)) / (N2 - N1) so start-up and initialisation cancel;
+
+and the .text size of every firmware object at -O2 and -Os. Numbers only, no pass/fail.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica import _build, golden
+
+BENCH_SOURCE = golden.ROOT / "tests" / "c" / "att_bench.c"
+
+
+@dataclass(frozen=True)
+class BenchCase:
+    """One row of the benchmark table: a filter kind with settings overrides."""
+
+    label: str
+    kind: str
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+
+FILTERS: list[BenchCase] = [
+    BenchCase("ars", "ars"),
+    BenchCase("mars", "mars"),
+    BenchCase("kf", "kf"),
+    BenchCase("ekf", "ekf"),
+    BenchCase("gyro", "gyro"),
+    BenchCase("tilt", "tilt"),
+]
+"""Filters to benchmark, one line each. att_bench runs a kind with its default settings, so cases
+with ``overrides`` get only the native timing (the callgrind columns say n/a)."""
+
+CALLGRIND_CONFIGS: list[tuple[str, str]] = [("gcc", "-O2"), ("clang", "-O2")]
+"""(compiler, optimisation) builds of att_bench measured with callgrind."""
+
+SIZE_OPTS = ["-O2", "-Os"]
+
+
+def simulated_inputs(
+    samples: int, rate: float = 100.0
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """Gyro, accel and mag (samples, 3) from :mod:`attica.sim` (golden.imu_inputs as a fallback)."""
+    try:
+        from attica.sim import SimConfig, simulate
+
+        rec = simulate(SimConfig(duration=samples / rate, rate=rate, seed=1))
+        gyr = np.ascontiguousarray(rec.gyr[:samples], np.float32)
+        acc = np.ascontiguousarray(rec.acc[:samples], np.float32)
+        mag = np.ascontiguousarray(rec.mag[:samples], np.float32)
+        if gyr.shape == acc.shape == mag.shape == (samples, 3):
+            return gyr, acc, mag
+    except Exception as e:  # noqa: BLE001 - the simulator is optional for the benchmark
+        print(f"note: attica.sim unavailable ({e}); using golden.imu_inputs", file=sys.stderr)
+    g, a, m = golden.imu_inputs(samples, 1, seed=1, dt=1.0 / rate)
+    return np.ascontiguousarray(g[:, 0]), np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(m[:, 0])
+
+
+def native_ns_per_step(
+    case: BenchCase, imu: tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]], repeat: int
+) -> float:
+    """Best-of-``repeat`` wall time per step of the native batch run, in ns."""
+    from attica import native
+
+    best = float("inf")
+    for _ in range(repeat):
+        f = native.Filter(case.kind, **case.overrides)
+        t0 = time.perf_counter()
+        f.run(*imu)
+        best = min(best, time.perf_counter() - t0)
+    return float(best / imu[0].shape[0] * 1e9)
+
+
+def callgrind_instructions(program: Path, kind: str, steps: int) -> int:
+    """Instructions executed inside att_filter_step for ``steps`` steps (callgrind)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "callgrind.out"
+        proc = subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                f"--callgrind-out-file={out}",
+                "--toggle-collect=att_filter_step",
+                str(program),
+                kind,
+                str(steps),
+            ],
+            capture_output=True,
+            text=True,
+        )
+    if proc.returncode != 0:
+        raise RuntimeError(f"callgrind failed for {kind}: {proc.stderr.strip()[-500:]}")
+    m = re.search(r"Collected\s*:\s*(\d+)", proc.stderr)
+    if m is None:
+        raise RuntimeError(f"no 'Collected' line in callgrind output:\n{proc.stderr[-500:]}")
+    return int(m.group(1))
+
+
+def instructions_per_step(program: Path, kind: str, n1: int = 2_000, n2: int = 12_000) -> float:
+    """(I(n2) - I(n1)) / (n2 - n1) for att_filter_step of ``kind``."""
+    i1 = callgrind_instructions(program, kind, n1)
+    i2 = callgrind_instructions(program, kind, n2)
+    return (i2 - i1) / (n2 - n1)
+
+
+def text_size(obj: Path) -> int:
+    """Bytes in the .text sections of an object (``size -A``)."""
+    out = subprocess.run(["size", "-A", str(obj)], capture_output=True, text=True, check=True).stdout
+    total = 0
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and (parts[0] == ".text" or parts[0].startswith(".text.")) and parts[1].isdigit():
+            total += int(parts[1])
+    return total
+
+
+def object_sizes(cc: str, opts: Sequence[str], workdir: Path) -> dict[str, dict[str, int]]:
+    """.text bytes per firmware source (stem) per optimisation level."""
+    sizes: dict[str, dict[str, int]] = {}
+    for opt in opts:
+        for src in _build.firmware_sources():
+            obj = workdir / f"{cc}{opt}-{src.stem}.o"
+            cmd = [cc, *_build.cflags(), opt, "-I", str(_build.INCLUDE), "-c", str(src), "-o", str(obj)]
+            subprocess.run(cmd, check=True, capture_output=True)
+            sizes.setdefault(src.stem, {})[opt] = text_size(obj)
+    return sizes
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+    line = "  ".join(
+        h.ljust(w) if i == 0 else h.rjust(w) for i, (h, w) in enumerate(zip(headers, widths, strict=True))
+    )
+    out = [line, "  ".join("-" * w for w in widths)]
+    for r in rows:
+        out.append(
+            "  ".join(
+                c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True))
+            )
+        )
+    return "\n".join(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmarks and print the tables."""
+    p = argparse.ArgumentParser(
+        prog="python -m attica.bench", description=__doc__.split("\n")[0] if __doc__ else ""
+    )
+    p.add_argument("--samples", type=int, default=200_000, help="samples for the native timing (200000)")
+    p.add_argument("--repeat", type=int, default=3, help="repeats of the native timing, best taken (3)")
+    args = p.parse_args(argv)
+
+    imu = simulated_inputs(args.samples)
+    have_valgrind = shutil.which("valgrind") is not None
+    configs = [(cc, opt) for cc, opt in CALLGRIND_CONFIGS if shutil.which(cc)]
+    programs: dict[tuple[str, str], Path] = {}
+    with tempfile.TemporaryDirectory(prefix="att_bench_") as tmp:
+        if have_valgrind:
+            for cc, opt in configs:
+                programs[(cc, opt)] = golden.build_program(
+                    [BENCH_SOURCE], cc, opt, name="att_bench", out_dir=Path(tmp) / f"{cc}{opt}"
+                )
+        headers = ["filter", "ns/step (native -O2)"]
+        if have_valgrind:
+            headers += [f"instr/step ({cc} {opt})" for cc, opt in programs]
+        rows = []
+        for case in FILTERS:
+            row = [case.label, f"{native_ns_per_step(case, imu, args.repeat):.1f}"]
+            for prog in programs.values():
+                if case.overrides:
+                    row.append("n/a")
+                    continue
+                try:
+                    row.append(f"{instructions_per_step(prog, case.kind):.0f}")
+                except RuntimeError as e:
+                    row.append("error")
+                    print(f"note: {e}", file=sys.stderr)
+            rows.append(row)
+        print(
+            f"Filters ({args.samples} simulated samples, best of {args.repeat}; callgrind: att_filter_step "
+            "and callees, default settings, (I(12000) - I(2000)) / 10000)"
+        )
+        print(_table(headers, rows))
+        if not have_valgrind:
+            print(
+                "note: valgrind is not installed, so there is no instructions/step column "
+                "(host/tools/install-system-deps.sh installs it)"
+            )
+
+        print()
+        print("Firmware objects, .text bytes")
+        size_rows: list[list[str]] = []
+        size_headers = ["object"]
+        per_cc: list[dict[str, dict[str, int]]] = []
+        for cc in ("gcc", "clang"):
+            if shutil.which(cc) is None:
+                continue
+            size_headers += [f"{cc} {opt}" for opt in SIZE_OPTS]
+            per_cc.append(object_sizes(cc, SIZE_OPTS, Path(tmp)))
+        stems = [s.stem for s in _build.firmware_sources()]
+        for stem in stems:
+            size_rows.append([stem + ".o", *[str(sz[stem][opt]) for sz in per_cc for opt in SIZE_OPTS]])
+        size_rows.append(
+            ["total", *[str(sum(sz[s][opt] for s in stems)) for sz in per_cc for opt in SIZE_OPTS]]
+        )
+        print(_table(size_headers, size_rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
