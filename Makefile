@@ -6,14 +6,14 @@ PY := $(VENV)/bin/python
 ATTICA := $(VENV)/bin/attica
 STAMP := $(VENV)/.installed
 
-.PHONY: all setup deps build run test lint pytest bench clean
+.PHONY: all setup deps build node run test lint pytest bench clean
 
 all: build
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -e '.[dev,eval,peers]'
 	@touch $(STAMP)
 
 setup: $(STAMP)
@@ -21,11 +21,28 @@ setup: $(STAMP)
 deps:
 	@bash host/tools/install-system-deps.sh
 
-build: setup
+build: setup node
 	$(PY) -m attica._build
+
+# attica-node: the CAN node on Linux SocketCAN (firmware core + firmware/ports/linux). The core is
+# compiled with the strict firmware flags; the port needs -std=gnu99 for the socket headers.
+NODE_CFLAGS := $(shell cat firmware/cflags.txt) -O2
+NODE_SRC := $(wildcard firmware/src/*.c)
+NODE_HDR := $(wildcard firmware/include/attica/*.h) $(wildcard firmware/src/*.h) $(wildcard firmware/can/gen/*)
+NODE_PORT := $(wildcard firmware/ports/linux/*.c)
+
+node: build/attica-node
+
+build/attica-node: $(NODE_SRC) $(NODE_HDR) $(NODE_PORT) firmware/cflags.txt
+	@mkdir -p build/node
+	$(CC) $(NODE_CFLAGS) -std=gnu99 -Ifirmware/include -c $(NODE_PORT) -o build/node/port.o
+	$(CC) $(NODE_CFLAGS) -Ifirmware/include $(NODE_SRC) build/node/port.o -o $@
 
 run: build
 	$(ATTICA) demo --duration 60
+	@echo
+	@echo "the same filter as a CAN node (the C node in-process on python-can's virtual bus):"
+	$(ATTICA) verify --with-node --duration 10 --show 7 -q
 
 lint: setup
 	$(VENV)/bin/ruff check host tests docs
@@ -33,12 +50,27 @@ lint: setup
 	$(VENV)/bin/mypy
 
 pytest: build
-	$(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q -n 2 --dist loadfile
 
 test: deps build lint pytest
 
 bench: deps build
 	$(PY) -m attica.bench
+
+# Cortex-M4F (firmware/ports/cortex_m, QEMU mps2-an386) and the figures of docs/performance.md.
+.PHONY: firmware footprint cycles cross
+firmware: deps setup
+	$(PY) -m attica.cross firmware
+
+footprint: deps setup
+	$(PY) -m attica.footprint footprint
+
+cycles: deps setup
+	$(PY) -m attica.footprint cycles
+
+# The golden comparison on every CPU as one table (the same checks as tests/test_cross.py).
+cross: deps setup
+	$(PY) -m attica.cross golden
 
 clean:
 	rm -rf build host/attica/_native*.so host/attica/_native.stamp .pytest_cache .mypy_cache .ruff_cache

@@ -7,6 +7,21 @@ command -v cc >/dev/null 2>&1 || want+=(gcc)
 command -v clang >/dev/null 2>&1 || want+=(clang)
 command -v valgrind >/dev/null 2>&1 || want+=(valgrind)
 command -v objdump >/dev/null 2>&1 || want+=(binutils)
+# Cross targets of tests/test_cross.py, make firmware / footprint / cycles: Cortex-M4F (newlib with
+# semihosting, QEMU MPS2 AN386), aarch64 and riscv64 (static glibc, qemu-user), CMake.
+command -v arm-none-eabi-gcc >/dev/null 2>&1 || want+=(gcc-arm-none-eabi)
+[ -f /usr/lib/arm-none-eabi/lib/rdimon.specs ] || want+=(libnewlib-arm-none-eabi)
+command -v qemu-system-arm >/dev/null 2>&1 || want+=(qemu-system-arm)
+{ command -v qemu-aarch64-static && command -v qemu-riscv64-static; } >/dev/null 2>&1 || want+=(qemu-user-static)
+command -v aarch64-linux-gnu-gcc >/dev/null 2>&1 || want+=(gcc-aarch64-linux-gnu)
+[ -f /usr/aarch64-linux-gnu/lib/libc.a ] || want+=(libc6-dev-arm64-cross)
+command -v riscv64-linux-gnu-gcc >/dev/null 2>&1 || want+=(gcc-riscv64-linux-gnu)
+[ -f /usr/riscv64-linux-gnu/lib/libc.a ] || want+=(libc6-dev-riscv64-cross)
+command -v cmake >/dev/null 2>&1 || want+=(cmake)
+# Real SocketCAN for tests/test_vcan_uml.py: user-mode Linux with vcan, candump, insmod.
+command -v linux.uml >/dev/null 2>&1 || want+=(user-mode-linux)
+command -v candump >/dev/null 2>&1 || want+=(can-utils)
+command -v insmod >/dev/null 2>&1 || want+=(kmod)
 for extra in "$@"; do
   case "$extra" in
     *:*) pkg=${extra%%:*}; cmd=${extra#*:} ;;

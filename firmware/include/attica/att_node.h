@@ -1,0 +1,143 @@
+/**
+ * @file att_node.h
+ * @brief The attica CAN node: frames in, filter steps, frames out. Pure (no time source, no I/O).
+ *
+ *     att_node_settings_t s;
+ *     att_node_t node;                       // large (static rings): make it static / global
+ *     att_can_frame_t f;
+ *     att_node_settings_default(ATT_FILTER_ARS, 100.0f, &s);
+ *     if (att_node_init(&node, &s) != ATT_OK) { ... }   // ATT_ERR_SETTINGS also for bus load > 100 %
+ *     for (;;) {
+ *         while (can_receive(&f)) { (void)att_node_rx(&node, &f); }   // e.g. from the rx interrupt
+ *         (void)att_node_poll(&node);                                   // assemble, step, queue outputs
+ *         while (can_tx_free() && att_node_tx(&node, &f)) { can_send(&f); }
+ *     }
+ *
+ * Input: IMU_GYRO + IMU_ACC + IMU_MAG with one counter (any order) or one IMU_FD form a sample; a
+ * complete sample steps the filter exactly once (att_filter_step). Both input formats are accepted in
+ * either output mode. Every frame is checked in this order: known ID (else unknown_ids), length and
+ * classic/FD format (dlc_errors), E2E CRC (crc_errors); then the sample assembly:
+ * - a classic IMU frame whose counter differs from the sample being assembled discards that partial
+ *   sample (stale_partials) and starts a new one;
+ * - a frame of a part already present, or of the sample just completed, is dropped (duplicates);
+ * - a new sample whose counter is not the previous sample's + 1 (mod 16) is accepted and counted once
+ *   in counter_gaps (one or more whole samples were lost).
+ * Rejected frames never touch the filter.
+ *
+ * Output, every output_divider-th step: classic QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS, or one
+ * ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set. The counter of a
+ * set is the set index mod 16 (= step index mod 16 when output_divider is 1). att_node_poll only takes
+ * a frame from the rx ring while the tx ring has room for a whole set plus a command answer
+ * (ATT_NODE_SET_MAX frames): the node never drops outputs; if the application does not drain tx, the
+ * rx ring fills and further frames are counted in rx_overflows.
+ *
+ * Commands (CMD): 1 select filter (arg = kind: a fresh filter; the init settings when it is the init
+ * kind, else att_filter_settings_default(kind, 1 / sample_rate)), 2 reset (att_filter_reset), 3 set
+ * gain (arg = ATT_CAN_GAIN_*, value): validated like att_filter_init; the filter keeps its state
+ * (attitude, bias, covariance...) and only its settings and the gains derived from them change. Every
+ * command with a good CRC is answered by an ATT_STATUS with ack = ATT_CAN_ACK_ANSWER | result << 4 |
+ * cmd and the command's counter; a bad CRC is counted (crc_errors) and not answered.
+ */
+#ifndef ATT_NODE_H
+#define ATT_NODE_H
+
+#include "attica/att_can.h"
+#include "attica/att_filter.h"
+#include "attica/att_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ATT_CDEF_BEGIN */
+#define ATT_NODE_RX_RING 64 /* frames in the receive ring (power of two) */
+#define ATT_NODE_TX_RING 64 /* frames in the transmit ring (power of two) */
+#define ATT_NODE_SET_MAX 8  /* most frames one rx frame can queue: 6 (set) + 1 (DIAG) + 1 (answer) */
+
+/** Node settings. */
+typedef struct {
+    att_filter_kind_t kind;       /**< filter to run */
+    att_filter_settings_t filter; /**< its settings (the member named after kind) */
+    float sample_rate;            /**< Hz, (0, 100000]; the filter's dt must be 1/sample_rate (+-0.1 %) */
+    uint32_t bitrate;             /**< nominal bit/s (e.g. 500000); 1000 .. 1000000 */
+    uint32_t data_bitrate;        /**< CAN FD data phase bit/s, 0 = classic only; else bitrate .. 16000000 */
+    bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
+    uint32_t output_divider;      /**< emit outputs every Nth step (1 = every step); 1 .. 65535 */
+    uint32_t diag_divider;        /**< ATT_DIAG after every Nth emitted set (0 = never) */
+} att_node_settings_t;
+
+/** Node counters (uint32, wrap; ATT_DIAG/ATT_STATUS carry them saturated to 8 bits). */
+typedef struct {
+    uint32_t rx_frames;      /**< frames accepted into the rx ring */
+    uint32_t crc_errors;     /**< E2E CRC mismatch (inputs and commands) */
+    uint32_t counter_gaps;   /**< new sample not following the previous one (whole samples lost) */
+    uint32_t dlc_errors;     /**< wrong length or classic/FD format for the ID */
+    uint32_t unknown_ids;    /**< IDs the node does not receive (incl. its own output IDs) */
+    uint32_t duplicates;     /**< repeated part of a sample or of the sample just completed */
+    uint32_t stale_partials; /**< partial samples discarded because a newer counter arrived */
+    uint32_t rx_overflows;   /**< frames refused by att_node_rx (ring full) */
+    uint32_t tx_overflows;   /**< frames dropped because the tx ring was full (should stay 0) */
+    uint32_t samples;        /**< complete samples assembled */
+    uint32_t steps;          /**< filter steps run (== samples) */
+    uint32_t sets;           /**< output sets queued */
+    uint32_t tx_frames;      /**< frames handed out by att_node_tx */
+    uint32_t commands;       /**< commands executed (good CRC) */
+} att_node_stats_t;
+
+/** The node: settings, filter, sample assembly, rings, counters (no heap; ~10 KB). */
+typedef struct {
+    att_node_settings_t s;                     /**< validated copy of the init settings */
+    att_filter_kind_t kind;                    /**< filter kind now running */
+    att_filter_settings_t fs;                  /**< settings of the running filter */
+    att_filter_t f;                            /**< the filter */
+    att_output_t out;                          /**< output of the last step */
+    att_sample_t part;                         /**< sample being assembled */
+    uint8_t part_mask;                         /**< parts present: 1 gyro, 2 acc, 4 mag; 0 = none */
+    uint8_t part_counter;                      /**< counter of the sample being assembled */
+    uint8_t last_counter;                      /**< counter of the newest sample started */
+    bool have_last;                            /**< last_counter is valid */
+    uint32_t div_count;                        /**< steps since the last emitted set */
+    uint32_t rx_head;                          /**< rx ring write count */
+    uint32_t rx_tail;                          /**< rx ring read count */
+    uint32_t tx_head;                          /**< tx ring write count */
+    uint32_t tx_tail;                          /**< tx ring read count */
+    att_can_frame_t rx[ATT_NODE_RX_RING];      /**< receive ring */
+    att_can_frame_t tx[ATT_NODE_TX_RING];      /**< transmit ring */
+    att_node_stats_t stats;                    /**< counters */
+} att_node_t;
+
+/** Defaults: the kind's default filter settings for 1/sample_rate, 500 kbit/s classic, every step, DIAG every 16th set. */
+att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate, att_node_settings_t *s);
+/**
+ * Validate the settings (incl. the filter's, and bus load <= 100 %) and initialise the node (empty
+ * rings, zero counters). ATT_ERR_NULL / ATT_ERR_SETTINGS / ATT_ERR_KIND leave n untouched.
+ */
+att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s);
+/**
+ * Fraction of the bus time taken by the node's periodic outputs (1.0 = 100 %), worst-case stuffing;
+ * see docs/can.md. -1 for NULL or settings that cannot be evaluated (rates, bitrates, dividers).
+ */
+float att_node_bus_load(const att_node_settings_t *s);
+/** Worst-case bits of a classic frame with len data bytes and an 11-bit ID (incl. 3 bits intermission). */
+uint32_t att_node_classic_bits(uint32_t len);
+/** Worst-case bit time of a CAN FD frame (11-bit ID, bit rate switch) in s; -1 for a bad bitrate. */
+float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitrate);
+/** Push a received frame (false: NULL, or the rx ring is full: counted in rx_overflows). */
+bool att_node_rx(att_node_t *n, const att_can_frame_t *f);
+/** Process queued rx frames: check, assemble, step, answer, queue tx. Returns the steps run. */
+size_t att_node_poll(att_node_t *n);
+/** Pop the next frame to send (false: none). */
+bool att_node_tx(att_node_t *n, att_can_frame_t *f);
+/** Frames waiting in the tx ring. */
+size_t att_node_tx_pending(const att_node_t *n);
+/** The receive error counters as carried by ATT_DIAG. */
+void att_node_diag(const att_node_t *n, att_can_diag_t *d);
+/** Saturating (255) total of receive errors, as in ATT_STATUS.error_count. */
+uint8_t att_node_error_count(const att_node_t *n);
+/* ATT_CDEF_END */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_NODE_H */

@@ -1,0 +1,524 @@
+/**
+ * @file att_node.c
+ * @brief The attica CAN node (see att_node.h): rx ring -> checks -> sample assembly -> filter step ->
+ * output set -> tx ring. No heap, no time source, no I/O.
+ */
+#include "att_fp.h"
+
+#include <string.h>
+
+#include "attica/att_math.h"
+#include "attica/att_node.h"
+
+#define ATT_NODE_RX_MASK ((uint32_t)ATT_NODE_RX_RING - 1u)
+#define ATT_NODE_TX_MASK ((uint32_t)ATT_NODE_TX_RING - 1u)
+#define ATT_NODE_PART_ALL 7u
+#define ATT_NODE_MAX_RATE 100000.0f
+#define ATT_NODE_MIN_BITRATE 1000u
+#define ATT_NODE_MAX_BITRATE 1000000u
+#define ATT_NODE_MAX_DATA_BITRATE 16000000u
+#define ATT_NODE_MAX_DIVIDER 65535u
+#define ATT_NODE_SET_FRAMES 6u
+
+#if (ATT_NODE_RX_RING & (ATT_NODE_RX_RING - 1)) != 0 || (ATT_NODE_TX_RING & (ATT_NODE_TX_RING - 1)) != 0
+#error "ATT_NODE_RX_RING and ATT_NODE_TX_RING must be powers of two"
+#endif
+#if ATT_NODE_TX_RING < ATT_NODE_SET_MAX
+#error "ATT_NODE_TX_RING must hold at least one output set"
+#endif
+
+/* --- bus load -------------------------------------------------------------------------------- */
+
+uint32_t att_node_classic_bits(uint32_t len)
+{
+    uint32_t n = (len > 8u) ? 8u : len;
+    /* SOF..CRC = 34 + 8n bits may be stuffed (worst case one bit per 4 after the first); + CRC delimiter,
+       ACK slot and delimiter, EOF (10 bits) and the 3-bit intermission: 8n + 47 + floor((33 + 8n) / 4). */
+    return 8u * n + 47u + (34u + 8u * n - 1u) / 4u;
+}
+
+float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitrate)
+{
+    uint32_t n = (len > 64u) ? 64u : len;
+    uint32_t crc = (n > 16u) ? 21u : 17u;
+    uint32_t stuffed = 22u + 8u * n;         /* SOF..BRS (17), ESI, DLC (4), data: dynamic stuffing */
+    uint32_t stuff = (stuffed - 1u) / 4u;    /* worst-case dynamic stuff bits */
+    uint32_t nominal = 17u + 4u + 1u + 2u + 7u + 3u; /* SOF..BRS + its 4 stuff bits, CRC delim, ACK, EOF, IFS */
+    uint32_t data = 5u + 8u * n + (stuff - 4u) + 4u + crc + (1u + (3u + crc) / 4u);
+    if (bitrate == 0u || data_bitrate == 0u) {
+        return -1.0f;
+    }
+    return (float)nominal / (float)bitrate + (float)data / (float)data_bitrate;
+}
+
+static bool att_node_rates_ok(const att_node_settings_t *s)
+{
+    if (!att_isfinitef(s->sample_rate) || !(s->sample_rate > 0.0f) || s->sample_rate > ATT_NODE_MAX_RATE) {
+        return false;
+    }
+    if (s->bitrate < ATT_NODE_MIN_BITRATE || s->bitrate > ATT_NODE_MAX_BITRATE) {
+        return false;
+    }
+    if (s->data_bitrate != 0u && (s->data_bitrate < s->bitrate || s->data_bitrate > ATT_NODE_MAX_DATA_BITRATE)) {
+        return false;
+    }
+    if (s->fd && s->data_bitrate == 0u) {
+        return false;
+    }
+    return s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER;
+}
+
+float att_node_bus_load(const att_node_settings_t *s)
+{
+    float sets_per_s;
+    float t_set;
+    float t_classic;
+    if (s == NULL || !att_node_rates_ok(s)) {
+        return -1.0f;
+    }
+    sets_per_s = s->sample_rate / (float)s->output_divider;
+    t_classic = (float)att_node_classic_bits(8u) / (float)s->bitrate;
+    if (s->fd) {
+        t_set = att_node_fd_frame_time(64u, s->bitrate, s->data_bitrate);
+    } else {
+        t_set = (float)ATT_NODE_SET_FRAMES * t_classic;
+    }
+    if (s->diag_divider != 0u) {
+        t_set += t_classic / (float)s->diag_divider;
+    }
+    return sets_per_s * t_set;
+}
+
+/** The sample period of the filter settings (0 for kinds without one, e.g. tilt). */
+static float att_node_filter_dt(att_filter_kind_t kind, const att_filter_settings_t *fs)
+{
+    switch (kind) {
+    case ATT_FILTER_ARS:
+        return fs->ars.dt;
+    case ATT_FILTER_MARS:
+        return fs->mars.dt;
+    case ATT_FILTER_KF:
+        return fs->kf.dt;
+    case ATT_FILTER_GYRO:
+        return fs->gyro.dt;
+    default:
+        return 0.0f;
+    }
+}
+
+/** The filter's dt agrees with sample_rate (relative 1e-3), or the kind has no dt. */
+static bool att_node_dt_matches(const att_node_settings_t *s)
+{
+    float dt = att_node_filter_dt(s->kind, &s->filter);
+    float r;
+    if (dt == 0.0f) {
+        return true;
+    }
+    r = dt * s->sample_rate;
+    return r > 0.999f && r < 1.001f;
+}
+
+/* --- init ------------------------------------------------------------------------------------ */
+
+att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate, att_node_settings_t *s)
+{
+    att_status_t st;
+    if (s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (!att_isfinitef(sample_rate) || !(sample_rate > 0.0f)) {
+        return ATT_ERR_SETTINGS;
+    }
+    memset(s, 0, sizeof *s);
+    st = att_filter_settings_default(kind, 1.0f / sample_rate, &s->filter);
+    if (st != ATT_OK) {
+        return st;
+    }
+    s->kind = kind;
+    s->sample_rate = sample_rate;
+    s->bitrate = 500000u;
+    s->data_bitrate = 0u;
+    s->fd = false;
+    s->output_divider = 1u;
+    s->diag_divider = 16u;
+    return ATT_OK;
+}
+
+att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
+{
+    att_filter_t f;
+    att_status_t st;
+    float load;
+    if (n == NULL || s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (!att_node_rates_ok(s)) {
+        return ATT_ERR_SETTINGS;
+    }
+    st = att_filter_init(&f, s->kind, &s->filter);
+    if (st != ATT_OK) {
+        return st;
+    }
+    if (!att_node_dt_matches(s)) {
+        return ATT_ERR_SETTINGS; /* the filter would integrate with another period than the samples have */
+    }
+    load = att_node_bus_load(s);
+    if (!(load >= 0.0f) || load > 1.0f) {
+        return ATT_ERR_SETTINGS; /* the outputs would need more than the whole bus */
+    }
+    memset(n, 0, sizeof *n);
+    n->s = *s;
+    n->kind = s->kind;
+    n->fs = s->filter;
+    n->f = f;
+    att_filter_output(&n->f, &n->out);
+    return ATT_OK;
+}
+
+/* --- rings ----------------------------------------------------------------------------------- */
+
+bool att_node_rx(att_node_t *n, const att_can_frame_t *f)
+{
+    if (n == NULL || f == NULL) {
+        return false;
+    }
+    if (n->rx_head - n->rx_tail >= (uint32_t)ATT_NODE_RX_RING) {
+        n->stats.rx_overflows++;
+        return false;
+    }
+    n->rx[n->rx_head & ATT_NODE_RX_MASK] = *f;
+    n->rx_head++;
+    n->stats.rx_frames++;
+    return true;
+}
+
+bool att_node_tx(att_node_t *n, att_can_frame_t *f)
+{
+    if (n == NULL || f == NULL || n->tx_head == n->tx_tail) {
+        return false;
+    }
+    *f = n->tx[n->tx_tail & ATT_NODE_TX_MASK];
+    n->tx_tail++;
+    n->stats.tx_frames++;
+    return true;
+}
+
+size_t att_node_tx_pending(const att_node_t *n)
+{
+    return (n == NULL) ? 0u : (size_t)(n->tx_head - n->tx_tail);
+}
+
+static uint32_t att_node_tx_free(const att_node_t *n)
+{
+    return (uint32_t)ATT_NODE_TX_RING - (n->tx_head - n->tx_tail);
+}
+
+static void att_node_queue(att_node_t *n, const att_can_frame_t *f, uint32_t count)
+{
+    uint32_t i;
+    if (att_node_tx_free(n) < count) {
+        n->stats.tx_overflows += count; /* not reached: poll keeps room for ATT_NODE_SET_MAX frames */
+        return;
+    }
+    for (i = 0u; i < count; ++i) {
+        n->tx[n->tx_head & ATT_NODE_TX_MASK] = f[i];
+        n->tx_head++;
+    }
+}
+
+/* --- counters -------------------------------------------------------------------------------- */
+
+void att_node_diag(const att_node_t *n, att_can_diag_t *d)
+{
+    if (n == NULL || d == NULL) {
+        return;
+    }
+    d->crc_errors = n->stats.crc_errors;
+    d->counter_gaps = n->stats.counter_gaps;
+    d->dlc_errors = n->stats.dlc_errors;
+    d->unknown_ids = n->stats.unknown_ids;
+    d->duplicates = n->stats.duplicates;
+    d->stale_partials = n->stats.stale_partials;
+}
+
+static uint32_t att_node_sat_add(uint32_t a, uint32_t b)
+{
+    return (a > 255u || b > 255u - a) ? 255u : a + b;
+}
+
+uint8_t att_node_error_count(const att_node_t *n)
+{
+    uint32_t e = 0u;
+    if (n == NULL) {
+        return 0u;
+    }
+    e = att_node_sat_add(e, n->stats.crc_errors);
+    e = att_node_sat_add(e, n->stats.counter_gaps);
+    e = att_node_sat_add(e, n->stats.dlc_errors);
+    e = att_node_sat_add(e, n->stats.unknown_ids);
+    e = att_node_sat_add(e, n->stats.duplicates);
+    e = att_node_sat_add(e, n->stats.stale_partials);
+    e = att_node_sat_add(e, n->stats.rx_overflows);
+    return (uint8_t)e;
+}
+
+/* --- outputs --------------------------------------------------------------------------------- */
+
+static void att_node_emit(att_node_t *n)
+{
+    att_can_frame_t set[ATT_NODE_SET_FRAMES];
+    uint8_t counter = (uint8_t)(n->stats.sets & 0x0Fu);
+    if (n->s.fd) {
+        att_can_encode_output_fd(&n->out, n->kind, counter, &set[0]);
+        att_node_queue(n, set, 1u);
+    } else {
+        (void)att_can_encode_output_set(&n->out, n->kind, counter, att_node_error_count(n), set);
+        att_node_queue(n, set, ATT_NODE_SET_FRAMES);
+    }
+    n->stats.sets++;
+    if (n->s.diag_divider != 0u && (n->stats.sets % n->s.diag_divider) == 0u) {
+        att_can_diag_t d;
+        att_node_diag(n, &d);
+        att_can_encode_diag(&d, counter, &set[0]);
+        att_node_queue(n, set, 1u);
+    }
+}
+
+static size_t att_node_step(att_node_t *n, const att_sample_t *in)
+{
+    (void)att_filter_step(&n->f, in, &n->out);
+    n->stats.samples++;
+    n->stats.steps++;
+    n->div_count++;
+    if (n->div_count >= n->s.output_divider) {
+        n->div_count = 0u;
+        att_node_emit(n);
+    }
+    return 1u;
+}
+
+/* --- sample assembly ------------------------------------------------------------------------- */
+
+/** A frame with counter c starts a new sample. False: it belongs to the sample just completed. */
+static bool att_node_begin(att_node_t *n, uint8_t c)
+{
+    bool replaced = false;
+    if (n->part_mask != 0u) {
+        n->stats.stale_partials++;
+        n->part_mask = 0u;
+        replaced = true;
+    } else if (n->have_last && c == n->last_counter) {
+        n->stats.duplicates++;
+        return false;
+    }
+    if (n->have_last && c != (uint8_t)((n->last_counter + 1u) & 0x0Fu) && !(replaced && c == n->last_counter)) {
+        n->stats.counter_gaps++;
+    }
+    n->have_last = true;
+    n->last_counter = c;
+    return true;
+}
+
+static size_t att_node_part(att_node_t *n, const att_can_frame_t *f)
+{
+    uint8_t c = att_can_counter(f);
+    uint8_t bit;
+    att_vec3_t v;
+    if (!att_can_decode_imu_part(f, &v)) {
+        return 0u;
+    }
+    bit = (uint8_t)((f->id == ATT_CAN_ID_IMU_GYRO) ? 1u : ((f->id == ATT_CAN_ID_IMU_ACC) ? 2u : 4u));
+    if (n->part_mask != 0u && c == n->part_counter) {
+        if ((n->part_mask & bit) != 0u) {
+            n->stats.duplicates++;
+            return 0u;
+        }
+    } else {
+        if (!att_node_begin(n, c)) {
+            return 0u;
+        }
+        n->part_counter = c;
+    }
+    if (bit == 1u) {
+        n->part.gyr = v;
+    } else if (bit == 2u) {
+        n->part.acc = v;
+    } else {
+        n->part.mag = v;
+    }
+    n->part_mask = (uint8_t)(n->part_mask | bit);
+    if (n->part_mask != ATT_NODE_PART_ALL) {
+        return 0u;
+    }
+    n->part_mask = 0u;
+    return att_node_step(n, &n->part);
+}
+
+static size_t att_node_fd_sample(att_node_t *n, const att_can_frame_t *f)
+{
+    att_sample_t in;
+    if (!att_can_decode_imu_fd(f, &in) || !att_node_begin(n, att_can_counter(f))) {
+        return 0u;
+    }
+    return att_node_step(n, &in);
+}
+
+/* --- commands -------------------------------------------------------------------------------- */
+
+static uint8_t att_node_select(att_node_t *n, uint8_t arg)
+{
+    att_filter_kind_t kind = (att_filter_kind_t)arg;
+    att_filter_settings_t fs;
+    att_filter_t f;
+    if (kind == n->s.kind) {
+        fs = n->s.filter;
+    } else if (att_filter_settings_default(kind, 1.0f / n->s.sample_rate, &fs) != ATT_OK) {
+        return (uint8_t)ATT_CAN_ACK_BAD_ARG;
+    }
+    if (att_filter_init(&f, kind, &fs) != ATT_OK) {
+        return (uint8_t)ATT_CAN_ACK_REFUSED;
+    }
+    n->kind = kind;
+    n->fs = fs;
+    n->f = f;
+    att_filter_output(&n->f, &n->out);
+    return (uint8_t)ATT_CAN_ACK_OK;
+}
+
+/**
+ * Retune the live filter to new settings without losing its state. fresh_new and fresh_old are filters
+ * just initialised with the new and the current settings: the bytes in which they differ are exactly
+ * those that depend on the changed settings at init (the settings copy and the gains derived from it,
+ * e.g. ars.k, mars.k_acc, kf.r_step); they are taken from fresh_new. Everything else (attitude, bias,
+ * covariance, counters...) stays. Valid for parameters that only set constant derived gains, not the
+ * state after reset (true for every ATT_CAN_GAIN_*); tests/test_node.py checks it against the
+ * reference for every kind.
+ */
+static void att_node_retune(att_filter_t *live, const att_filter_t *fresh_new, const att_filter_t *fresh_old)
+{
+    unsigned char *d = (unsigned char *)live;
+    const unsigned char *b = (const unsigned char *)fresh_new;
+    const unsigned char *c = (const unsigned char *)fresh_old;
+    size_t i;
+    for (i = 0u; i < sizeof *live; ++i) {
+        if (b[i] != c[i]) {
+            d[i] = b[i];
+        }
+    }
+}
+
+static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
+{
+    att_filter_settings_t fs = n->fs;
+    att_filter_t fresh_new;
+    att_filter_t fresh_old;
+    if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_ARS) {
+        fs.ars.tau = value;
+    } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_MARS) {
+        fs.mars.tau_acc = value;
+    } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_MAG && n->kind == ATT_FILTER_MARS) {
+        fs.mars.tau_mag = value;
+    } else if (param == (uint8_t)ATT_CAN_GAIN_KF_R && n->kind == ATT_FILTER_KF) {
+        fs.kf.r_noise = value;
+    } else if (param == (uint8_t)ATT_CAN_GAIN_EKF_R && n->kind == ATT_FILTER_EKF) {
+        fs.ekf.r_phi = value;
+        fs.ekf.r_theta = value;
+    } else {
+        /* ATT_CAN_GAIN_EKF_R: answered "bad argument" until the EKF is part of att_filter_settings_t */
+        return (uint8_t)ATT_CAN_ACK_BAD_ARG;
+    }
+    if (!att_isfinitef(value) || att_filter_init(&fresh_new, n->kind, &fs) != ATT_OK ||
+        att_filter_init(&fresh_old, n->kind, &n->fs) != ATT_OK) {
+        return (uint8_t)ATT_CAN_ACK_REFUSED;
+    }
+    att_node_retune(&n->f, &fresh_new, &fresh_old);
+    n->fs = fs;
+    return (uint8_t)ATT_CAN_ACK_OK;
+}
+
+static void att_node_command(att_node_t *n, const att_can_frame_t *f)
+{
+    att_can_cmd_t c;
+    att_can_status_t st;
+    att_can_frame_t answer;
+    uint8_t result;
+    if (!att_can_decode_cmd(f, &c)) {
+        return;
+    }
+    n->stats.commands++;
+    switch (c.cmd) {
+    case ATT_CAN_CMD_SELECT:
+        result = att_node_select(n, c.arg);
+        break;
+    case ATT_CAN_CMD_RESET:
+        att_filter_reset(&n->f);
+        att_filter_output(&n->f, &n->out);
+        result = (uint8_t)ATT_CAN_ACK_OK;
+        break;
+    case ATT_CAN_CMD_SET_GAIN:
+        result = att_node_set_gain(n, c.arg, c.value);
+        break;
+    default:
+        result = (uint8_t)ATT_CAN_ACK_UNKNOWN_CMD;
+        break;
+    }
+    st.counter = c.counter;
+    st.kind = (uint8_t)((uint32_t)n->kind & 0x0Fu);
+    st.flags = (uint16_t)(n->out.flags & 0xFFFFu);
+    st.steps = (uint16_t)(n->out.steps & 0xFFFFu);
+    st.error_count = att_node_error_count(n);
+    st.ack = (uint8_t)((uint32_t)ATT_CAN_ACK_ANSWER | ((uint32_t)result << 4) | ((uint32_t)c.cmd & 0x0Fu));
+    att_can_encode_status(&st, &answer);
+    att_node_queue(n, &answer, 1u);
+}
+
+/* --- poll ------------------------------------------------------------------------------------ */
+
+static size_t att_node_handle(att_node_t *n, const att_can_frame_t *f)
+{
+    switch (f->id) {
+    case ATT_CAN_ID_IMU_GYRO:
+    case ATT_CAN_ID_IMU_ACC:
+    case ATT_CAN_ID_IMU_MAG:
+    case ATT_CAN_ID_IMU_FD:
+    case ATT_CAN_ID_CMD:
+        break;
+    default:
+        n->stats.unknown_ids++; /* not for the node (incl. attica output IDs) */
+        return 0u;
+    }
+    switch (att_can_check(f)) {
+    case ATT_CAN_OK:
+        break;
+    case ATT_CAN_ERR_DLC:
+        n->stats.dlc_errors++;
+        return 0u;
+    case ATT_CAN_ERR_CRC:
+        n->stats.crc_errors++;
+        return 0u;
+    default:
+        n->stats.unknown_ids++;
+        return 0u;
+    }
+    if (f->id == ATT_CAN_ID_CMD) {
+        att_node_command(n, f);
+        return 0u;
+    }
+    if (f->id == ATT_CAN_ID_IMU_FD) {
+        return att_node_fd_sample(n, f);
+    }
+    return att_node_part(n, f);
+}
+
+size_t att_node_poll(att_node_t *n)
+{
+    size_t steps = 0u;
+    if (n == NULL) {
+        return 0u;
+    }
+    while (n->rx_tail != n->rx_head && att_node_tx_free(n) >= (uint32_t)ATT_NODE_SET_MAX) {
+        steps += att_node_handle(n, &n->rx[n->rx_tail & ATT_NODE_RX_MASK]);
+        n->rx_tail++;
+    }
+    return steps;
+}
