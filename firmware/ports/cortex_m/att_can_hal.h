@@ -1,0 +1,141 @@
+/**
+ * @file att_can_hal.h
+ * @brief CAN HAL of the attica node for a bxCAN-style controller (STM32F1/F2/F4/F7 "bxCAN" register map).
+ *
+ * Moves frames between the controller and an att_node_t: receive FIFO 0 -> att_node_rx,
+ * att_node_poll, att_node_tx -> transmit mailboxes. Classic CAN only (bxCAN has no CAN FD): the node
+ * must run with fd = false; extended-ID and remote frames are not attica frames and are dropped.
+ *
+ * Every register access goes through att_can_hal_io_t (read/write of a 32-bit register at a byte
+ * offset), so the driver runs unchanged against the real peripheral (att_can_hal_mmio: ctx = the
+ * peripheral base address, e.g. (void *)0x40006400 for CAN1 on an STM32F4) and against a fake
+ * register block in a host unit test (tests/c/att_can_hal_test.c). No heap, no time source: waits
+ * for the controller are bounded loops (ATT_CAN_HAL_SPIN).
+ *
+ *     static att_node_t node;
+ *     static att_can_hal_t can;
+ *     att_node_settings_default(ATT_FILTER_ARS, 285.714f, &ns);
+ *     att_node_init(&node, &ns);
+ *     att_can_hal_init(&can, att_can_hal_mmio((void *)0x40006400u), &node, 42000000u);
+ *     for (;;) { att_can_hal_service(&can); }   // or: on the RX interrupt / a timer tick
+ *
+ * att_can_hal_service (= receive, att_node_poll, transmit) must not run concurrently with itself or
+ * with other calls on the same node: call it from one context (main loop, or one interrupt).
+ */
+#ifndef ATT_CAN_HAL_H
+#define ATT_CAN_HAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "attica/att_node.h"
+#include "attica/att_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Register offsets (bytes from the base) and bits of the bxCAN controller (RM0090 section 32.9). */
+enum {
+    ATT_BXCAN_MCR = 0x000,  /**< master control */
+    ATT_BXCAN_MSR = 0x004,  /**< master status */
+    ATT_BXCAN_TSR = 0x008,  /**< transmit status */
+    ATT_BXCAN_RF0R = 0x00C, /**< receive FIFO 0 */
+    ATT_BXCAN_IER = 0x014,  /**< interrupt enable */
+    ATT_BXCAN_ESR = 0x018,  /**< error status */
+    ATT_BXCAN_BTR = 0x01C,  /**< bit timing */
+    ATT_BXCAN_TI0R = 0x180, /**< transmit mailbox 0 identifier; mailbox n at + 0x10 n */
+    ATT_BXCAN_TDT0R = 0x184,
+    ATT_BXCAN_TDL0R = 0x188,
+    ATT_BXCAN_TDH0R = 0x18C,
+    ATT_BXCAN_RI0R = 0x1B0, /**< receive FIFO 0 output mailbox identifier */
+    ATT_BXCAN_RDT0R = 0x1B4,
+    ATT_BXCAN_RDL0R = 0x1B8,
+    ATT_BXCAN_RDH0R = 0x1BC,
+    ATT_BXCAN_FMR = 0x200,  /**< filter master */
+    ATT_BXCAN_FM1R = 0x204, /**< filter mode (0 = mask) */
+    ATT_BXCAN_FS1R = 0x20C, /**< filter scale (1 = 32 bit) */
+    ATT_BXCAN_FFA1R = 0x214, /**< filter FIFO assignment (0 = FIFO 0) */
+    ATT_BXCAN_FA1R = 0x21C, /**< filter activation */
+    ATT_BXCAN_F0R1 = 0x240, /**< filter bank 0 register 1 (identifier) */
+    ATT_BXCAN_F0R2 = 0x244  /**< filter bank 0 register 2 (mask) */
+};
+
+#define ATT_BXCAN_MCR_INRQ ((uint32_t)1u << 0)
+#define ATT_BXCAN_MCR_SLEEP ((uint32_t)1u << 1)
+#define ATT_BXCAN_MCR_TXFP ((uint32_t)1u << 2)  /**< transmit in request order (not by ID) */
+#define ATT_BXCAN_MCR_ABOM ((uint32_t)1u << 6)  /**< automatic bus-off recovery */
+#define ATT_BXCAN_MSR_INAK ((uint32_t)1u << 0)
+#define ATT_BXCAN_MSR_SLAK ((uint32_t)1u << 1)
+#define ATT_BXCAN_TSR_TME0 ((uint32_t)1u << 26) /**< mailbox 0 empty; TME1, TME2 follow */
+#define ATT_BXCAN_RF0R_FMP0 ((uint32_t)3u << 0) /**< messages pending in FIFO 0 */
+#define ATT_BXCAN_RF0R_FULL0 ((uint32_t)1u << 3)
+#define ATT_BXCAN_RF0R_FOVR0 ((uint32_t)1u << 4) /**< FIFO 0 overrun (write 1 to clear) */
+#define ATT_BXCAN_RF0R_RFOM0 ((uint32_t)1u << 5) /**< release the FIFO 0 output mailbox */
+#define ATT_BXCAN_ESR_BOFF ((uint32_t)1u << 2)
+#define ATT_BXCAN_TIR_TXRQ ((uint32_t)1u << 0)
+#define ATT_BXCAN_RIR_RTR ((uint32_t)1u << 1)
+#define ATT_BXCAN_RIR_IDE ((uint32_t)1u << 2)
+#define ATT_BXCAN_FMR_FINIT ((uint32_t)1u << 0)
+
+/** Busy-wait bound for the controller's acknowledgements (loop iterations). */
+#define ATT_CAN_HAL_SPIN 100000u
+
+/** Register access: 32-bit read and write at a byte offset from the controller's base. */
+typedef struct {
+    void *ctx;                                                  /**< base address or fake state */
+    uint32_t (*read)(void *ctx, uint32_t offset);              /**< read register at offset */
+    void (*write)(void *ctx, uint32_t offset, uint32_t value); /**< write register at offset */
+} att_can_hal_io_t;
+
+/** Driver counters. */
+typedef struct {
+    uint32_t rx_frames;      /**< frames moved from FIFO 0 to the node */
+    uint32_t rx_ignored;     /**< extended-ID or remote frames dropped */
+    uint32_t rx_overruns;    /**< FIFO 0 overruns seen (frames lost in the controller) */
+    uint32_t rx_node_full;   /**< frames att_node_rx refused (node rx ring full) */
+    uint32_t tx_frames;      /**< frames written to a transmit mailbox */
+    uint32_t tx_unsupported; /**< CAN FD / long frames from the node that bxCAN cannot send (dropped) */
+    uint32_t bus_off;        /**< times the controller was seen bus-off */
+} att_can_hal_stats_t;
+
+/** A bxCAN controller serving one attica node. */
+typedef struct {
+    att_can_hal_io_t io;       /**< register access */
+    att_node_t *node;          /**< the node */
+    uint32_t btr;              /**< bit timing register value in use */
+    bool was_bus_off;          /**< bus-off seen at the last service */
+    att_can_hal_stats_t stats; /**< counters */
+} att_can_hal_t;
+
+/** Register access to a memory-mapped controller at base (volatile 32-bit loads and stores). */
+att_can_hal_io_t att_can_hal_mmio(void *base);
+
+/**
+ * Bit timing register value for bitrate with the CAN kernel clock pclk_hz: 8..25 time quanta per bit,
+ * sample point at 87.5 % (rounded), SJW 1 tq. 0 when no prescaler 1..1024 gives the exact bitrate.
+ */
+uint32_t att_can_hal_btr(uint32_t pclk_hz, uint32_t bitrate);
+
+/**
+ * Configure the controller for the node's bitrate (node must be initialised, classic CAN): init mode,
+ * bit timing, automatic bus-off recovery, transmit in request order, filter bank 0 accepting every
+ * standard frame into FIFO 0, then normal mode. ATT_ERR_NULL, ATT_ERR_SETTINGS (fd node, bitrate not
+ * reachable from pclk_hz, or the controller did not acknowledge init / normal mode).
+ */
+att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t *node, uint32_t pclk_hz);
+
+/** Move every pending FIFO 0 frame into the node (att_node_rx); returns the frames moved. */
+size_t att_can_hal_receive(att_can_hal_t *h);
+
+/** Fill the free transmit mailboxes from the node's tx ring (att_node_tx); returns the frames written. */
+size_t att_can_hal_transmit(att_can_hal_t *h);
+
+/** Receive, att_node_poll, transmit; returns the filter steps run. */
+size_t att_can_hal_service(att_can_hal_t *h);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_CAN_HAL_H */

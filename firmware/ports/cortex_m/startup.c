@@ -1,0 +1,185 @@
+/**
+ * @file startup.c
+ * @brief Bare-metal start-up for a Cortex-M4F (ARMv7E-M + FPv4-SP): vector table, reset handler.
+ *
+ * Reset_Handler: enable the FPU (CPACR CP10/CP11 full access), copy .data from its load address,
+ * clear .bss, set FPSCR and FPDSCR to the IEEE mode attica needs (round to nearest even, no
+ * flush-to-zero, no default NaN) and check them (att_port_fatal(ATT_PORT_EXIT_FPSCR) if the FPU
+ * does not take them), run static constructors when newlib is linked, call main(argc, argv) with
+ * the arguments of att_port_args() and hand its status to att_port_exit().
+ *
+ * Symbols expected from the linker script (mps2_an386.ld defines them): __stack_top__,
+ * __data_load__, __data_start__, __data_end__, __bss_start__, __bss_end__.
+ *
+ * The exception and interrupt handlers are weak aliases of one default handler that reports a
+ * fault; define a function of the same name (e.g. SysTick_Handler, att_irq5_handler) to override.
+ */
+#include "att_port.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+int main(int argc, char **argv);
+
+extern uint32_t __stack_top__;
+extern uint32_t __data_load__;
+extern uint32_t __data_start__;
+extern uint32_t __data_end__;
+extern uint32_t __bss_start__;
+extern uint32_t __bss_end__;
+
+/* newlib's constructor runner; absent (NULL) in images linked without a C library. */
+extern void __libc_init_array(void) __attribute__((weak));
+
+/* System control block registers used here (ARMv7-M ARM, B3.2 and B3.2.20 onwards). */
+#define ATT_CPACR (*(volatile uint32_t *)0xE000ED88u)
+#define ATT_FPCCR (*(volatile uint32_t *)0xE000EF34u)
+#define ATT_FPDSCR (*(volatile uint32_t *)0xE000EF3Cu)
+#define ATT_CPACR_CP10_CP11 (0xFul << 20)   /* full access to CP10 and CP11 (the FPU) */
+#define ATT_FPCCR_ASPEN_LSPEN ((uint32_t)3u << 30)   /* automatic + lazy FP context save on exceptions */
+
+typedef void (*att_handler_t)(void);
+
+void Reset_Handler(void);
+void att_default_handler(void);
+void NMI_Handler(void);
+void HardFault_Handler(void);
+void MemManage_Handler(void);
+void BusFault_Handler(void);
+void UsageFault_Handler(void);
+void SVC_Handler(void);
+void DebugMon_Handler(void);
+void PendSV_Handler(void);
+void SysTick_Handler(void);
+void _init(void);
+void _fini(void);
+
+#define ATT_WEAK_HANDLER(name) void name(void) __attribute__((weak, alias("att_default_handler")))
+ATT_WEAK_HANDLER(NMI_Handler);
+ATT_WEAK_HANDLER(HardFault_Handler);
+ATT_WEAK_HANDLER(MemManage_Handler);
+ATT_WEAK_HANDLER(BusFault_Handler);
+ATT_WEAK_HANDLER(UsageFault_Handler);
+ATT_WEAK_HANDLER(SVC_Handler);
+ATT_WEAK_HANDLER(DebugMon_Handler);
+ATT_WEAK_HANDLER(PendSV_Handler);
+ATT_WEAK_HANDLER(SysTick_Handler);
+
+/* The 32 external interrupts of the MPS2 AN385/AN386 images (UARTs, timers, ethernet...). */
+#define ATT_IRQ(n) void att_irq##n##_handler(void); ATT_WEAK_HANDLER(att_irq##n##_handler)
+ATT_IRQ(0); ATT_IRQ(1); ATT_IRQ(2); ATT_IRQ(3); ATT_IRQ(4); ATT_IRQ(5); ATT_IRQ(6); ATT_IRQ(7);
+ATT_IRQ(8); ATT_IRQ(9); ATT_IRQ(10); ATT_IRQ(11); ATT_IRQ(12); ATT_IRQ(13); ATT_IRQ(14); ATT_IRQ(15);
+ATT_IRQ(16); ATT_IRQ(17); ATT_IRQ(18); ATT_IRQ(19); ATT_IRQ(20); ATT_IRQ(21); ATT_IRQ(22); ATT_IRQ(23);
+ATT_IRQ(24); ATT_IRQ(25); ATT_IRQ(26); ATT_IRQ(27); ATT_IRQ(28); ATT_IRQ(29); ATT_IRQ(30); ATT_IRQ(31);
+
+/** ARMv7-M vector table: initial main stack pointer, then 15 system and 32 external handlers. */
+typedef struct {
+    uint32_t *stack_top;
+    att_handler_t handler[15 + 32];
+} att_vectors_t;
+
+__attribute__((section(".vectors"), used)) const att_vectors_t att_vectors = {
+    &__stack_top__,
+    {
+        Reset_Handler, NMI_Handler, HardFault_Handler, MemManage_Handler, BusFault_Handler,
+        UsageFault_Handler, NULL, NULL, NULL, NULL, SVC_Handler, DebugMon_Handler, NULL, PendSV_Handler,
+        SysTick_Handler,
+        att_irq0_handler, att_irq1_handler, att_irq2_handler, att_irq3_handler, att_irq4_handler,
+        att_irq5_handler, att_irq6_handler, att_irq7_handler, att_irq8_handler, att_irq9_handler,
+        att_irq10_handler, att_irq11_handler, att_irq12_handler, att_irq13_handler, att_irq14_handler,
+        att_irq15_handler, att_irq16_handler, att_irq17_handler, att_irq18_handler, att_irq19_handler,
+        att_irq20_handler, att_irq21_handler, att_irq22_handler, att_irq23_handler, att_irq24_handler,
+        att_irq25_handler, att_irq26_handler, att_irq27_handler, att_irq28_handler, att_irq29_handler,
+        att_irq30_handler, att_irq31_handler,
+    },
+};
+
+/* ---- floating-point environment ---------------------------------------------------------------- */
+
+uint32_t att_port_fpscr(void)
+{
+    uint32_t v;
+    __asm__ volatile("vmrs %0, fpscr" : "=r"(v));
+    return v;
+}
+
+void att_port_fp_init(void)
+{
+    uint32_t fpscr;
+    ATT_CPACR |= ATT_CPACR_CP10_CP11;
+    __asm__ volatile("dsb\n\tisb" ::: "memory");
+    /* Handlers start with FPDSCR's modes: the same IEEE mode as thread code. */
+    ATT_FPDSCR = (ATT_FPDSCR & ~ATT_FPSCR_MODE_MASK) | ATT_FPSCR_REQUIRED;
+    ATT_FPCCR |= ATT_FPCCR_ASPEN_LSPEN;
+    fpscr = (att_port_fpscr() & ~ATT_FPSCR_MODE_MASK) | ATT_FPSCR_REQUIRED;
+    fpscr &= ~0x9Ful; /* clear the cumulative exception flags IDC IXC UFC OFC DZC IOC */
+    __asm__ volatile("vmsr fpscr, %0" ::"r"(fpscr) : "memory");
+}
+
+bool att_port_fp_ok(void)
+{
+    return (ATT_CPACR & ATT_CPACR_CP10_CP11) == ATT_CPACR_CP10_CP11 &&
+           (att_port_fpscr() & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED &&
+           (ATT_FPDSCR & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED;
+}
+
+/* ---- default hooks (semihost.c replaces them) ------------------------------------------------------ */
+
+__attribute__((weak)) int att_port_args(char ***argv)
+{
+    static char *no_args[1] = {NULL};
+    *argv = no_args;
+    return 0;
+}
+
+__attribute__((weak)) void att_port_fatal(int status)
+{
+    (void)status;
+    for (;;) {
+        __asm__ volatile("bkpt 0x00");
+    }
+}
+
+__attribute__((weak)) void att_port_exit(int status)
+{
+    (void)status;
+    for (;;) {
+        __asm__ volatile("wfi");
+    }
+}
+
+void att_default_handler(void) { att_port_fatal(ATT_PORT_EXIT_FAULT); }
+
+/* newlib's __libc_init_array calls _init (normally from crti.o, not linked: -nostartfiles). */
+__attribute__((weak)) void _init(void) {}
+__attribute__((weak)) void _fini(void) {}
+
+/* ---- reset ---------------------------------------------------------------------------------------- */
+
+void Reset_Handler(void)
+{
+    volatile uint32_t *dst;
+    const uint32_t *src;
+    char **argv;
+    int argc;
+    att_port_fp_init();
+    /* volatile stores: the loops must not become calls to memcpy/memset before .data exists */
+    src = &__data_load__;
+    for (dst = &__data_start__; dst < &__data_end__; dst++) {
+        *dst = *src++;
+    }
+    for (dst = &__bss_start__; dst < &__bss_end__; dst++) {
+        *dst = 0u;
+    }
+    if (!att_port_fp_ok()) {
+        att_port_fatal(ATT_PORT_EXIT_FPSCR);
+    }
+    if (__libc_init_array != NULL) {
+        __libc_init_array();
+    }
+    argc = att_port_args(&argv);
+    att_port_exit(main(argc, argv));
+    for (;;) {
+        __asm__ volatile("wfi");
+    }
+}

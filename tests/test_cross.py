@@ -1,0 +1,509 @@
+"""The firmware on other CPUs: bit-exact golden comparisons on Cortex-M4F (QEMU), aarch64 and riscv64
+(qemu-user) and x86-64 (gcc, clang); FMA gates per target; the Cortex-M4F start-up, floating-point
+environment, images (no heap), stack; the CMake and Makefile library builds; the bxCAN HAL.
+
+Missing cross tools skip with a printed reason (host/tools/install-system-deps.sh installs them);
+under CI=true they fail instead. Inputs and numpy reference outputs are computed once per session
+(in worker processes, while the runners build) and shared by every target.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import re
+import shutil
+import subprocess
+from collections.abc import Iterator
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from attica import _build, cross, footprint, golden
+from attica.cross import TARGETS, FilterCase, MathData, Target
+from attica.settings import implemented_kinds
+
+from helpers import BROAD, need
+
+JOBS = max(2, os.cpu_count() or 2)
+CONFIGS: list[tuple[str, str]] = [
+    (name, opt) for name in (*cross.CROSS_TARGETS, *cross.NATIVE_TARGETS) for opt in TARGETS[name].opts
+]
+"""(target, optimisation) of the golden comparisons."""
+FMA_OPTS = ["-O0", "-O2", "-O3", "-Os"]
+VARIANT_CONFIGS = {("m4f", "-O2"), *((t, "-O2") for t in cross.NATIVE_TARGETS)}
+"""Configurations that also run the non-default settings (the others run every kind's defaults, to keep
+the emulated wall time down; ``make cross`` runs every case everywhere)."""
+
+
+def need_tools(*tools: str) -> None:
+    """Skip (fail under CI=true) when a tool is missing, naming its Debian package."""
+    missing = [t for t in tools if shutil.which(t) is None]
+    need(not missing, f"not installed: {cross.install_hint(missing)} (host/tools/install-system-deps.sh)")
+
+
+def need_target(target: Target) -> None:
+    """Skip (fail under CI=true) when a tool of ``target`` is missing."""
+    need_tools(*target.tools)
+
+
+# --- shared inputs, references and runners ----------------------------------------------------------------
+
+
+@dataclass
+class CrossData:
+    """Inputs written once and reference outputs (computed in worker processes)."""
+
+    workdir: Path
+    synthetic: list[FilterCase]
+    broad: list[FilterCase]
+    files: dict[str, Path]
+    pending: dict[str, Future[Any]] = field(default_factory=dict)
+    want: dict[str, Any] = field(default_factory=dict)
+    _math: MathData | None = None
+
+    @property
+    def math(self) -> MathData:
+        """Math rows, input files and reference outputs (made on first use)."""
+        if self._math is None:
+            self._math = cross.math_data(self.workdir)
+        return self._math
+
+    def reference(self, case: FilterCase) -> Any:
+        """The reference outputs of a case (waits for its worker)."""
+        if case.name not in self.want:
+            job = self.pending.pop(case.name, None)
+            self.want[case.name] = (
+                job.result()
+                if job is not None
+                else golden.reference_filter(case.kind, case.settings, *case.imu)
+            )
+        return self.want[case.name]
+
+
+def _selected(session: pytest.Session, name: str) -> bool:
+    return any(getattr(item, "originalname", item.name) == name for item in session.items)
+
+
+@pytest.fixture(scope="session")
+def cross_data(
+    tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest
+) -> Iterator[CrossData]:
+    """Synthetic (and BROAD, when present) filter cases and math rows with their references."""
+    wd = tmp_path_factory.mktemp("cross")
+    synthetic = cross.synthetic_cases()
+    files_broad = cross.broad_files(BROAD)
+    broad = cross.broad_cases(files_broad) if files_broad else []
+    wanted = []
+    if _selected(request.session, "test_golden_filters"):
+        wanted += synthetic
+    if _selected(request.session, "test_golden_broad"):
+        wanted += broad
+    pool = ProcessPoolExecutor(JOBS, mp_context=mp.get_context("fork")) if wanted else None
+    pending = {}
+    if pool is not None:
+        for c in sorted(wanted, key=lambda c: -c.imu[0].shape[0] * cross.REFERENCE_COST.get(c.kind.label, 5)):
+            pending[c.name] = pool.submit(cross.reference_case, c)
+    files = cross.write_case_inputs([*synthetic, *broad], wd)
+    data = CrossData(wd, synthetic, broad, files, pending)
+    yield data
+    if pool is not None:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+@pytest.fixture(scope="session")
+def runners(
+    cross_data: CrossData, tmp_path_factory: pytest.TempPathFactory
+) -> dict[tuple[str, str], Path | str]:
+    """The golden runner of every configuration whose tools are installed (a build error as its text).
+
+    Requests ``cross_data`` first so that the references are already computing during the builds.
+    """
+    out = tmp_path_factory.mktemp("cross_runners")
+    configs = [c for c in CONFIGS if not TARGETS[c[0]].missing()]
+
+    def build(cfg: tuple[str, str]) -> Path | str:
+        try:
+            return TARGETS[cfg[0]].runner(cfg[1], out / f"{cfg[0]}{cfg[1]}")
+        except cross.CrossError as e:
+            return str(e)
+
+    with ThreadPoolExecutor(JOBS) as pool:
+        return dict(zip(configs, pool.map(build, configs), strict=True))
+
+
+def _runner(runners: dict[tuple[str, str], Path | str], config: tuple[str, str]) -> tuple[Path, Target]:
+    target = TARGETS[config[0]]
+    need_target(target)
+    r = runners[config]
+    if isinstance(r, str):
+        pytest.fail(r)
+    return r, target
+
+
+def _report(config: tuple[str, str], results: list[cross.Result]) -> None:
+    lines = [f"{config[0]} {config[1]}: {r.what}: {r.compared} compared, {r.differ} differ" for r in results]
+    print("\n" + "\n".join(lines))
+    bad = [f"{r.what}: {r.differ} of {r.compared} differ; {r.detail}" for r in results if not r.ok]
+    assert not bad, f"{' '.join(config)} ({TARGETS[config[0]].description}):\n" + "\n".join(bad)
+
+
+_IDS = [f"{t}{o}" for t, o in CONFIGS]
+
+
+# --- golden bit-exactness --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=_IDS)
+def test_golden_math(
+    runners: dict[tuple[str, str], Path | str], cross_data: CrossData, config: tuple[str, str], tmp_path: Path
+) -> None:
+    """Every math function of the runner, 1e5 random + adversarial rows each: bits equal the reference."""
+    runner, target = _runner(runners, config)
+    results = cross.compare_math(runner, target.prefix, cross_data.math, tmp_path)
+    assert len(results) == len(golden.MATH_FUNCS)
+    _report(config, results)
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=_IDS)
+def test_golden_filters(
+    runners: dict[tuple[str, str], Path | str], cross_data: CrossData, config: tuple[str, str], tmp_path: Path
+) -> None:
+    """Every filter kind (defaults; variants too on VARIANT_CONFIGS) over 1e5 synthetic adversarial
+    steps each: every output record (q, euler, bias, cov, flags, steps) bit-identical to the reference."""
+    runner, target = _runner(runners, config)
+    cases = [c for c in cross_data.synthetic if config in VARIANT_CONFIGS or c.name.endswith("-default")]
+    kinds = {c.kind for c in cases}
+    assert kinds == set(implemented_kinds())
+    want = {c.name: cross_data.reference(c) for c in cases}
+    results = cross.compare_filters(runner, target.prefix, cases, want, cross_data.files, tmp_path)
+    assert all(r.compared >= 100_000 for r in results)
+    _report(config, results)
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=_IDS)
+def test_golden_broad(
+    runners: dict[tuple[str, str], Path | str], cross_data: CrossData, config: tuple[str, str], tmp_path: Path
+) -> None:
+    """Every filter kind over 1e5 real BROAD samples (4 chunks of 1250 from every recording)."""
+    need(bool(cross_data.broad), f"BROAD data not found at {BROAD}")
+    runner, target = _runner(runners, config)
+    want = {c.name: cross_data.reference(c) for c in cross_data.broad}
+    results = cross.compare_filters(runner, target.prefix, cross_data.broad, want, cross_data.files, tmp_path)
+    assert all(r.compared >= 100_000 for r in results)
+    _report(config, results)
+
+
+# --- FMA gate per target ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", cross.CROSS_TARGETS)
+def test_no_fma_on_target(name: str, tmp_path: Path) -> None:
+    """No fused multiply-add in any firmware object for the target at -O0/-O2/-O3/-Os (all of these
+    CPUs have FMA instructions, so this proves -ffp-contract=off works there)."""
+    target = TARGETS[name]
+    need_tools(target.cc, target.objdump)
+    jobs = [(src, opt) for opt in FMA_OPTS for src in _build.firmware_sources()]
+
+    def one(job: tuple[Path, str]) -> list[str]:
+        src, opt = job
+        obj = tmp_path / f"{src.stem}{opt}.o"
+        cross.compile_object(target, src, obj, opt)
+        return [f"{opt} {h}" for h in cross.fma_instructions(obj, target.objdump)]
+
+    with ThreadPoolExecutor(JOBS) as pool:
+        hits = [h for hs in pool.map(one, jobs) for h in hs]
+    assert not hits, f"{len(hits)} fused multiply-add instruction(s) for {name}:\n" + "\n".join(hits[:40])
+
+
+@pytest.mark.parametrize("name", cross.CROSS_TARGETS)
+def test_fma_gate_can_fail(name: str, tmp_path: Path) -> None:
+    """The gate sees FMA when contraction is allowed: a*b+c compiled without -ffp-contract=off (GCC's
+    default for GNU C is -ffp-contract=fast) becomes vfma.f32 / fmadd / fmadd.s and is detected."""
+    target = TARGETS[name]
+    need_tools(target.cc, target.objdump)
+    src = tmp_path / "fma.c"
+    src.write_text(
+        "float f(float a, float b, float c);\nfloat f(float a, float b, float c) { return a * b + c; }\n"
+    )
+    obj = tmp_path / "fma.o"
+    subprocess.run(
+        [target.cc, *target.cpu, "-O2", "-c", str(src), "-o", str(obj)], check=True, capture_output=True
+    )
+    hits = cross.fma_instructions(obj, target.objdump)
+    assert hits, f"{target.cc} -O2 (contraction allowed) produced no FMA the detector recognises"
+    subprocess.run(
+        [target.cc, *target.cpu, "-O2", "-ffp-contract=off", "-c", str(src), "-o", str(obj)],
+        check=True,
+        capture_output=True,
+    )
+    assert not cross.fma_instructions(obj, target.objdump)
+
+
+def test_fma_regex_targets() -> None:
+    """The mnemonic pattern covers ARMv7-M VFPv4, AArch64 and RISC-V FMA and leaves the rest alone."""
+    for m in ("vfma.f32", "vfms.f32", "vfnma.f32", "vfnms.f32", "fmadd", "fmsub", "fnmadd", "fnmsub", "fmla",
+              "fmls", "fmadd.s", "fmsub.s", "fnmadd.s", "fnmsub.s", "vfmadd231ss"):  # fmt: skip
+        assert cross.FMA_RE.match(m), m
+    for m in ("vmla.f32", "vmls.f32", "vnmla.f32", "vmul.f32", "fmul", "fadd", "fmul.s", "fadd.s", "fmv.s"):
+        assert not cross.FMA_RE.match(m), m
+
+
+# --- Cortex-M4F start-up, floating-point environment, semihosting -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def m4f_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Where this module builds its Cortex-M4F images."""
+    need_target(TARGETS["m4f"])
+    return tmp_path_factory.mktemp("m4f")
+
+
+def test_m4f_floating_point_environment(m4f_dir: Path) -> None:
+    """After startup.c: FPU on, FPSCR and FPDSCR round-to-nearest, no flush-to-zero, no default NaN (in
+    thread mode and in an exception handler), checked by arithmetic; and the check can fail."""
+    elf = TARGETS["m4f"].build([cross.TESTS_C / "att_m4f_fpenv.c"], "-O2", "fpenv.elf", m4f_dir)
+    proc = subprocess.run(
+        [str(cross.QEMU_M4F), str(elf)], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL
+    )
+    print(proc.stdout)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "FAIL" not in proc.stdout and proc.stdout.count("ok ") >= 14
+
+
+def test_m4f_semihosting_runner(m4f_dir: Path) -> None:
+    """The runner on the M4F: argv from the command line, stdout/stderr, exit status via SYS_EXIT_EXTENDED,
+    host files through newlib; the vector table is at 0 and .data is copied from its load address."""
+    target = TARGETS["m4f"]
+    runner = target.runner("-O2", m4f_dir)
+    listed = golden.run(runner, ["list"], target.prefix)
+    assert listed.startswith("math ") and "filters" in listed
+    proc = subprocess.run(
+        [*target.prefix, str(runner), "math", "nosuch", "a", "b"], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 1 and "unknown math function" in proc.stderr
+    out = subprocess.run(
+        ["arm-none-eabi-objdump", "-h", str(runner)], capture_output=True, text=True, check=True
+    ).stdout
+    sections = {
+        p[1]: p for p in (line.split() for line in out.splitlines()) if len(p) >= 6 and p[0].isdigit()
+    }
+    assert int(sections[".vectors"][3], 16) == 0, "vector table not at address 0"
+    data = sections[".data"]
+    assert int(data[3], 16) >= 0x20000000 and int(data[4], 16) < 0x00400000, (
+        ".data must run in RAM, load from flash"
+    )
+    syms = footprint.symbols(runner)
+    assert {"Reset_Handler", "att_port_fp_init", "_exit"} <= set(syms)
+
+
+def test_m4f_library_images_no_heap(tmp_path: Path) -> None:
+    """libattica.a for the M4F builds with -Wstack-usage, and every footprint image (each filter, all
+    filters, codec, node) links without heap, libm or errno symbols."""
+    need_target(TARGETS["m4f"])
+    lib, objs = footprint.library("-Os", tmp_path)
+    assert len(objs) == len(_build.firmware_sources())
+    problems = []
+    for name, image in footprint.IMAGES.items():
+        elf, map_file = footprint.link_image(name, image, lib, "-Os", tmp_path / "images")
+        bad = footprint.forbidden_symbols(elf)
+        if bad:
+            problems.append(f"{name}: {', '.join(bad)}")
+        sizes = footprint.map_sizes(map_file)
+        assert sizes.attica.text > 0, name
+        assert sizes.attica.data == 0 and sizes.attica.bss == 0, f"{name}: the library has static state"
+    assert not problems, "\n".join(problems)
+
+
+def test_m4f_stack_gate_can_fail(tmp_path: Path) -> None:
+    """-Wstack-usage=M4F_STACK_LIMIT with the firmware flags stops a build whose frame is larger."""
+    need_tools("arm-none-eabi-gcc")
+    src = tmp_path / "big.c"
+    src.write_text(
+        "#include <string.h>\nvoid g(char *p);\nvoid f(void);\n"
+        f"void f(void) {{ char buf[{cross.M4F_STACK_LIMIT + 64}]; memset(buf, 1, sizeof buf); g(buf); }}\n"
+    )
+    target = Target("m4f", "", "arm-none-eabi-gcc", cross.M4F_CPU)
+    with pytest.raises(cross.CrossError, match="stack usage"):
+        cross.compile_object(
+            target, src, tmp_path / "big.o", "-O2", [f"-Wstack-usage={cross.M4F_STACK_LIMIT}"]
+        )
+
+
+def test_m4f_stack_measured_within_call_graph(tmp_path: Path) -> None:
+    """The call-graph worst case bounds the stack measured on the target (QEMU, painted stack)."""
+    need_target(TARGETS["m4f"])
+    need_tools("qemu-system-arm")
+    lib, objs = footprint.library("-O2", tmp_path)
+    elf, _ = footprint.link_image("node", footprint.IMAGES["CAN node (att_node)"], lib, "-O2", tmp_path)
+    graph = footprint.call_graph(objs)
+    ext = {f: v for f in ("memcpy", "memset") if (v := footprint.leaf_stack(elf, f)) is not None}
+    measured = footprint.measure("-O2", tmp_path)
+    assert (
+        measured.sizeof["att_filter_t"] > 0
+        and measured.sizeof["att_node_t"] > measured.sizeof["att_filter_t"]
+    )
+    checked = 0
+    for (fn, kind), used in measured.stack.items():
+        bound = footprint.worst_stack(graph, fn, ext)
+        assert not bound.unknown, f"{fn}: unknown callees {bound.unknown}"
+        assert used <= bound.bytes, f"{fn} ({kind}): measured {used} B > call-graph bound {bound.bytes} B"
+        assert used > 0, f"{fn} ({kind}): nothing measured"
+        checked += 1
+    assert checked >= 10
+
+
+def test_m4f_instruction_trace(tmp_path: Path) -> None:
+    """The QEMU exec trace logs every executed instruction (each PC change is sequential or a branch) and
+    counts every call of att_filter_step, repeatably."""
+    need_target(TARGETS["m4f"])
+    elf = TARGETS["m4f"].build([footprint.BENCH_SOURCE], "-O2", "att_bench.elf", tmp_path)
+    a = footprint.trace_steps(elf, "tilt", 30)
+    b = footprint.trace_steps(elf, "tilt", 30)
+    assert a.instructions == b.instructions and len(a.instructions) == 30
+    assert all(50 < n < 5000 for n in a.instructions)
+    assert all(c >= n for c, n in zip(a.cycles, a.instructions, strict=True))
+    logged, gaps = footprint.check_trace(elf, "tilt", 3)
+    assert logged > 1000 and not gaps, "the exec trace misses instructions:\n" + "\n".join(gaps[:20])
+
+
+# --- library builds for users ----------------------------------------------------------------------------
+
+
+INTEGRATION = cross.TESTS_C / "integration"
+
+
+def _run_example(path: Path) -> str:
+    proc = subprocess.run([str(path)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert re.match(r"^steps 1000 flags 0x[0-9a-f]{4} q( [0-9a-f]{8}){4} yaw ", proc.stdout), proc.stdout
+    return proc.stdout
+
+
+@pytest.fixture(scope="module")
+def cmake_example(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """tests/c/integration through firmware/CMakeLists.txt with the host compiler; the example's output."""
+    need_tools("cmake", "cc")
+    build = tmp_path_factory.mktemp("cmake")
+    subprocess.run(
+        ["cmake", "-S", str(INTEGRATION), "-B", str(build), "-DCMAKE_EXPORT_COMPILE_COMMANDS=ON"],
+        check=True,
+        capture_output=True,
+    )
+    proc = subprocess.run(["cmake", "--build", str(build), "-j", str(JOBS)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    commands = (build / "compile_commands.json").read_text()
+    for flag in ("-ffp-contract=off", "-fno-fast-math", "-fno-math-errno", "-fno-lto", "-Werror"):
+        assert flag in commands, f"{flag} not on the attica compile lines"
+    return _run_example(build / "example")
+
+
+def test_cmake_library(cmake_example: str) -> None:
+    """firmware/CMakeLists.txt: target attica builds with the host compiler and the example runs."""
+    assert "steps 1000" in cmake_example
+
+
+@pytest.fixture(scope="module")
+def make_example(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """tests/c/integration through firmware/attica.mk with the host compiler; the example's output."""
+    need_tools("make", "cc")
+    build = tmp_path_factory.mktemp("mk")
+    proc = subprocess.run(
+        ["make", "-f", str(INTEGRATION / "Makefile"), f"BUILD={build}", "-j", str(JOBS)],
+        capture_output=True,
+        text=True,
+        cwd=_build.ROOT,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (build / "attica" / "libattica.a").exists()
+    for flag in ("-ffp-contract=off", "-fno-fast-math", "-fno-math-errno", "-fno-lto", "-Werror"):
+        assert flag in proc.stdout, f"{flag} not on the attica compile lines"
+    return _run_example(build / "example")
+
+
+def test_makefile_fragment(make_example: str) -> None:
+    """firmware/attica.mk: the example builds through the fragment (ATTICA_LIB) and runs."""
+    assert "steps 1000" in make_example
+
+
+def test_cmake_and_make_agree(cmake_example: str, make_example: str) -> None:
+    """The two library builds give the same bits."""
+    assert make_example == cmake_example
+
+
+def test_cmake_cortex_m4f(tmp_path: Path) -> None:
+    """The CMake library (and the bxCAN HAL) cross-compiled with the Cortex-M4F toolchain file."""
+    need_tools("cmake", "arm-none-eabi-gcc")
+    toolchain = cross.PORT / "arm-none-eabi-m4f.cmake"
+    subprocess.run(
+        [
+            "cmake",
+            "-S",
+            str(_build.FIRMWARE),
+            "-B",
+            str(tmp_path),
+            f"-DCMAKE_TOOLCHAIN_FILE={toolchain}",
+            "-DATTICA_CORTEX_M_BXCAN=ON",
+            "-DCMAKE_BUILD_TYPE=MinSizeRel",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    proc = subprocess.run(
+        ["cmake", "--build", str(tmp_path), "-j", str(JOBS)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    attrs = subprocess.run(
+        ["arm-none-eabi-readelf", "-A", str(tmp_path / "libattica.a")],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert "VFPv4-D16" in attrs and "VFP registers" in attrs
+    assert (tmp_path / "libattica_bxcan.a").exists()
+
+
+# --- bxCAN HAL ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+def test_can_hal_host(cc: str, tmp_path: Path) -> None:
+    """The bxCAN HAL against a fake register block on the host: init, bit timing, frames through a real
+    node, overruns, extended IDs, busy mailboxes, bus-off."""
+    need_tools(cc)
+    prog = golden.build_program(
+        [cross.PORT / "att_can_hal.c", cross.TESTS_C / "att_can_hal_test.c"],
+        cc,
+        "-O2",
+        ["-I", str(cross.PORT)],
+        "att_can_hal_test",
+        tmp_path,
+    )
+    proc = subprocess.run([str(prog)], capture_output=True, text=True, timeout=60)
+    print(proc.stdout)
+    assert proc.returncode == 0 and "FAIL" not in proc.stdout, proc.stdout + proc.stderr
+    assert "0 failure(s)" in proc.stdout
+
+
+def test_can_hal_compiles_for_m4f(tmp_path: Path) -> None:
+    """The HAL compiles for the Cortex-M4F with the strict firmware flags, without heap or libm calls."""
+    need_tools("arm-none-eabi-gcc", "arm-none-eabi-nm")
+    obj = tmp_path / "att_can_hal.o"
+    cross.compile_object(TARGETS["m4f"], cross.PORT / "att_can_hal.c", obj, "-Os", ["-I", str(cross.PORT)])
+    undefined = subprocess.run(
+        ["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True, check=True
+    )
+    names = {line.split()[-1] for line in undefined.stdout.splitlines() if line.strip()}
+    assert names <= {"att_node_rx", "att_node_tx", "att_node_poll", "memset", "memcpy"}, names
+
+
+def test_golden_configs_cover_every_cpu() -> None:
+    """The comparison covers the Cortex-M4F, aarch64, riscv64 and x86-64 with gcc and clang."""
+    names = {t for t, _ in CONFIGS}
+    assert {"m4f", "aarch64", "riscv64"} <= names
+    if cross.NATIVE_TARGETS:
+        assert {"x86_64-gcc", "x86_64-clang"} <= names
+    assert {o for t, o in CONFIGS if t == "m4f"} == {"-O2", "-Os"}
