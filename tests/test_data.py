@@ -187,7 +187,7 @@ def test_not_an_npz(tmp_path):
 
 def test_unknown_suffix(tmp_path, rec):
     with pytest.raises(ValueError, match="suffix"):
-        load_recording(tmp_path / "x.mat")
+        load_recording(tmp_path / "x.xyz")  # .mat is a BROAD original now
     with pytest.raises(ValueError, match="suffix"):
         rec.save(tmp_path / "x.txt")
 

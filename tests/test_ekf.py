@@ -10,7 +10,7 @@ import pytest
 
 from attica.native import ffi, lib
 from attica.reference.ekf import Ekf, EkfSettings
-from attica.settings import Flag
+from attica.settings import FilterKind, Flag, Preset, preset_settings
 
 from helpers import adversarial_floats, assert_same_bits
 
@@ -18,6 +18,11 @@ G = 9.80665
 
 
 # --- helpers -------------------------------------------------------------------------------------
+
+
+def ekf_seed(**kw: Any) -> EkfSettings:
+    """The seed preset (the notes' per-step noises) with changes: the tests of the literal filter use it."""
+    return dataclasses.replace(preset_settings(FilterKind.EKF, Preset.SEED), **kw)
 
 
 def c_settings(s: EkfSettings, i: int = 0) -> Any:
@@ -32,8 +37,8 @@ def c_settings(s: EkfSettings, i: int = 0) -> Any:
             continue
         if v.ndim > 0:
             v = v[i]
-        if f.name == "init_from_accel":
-            cs.init_from_accel = bool(v)
+        if f.name in ("init_from_accel", "noise_rates"):
+            setattr(cs, f.name, bool(v))
         else:
             setattr(cs, f.name, float(np.float32(v)))
     return cs
@@ -212,11 +217,13 @@ def test_defaults_match_c() -> None:
         pv = getattr(d, f.name)
         if f.name == "euler_init":
             assert (cv.x, cv.y, cv.z) == pv
-        elif f.name == "init_from_accel":
+        elif f.name in ("init_from_accel", "noise_rates"):
             assert bool(cv) is pv
         else:
             assert np.float32(cv).view(np.uint32) == np.float32(pv).view(np.uint32), f.name
-    assert d.q_phi == d.q_theta == 1e-4 and d.q_psi == 0.1 and d.r_phi == d.r_theta == 6.0 and d.p0 == 1.0
+    seed = ekf_seed()
+    assert seed.q_phi == seed.q_theta == 1e-4 and seed.q_psi == 0.1 and seed.r_phi == seed.r_theta == 6.0
+    assert seed.p0 == 1.0 and not seed.noise_rates and d.noise_rates
 
 
 BAD_SETTINGS: list[dict[str, Any]] = [
@@ -261,7 +268,7 @@ BAD_SETTINGS: list[dict[str, Any]] = [
 
 @pytest.mark.parametrize("bad", BAD_SETTINGS, ids=[str(b) for b in BAD_SETTINGS])
 def test_settings_rejected(bad: dict[str, Any]) -> None:
-    cs = c_settings(dataclasses.replace(EkfSettings(), **bad))
+    cs = c_settings(ekf_seed(**bad))
     f = ffi.new("att_ekf_t *")
     before = bytes(ffi.buffer(f))
     assert lib.att_ekf_init(f, cs) == lib.ATT_ERR_SETTINGS
@@ -282,7 +289,7 @@ GOOD_SETTINGS: list[dict[str, Any]] = [
 
 @pytest.mark.parametrize("good", GOOD_SETTINGS, ids=[str(b) for b in GOOD_SETTINGS])
 def test_settings_accepted(good: dict[str, Any]) -> None:
-    s = dataclasses.replace(EkfSettings(init_from_accel=False), **good)
+    s = ekf_seed(init_from_accel=False, **good)
     f = ffi.new("att_ekf_t *")
     assert lib.att_ekf_init(f, c_settings(s)) == lib.ATT_OK
     ref = Ekf(s)
@@ -302,7 +309,7 @@ def test_null_arguments() -> None:
 
 
 def test_reset_restores_initial_state() -> None:
-    s = EkfSettings(init_from_accel=False, euler_init=(0.3, -0.2, 4.0))
+    s = ekf_seed(init_from_accel=False, euler_init=(0.3, -0.2, 4.0))
     f = c_filters(s, 1)
     first = bytes(ffi.buffer(f))
     for _ in range(50):
@@ -322,11 +329,12 @@ def test_bit_exact_normal() -> None:
     rng = np.random.default_rng(1)
     dt = rng.choice(np.float32([0.0035, 0.005, 0.01, 0.02]), m)
     euler0 = rng.uniform(-1, 1, (m, 3)).astype(np.float32)
-    s = EkfSettings(
+    s = ekf_seed(
         dt=dt,  # type: ignore[arg-type]
         init_from_accel=np.arange(m) % 2 == 0,  # type: ignore[arg-type]
         euler_init=euler0,  # type: ignore[arg-type]
         accel_reject=np.where(np.arange(m) % 3 == 0, 0.0, 0.1),  # type: ignore[arg-type]
+        noise_rates=np.arange(m) % 4 != 0,  # type: ignore[arg-type]  # defaults: rates; some per step
     )
     gyr, acc, _ = motion(m, steps, dt, seed=2, acc_noise=0.3)
     c = run_c(c_filters(s, m), gyr, acc)
@@ -349,8 +357,9 @@ def _adversarial_settings(m: int) -> EkfSettings:
         {"r_phi": 1e6, "r_theta": 1e6, "q_psi": 1e6, "q_phi": 1.0, "p_max": 1e6, "p0": 1e6},
         {"init_from_accel": False, "euler_init": (8000.0, 1.5707964, -3.1415927)},
         {"init_from_accel": False, "euler_init": (-3.1415927, -1.5707964, 3.1415927), "cos_min": 0.9},
+        {"noise_rates": True, "q_phi": 0.03, "q_theta": 0.03, "q_psi": 1.0, "r_phi": 3.0, "r_theta": 3.0},
     ]
-    base = dataclasses.asdict(EkfSettings())
+    base = dataclasses.asdict(ekf_seed())
     cols: dict[str, list[Any]] = {k: [] for k in base}
     for i in range(m):
         v = {**base, **variants[i % len(variants)]}
@@ -427,7 +436,7 @@ def test_covariance_healthy_1e6_steps() -> None:
     """One instance for 1e6 steps (about 2.8 h at 100 Hz): P finite, symmetric, positive definite."""
     steps = 1_000_000
     gyr, acc, e_true = motion(1, steps, 0.01, seed=5, acc_noise=0.2)
-    s = EkfSettings(init_from_accel=True)
+    s = ekf_seed(init_from_accel=True)
     c = run_c(c_filters(s, 1), gyr, acc)
     cov = c["P"][:, 0]
     mineig = check_cov(cov, "long run")
@@ -457,7 +466,7 @@ def test_converges_from_wrong_start(err0: tuple[float, float]) -> None:
     gyr, acc, e_true = motion(m, steps, dt, seed=21, acc_noise=0.2)
     e0 = e_true[0] + np.radians([err0[0], err0[1], 0.0])
     e0[:, 1] = np.clip(e0[:, 1], -1.5, 1.5)
-    s = EkfSettings(init_from_accel=False, euler_init=e0.astype(np.float32))  # type: ignore[arg-type]
+    s = ekf_seed(init_from_accel=False, euler_init=e0.astype(np.float32))  # type: ignore[arg-type]
     c = run_c(c_filters(s, m), gyr, acc)
     err = tilt_err_deg(c["euler"], e_true)
     t2, t5 = int(2 / dt), int(5 / dt)
@@ -480,7 +489,7 @@ def test_tracks_with_correct_start_including_yaw() -> None:
     gyr, acc, e_true = motion(m, steps, dt, seed=31, acc_noise=0.2)
     # the state before the first sample: the truth at t = 0 (extrapolate the first interval back)
     e_prev = e_true[0] - (e_true[1] - e_true[0])
-    s = EkfSettings(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
+    s = ekf_seed(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
     c = run_c(c_filters(s, m), gyr, acc)
     q_true = quat_from_euler64(e_true)
     full = quat_angle_deg(c["q"], q_true)
@@ -499,7 +508,7 @@ def test_gimbal_lock_pitch_through_90_noise_free() -> None:
         1, steps, dt, seed=41, amp=(0.0, 0.0, 0.0), pitch_rate=1.0, acc_noise=0.0, gyro_noise=0.0
     )
     e_prev = e_true[0] - (e_true[1] - e_true[0])
-    s = EkfSettings(init_from_accel=False, euler_init=tuple(float(x) for x in e_prev[0]))  # type: ignore[arg-type]
+    s = ekf_seed(init_from_accel=False, euler_init=tuple(float(x) for x in e_prev[0]))  # type: ignore[arg-type]
     c = run_c(c_filters(s, 1), gyr, acc)
     r = run_ref(Ekf(s, 1), gyr, acc)
     compare(c, r, "gimbal")
@@ -534,7 +543,7 @@ def test_gimbal_lock_pitch_through_90_noisy() -> None:
         m, steps, dt, seed=43, amp=(0.3, 0.0, 0.3), pitch_rate=rate, acc_noise=0.1, gyro_noise=0.003
     )
     e_prev = e_true[0] - (e_true[1] - e_true[0])
-    s = EkfSettings(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
+    s = ekf_seed(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
     c = run_c(c_filters(s, m), gyr, acc)
     r = run_ref(Ekf(s, m), gyr, acc)
     compare(c, r, "gimbal noisy")
@@ -568,7 +577,7 @@ def test_gimbal_lock_hold_at_90() -> None:
             gyro_noise=gyro_noise,
         )
         e_prev = e_true[0] - (e_true[1] - e_true[0])
-        s = EkfSettings(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
+        s = ekf_seed(init_from_accel=False, euler_init=e_prev.astype(np.float32))  # type: ignore[arg-type]
         c = run_c(c_filters(s, m), gyr, acc)
         r = run_ref(Ekf(s, m), gyr, acc)
         compare(c, r, "hold")
@@ -589,7 +598,7 @@ def test_gimbal_lock_hold_at_90() -> None:
 
 
 def _pair(s: EkfSettings | None = None) -> tuple[Any, Ekf]:
-    s = s or EkfSettings(init_from_accel=False, euler_init=(0.1, -0.2, 0.3))
+    s = s or ekf_seed(init_from_accel=False, euler_init=(0.1, -0.2, 0.3))
     return c_filters(s, 1), Ekf(s)
 
 
@@ -616,7 +625,7 @@ NAN, INF = float("nan"), float("inf")
     [((NAN, 0, 0), Flag.GYRO_INVALID), ((0, INF, 0), Flag.GYRO_INVALID), ((0, 0, -40.0), Flag.GYRO_RANGE)],
 )
 def test_bad_gyro_keeps_angles(gyr: Any, flag: Flag) -> None:
-    f, ref = _pair(EkfSettings(init_from_accel=False, euler_init=(0.1, -0.2, 0.3), accel_reject=0.0))
+    f, ref = _pair(ekf_seed(init_from_accel=False, euler_init=(0.1, -0.2, 0.3), accel_reject=0.0))
     e0, p0 = _state(f)
     fl = _step_both(f, ref, gyr, (np.nan, 0, 0))  # no update either: pure prediction with w = 0
     assert fl == flag | Flag.ACCEL_INVALID
@@ -651,14 +660,14 @@ def test_bad_accel_skips_update(acc: Any, flag: Flag) -> None:
 
 
 def test_accel_reject_zero_never_rejects() -> None:
-    f, ref = _pair(EkfSettings(init_from_accel=False, accel_reject=0.0))
+    f, ref = _pair(ekf_seed(init_from_accel=False, accel_reject=0.0))
     e0, _ = _state(f)
     assert _step_both(f, ref, (0, 0, 0), (0, 3.0, 30.0)) == 0
     assert _state(f)[0] != e0  # the update happened
 
 
 def test_not_ready_until_first_valid_accel() -> None:
-    f, ref = _pair(EkfSettings())
+    f, ref = _pair(ekf_seed())
     for a in [(NAN, 0, 0), (0, 0, 0), (300.0, 0, 0)]:
         fl = _step_both(f, ref, (0.1, 0.1, 0.1), a)
         assert fl & Flag.NOT_READY and not fl & Flag.INITIALISED
@@ -670,7 +679,7 @@ def test_not_ready_until_first_valid_accel() -> None:
 
 
 def test_gimbal_flag_and_clamped_jacobian() -> None:
-    f, ref = _pair(EkfSettings(init_from_accel=False, euler_init=(0.2, 1.5707964, 0.1)))
+    f, ref = _pair(ekf_seed(init_from_accel=False, euler_init=(0.2, 1.5707964, 0.1)))
     fl = _step_both(f, ref, (0.1, 0.5, 0.5), (-G, 0.0, 0.0))
     assert fl & Flag.GIMBAL
     _, p = _state(f)
@@ -679,7 +688,7 @@ def test_gimbal_flag_and_clamped_jacobian() -> None:
 
 
 def test_variance_cap_sets_clamped() -> None:
-    f, ref = _pair(EkfSettings(init_from_accel=False, p0=1.0, p_max=1.05))
+    f, ref = _pair(ekf_seed(init_from_accel=False, p0=1.0, p_max=1.05))
     fl = _step_both(f, ref, (0.1, 0.2, 0.3), (NAN, 0, 0))  # yaw variance 1 + 0.1 > 1.05
     assert fl & Flag.CLAMPED
     _, p = _state(f)
@@ -714,7 +723,7 @@ def test_covariance_repair(cov: list[list[float]]) -> None:
 
 
 def test_numeric_failure_keeps_state() -> None:
-    s = EkfSettings(init_from_accel=False, gyro_range=INF, euler_init=(0.1, 0.2, 0.3))
+    s = ekf_seed(init_from_accel=False, gyro_range=INF, euler_init=(0.1, 0.2, 0.3))
     f, ref = _pair(s)
     e0, p0 = _state(f)
     fl = _step_both(f, ref, (1e30, 1e30, 1e30), (NAN, 0, 0))

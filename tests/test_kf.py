@@ -14,7 +14,7 @@ import pytest
 
 from attica.native import ffi, lib
 from attica.reference.kf import Kf, KfSettings, KfYawMode
-from attica.settings import Flag
+from attica.settings import SEED_OVERRIDES, FilterKind, Flag, Preset, preset_settings
 
 from helpers import adversarial_floats, assert_same_bits
 
@@ -127,18 +127,25 @@ def yaw_deg(q: np.ndarray) -> np.ndarray:
 # --- C side -----------------------------------------------------------------------------------
 
 FIELDS = [f.name for f in dataclasses.fields(KfSettings)]
+SEED = SEED_OVERRIDES[FilterKind.KF]
+"""The tests of the literal filter run the seed preset (the notes' per-step Q and R)."""
+
+
+def kf_seed(**kw: Any) -> KfSettings:
+    """The seed preset with changes."""
+    return dataclasses.replace(preset_settings(FilterKind.KF, Preset.SEED), **kw)
 
 
 def c_settings(dt: float = DT, **fields: Any) -> Any:
     s = ffi.new("att_kf_settings_t *")
     lib.att_kf_settings_default(s, dt)
-    for k, v in fields.items():
+    for k, v in {**SEED, **fields}.items():
         if k == "q_init":
             s.q_init = tuple(float(c) for c in v)
         elif k == "yaw_mode":
             s.yaw_mode = int(v)
-        elif k == "init_from_accel":
-            s.init_from_accel = bool(v)
+        elif k in ("init_from_accel", "noise_rates"):
+            setattr(s, k, bool(v))
         else:
             setattr(s, k, float(v))
     return s
@@ -193,7 +200,7 @@ def run_both(
     steps, m, _ = gyr.shape
     fs = c_filters(m, per_instance)
     q_c, p_c, fl_c = c_run(fs, m, gyr, acc)
-    ref = Kf(KfSettings(**per_instance), n=m)
+    ref = Kf(kf_seed(**per_instance), n=m)
     for t in range(steps):
         fl = ref.step(gyr[t], acc[t])
         np.testing.assert_array_equal(fl, fl_c[t], err_msg=f"flags at step {t}")
@@ -245,6 +252,11 @@ def test_bit_exact_motion_1e6_steps_p_spd() -> None:
         "r_noise": rng.choice([10.0, 1.0, 100.0], m),
         "p0": rng.choice([1.0, 0.01], m),
     }
+    # half in the defaults' mode (q_noise per s, r_noise in unit^2 s), with the same per-step noises
+    rates = rng.random(m) < 0.5
+    per["noise_rates"] = rates
+    per["q_noise"] = np.where(rates, per["q_noise"] / DT, per["q_noise"])
+    per["r_noise"] = np.where(rates, per["r_noise"] * DT, per["r_noise"])
     q_c, p_c, fl_c = run_both(per, gyr, acc, check_spd=True)
     print(f"\n{m * steps} steps bit-exact; flags seen: {sorted(set(np.unique(fl_c).tolist()))}")
     assert np.isfinite(q_c).all()
@@ -291,6 +303,8 @@ def test_bit_exact_adversarial() -> None:
         "gyro_range": rng.choice([34.906586, np.inf], m),
         "accel_range": rng.choice([156.9064, np.inf], m),
     }
+    # rates where q_noise * dt and r_noise / dt stay within the valid 1e-12 .. 1e12
+    per["noise_rates"] = (rng.random(m) < 0.5) & (per["q_noise"] != 1e-12) & (per["r_noise"] != 1e12)
     q_c, p_c, fl_c = run_both(per, gyr, acc)
     print(f"\n{m * steps} adversarial steps bit-exact; NUMERIC in {(fl_c & Flag.NUMERIC != 0).sum()} steps")
     assert m * steps >= 100_000
@@ -471,7 +485,7 @@ def test_bad_input_flagged(gyr: tuple[float, ...], acc: tuple[float, ...], flag:
 
 
 def _ref_replay(gyr: tuple[float, ...], acc: tuple[float, ...]) -> int:
-    ref = Kf(KfSettings(), n=1)
+    ref = Kf(kf_seed(), n=1)
     f = _level_filter()
     for _ in range(50):
         ref.step((0.01, -0.02, 0.03), (0.1, -0.2, G))
@@ -495,7 +509,7 @@ def test_both_sensors_bad_keeps_attitude() -> None:
 
 def _corrupt_and_step(p_bad: np.ndarray) -> tuple[int, Any, Kf]:
     f = _level_filter()
-    ref = Kf(KfSettings(), n=1)
+    ref = Kf(kf_seed(), n=1)
     for _ in range(50):
         ref.step((0.01, -0.02, 0.03), (0.1, -0.2, G))
     for i in range(4):
@@ -596,3 +610,16 @@ def test_reference_run_matches_step() -> None:
     b.reset()
     assert (b.steps == 0).all()
     np.testing.assert_array_equal(b.covariance[0], np.eye(4, dtype=np.float32))
+
+
+def test_noise_rates_scaled_and_validated() -> None:
+    """noise_rates: Q = q_noise dt and R = r_noise / dt per step, each within 1e-12 .. 1e12."""
+    f = ffi.new("att_kf_t *")
+    assert lib.att_kf_init(f, c_settings(0.01, noise_rates=True, q_noise=1e-3, r_noise=0.1)) == lib.ATT_OK
+    assert f.q_step == np.float32(np.float32(1e-3) * np.float32(0.01))
+    assert f.r_step == np.float32(np.float32(0.1) / np.float32(0.01))
+    assert lib.att_kf_init(f, c_settings(0.01, noise_rates=False, q_noise=1e-3)) == lib.ATT_OK
+    assert f.q_step == np.float32(1e-3)
+    for bad in ({"q_noise": 1e-11}, {"r_noise": 1e11}):
+        assert lib.att_kf_init(f, c_settings(0.01, noise_rates=True, **bad)) == lib.ATT_ERR_SETTINGS
+        assert lib.att_kf_init(f, c_settings(0.01, noise_rates=False, **bad)) == lib.ATT_OK

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -11,7 +11,7 @@ import pytest
 
 from attica.native import ffi, lib
 from attica.reference.mars import MagMode, Mars, MarsSettings
-from attica.settings import Flag
+from attica.settings import SEED_OVERRIDES, BiasMode, FilterKind, Flag, Integration, Preset, preset_settings
 
 from helpers import assert_same_bits
 
@@ -135,15 +135,22 @@ def simulate(
 # --- C side helpers ----------------------------------------------------------------------------
 
 FIELDS = [f.name for f in fields(MarsSettings)]
+SEED = SEED_OVERRIDES[FilterKind.MARS]
+"""The tests of the literal filter (the article's per-sample gains) run the seed preset."""
+
+
+def mars_seed(**kw: Any) -> MarsSettings:
+    """The seed preset at DT with changes."""
+    return replace(preset_settings(FilterKind.MARS, Preset.SEED, dt=DT), **kw)
 
 
 def c_settings(d: dict[str, Any]) -> Any:
     s = ffi.new("att_mars_settings_t *")
     lib.att_mars_settings_default(s, DT)
-    for k, v in d.items():
+    for k, v in {**SEED, **d}.items():
         if k in ("bias_init", "m0_init", "q_init"):
             setattr(s, k, tuple(float(np.float32(x)) for x in v))
-        elif k in ("mag_mode",):
+        elif k in ("mag_mode", "integration", "bias_mode", "bias_n_max"):
             setattr(s, k, int(v))
         elif k == "init_from_sensors":
             setattr(s, k, bool(v))
@@ -153,7 +160,7 @@ def c_settings(d: dict[str, Any]) -> Any:
 
 
 def ref_settings(dicts: list[dict[str, Any]]) -> MarsSettings:
-    base = MarsSettings(dt=DT)
+    base = mars_seed()
     keys = sorted({k for d in dicts for k in d})
     kw: dict[str, Any] = {}
     for k in keys:
@@ -241,6 +248,15 @@ def _variety(n: int, rng: np.random.Generator, q0: np.ndarray) -> list[dict[str,
             d["mag_norm_reject"] = 0.0
             d["mag_dip_reject"] = 0.0
             d["accel_reject"] = 0.0
+        if i % 2 == 1:  # the defaults' features: rotvec integration, accel low-pass, bias learning
+            d["integration"] = int(Integration.ROTVEC)
+            d["tau_acc_lp"] = rng.uniform(0.3, 3.0)
+            d["bias_mode"] = int(
+                (BiasMode.AT_REST, BiasMode.RUNNING, BiasMode.OFF, BiasMode.AT_REST)[i // 2 % 4]
+            )
+            d["rest_time"] = rng.uniform(0.0, 1.0)
+            d["rest_gyro"] = rng.uniform(0.05, 2.0)
+            d["rest_accel"] = rng.uniform(0.5, 5.0)
         dicts.append(d)
     return dicts
 
@@ -389,7 +405,7 @@ def test_convergence_from_wrong_start(mode: MagMode) -> None:
     q, gyr, acc, mag = simulate(n, steps, seed=3, motion=0.7)
     err = q_euler(np.radians(30.0), np.radians(-25.0), np.radians(60.0))
     q_init = qmul(q[0], np.broadcast_to(err, (n, 4)))
-    s = MarsSettings(dt=DT, mag_mode=mode, init_from_sensors=False, q_init=q_init, m0_init=tuple(M_EARTH))
+    s = mars_seed(mag_mode=mode, init_from_sensors=False, q_init=q_init, m0_init=tuple(M_EARTH))
     quats, flags = _run_c(s, gyr, acc, mag)
     tilt = tilt_error(quats, q)
     head = heading_error(quats, q)
@@ -422,7 +438,7 @@ def test_converge_from_sensor_init_large_yaw_error() -> None:
     q, gyr, acc, mag = simulate(n, steps, seed=4, motion=0.5)
     err = q_euler(0.0, 0.0, np.radians(170.0))
     q_init = qmul(np.broadcast_to(err, (n, 4)), q[0])
-    s = MarsSettings(dt=DT, init_from_sensors=False, q_init=q_init, m0_init=tuple(M_EARTH))
+    s = mars_seed(init_from_sensors=False, q_init=q_init, m0_init=tuple(M_EARTH))
     quats, _ = _run_c(s, gyr, acc, mag)
     head = heading_error(quats, q)
     t_head = np.argmax((head < np.radians(2.0)).all(axis=1)) * DT
@@ -437,11 +453,11 @@ def test_heading_against_enu_truth_dipped_field() -> None:
     """Init from sensors with a 63 deg dip field: heading matches the ENU truth from the first step."""
     n, steps = 50, 3000
     q, gyr, acc, mag = simulate(n, steps, seed=5, motion=0.7)
-    quats, flags = _run_c(MarsSettings(dt=DT), gyr, acc, mag)
+    quats, flags = _run_c(mars_seed(), gyr, acc, mag)
     assert (flags[0] & Flag.INITIALISED).all()
     head = heading_error(quats, q)
     tilt = tilt_error(quats, q)
-    m0 = Mars(MarsSettings(dt=DT), 1)
+    m0 = Mars(mars_seed(), 1)
     m0.step(gyr[0, 0], acc[0, 0], mag[0, 0])
     dip = np.degrees(np.arctan2(m0.m0[2][0], m0.m0[1][0]))
     print(
@@ -461,7 +477,7 @@ def test_heading_late_mag() -> None:
     n, steps = 20, 1500
     q, gyr, acc, mag = simulate(n, steps, seed=6, motion=0.5)
     mag[:200] = 0.0
-    quats, flags = _run_c(MarsSettings(dt=DT), gyr, acc, mag)
+    quats, flags = _run_c(mars_seed(), gyr, acc, mag)
     assert (flags[0] & Flag.INITIALISED).all()
     assert (flags[1:200] & Flag.MAG_ABSENT).all()
     assert (flags[200] & Flag.INITIALISED).all()
@@ -483,7 +499,7 @@ def test_disturbed_field_horizontal_vs_full() -> None:
     dist[1000:2000] += qrot(qconj(q[1000:2000]), np.array([0.0, 0.0, 40.0]))
     out = {}
     for mode in (MagMode.HORIZONTAL, MagMode.FULL):
-        s = MarsSettings(dt=DT, mag_mode=mode, mag_norm_reject=0.0, mag_dip_reject=0.0)
+        s = mars_seed(mag_mode=mode, mag_norm_reject=0.0, mag_dip_reject=0.0)
         quats, _ = _run_c(s, gyr, acc, dist)
         e = euler(quats)
         base = e[999]
@@ -499,7 +515,7 @@ def test_disturbed_field_horizontal_vs_full() -> None:
     assert out[MagMode.FULL][0] > np.radians(5.0)
     # with the default rejection the disturbance is flagged and changes nothing, in both modes
     for mode in (MagMode.HORIZONTAL, MagMode.FULL):
-        quats, flags = _run_c(MarsSettings(dt=DT, mag_mode=mode), gyr, acc, dist)
+        quats, flags = _run_c(mars_seed(mag_mode=mode), gyr, acc, dist)
         assert (flags[1000:2000] & Flag.MAG_REJECTED).all()
         assert not (flags[:1000] & Flag.MAG_REJECTED).any()
         e = euler(quats)
@@ -512,7 +528,7 @@ def test_horizontal_disturbance_in_motion_keeps_tilt() -> None:
     q, gyr, acc, mag = simulate(n, steps, seed=9, motion=0.7)
     rng = np.random.default_rng(9)
     dist = mag + rng.normal(0, 25.0, (1, n, 3))
-    s = MarsSettings(dt=DT, mag_norm_reject=0.0, mag_dip_reject=0.0)
+    s = mars_seed(mag_norm_reject=0.0, mag_dip_reject=0.0)
     q_d, _ = _run_c(s, gyr, acc, dist)
     q_n, _ = _run_c(s, gyr, acc, mag)
     d = np.abs(euler(q_d)[..., :2] - euler(q_n)[..., :2])
@@ -619,7 +635,7 @@ def test_not_ready_init_and_bad_arg() -> None:
     s = c_settings({})
     f = ffi.new("att_mars_t *")
     assert lib.att_mars_init(f, s) == lib.ATT_OK
-    ref = Mars(MarsSettings(dt=DT), 1)
+    ref = Mars(mars_seed(), 1)
     for gyr, acc, mag in [(GOOD_G, (NAN, 0, 0), GOOD_M), (GOOD_G, (0, 0, 0), (0, 0, 0))]:
         fl = lib.att_mars_step(f, gyr, acc, mag)
         assert fl == int(ref.step(gyr, acc, mag)[0])
@@ -670,7 +686,7 @@ def test_m0_from_first_mag_with_q_init() -> None:
 def test_settings_defaults_match() -> None:
     s = ffi.new("att_mars_settings_t *")
     lib.att_mars_settings_default(s, DT)
-    py = MarsSettings(dt=DT)
+    py = MarsSettings(dt=DT)  # the defaults, not the seed
     c_fields = [name for name, _ in ffi.typeof("att_mars_settings_t").fields]
     assert c_fields == FIELDS
     for name in FIELDS:

@@ -7,7 +7,7 @@ import pytest
 
 from attica import native
 from attica.outputs import OUTPUT_DTYPE
-from attica.settings import FilterKind, implemented_kinds, make_settings, to_dict
+from attica.settings import FilterKind, Preset, implemented_kinds, make_settings, preset_settings, to_dict
 
 
 @pytest.mark.parametrize("kind", implemented_kinds(), ids=lambda k: k.label)
@@ -22,6 +22,37 @@ def test_defaults_match_c(kind: FilterKind) -> None:
             assert np.float32(value) == np.float32(c[name]), name
         else:
             assert int(value) == int(c[name]), name
+
+
+@pytest.mark.parametrize("preset", list(Preset), ids=lambda p: p.label)
+@pytest.mark.parametrize("kind", implemented_kinds(), ids=lambda k: k.label)
+def test_presets_match_c(kind: FilterKind, preset: Preset) -> None:
+    """settings.preset_settings equals att_filter_settings_preset, field by field."""
+    py = to_dict(preset_settings(kind, preset, dt=1 / 285.714))
+    c = native.default_settings(kind, dt=1 / 285.714, preset=preset)
+    for name, value in py.items():
+        if isinstance(value, tuple):
+            assert np.array_equal(np.float32(value), np.float32(c[name])), name
+        elif isinstance(value, float):
+            assert np.float32(value) == np.float32(c[name]), name
+        else:
+            assert int(value) == int(c[name]), name
+    # the seed preset differs from the defaults exactly where a setting was tuned
+    if preset == Preset.SEED and kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF):
+        assert py != to_dict(make_settings(kind, dt=1 / 285.714))
+
+
+def test_preset_bad_arguments() -> None:
+    lib, ffi = native.lib, native.ffi
+    s = ffi.new("att_filter_settings_t *")
+    assert lib.att_filter_settings_preset(lib.ATT_FILTER_ARS, 7, 0.01, s) == lib.ATT_ERR_KIND
+    assert lib.att_filter_settings_preset(99, lib.ATT_PRESET_SEED, 0.01, s) == lib.ATT_ERR_KIND
+    assert (
+        lib.att_filter_settings_preset(lib.ATT_FILTER_ARS, lib.ATT_PRESET_SEED, 0.01, ffi.NULL)
+        == lib.ATT_ERR_NULL
+    )
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset_settings(FilterKind.ARS, "tuned")
 
 
 def test_output_layout() -> None:

@@ -17,8 +17,8 @@ void att_ars_settings_default(att_ars_settings_t *settings, float dt)
     }
     settings->dt = dt;
     settings->gain = 0.1f;
-    settings->tau = 0.0f;
-    settings->gain_c = 100.0f;
+    settings->tau = 0.02f;
+    settings->gain_c = 0.0f;
     settings->gravity = 9.80665f;
     settings->accel_reject = 0.0f;
     settings->accel_range = 156.9064f; /* 16 g */
@@ -34,6 +34,7 @@ void att_ars_settings_default(att_ars_settings_t *settings, float dt)
     settings->integration = ATT_INTEGRATE_ROTVEC;
     settings->init_from_accel = true;
     settings->q_init = att_quat_identity();
+    settings->tau_acc_lp = 1.5f;
 }
 
 static bool att_ars_settings_valid(const att_ars_settings_t *s)
@@ -43,6 +44,7 @@ static bool att_ars_settings_valid(const att_ars_settings_t *s)
                         att_isfinitef(s->gain_c) && att_isfinitef(s->gravity) &&
                         att_isfinitef(s->accel_reject) && att_isfinitef(s->rest_gyro) &&
                         att_isfinitef(s->rest_accel) && att_isfinitef(s->rest_time) &&
+                        att_isfinitef(s->tau_acc_lp) &&
                         att_vec3_isfinite(s->bias_init) && att_quat_isfinite(s->q_init);
     if (!finite) {
         return false;
@@ -53,7 +55,8 @@ static bool att_ars_settings_valid(const att_ars_settings_t *s)
     }
     if (!(s->dt > 0.0f && s->dt <= 1.0f) || !(s->gain >= 0.0f && s->gain <= 1.0f) || !(s->tau >= 0.0f) ||
         !(s->gain_c >= 0.0f) || !(s->gravity > 0.0f) || !(s->accel_reject >= 0.0f) ||
-        !(s->rest_gyro >= 0.0f) || !(s->rest_accel >= 0.0f) || !(s->rest_time >= 0.0f)) {
+        !(s->rest_gyro >= 0.0f) || !(s->rest_accel >= 0.0f) || !(s->rest_time >= 0.0f) ||
+        !(s->tau_acc_lp >= 0.0f)) {
         return false;
     }
     if (s->bias_n_max < 1u || s->bias_n_max > ATT_BIAS_N_MAX_LIMIT) {
@@ -80,6 +83,7 @@ att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings)
     f->s = *settings;
     f->k = (settings->tau > 0.0f) ? settings->dt / (settings->tau + settings->dt) : settings->gain;
     f->rest_n = att_sensor_samples(settings->rest_time, settings->dt);
+    f->k_lp = (settings->tau_acc_lp > 0.0f) ? settings->dt / (settings->tau_acc_lp + settings->dt) : 0.0f;
     att_ars_reset(f);
     return ATT_OK;
 }
@@ -100,6 +104,10 @@ void att_ars_reset(att_ars_t *f)
     f->bias_n = 0u;
     f->rest_count = 0u;
     f->initialised = !f->s.init_from_accel;
+    f->lp1.x = 0.0f;
+    f->lp1.y = 0.0f;
+    f->lp1.z = f->s.gravity;
+    f->lp2 = f->lp1;
     f->steps = 0u;
     f->flags = 0u;
 }
@@ -126,15 +134,30 @@ static att_quat_t att_ars_increment(const att_ars_t *f, att_vec3_t rate)
     return att_quat_from_rotvec(rv);
 }
 
-/* Rotate q so that the earth-frame specific force moves toward +z by the adaptive gain. */
-static att_quat_t att_ars_correct(const att_ars_t *f, att_quat_t q, att_vec3_t acc, float norm)
+/*
+ * Rotate q so that the earth-frame specific force moves toward +z by the adaptive gain. With the
+ * low-pass on (k_lp > 0), the earth-frame sample first feeds two cascaded first-order low-passes
+ * lp1, lp2 and the correction uses lp2; both stages are then rotated by the correction, so they stay
+ * expressed in the (corrected) earth frame.
+ */
+static att_quat_t att_ars_correct(att_ars_t *f, att_quat_t q, att_vec3_t acc, float norm)
 {
-    const att_vec3_t ae = att_quat_rotate(q, acc);
-    const float axy = att_sqrtf(ae.x * ae.x + ae.y * ae.y);
-    const float angle = att_atan2f(axy, ae.z);
-    const float e = norm / f->s.gravity - 1.0f;
-    const float ka = f->k / (1.0f + f->s.gain_c * e * e);
+    att_vec3_t ae = att_quat_rotate(q, acc);
+    float axy;
+    float angle;
+    float e;
+    float ka;
     att_vec3_t axis;
+    att_quat_t qc;
+    if (f->k_lp > 0.0f) {
+        f->lp1 = att_vec3_add(f->lp1, att_vec3_scale(att_vec3_sub(ae, f->lp1), f->k_lp));
+        f->lp2 = att_vec3_add(f->lp2, att_vec3_scale(att_vec3_sub(f->lp1, f->lp2), f->k_lp));
+        ae = f->lp2;
+    }
+    axy = att_sqrtf(ae.x * ae.x + ae.y * ae.y);
+    angle = att_atan2f(axy, ae.z);
+    e = norm / f->s.gravity - 1.0f;
+    ka = f->k / (1.0f + f->s.gain_c * e * e);
     if (axy > 0.0f) {
         axis.x = ae.y / axy;
         axis.y = -ae.x / axy;
@@ -143,7 +166,12 @@ static att_quat_t att_ars_correct(const att_ars_t *f, att_quat_t q, att_vec3_t a
         axis.y = 0.0f;
     }
     axis.z = 0.0f;
-    return att_quat_mul(att_quat_from_axis_angle(axis, ka * angle), q);
+    qc = att_quat_from_axis_angle(axis, ka * angle);
+    if (f->k_lp > 0.0f) {
+        f->lp1 = att_quat_rotate(qc, f->lp1);
+        f->lp2 = att_quat_rotate(qc, f->lp2);
+    }
+    return att_quat_mul(qc, q);
 }
 
 uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc)
@@ -192,6 +220,8 @@ uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc)
             const att_vec3_t t = att_sensor_tilt(acc);
             f->q = att_quat_from_euler(t.x, t.y, 0.0f);
             (void)att_quat_normalize(f->q, &f->q);
+            f->lp1 = att_quat_rotate(f->q, acc);
+            f->lp2 = f->lp1;
             f->initialised = true;
             flags |= ATT_FLAG_INITIALISED;
         } else {

@@ -21,11 +21,11 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->q_phi = 0.0001f;
-    settings->q_theta = 0.0001f;
-    settings->q_psi = 0.1f;
-    settings->r_phi = 6.0f;
-    settings->r_theta = 6.0f;
+    settings->q_phi = 0.03f;
+    settings->q_theta = 0.03f;
+    settings->q_psi = 1.0f;
+    settings->r_phi = 3.0f;
+    settings->r_theta = 3.0f;
     settings->p0 = 1.0f;
     settings->p_max = 1000000.0f;
     settings->gravity = 9.80665f;
@@ -37,6 +37,7 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
     settings->euler_init.x = 0.0f;
     settings->euler_init.y = 0.0f;
     settings->euler_init.z = 0.0f;
+    settings->noise_rates = true;
 }
 
 static bool att_ekf_var_ok(float v, bool zero_ok)
@@ -60,6 +61,11 @@ static bool att_ekf_settings_valid(const att_ekf_settings_t *s)
         !(s->cos_min > 0.0f && s->cos_min < 1.0f)) {
         return false;
     }
+    if (s->noise_rates && (!att_ekf_var_ok(s->q_phi * s->dt, true) || !att_ekf_var_ok(s->q_theta * s->dt, true) ||
+                           !att_ekf_var_ok(s->q_psi * s->dt, true) || !att_ekf_var_ok(s->r_phi / s->dt, false) ||
+                           !att_ekf_var_ok(s->r_theta / s->dt, false))) {
+        return false;
+    }
     return att_vec3_isfinite(e) && att_absf(e.y) <= ATT_EKF_PIO2_F && att_absf(e.x) <= 8192.0f &&
            att_absf(e.z) <= 8192.0f;
 }
@@ -73,6 +79,19 @@ att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
         return ATT_ERR_SETTINGS;
     }
     f->s = *settings;
+    if (settings->noise_rates) {
+        f->q_step[0] = settings->q_phi * settings->dt;
+        f->q_step[1] = settings->q_theta * settings->dt;
+        f->q_step[2] = settings->q_psi * settings->dt;
+        f->r_step[0] = settings->r_phi / settings->dt;
+        f->r_step[1] = settings->r_theta / settings->dt;
+    } else {
+        f->q_step[0] = settings->q_phi;
+        f->q_step[1] = settings->q_theta;
+        f->q_step[2] = settings->q_psi;
+        f->r_step[0] = settings->r_phi;
+        f->r_step[1] = settings->r_theta;
+    }
     att_ekf_reset(f);
     return ATT_OK;
 }
@@ -300,9 +319,9 @@ static uint32_t att_ekf_predict(att_ekf_t *f, att_vec3_t w, bool gyro_ok)
     a[2][2] = 1.0f;
     att_ekf_mul(a, f->p, t);
     att_ekf_mul_t_sym(t, a, pp);
-    pp[0][0] = pp[0][0] + f->s.q_phi;
-    pp[1][1] = pp[1][1] + f->s.q_theta;
-    pp[2][2] = pp[2][2] + f->s.q_psi;
+    pp[0][0] = pp[0][0] + f->q_step[0];
+    pp[1][1] = pp[1][1] + f->q_step[1];
+    pp[2][2] = pp[2][2] + f->q_step[2];
     att_ekf_canon(&e, pp);
     cond = att_ekf_condition(pp, f->s.p_max);
     if (!att_vec3_isfinite(e) || (cond & ATT_FLAG_NUMERIC) != 0u) {
@@ -320,9 +339,9 @@ static uint32_t att_ekf_update(att_ekf_t *f, att_vec3_t acc)
     const att_vec3_t z = att_sensor_tilt(acc);
     const float y0 = att_wrap_pi(z.x - f->euler.x);
     const float y1 = att_wrap_pi(z.y - f->euler.y);
-    const float s00 = f->p[0][0] + f->s.r_phi;
+    const float s00 = f->p[0][0] + f->r_step[0];
     const float s01 = f->p[0][1];
-    const float s11 = f->p[1][1] + f->s.r_theta;
+    const float s11 = f->p[1][1] + f->r_step[1];
     const float det = s00 * s11 - s01 * s01;
     float i00;
     float i01;
@@ -359,7 +378,7 @@ static uint32_t att_ekf_update(att_ekf_t *f, att_vec3_t acc)
     /* + K R K^T */
     for (i = 0; i < 3; i++) {
         for (j = i; j < 3; j++) {
-            pn[i][j] = pn[i][j] + ((k[i][0] * f->s.r_phi) * k[j][0] + (k[i][1] * f->s.r_theta) * k[j][1]);
+            pn[i][j] = pn[i][j] + ((k[i][0] * f->r_step[0]) * k[j][0] + (k[i][1] * f->r_step[1]) * k[j][1]);
             pn[j][i] = pn[i][j];
         }
     }

@@ -36,6 +36,57 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
     }
 }
 
+att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
+                                        att_filter_settings_t *settings)
+{
+    att_status_t st;
+    if (preset != ATT_PRESET_DEFAULT && preset != ATT_PRESET_SEED) {
+        return ATT_ERR_KIND;
+    }
+    st = att_filter_settings_default(kind, dt, settings);
+    if (st != ATT_OK || preset == ATT_PRESET_DEFAULT) {
+        return st;
+    }
+    switch (kind) {
+    case ATT_FILTER_ARS:
+        settings->ars.gain = 0.1f;
+        settings->ars.tau = 0.0f;
+        settings->ars.gain_c = 100.0f;
+        settings->ars.tau_acc_lp = 0.0f;
+        break;
+    case ATT_FILTER_MARS:
+        settings->mars.alpha_acc = 0.02f;
+        settings->mars.alpha_mag = 0.01f;
+        settings->mars.tau_acc = 0.0f;
+        settings->mars.tau_mag = 0.0f;
+        settings->mars.accel_reject = 0.1f;
+        settings->mars.mag_norm_reject = 0.2f;
+        settings->mars.mag_dip_reject = 0.17f;
+        settings->mars.integration = ATT_INTEGRATE_FIRST_ORDER;
+        settings->mars.tau_acc_lp = 0.0f;
+        settings->mars.bias_mode = ATT_BIAS_FROZEN;
+        break;
+    case ATT_FILTER_KF:
+        settings->kf.q_noise = 1e-4f;
+        settings->kf.r_noise = 10.0f;
+        settings->kf.accel_reject = 0.1f;
+        settings->kf.noise_rates = false;
+        break;
+    case ATT_FILTER_EKF:
+        settings->ekf.q_phi = 0.0001f;
+        settings->ekf.q_theta = 0.0001f;
+        settings->ekf.q_psi = 0.1f;
+        settings->ekf.r_phi = 6.0f;
+        settings->ekf.r_theta = 6.0f;
+        settings->ekf.accel_reject = 0.1f;
+        settings->ekf.noise_rates = false;
+        break;
+    default:
+        break; /* gyro, tilt: nothing was tuned */
+    }
+    return ATT_OK;
+}
+
 att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings)
 {
     att_filter_state_t u;
@@ -137,7 +188,7 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
     case ATT_FILTER_MARS:
         out->q = f->u.mars.q;
         out->euler = att_quat_to_euler(f->u.mars.q);
-        out->gyro_bias = f->u.mars.s.bias_init; /* the fixed bias subtracted, not estimated */
+        out->gyro_bias = f->u.mars.bias;
         out->flags = f->u.mars.flags;
         out->steps = f->u.mars.steps;
         break;

@@ -20,8 +20,8 @@ void att_kf_settings_default(att_kf_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->q_noise = 1e-4f;
-    settings->r_noise = 10.0f;
+    settings->q_noise = 1e-3f;
+    settings->r_noise = 0.1f;
     settings->p0 = 1.0f;
     settings->gravity = 9.80665f;
     settings->accel_reject = 0.1f;
@@ -30,6 +30,7 @@ void att_kf_settings_default(att_kf_settings_t *settings, float dt)
     settings->yaw_mode = ATT_KF_YAW_STATE;
     settings->init_from_accel = true;
     settings->q_init = att_quat_identity();
+    settings->noise_rates = true;
 }
 
 static bool att_kf_noise_valid(float v)
@@ -57,6 +58,9 @@ static bool att_kf_settings_valid(const att_kf_settings_t *s)
     if (s->yaw_mode != ATT_KF_YAW_STATE && s->yaw_mode != ATT_KF_YAW_ZERO) {
         return false;
     }
+    if (s->noise_rates && (!att_kf_noise_valid(s->q_noise * s->dt) || !att_kf_noise_valid(s->r_noise / s->dt))) {
+        return false;
+    }
     return att_quat_normalize(s->q_init, &qn);
 }
 
@@ -69,6 +73,8 @@ att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings)
         return ATT_ERR_SETTINGS;
     }
     f->s = *settings;
+    f->q_step = settings->noise_rates ? settings->q_noise * settings->dt : settings->q_noise;
+    f->r_step = settings->noise_rates ? settings->r_noise / settings->dt : settings->r_noise;
     att_kf_reset(f);
     return ATT_OK;
 }
@@ -193,7 +199,7 @@ static void att_kf_predict(const att_kf_t *f, att_vec3_t gyr, float x[4], float 
     att_kf_mul(a, p, t);
     att_kf_mul_bt(t, a, u);
     for (i = 0; i < 4; ++i) {
-        u[i][i] = u[i][i] + f->s.q_noise;
+        u[i][i] = u[i][i] + f->q_step;
     }
     att_kf_symmetrise(u, p);
 }
@@ -204,7 +210,7 @@ static void att_kf_predict(const att_kf_t *f, att_vec3_t gyr, float x[4], float 
  */
 static bool att_kf_update(const att_kf_t *f, const float z[4], float x[4], float p[4][4])
 {
-    const float r = f->s.r_noise;
+    const float r = f->r_step;
     float l[4][4];
     float k[4][4];
     float m[4][4];
@@ -393,7 +399,7 @@ uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
         att_kf_predict(f, gyr, x, p);
     } else {
         for (i = 0; i < 4; ++i) {
-            p[i][i] = p[i][i] + f->s.q_noise;
+            p[i][i] = p[i][i] + f->q_step;
         }
     }
 

@@ -9,6 +9,8 @@
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
+#define ATT_MARS_BIAS_N_MAX_LIMIT 16777216u /* 2^24: n converts to float exactly */
+
 void att_mars_settings_default(att_mars_settings_t *settings, float dt)
 {
     if (settings == NULL) {
@@ -17,16 +19,16 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->dt = dt;
     settings->alpha_acc = 0.02f;
     settings->alpha_mag = 0.01f;
-    settings->tau_acc = 0.0f;
-    settings->tau_mag = 0.0f;
+    settings->tau_acc = 0.5f;
+    settings->tau_mag = 20.0f;
     settings->mag_mode = ATT_MARS_MAG_HORIZONTAL;
     settings->gravity = 9.80665f;
-    settings->accel_reject = 0.1f;
+    settings->accel_reject = 0.0f;
     settings->accel_range = 156.9064f; /* 16 g */
     settings->gyro_range = 34.906586f; /* 2000 deg/s */
     settings->mag_range = 1000.0f;
     settings->mag_norm_reject = 0.2f;
-    settings->mag_dip_reject = 0.17f; /* about 10 deg */
+    settings->mag_dip_reject = 0.3f; /* about 17 deg */
     settings->bias_init.x = 0.0f;
     settings->bias_init.y = 0.0f;
     settings->bias_init.z = 0.0f;
@@ -35,6 +37,13 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->m0_init.x = 0.0f;
     settings->m0_init.y = 0.0f;
     settings->m0_init.z = 0.0f;
+    settings->integration = ATT_INTEGRATE_ROTVEC;
+    settings->tau_acc_lp = 1.0f;
+    settings->bias_mode = ATT_BIAS_AT_REST;
+    settings->bias_n_max = 1000u;
+    settings->rest_gyro = 0.05f;
+    settings->rest_accel = 0.5f;
+    settings->rest_time = 0.5f;
 }
 
 static bool att_mars_vec3_is_zero(att_vec3_t v)
@@ -50,7 +59,9 @@ static bool att_mars_settings_valid(const att_mars_settings_t *s)
                         att_isfinitef(s->tau_acc) && att_isfinitef(s->tau_mag) && att_isfinitef(s->gravity) &&
                         att_isfinitef(s->accel_reject) && att_isfinitef(s->mag_norm_reject) &&
                         att_isfinitef(s->mag_dip_reject) && att_vec3_isfinite(s->bias_init) &&
-                        att_quat_isfinite(s->q_init) && att_vec3_isfinite(s->m0_init);
+                        att_quat_isfinite(s->q_init) && att_vec3_isfinite(s->m0_init) &&
+                        att_isfinitef(s->tau_acc_lp) && att_isfinitef(s->rest_gyro) &&
+                        att_isfinitef(s->rest_accel) && att_isfinitef(s->rest_time);
     if (!finite) {
         return false;
     }
@@ -61,7 +72,18 @@ static bool att_mars_settings_valid(const att_mars_settings_t *s)
     if (!(s->dt > 0.0f && s->dt <= 1.0f) || !(s->alpha_acc >= 0.0f && s->alpha_acc <= 1.0f) ||
         !(s->alpha_mag >= 0.0f && s->alpha_mag <= 1.0f) || !(s->tau_acc >= 0.0f) || !(s->tau_mag >= 0.0f) ||
         !(s->gravity > 0.0f) || !(s->accel_reject >= 0.0f) || !(s->mag_norm_reject >= 0.0f) ||
-        !(s->mag_dip_reject >= 0.0f)) {
+        !(s->mag_dip_reject >= 0.0f) || !(s->tau_acc_lp >= 0.0f) || !(s->rest_gyro >= 0.0f) ||
+        !(s->rest_accel >= 0.0f) || !(s->rest_time >= 0.0f)) {
+        return false;
+    }
+    if (s->integration != ATT_INTEGRATE_ROTVEC && s->integration != ATT_INTEGRATE_FIRST_ORDER) {
+        return false;
+    }
+    if (s->bias_mode != ATT_BIAS_OFF && s->bias_mode != ATT_BIAS_FROZEN && s->bias_mode != ATT_BIAS_RUNNING &&
+        s->bias_mode != ATT_BIAS_AT_REST) {
+        return false;
+    }
+    if (s->bias_n_max < 1u || s->bias_n_max > ATT_MARS_BIAS_N_MAX_LIMIT) {
         return false;
     }
     if (s->mag_mode != ATT_MARS_MAG_HORIZONTAL && s->mag_mode != ATT_MARS_MAG_FULL) {
@@ -126,6 +148,8 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings)
     f->s = *settings;
     f->k_acc = (settings->tau_acc > 0.0f) ? settings->dt / (settings->tau_acc + settings->dt) : settings->alpha_acc;
     f->k_mag = (settings->tau_mag > 0.0f) ? settings->dt / (settings->tau_mag + settings->dt) : settings->alpha_mag;
+    f->k_lp = (settings->tau_acc_lp > 0.0f) ? settings->dt / (settings->tau_acc_lp + settings->dt) : 0.0f;
+    f->rest_n = att_sensor_samples(settings->rest_time, settings->dt);
     att_mars_reset(f);
     return ATT_OK;
 }
@@ -151,6 +175,12 @@ void att_mars_reset(att_mars_t *f)
         (void)att_mars_set_m0(f, f->s.m0_init); /* succeeds: checked by the settings validation */
     }
     f->initialised = !f->s.init_from_sensors;
+    f->bias = (f->s.bias_mode == ATT_BIAS_OFF) ? zero : f->s.bias_init;
+    f->bias_n = 0u;
+    f->rest_count = 0u;
+    f->lp1 = zero;
+    f->lp1.z = f->s.gravity;
+    f->lp2 = f->lp1;
     f->steps = 0u;
     f->flags = 0u;
 }
@@ -173,13 +203,34 @@ static att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
     return r;
 }
 
+/* Running mean b := (n b + w) / (n + 1), n capped at bias_n_max (as att_ars.c). */
+static void att_mars_bias_update(att_mars_t *f, att_vec3_t gyr)
+{
+    const float nf = (float)f->bias_n; /* exact: bias_n <= 2^24 */
+    const float den = nf + 1.0f;
+    f->bias.x = (nf * f->bias.x + gyr.x) / den;
+    f->bias.y = (nf * f->bias.y + gyr.y) / den;
+    f->bias.z = (nf * f->bias.z + gyr.z) / den;
+    if (f->bias_n < f->s.bias_n_max) {
+        f->bias_n = f->bias_n + 1u;
+    }
+}
+
+/* Gyro integration (not normalised): exponential map q * Q(w dt), or first order. */
+static att_quat_t att_mars_propagate(const att_mars_t *f, att_quat_t q, att_vec3_t w)
+{
+    if (f->s.integration == ATT_INTEGRATE_ROTVEC) {
+        return att_quat_mul(q, att_quat_from_rotvec(att_vec3_scale(w, f->s.dt)));
+    }
+    return att_mars_integrate(q, w, f->s.dt);
+}
+
 /*
  * Rotate q in the earth frame so that the unit vector v moves toward the unit reference r by the
  * fraction gain of the angle between them: q := Q(gain * angle, axis) * q with axis = v x r / |v x r|
  * and angle = atan2(|v x r|, v . r). When v x r cannot be normalised, the axis is fallback.
  */
-static att_quat_t att_mars_rotate_toward(att_quat_t q, att_vec3_t v, att_vec3_t r, att_vec3_t fallback,
-                                         float gain)
+static att_quat_t att_mars_rotation_toward(att_vec3_t v, att_vec3_t r, att_vec3_t fallback, float gain)
 {
     const att_vec3_t c = att_vec3_cross(v, r);
     const float angle = att_atan2f(att_vec3_norm(c), att_vec3_dot(v, r));
@@ -187,7 +238,13 @@ static att_quat_t att_mars_rotate_toward(att_quat_t q, att_vec3_t v, att_vec3_t 
     if (!att_vec3_normalize(c, &axis)) {
         axis = fallback;
     }
-    return att_quat_mul(att_quat_from_axis_angle(axis, gain * angle), q);
+    return att_quat_from_axis_angle(axis, gain * angle);
+}
+
+static att_quat_t att_mars_rotate_toward(att_quat_t q, att_vec3_t v, att_vec3_t r, att_vec3_t fallback,
+                                         float gain)
+{
+    return att_quat_mul(att_mars_rotation_toward(v, r, fallback, gain), q);
 }
 
 /*
@@ -266,6 +323,9 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
     att_vec3_t up;
     att_vec3_t xaxis;
     att_vec3_t unit;
+    att_vec3_t ae;
+    att_quat_t qc;
+    bool rest;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
@@ -282,6 +342,23 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
     mag_ok = (mag_flags == 0u);
     flags |= mag_flags;
 
+    /* rest detection and gyro bias (as att_ars.c) */
+    rest = gyro_ok && accel_ok && att_vec3_norm(att_vec3_sub(gyr, f->bias)) < f->s.rest_gyro &&
+           att_absf(norm - f->s.gravity) < f->s.rest_accel;
+    if (!rest) {
+        f->rest_count = 0u;
+    } else if (f->rest_count < f->rest_n) {
+        f->rest_count = f->rest_count + 1u;
+    }
+    if (rest && f->rest_count >= f->rest_n) {
+        flags |= ATT_FLAG_AT_REST;
+    }
+    if (gyro_ok && (f->s.bias_mode == ATT_BIAS_RUNNING ||
+                    (f->s.bias_mode == ATT_BIAS_AT_REST && (flags & ATT_FLAG_AT_REST) != 0u))) {
+        att_mars_bias_update(f, gyr);
+        flags |= ATT_FLAG_BIAS_UPDATED;
+    }
+
     if (!f->initialised) {
         if (accel_ok) {
             const att_vec3_t t = att_sensor_tilt(acc);
@@ -294,6 +371,8 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
                 }
             }
             f->q = q;
+            f->lp1 = att_quat_rotate(q, acc);
+            f->lp2 = f->lp1;
             f->initialised = true;
             flags |= ATT_FLAG_INITIALISED;
         } else {
@@ -306,21 +385,34 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
 
     q = f->q;
     if (gyro_ok) {
-        if (att_quat_normalize(att_mars_integrate(q, att_vec3_sub(gyr, f->s.bias_init), f->s.dt), &qn)) {
+        if (att_quat_normalize(att_mars_propagate(f, q, att_vec3_sub(gyr, f->bias)), &qn)) {
             q = qn;
         } else {
             flags |= ATT_FLAG_NUMERIC;
         }
     }
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        if (att_vec3_normalize(att_quat_rotate(q, acc), &unit)) {
+        ae = att_quat_rotate(q, acc);
+        if (f->k_lp > 0.0f) {
+            /* two cascaded first-order low-passes of the earth-frame specific force */
+            f->lp1 = att_vec3_add(f->lp1, att_vec3_scale(att_vec3_sub(ae, f->lp1), f->k_lp));
+            f->lp2 = att_vec3_add(f->lp2, att_vec3_scale(att_vec3_sub(f->lp1, f->lp2), f->k_lp));
+            ae = f->lp2;
+        }
+        if (att_vec3_normalize(ae, &unit)) {
             up.x = 0.0f;
             up.y = 0.0f;
             up.z = 1.0f;
             xaxis.x = 1.0f; /* fallback axis for an upside-down attitude */
             xaxis.y = 0.0f;
             xaxis.z = 0.0f;
-            q = att_mars_rotate_toward(q, unit, up, xaxis, f->k_acc);
+            qc = att_mars_rotation_toward(unit, up, xaxis, f->k_acc);
+            q = att_quat_mul(qc, q);
+            if (f->k_lp > 0.0f) {
+                /* keep the low-pass states in the corrected earth frame */
+                f->lp1 = att_quat_rotate(qc, f->lp1);
+                f->lp2 = att_quat_rotate(qc, f->lp2);
+            }
         }
     }
     if (mag_ok) {

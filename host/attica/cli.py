@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from attica.can.cli_can import add_subcommands as add_can_subcommands
 from attica.data import Recording, load_recording
+from attica.evaluate import add_eval_subcommand
 from attica.metrics import evaluate
 from attica.settings import FilterKind, describe_flags, implemented_kinds, make_settings
 from attica.sim import SimConfig, simulate
@@ -259,6 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_demo)
+    add_eval_subcommand(sub)
     add_can_subcommands(sub)
     return p
 

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from attica import _build
 from attica.outputs import OUTPUT_DTYPE
-from attica.settings import FilterKind, make_settings, to_dict
+from attica.settings import FilterKind, Preset, make_settings, to_dict
 
 
 def _load() -> tuple[Any, Any]:
@@ -151,11 +151,18 @@ def _fill(struct: Any, values: dict[str, Any]) -> None:
             setattr(struct, name, float(value))
 
 
-def default_settings(kind: str | int | FilterKind, dt: float = 0.01) -> dict[str, Any]:
-    """The C defaults (att_filter_settings_default) of a kind as a dict of its settings fields."""
+def default_settings(kind: str | int | FilterKind, dt: float = 0.01, preset: str | int = 0) -> dict[str, Any]:
+    """The C settings of a kind as a dict of its settings fields.
+
+    The defaults (att_filter_settings_default) or a named preset (att_filter_settings_preset, ``"seed"``).
+    """
     k = FilterKind.parse(kind)
+    p = Preset.parse(preset)
     s = ffi.new("att_filter_settings_t *")
-    _check(lib.att_filter_settings_default(int(k), dt, s), "att_filter_settings_default")
+    if p == Preset.DEFAULT:
+        _check(lib.att_filter_settings_default(int(k), dt, s), "att_filter_settings_default")
+    else:
+        _check(lib.att_filter_settings_preset(int(k), int(p), dt, s), "att_filter_settings_preset")
     member = getattr(s, k.label)
     out: dict[str, Any] = {}
     for name in to_dict(make_settings(k)):

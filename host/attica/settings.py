@@ -52,6 +52,7 @@ class Integration(enum.IntEnum):
 
     ROTVEC = 0
     EULER = 1
+    FIRST_ORDER = 2
 
 
 @dataclass
@@ -60,8 +61,8 @@ class ArsSettings:
 
     dt: float = 0.01
     gain: float = 0.1
-    tau: float = 0.0
-    gain_c: float = 100.0
+    tau: float = 0.02
+    gain_c: float = 0.0
     gravity: float = 9.80665
     accel_reject: float = 0.0
     accel_range: float = 156.9064
@@ -75,6 +76,7 @@ class ArsSettings:
     integration: Integration = Integration.ROTVEC
     init_from_accel: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
+    tau_acc_lp: float = 1.5
 
 
 @dataclass
@@ -113,8 +115,8 @@ class KfSettings:
     """Linear quaternion KF settings (``att_kf_settings_t``); see att_kf.h for meanings."""
 
     dt: float = 0.01
-    q_noise: float = 1e-4
-    r_noise: float = 10.0
+    q_noise: float = 1e-3
+    r_noise: float = 0.1
     p0: float = 1.0
     gravity: float = 9.80665
     accel_reject: float = 0.1
@@ -123,6 +125,7 @@ class KfSettings:
     yaw_mode: KfYawMode = KfYawMode.STATE
     init_from_accel: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
+    noise_rates: bool = True
 
 
 class MagMode(enum.IntEnum):
@@ -139,20 +142,27 @@ class MarsSettings:
     dt: float = 0.01
     alpha_acc: float = 0.02
     alpha_mag: float = 0.01
-    tau_acc: float = 0.0
-    tau_mag: float = 0.0
+    tau_acc: float = 0.5
+    tau_mag: float = 20.0
     mag_mode: MagMode = MagMode.HORIZONTAL
     gravity: float = 9.80665
-    accel_reject: float = 0.1
+    accel_reject: float = 0.0
     accel_range: float = 156.9064
     gyro_range: float = 34.906586
     mag_range: float = 1000.0
     mag_norm_reject: float = 0.2
-    mag_dip_reject: float = 0.17
+    mag_dip_reject: float = 0.3
     bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
     init_from_sensors: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     m0_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    integration: Integration = Integration.ROTVEC
+    tau_acc_lp: float = 1.0
+    bias_mode: BiasMode = BiasMode.AT_REST
+    bias_n_max: int = 1000
+    rest_gyro: float = 0.05
+    rest_accel: float = 0.5
+    rest_time: float = 0.5
 
 
 @dataclass
@@ -160,11 +170,11 @@ class EkfSettings:
     """Euler-angle EKF settings (``att_ekf_settings_t``); see att_ekf.h for meanings."""
 
     dt: float = 0.01
-    q_phi: float = 0.0001
-    q_theta: float = 0.0001
-    q_psi: float = 0.1
-    r_phi: float = 6.0
-    r_theta: float = 6.0
+    q_phi: float = 0.03
+    q_theta: float = 0.03
+    q_psi: float = 1.0
+    r_phi: float = 3.0
+    r_theta: float = 3.0
     p0: float = 1.0
     p_max: float = 1000000.0
     gravity: float = 9.80665
@@ -174,6 +184,7 @@ class EkfSettings:
     cos_min: float = 0.001
     init_from_accel: bool = True
     euler_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    noise_rates: bool = True
 
 
 class FilterKind(enum.IntEnum):
@@ -219,6 +230,79 @@ SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
 def implemented_kinds() -> list[FilterKind]:
     """The kinds with a C and reference implementation, in kind order."""
     return [k for k in FilterKind if k in SETTINGS_CLASS]
+
+
+class Preset(enum.IntEnum):
+    """``att_preset_t``: named settings sets (see :data:`SEED_OVERRIDES`)."""
+
+    DEFAULT = 0
+    SEED = 1
+
+    @property
+    def label(self) -> str:
+        """Lower-case name (``default``, ``seed``)."""
+        return self.name.lower()
+
+    @classmethod
+    def parse(cls, value: str | int | Preset) -> Preset:
+        """A preset from its name (any case) or number; ValueError listing the choices otherwise."""
+        if isinstance(value, Preset):
+            return value
+        if isinstance(value, int):
+            return cls(value)
+        try:
+            return cls[value.upper()]
+        except KeyError:
+            choices = ", ".join(p.label for p in cls)
+            raise ValueError(f"unknown preset {value!r}; choose one of: {choices}") from None
+
+
+SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
+    FilterKind.ARS: {"gain": 0.1, "tau": 0.0, "gain_c": 100.0, "tau_acc_lp": 0.0},
+    FilterKind.MARS: {
+        "alpha_acc": 0.02,
+        "alpha_mag": 0.01,
+        "tau_acc": 0.0,
+        "tau_mag": 0.0,
+        "accel_reject": 0.1,
+        "mag_norm_reject": 0.2,
+        "mag_dip_reject": 0.17,
+        "integration": Integration.FIRST_ORDER,
+        "tau_acc_lp": 0.0,
+        "bias_mode": BiasMode.FROZEN,
+    },
+    FilterKind.KF: {"q_noise": 1e-4, "r_noise": 10.0, "accel_reject": 0.1, "noise_rates": False},
+    FilterKind.EKF: {
+        "q_phi": 0.0001,
+        "q_theta": 0.0001,
+        "q_psi": 0.1,
+        "r_phi": 6.0,
+        "r_theta": 6.0,
+        "accel_reject": 0.1,
+        "noise_rates": False,
+    },
+    FilterKind.GYRO: {},
+    FilterKind.TILT: {},
+}
+"""The seed preset: the literal settings each filter had before it was tuned on BROAD (per-sample gains,
+per-step noises; no accel low-pass, no bias estimation in MARS). The C twin is
+``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
+
+
+def preset_settings(
+    kind: FilterKind, preset: str | int | Preset = Preset.DEFAULT, dt: float | None = None
+) -> Any:
+    """Settings of a named preset for ``kind`` (``default`` or ``seed``), with ``dt`` when given."""
+    p = Preset.parse(preset)
+    base = make_settings(kind, dt=dt)
+    if p == Preset.SEED:
+        return replace(base, **SEED_OVERRIDES[kind])
+    return base
+
+
+def presets(kind: FilterKind, dt: float | None = None) -> dict[str, Any]:
+    """Every preset of ``kind`` by name: ``{"default": ..., "seed": ...}``."""
+    return {p.label: preset_settings(kind, p, dt) for p in Preset}
 
 
 def make_settings(kind: FilterKind, settings: Any = None, dt: float | None = None, **overrides: Any) -> Any:

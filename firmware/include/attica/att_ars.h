@@ -13,6 +13,12 @@
  *     take the axis n = a_e x z / |a_e x z| and the angle phi_e between a_e and z = (0, 0, 1) (up),
  *     the gain K_a = k / (1 + c (|a|/g - 1)^2), and q := Q(K_a phi_e, n) * q. The axis is horizontal,
  *     so yaw is never changed by the accelerometer.
+ *     With tau_acc_lp > 0 (default) the correction uses, instead of a_e, the output of two cascaded
+ *     first-order low-passes (gain k_lp = dt / (tau_acc_lp + dt) each) fed with a_e; both stages are
+ *     rotated by each correction, so they stay in the corrected earth frame. Linear accelerations that
+ *     average out over a few seconds (translation back and forth, vibration, taps) are thus filtered
+ *     before they can tilt the estimate (the idea of VQF's inclination correction). Samples rejected by
+ *     accel_reject do not enter the low-pass.
  *
  * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
  */
@@ -37,7 +43,8 @@ typedef enum {
 /** How the gyro rate is turned into an attitude increment. */
 typedef enum {
     ATT_INTEGRATE_ROTVEC = 0, /**< exponential map of (w - w_m) dt */
-    ATT_INTEGRATE_EULER = 1   /**< Q(dphi, dtheta, dpsi), ZYX Euler increments (KITECH literal) */
+    ATT_INTEGRATE_EULER = 1,  /**< Q(dphi, dtheta, dpsi), ZYX Euler increments (KITECH literal) */
+    ATT_INTEGRATE_FIRST_ORDER = 2 /**< q + 0.5 q (0, w) dt, normalised (MARS only: the article) */
 } att_integration_t;
 
 /** Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields. */
@@ -59,6 +66,7 @@ typedef struct {
     att_integration_t integration; /**< gyro integration method */
     bool init_from_accel;          /**< take roll/pitch from the first valid accel sample (yaw 0) */
     att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth */
+    float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s (>= 0); 0 = off */
 } att_ars_settings_t;
 
 /** State of one complementary ARS instance (no heap; copy freely). */
@@ -66,16 +74,24 @@ typedef struct {
     att_ars_settings_t s;  /**< validated copy of the settings */
     float k;               /**< effective per-sample accel gain at |a| = g */
     uint32_t rest_n;       /**< samples at rest needed before the bias is updated */
+    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
     att_quat_t q;          /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t bias;       /**< gyro bias estimate w_m, rad/s, sensor frame */
     uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     bool initialised;      /**< q holds a valid attitude */
+    att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
+    att_vec3_t lp2;        /**< second accel low-pass stage (used by the correction), m/s^2, earth */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
 } att_ars_t;
 
-/** Default settings for sample period dt (s): k = 0.1, c = 100, bias at rest, rotvec integration. */
+/**
+ * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md) and rate-independent:
+ * accel low-pass tau_acc_lp 1.5 s, correction time constant tau 0.02 s, c = 0, bias at rest, rotvec
+ * integration. The first implementation's literal settings (k = 0.1 per sample, c = 100, no low-pass)
+ * are att_filter_settings_preset(ATT_FILTER_ARS, ATT_PRESET_SEED, ...).
+ */
 void att_ars_settings_default(att_ars_settings_t *settings, float dt);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);

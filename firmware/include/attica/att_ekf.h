@@ -37,8 +37,12 @@
  *    runs), a failed update leaves the predicted state.
  *  P is stored exactly symmetric (upper triangle computed, mirrored).
  *
- * Defaults are those of the notes: Q = diag(1e-4, 1e-4, 0.1) per step, R = 6 I2, P0 = I. Yaw is not
- * observed: its variance grows by q_psi every step (up to p_max).
+ * Noises: with noise_rates (default) the q_* are rates (rad^2/s, added as q dt per step) and the r_*
+ * densities (rad^2 s, R = r / dt per sample), so the time constants do not depend on dt; without,
+ * per step / per sample as in the notes. Defaults (tuned on BROAD, docs/accuracy.md): q_phi = q_theta
+ * 0.03 rad^2/s, q_psi 1 rad^2/s, r_phi = r_theta 3 rad^2 s, P0 = I. The notes' Q = diag(1e-4, 1e-4, 0.1)
+ * per step and R = 6 I2 are the seed preset (att_filter_settings_preset). Yaw is not observed: its
+ * variance grows every step (up to p_max).
  *
  * Units: rad, rad/s, m/s^2, s, variances rad^2. Frames: gyro/accel in the sensor frame.
  */
@@ -69,11 +73,14 @@ typedef struct {
     float cos_min;         /**< guard on |cos(theta)|, (0, 1) */
     bool init_from_accel;  /**< take roll/pitch from the first valid accel sample (yaw 0) */
     att_vec3_t euler_init; /**< start (phi, theta, psi) when init_from_accel is false, rad; |theta| <= pi/2 */
+    bool noise_rates;      /**< true: q_* in rad^2/s (Q = q dt), r_* in rad^2 s (R = r / dt) */
 } att_ekf_settings_t;
 
 /** State of one Euler EKF instance (no heap; copy freely). */
 typedef struct {
     att_ekf_settings_t s; /**< validated copy of the settings */
+    float q_step[3];      /**< process noise variances added per step (phi, theta, psi), rad^2 */
+    float r_step[2];      /**< measurement noise variances of one sample (phi, theta), rad^2 */
     att_vec3_t euler;     /**< (phi, theta, psi), rad, ZYX sensor-to-earth (ENU) */
     att_quat_t q;         /**< att_quat_from_euler(euler), sensor-to-earth */
     float p[3][3];        /**< error covariance of (phi, theta, psi), rad^2, symmetric */
@@ -82,7 +89,7 @@ typedef struct {
     uint32_t flags;       /**< flags of the last step */
 } att_ekf_t;
 
-/** Default settings for sample period dt (s): the notes' Q, R, P0; accel_reject 0.1, cos_min 1e-3. */
+/** Default settings for sample period dt (s): rate noises (above), P0 = I, accel_reject 0.1. */
 void att_ekf_settings_default(att_ekf_settings_t *settings, float dt);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings);

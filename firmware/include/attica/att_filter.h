@@ -57,6 +57,12 @@ typedef struct {
     uint32_t steps;       /**< steps since init/reset (wraps) */
 } att_output_t;
 
+/** Named settings presets (att_filter_settings_preset). */
+typedef enum {
+    ATT_PRESET_DEFAULT = 0, /**< att_filter_settings_default: tuned on BROAD, rate-independent */
+    ATT_PRESET_SEED = 1     /**< the literal settings of the first implementation (per-sample gains) */
+} att_preset_t;
+
 /** Settings of any filter; the member named after the kind is used. */
 typedef union {
     att_ars_settings_t ars;
@@ -85,6 +91,15 @@ typedef struct {
 
 /** Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind. */
 att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_filter_settings_t *settings);
+/**
+ * Settings of a named preset for sample period dt (s). ATT_PRESET_SEED restores the literal settings of
+ * the first implementation: ARS k = 0.1 per sample, c = 100, no accel low-pass; MARS alpha_acc 0.02,
+ * alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass; KF
+ * Q = 1e-4 I and R = 10 I per step; EKF Q = diag(1e-4, 1e-4, 0.1) and R = 6 I2 per step. ATT_ERR_KIND for
+ * an unknown kind or preset.
+ */
+att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
+                                        att_filter_settings_t *settings);
 /** Initialise f as the given kind; on error f is unchanged. */
 att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings);
 /** Reset to the state right after init. */

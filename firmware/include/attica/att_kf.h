@@ -6,14 +6,17 @@
  *  1. prediction with the gyro rate w = (p, q, r) (rad/s, sensor frame):
  *     A = I + dt/2 * Omega(w),  Omega = [[0,-p,-q,-r],[p,0,r,-q],[q,-r,0,p],[r,q,-p,0]]
  *     (q_dot = q * (0, w) / 2; the notes print the (4,3) entry as -q, it is -p),
- *     x := A x,  P := A P A^T + Q,  Q = q_noise * I, then P symmetrised.
+ *     x := A x,  P := A P A^T + Q,  Q = q_step * I, then P symmetrised. With noise_rates (default)
+ *     q_step = q_noise * dt and r_step = r_noise / dt (a white-noise rate and a noise density), so the
+ *     steady-state gain per second, hence the filter's time constant, does not depend on dt; without,
+ *     q_step = q_noise and r_step = r_noise per step (the notes).
  *     When the gyro sample is unusable (ATT_FLAG_GYRO_INVALID / ATT_FLAG_GYRO_RANGE) the state is
  *     not propagated (A = I: x unchanged) but time still passes: P := P + Q.
  *  2. measurement z = att_quat_from_euler(phi, theta, psi) with roll phi and pitch theta from the
  *     accelerometer (att_sensor_tilt) and yaw psi = yaw of the predicted state (ATT_KF_YAW_STATE,
  *     default) or 0 (ATT_KF_YAW_ZERO, the notes' literal choice). z is negated when z . x < 0 (the
  *     sign nearest x). H = I.
- *     S = P + R (R = r_noise * I), Cholesky S = L L^T in a fixed order; K = P S^-1 by forward and
+ *     S = P + R (R = r_step * I), Cholesky S = L L^T in a fixed order; K = P S^-1 by forward and
  *     back substitution (fixed order); x := x + K (z - x);
  *     P := (I - K) P (I - K)^T + r_noise * K K^T (Joseph form), then symmetrised:
  *     P_ij := (P_ij + P_ji) * 0.5, which makes P bitwise symmetric.
@@ -69,11 +72,14 @@ typedef struct {
     att_kf_yaw_mode_t yaw_mode; /**< yaw of the measurement quaternion */
     bool init_from_accel;       /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_quat_t q_init;          /**< initial attitude when init_from_accel is false, sensor-to-earth */
+    bool noise_rates;           /**< true: q_noise per s (Q = q_noise dt), r_noise in unit^2 s (R = r_noise / dt) */
 } att_kf_settings_t;
 
 /** State of one linear quaternion KF instance (no heap; copy freely). */
 typedef struct {
     att_kf_settings_t s; /**< validated copy of the settings */
+    float q_step;        /**< process noise added per step (Q = q_step I) */
+    float r_step;        /**< measurement noise of one sample (R = r_step I) */
     att_quat_t q;        /**< state x: attitude, unit, sensor-to-earth (ENU) */
     float p[4][4];       /**< covariance P of (w, x, y, z), (unit quaternion)^2; bitwise symmetric */
     bool initialised;    /**< q holds a valid attitude */
@@ -81,7 +87,11 @@ typedef struct {
     uint32_t flags;      /**< flags of the last step */
 } att_kf_t;
 
-/** Default settings for sample period dt (s): Q = 1e-4 I, R = 10 I, P0 = I, accel_reject 0.1. */
+/**
+ * Default settings for sample period dt (s), tuned on BROAD and rate-independent (noise_rates):
+ * q_noise 1e-3 /s (Q = 1e-3 dt I), r_noise 0.1 s (R = 0.1 / dt I), P0 = I, accel_reject 0.1. The notes'
+ * literal Q = 1e-4 I, R = 10 I per step are the seed preset (att_filter_settings_preset).
+ */
 void att_kf_settings_default(att_kf_settings_t *settings, float dt);
 /** Validate settings and initialise f. ATT_ERR_NULL / ATT_ERR_SETTINGS leave f unchanged. */
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings);

@@ -3,12 +3,19 @@
  * @brief 9-axis quaternion complementary filter with magnetometer ("MARS"), after a Qiita article.
  *
  * Per step (after the attitude has been initialised):
- *  1. gyro integration by the first-order quaternion derivative
- *     q := q + (0.5 q (x) (0, w - b)) dt, then normalise; b = bias_init is a fixed gyro bias;
+ *  0. gyro bias b (bias_mode, as att_ars.h): running mean of the samples taken at rest (AT_REST,
+ *     default: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time), of every sample (RUNNING),
+ *     fixed at bias_init (FROZEN, the article) or zero (OFF);
+ *  1. gyro integration of w - b: exponential map q := q * Q((w - b) dt) (ATT_INTEGRATE_ROTVEC,
+ *     default, exact for a constant rate) or the article's first-order quaternion derivative
+ *     q := q + (0.5 q (x) (0, w - b)) dt (ATT_INTEGRATE_FIRST_ORDER); then normalise;
  *  2. accel correction: a' = q a q* / |a| (earth frame); the rotation taking a' to z = (0, 0, 1) has
  *     the axis a' x z / |a' x z| and the angle atan2(|a' x z|, a' . z) (equal to the article's
  *     acos(a' . z) for unit vectors, but accurate for small angles where acos loses ~3e-4 rad);
  *     q := Q(k_acc * angle, axis) * q (left multiplication: a rotation in the earth frame);
+ *     with tau_acc_lp > 0 (default) a' is taken from two cascaded first-order low-passes of the
+ *     earth-frame specific force q a q* (gain dt / (tau_acc_lp + dt) each; both stages rotated by the
+ *     correction, see att_ars.h), so translational accelerations average out before they tilt q;
  *  3. magnetometer correction the same way against the earth-frame reference field m0:
  *     ATT_MARS_MAG_HORIZONTAL (default) projects m' = q m q* and m0 onto the horizontal plane first,
  *     so the axis is vertical and the magnetometer can only change yaw, never roll/pitch;
@@ -45,6 +52,7 @@
 #ifndef ATT_MARS_H
 #define ATT_MARS_H
 
+#include "attica/att_ars.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus
@@ -78,6 +86,13 @@ typedef struct {
     att_quat_t q_init;            /**< initial attitude when init_from_sensors is false, sensor-to-earth */
     att_vec3_t m0_init;           /**< reference field when init_from_sensors is false, uT, earth (ENU);
                                        zero = take it from the first valid mag sample */
+    att_integration_t integration; /**< ROTVEC (exponential map, default) or FIRST_ORDER (the article) */
+    float tau_acc_lp;             /**< low-pass time constant of the earth-frame accel, s (>= 0); 0 = off */
+    att_bias_mode_t bias_mode;    /**< gyro bias: AT_REST (default), FROZEN (= bias_init), RUNNING, OFF */
+    uint32_t bias_n_max;          /**< cap on n in the running mean of the bias; 1 .. 2^24 */
+    float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s ... */
+    float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2 ... */
+    float rest_time;              /**< ... for at least rest_time, s (>= 0) */
 } att_mars_settings_t;
 
 /** State of one 9-axis complementary filter instance (no heap; copy freely). */
@@ -85,6 +100,8 @@ typedef struct {
     att_mars_settings_t s; /**< validated copy of the settings */
     float k_acc;           /**< effective per-sample accel gain */
     float k_mag;           /**< effective per-sample mag gain */
+    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
+    uint32_t rest_n;       /**< samples at rest needed before the bias is updated */
     att_quat_t q;          /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
     float m0_norm;         /**< |m0|, uT */
@@ -94,13 +111,22 @@ typedef struct {
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds a reference field */
     bool initialised;      /**< q holds a valid attitude */
+    att_vec3_t bias;       /**< gyro bias estimate b, rad/s, sensor frame */
+    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
+    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
+    att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
+    att_vec3_t lp2;        /**< second accel low-pass stage (used by the correction), m/s^2, earth */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
 } att_mars_t;
 
 /**
- * Default settings for sample period dt (s): alpha_acc 0.02, alpha_mag 0.01, horizontal mag mode,
- * accel_reject 0.1, mag_norm_reject 0.2, mag_dip_reject 0.17 rad, initialisation from the sensors.
+ * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md), rate-independent:
+ * rotvec integration, gyro bias learnt at rest, accel low-pass tau_acc_lp 1 s, tau_acc 0.5 s,
+ * tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2, mag_dip_reject 0.3 rad,
+ * initialisation from the sensors. The article's literal settings (alpha_acc 0.02, alpha_mag 0.01 per
+ * sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass) are the seed preset
+ * (att_filter_settings_preset).
  */
 void att_mars_settings_default(att_mars_settings_t *settings, float dt);
 /** Validate settings and initialise f. On error f is left unchanged. */

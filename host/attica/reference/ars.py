@@ -31,6 +31,8 @@ class Ars:
         "bias_n": "u32",
         "rest_count": "u32",
         "initialised": "bool",
+        "lp1": "vec3",
+        "lp2": "vec3",
         "steps": "u32",
         "flags": "u32",
     }
@@ -65,6 +67,9 @@ class Ars:
         with np.errstate(all="ignore"):
             self.k = np.where(tau > dm.ZERO, self.dt / (tau + self.dt), gain).astype(np.float32)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
+        tau_lp = setting(s.tau_acc_lp, n)
+        with np.errstate(all="ignore"):
+            self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
         self.reset()
 
     def reset(self) -> None:
@@ -76,6 +81,9 @@ class Ars:
         self.bias_n = np.zeros(n, np.uint32)
         self.rest_count = np.zeros(n, np.uint32)
         self.initialised = ~self.init_from_accel
+        zero = np.zeros(n, np.float32)
+        self.lp1: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
+        self.lp2: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
 
@@ -85,20 +93,28 @@ class Ars:
         q_rotvec = dm.quat_from_rotvec(rv)
         return dm.quat_where(self.integration == Integration.EULER, q_euler, q_rotvec)
 
-    def _correct(self, q: dm.Quat, acc: dm.Vec3, norm: Any) -> dm.Quat:
-        ae = dm.quat_rotate(q, acc)
+    def _correct(self, q: dm.Quat, acc: dm.Vec3, norm: Any) -> tuple[dm.Quat, dm.Vec3, dm.Vec3]:
+        """att_ars_correct: (corrected q, new lp1, new lp2); the low-pass parts apply where k_lp > 0."""
+        lp_on = self.k_lp > dm.ZERO
         with np.errstate(all="ignore"):
-            axy = dm.sqrtf(ae[0] * ae[0] + ae[1] * ae[1])
-            angle = dm.atan2f(axy, ae[2])
+            ae = dm.quat_rotate(q, acc)
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(ae, self.lp1), self.k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            v = dm.vec3_where(lp_on, lp2, ae)
+            axy = dm.sqrtf(v[0] * v[0] + v[1] * v[1])
+            angle = dm.atan2f(axy, v[2])
             e = norm / self.gravity - dm.ONE
             ka = self.k / (dm.ONE + self.gain_c * e * e)
             pos = axy > dm.ZERO
             axis = (
-                np.where(pos, ae[1] / axy, dm.ONE),
-                np.where(pos, -ae[0] / axy, dm.ZERO),
+                np.where(pos, v[1] / axy, dm.ONE),
+                np.where(pos, -v[0] / axy, dm.ZERO),
                 np.zeros(self.n, np.float32),
             )
-        return dm.quat_mul(dm.quat_from_axis_angle(axis, ka * angle), q)
+            qc = dm.quat_from_axis_angle(axis, ka * angle)
+            lp1 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp1), self.lp1)
+            lp2 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp2), self.lp2)
+        return dm.quat_mul(qc, q), lp1, lp2
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -150,11 +166,18 @@ class Ars:
 
             q = self.q
             q1 = dm.quat_where(gyro_ok, dm.quat_mul(q, self._increment(dm.vec3_sub(g, self.bias))), q)
-            q2 = dm.quat_where(accel_ok & ~rejected, self._correct(q1, a, norm), q1)
+            correct = accel_ok & ~rejected
+            q_corr, lp1c, lp2c = self._correct(q1, a, norm)
+            q2 = dm.quat_where(correct, q_corr, q1)
             ok, qn = dm.quat_normalize(q2)
             flags = flags | np.where(~waiting & ~ok, _u(Flag.NUMERIC), _U0)
             q_run = dm.quat_where(ok, qn, q)
             self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_tilt, q), q_run)
+            # the low-pass states: from the first sample at initialisation, else after a correction
+            lp_init = dm.quat_rotate(q_tilt, a)
+            upd = ~waiting & correct
+            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp1c, self.lp1))
+            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp2c, self.lp2))
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)

@@ -135,11 +135,19 @@ class Ekf:
         self.settings = s
         self.n = n
         self.dt = setting(s.dt, n)
-        self.q_phi = setting(s.q_phi, n)
-        self.q_theta = setting(s.q_theta, n)
-        self.q_psi = setting(s.q_psi, n)
-        self.r_phi = setting(s.r_phi, n)
-        self.r_theta = setting(s.r_theta, n)
+        # att_ekf_init: per-step variances (q_step, r_step); with noise_rates the settings are rates
+        rates = setting(s.noise_rates, n, np.bool_)
+        with np.errstate(all="ignore"):
+            q_phi = setting(s.q_phi, n)
+            q_theta = setting(s.q_theta, n)
+            q_psi = setting(s.q_psi, n)
+            r_phi = setting(s.r_phi, n)
+            r_theta = setting(s.r_theta, n)
+            self.q_phi = np.where(rates, q_phi * self.dt, q_phi).astype(np.float32)
+            self.q_theta = np.where(rates, q_theta * self.dt, q_theta).astype(np.float32)
+            self.q_psi = np.where(rates, q_psi * self.dt, q_psi).astype(np.float32)
+            self.r_phi = np.where(rates, r_phi / self.dt, r_phi).astype(np.float32)
+            self.r_theta = np.where(rates, r_theta / self.dt, r_theta).astype(np.float32)
         self.p0 = setting(s.p0, n)
         self.p_max = setting(s.p_max, n)
         self.gravity = setting(s.gravity, n)

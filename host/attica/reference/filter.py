@@ -109,10 +109,8 @@ class Filter:
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind == FilterKind.ARS:
+        if self.kind in (FilterKind.ARS, FilterKind.MARS):
             out["gyro_bias"] = stack(f.bias)
-        elif self.kind == FilterKind.MARS:
-            out["gyro_bias"] = stack(f.bias_init)
         elif self.kind == FilterKind.KF:
             out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], f.p[3][3]))
         elif self.kind == FilterKind.EKF:

@@ -90,8 +90,13 @@ class Kf:
         self.settings = s
         self.n = n
         self.dt = setting(s.dt, n)
-        self.q_noise = setting(s.q_noise, n)
-        self.r_noise = setting(s.r_noise, n)
+        # att_kf_init: per-step Q and R (q_step, r_step); with noise_rates the settings are rates
+        rates = setting(s.noise_rates, n, np.bool_)
+        q_noise = setting(s.q_noise, n)
+        r_noise = setting(s.r_noise, n)
+        with np.errstate(all="ignore"):
+            self.q_noise = np.where(rates, q_noise * self.dt, q_noise).astype(np.float32)
+            self.r_noise = np.where(rates, r_noise / self.dt, r_noise).astype(np.float32)
         self.p0 = setting(s.p0, n)
         self.gravity = setting(s.gravity, n)
         self.accel_reject = setting(s.accel_reject, n)

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import StateSpec, as_batch, setting, split3, stack
-from attica.settings import Flag, MagMode, MarsSettings
+from attica.settings import BiasMode, Flag, Integration, MagMode, MarsSettings
 
 _U0 = np.uint32(0)
 
@@ -45,14 +45,20 @@ def _integrate(q: dm.Quat, w: dm.Vec3, dt: Any) -> dm.Quat:
     )
 
 
-def _rotate_toward(q: dm.Quat, v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm.Quat:
-    """att_mars_rotate_toward."""
+def _rotation_toward(v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm.Quat:
+    """att_mars_rotation_toward."""
     with np.errstate(all="ignore"):
         c = dm.vec3_cross(v, r)
         angle = dm.atan2f(dm.vec3_norm(c), dm.vec3_dot(v, r))
         ok, axis = dm.vec3_normalize(c)
         axis = dm.vec3_where(ok, axis, fallback)
-        return dm.quat_mul(dm.quat_from_axis_angle(axis, gain * angle), q)
+        return dm.quat_from_axis_angle(axis, gain * angle)
+
+
+def _rotate_toward(q: dm.Quat, v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm.Quat:
+    """att_mars_rotate_toward."""
+    with np.errstate(all="ignore"):
+        return dm.quat_mul(_rotation_toward(v, r, fallback, gain), q)
 
 
 class Mars:
@@ -72,6 +78,11 @@ class Mars:
         "m0_ref_ok": "bool",
         "m0_valid": "bool",
         "initialised": "bool",
+        "bias": "vec3",
+        "bias_n": "u32",
+        "rest_count": "u32",
+        "lp1": "vec3",
+        "lp2": "vec3",
         "steps": "u32",
         "flags": "u32",
     }
@@ -103,6 +114,16 @@ class Mars:
             k_mag = np.where(tau_mag > dm.ZERO, self.dt / (tau_mag + self.dt), alpha_mag)
         self.k_acc = k_acc.astype(np.float32)
         self.k_mag = k_mag.astype(np.float32)
+        self.integration = setting(np.asarray(s.integration, np.int32), n, np.int32)
+        tau_lp = setting(s.tau_acc_lp, n)
+        with np.errstate(all="ignore"):
+            self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
+        self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
+        self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
+        self.rest_gyro = setting(s.rest_gyro, n)
+        self.rest_accel = setting(s.rest_accel, n)
+        self.rest_time = setting(s.rest_time, n)
+        self.rest_n = sensor.samples(self.rest_time, self.dt)
         self._zeros = np.zeros(n, np.float32)
         self._ones = np.full(n, dm.ONE, np.float32)
         self._up = (self._zeros, self._zeros, self._ones)
@@ -126,6 +147,12 @@ class Mars:
         ok, parts = self._derive_m0(mi)
         self._commit_m0(~self.init_from_sensors & nonzero & ok, parts)
         self.initialised: Any = ~self.init_from_sensors
+        off = self.bias_mode == BiasMode.OFF
+        self.bias: dm.Vec3 = dm.vec3_where(off, (z.copy(), z.copy(), z.copy()), self.bias_init)
+        self.bias_n = np.zeros(n, np.uint32)
+        self.rest_count = np.zeros(n, np.uint32)
+        self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
+        self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
 
@@ -200,6 +227,32 @@ class Mars:
             mag_ok = mag_flags == _U0
             flags = flags | mag_flags
 
+            # rest detection and gyro bias (as att_ars.c)
+            rest = (
+                gyro_ok
+                & accel_ok
+                & (dm.vec3_norm(dm.vec3_sub(g, self.bias)) < self.rest_gyro)
+                & (dm.absf(norm - self.gravity) < self.rest_accel)
+            )
+            self.rest_count = np.where(
+                ~rest,
+                _U0,
+                np.where(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count),
+            ).astype(np.uint32)
+            at_rest = rest & (self.rest_count >= self.rest_n)
+            flags = flags | np.where(at_rest, _u(Flag.AT_REST), _U0)
+            update = gyro_ok & (
+                (self.bias_mode == BiasMode.RUNNING) | ((self.bias_mode == BiasMode.AT_REST) & at_rest)
+            )
+            nf = self.bias_n.astype(np.float32)
+            den = nf + dm.ONE
+            new_bias = tuple((nf * b + w) / den for b, w in zip(self.bias, g))
+            self.bias = dm.vec3_where(update, (new_bias[0], new_bias[1], new_bias[2]), self.bias)
+            self.bias_n = np.where(
+                update & (self.bias_n < self.bias_n_max), self.bias_n + np.uint32(1), self.bias_n
+            ).astype(np.uint32)
+            flags = flags | np.where(update, _u(Flag.BIAS_UPDATED), _U0)
+
             # not yet initialised: attitude from the first valid accel (+ mag) sample
             waiting = ~self.initialised
             init_now = waiting & accel_ok
@@ -218,12 +271,25 @@ class Mars:
             # running
             run = ~waiting
             q = self.q
-            ok_i, q_int = dm.quat_normalize(_integrate(q, dm.vec3_sub(g, self.bias_init), self.dt))
+            w = dm.vec3_sub(g, self.bias)
+            q_rv = dm.quat_mul(q, dm.quat_from_rotvec(dm.vec3_scale(w, self.dt)))
+            q_fo = _integrate(q, w, self.dt)
+            rotvec = self.integration == Integration.ROTVEC
+            ok_i, q_int = dm.quat_normalize(dm.quat_where(rotvec, q_rv, q_fo))
             q1 = dm.quat_where(gyro_ok & ok_i, q_int, q)
             numeric = gyro_ok & ~ok_i
-            ok_u, unit = dm.vec3_normalize(dm.quat_rotate(q1, a))
-            q_acc = _rotate_toward(q1, unit, self._up, self._xaxis, self.k_acc)
-            q2 = dm.quat_where(accel_ok & ~rejected & ok_u, q_acc, q1)
+            lp_on = self.k_lp > dm.ZERO
+            ae = dm.quat_rotate(q1, a)
+            lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(ae, self.lp1), self.k_lp))
+            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), self.k_lp))
+            ok_u, unit = dm.vec3_normalize(dm.vec3_where(lp_on, lp2n, ae))
+            qc = _rotation_toward(unit, self._up, self._xaxis, self.k_acc)
+            q_acc = dm.quat_mul(qc, q1)
+            use_acc = run & accel_ok & ~rejected
+            q2 = dm.quat_where(use_acc & ok_u, q_acc, q1)
+            lp_upd = use_acc & lp_on
+            lp1n = dm.vec3_where(ok_u, dm.quat_rotate(qc, lp1n), lp1n)
+            lp2n = dm.vec3_where(ok_u, dm.quat_rotate(qc, lp2n), lp2n)
 
             rej_c, q_corr = self._mag_correct(q2, m, mnorm)
             ok_al, q_al, m0_al = self._align(q2, m)
@@ -241,6 +307,9 @@ class Mars:
             flags = flags | np.where(run & (numeric | ~ok_f), _u(Flag.NUMERIC), _U0)
             q_run = dm.quat_where(ok_f, q_fin, q)
             self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_start, q), q_run)
+            lp_init = dm.quat_rotate(q_start, a)
+            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp1n, self.lp1))
+            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp2n, self.lp2))
         self._commit_m0(init_mag, parts0)
         self._commit_m0(use_align & good_l, parts_l)
         self._commit_m0(use_set & ok_ds, parts_s)

@@ -1,0 +1,311 @@
+"""Accuracy evaluation (attica eval): metric bookkeeping on hand-computed cases, loaders for the original
+BROAD files, accuracy regression on BROAD (../shared) and on simulated data, the peers' frame conventions,
+and the command end to end."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from attica.cli import main
+from attica.data import Recording, broad_groups, load_recording
+from attica.evaluate import Method, attica_method, load_trials, run_methods
+from attica.metrics import quat_mul
+from attica.settings import FilterKind, Preset
+from attica.sim import SimConfig, simulate
+
+from helpers import broad_trials, need
+
+RATE = 285.714
+
+
+def _qaxis(axis: tuple[float, float, float], deg: float) -> np.ndarray:
+    a = np.radians(deg) / 2
+    return np.array([np.cos(a), *(np.sin(a) * np.asarray(axis, float))])
+
+
+def _rec(name: str, groups: tuple[str, ...], n: int = 400, seed: int = 0) -> Recording:
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    mov = np.ones(n, bool)
+    mov[: n // 4] = False
+    return Recording(
+        gyr=np.zeros((n, 3)),
+        acc=np.tile([0, 0, 9.81], (n, 1)),
+        mag=None,
+        rate=100.0,
+        quat_true=q,
+        movement=mov,
+        name=name,
+        groups=groups,
+    )
+
+
+def _offset_method(name: str, offsets: dict[str, np.ndarray], nine: bool = True) -> Method:
+    """The truth rotated by a fixed earth-frame error quaternion per trial: e = offset exactly."""
+
+    def run(rec: Recording) -> np.ndarray:
+        assert rec.quat_true is not None
+        return quat_mul(offsets[rec.name], rec.quat_true)
+
+    return Method(name, "test", nine, "default", run)
+
+
+# --- metric bookkeeping on hand-computed cases ---------------------------------------------------
+
+
+def test_known_offsets_give_known_errors_and_group_means() -> None:
+    recs = [_rec("a", ("all_trials", "rotation")), _rec("b", ("all_trials", "translation"), seed=1)]
+    offsets = {"a": _qaxis((1, 0, 0), 10.0), "b": _qaxis((0, 0, 1), 20.0)}  # tilt 10 deg; heading 20 deg
+    rep = run_methods([_offset_method("off", offsets)], recs, progress=False)
+    r = rep.result("off")
+    a, b = (t.errors for t in r.trials)
+    assert (a.total, a.heading, a.inclination) == pytest.approx((10.0, 0.0, 10.0), abs=1e-5)
+    assert (b.total, b.heading, b.inclination) == pytest.approx(
+        (20.0, 20.0, 0.0), abs=1e-5
+    )  # acos near 1: ~1e-6 deg
+    assert a.n == b.n == 300  # movement samples only
+    assert r.mean("total") == pytest.approx(15.0)
+    assert r.mean("inclination", "rotation") == pytest.approx(10.0)
+    assert r.mean("heading", "translation") == pytest.approx(20.0)
+    assert rep.groups == ["rotation", "translation"]
+    d = rep.as_dict()["methods"]["off"]
+    assert d["mean"]["inclination"] == pytest.approx(5.0) and d["groups"]["rotation"]["total"] == 10.0
+
+
+def test_combined_offset_and_judging_metric() -> None:
+    """Tilt 30 deg about x then heading 40 deg: e = Qz(40) Qx(30); incl 30, heading = 2 atan(|ez/ew|)."""
+    e = quat_mul(_qaxis((0, 0, 1), 40.0), _qaxis((1, 0, 0), 30.0))
+    recs = [_rec("c", ("all_trials",))]
+    six = _offset_method("six", {"c": e}, nine=False)
+    rep = run_methods([six, _offset_method("nine", {"c": e})], recs, progress=False)
+    err = rep.result("six").trials[0].errors
+    ew, ez = e[0], e[3]
+    assert err.inclination == pytest.approx(30.0, abs=1e-9)
+    assert err.heading == pytest.approx(np.degrees(2 * np.arctan(abs(ez / ew))), abs=1e-9)
+    assert err.total == pytest.approx(np.degrees(2 * np.arccos(abs(ew))), abs=1e-9)
+    assert rep.result("six").score() == pytest.approx(30.0)  # 6-axis: judged by inclination
+    assert rep.result("nine").score() == pytest.approx(err.total)
+
+
+def test_needs_ground_truth() -> None:
+    rec = _rec("x", ())
+    rec.quat_true = None
+    with pytest.raises(ValueError, match="ground truth"):
+        run_methods([attica_method(FilterKind.ARS)], [rec], progress=False)
+
+
+# --- original BROAD file formats -------------------------------------------------------------------
+
+
+def _broad_arrays(n: int = 300) -> dict[str, np.ndarray]:
+    rec = simulate(
+        SimConfig(duration=n / RATE, rate=RATE, seed=4, rest_start=0.2, rest_end=0.2, rest_breaks=0)
+    )
+    assert rec.quat_true is not None and rec.movement is not None
+    return {
+        "imu_gyr": rec.gyr.astype(np.float64),
+        "imu_acc": rec.acc.astype(np.float64),
+        "imu_mag": rec.mag.astype(np.float64),
+        "opt_quat": rec.quat_true,
+        "movement": rec.movement.astype(np.uint8)[:, None],  # a column, as in BROAD's .mat
+        "sampling_rate": np.array([[RATE]]),
+    }
+
+
+def _check_loaded(rec: Recording, d: dict[str, np.ndarray], name: str) -> None:
+    np.testing.assert_array_equal(rec.gyr, d["imu_gyr"].astype(np.float32))
+    np.testing.assert_array_equal(rec.mag, d["imu_mag"].astype(np.float32))
+    assert rec.quat_true is not None and rec.movement is not None
+    np.testing.assert_array_equal(rec.quat_true, d["opt_quat"])
+    np.testing.assert_array_equal(rec.movement, d["movement"][:, 0].astype(bool))
+    assert rec.rate == RATE and rec.name == name
+
+
+def test_load_original_hdf5(tmp_path: Path) -> None:
+    h5py = pytest.importorskip("h5py")
+    d = _broad_arrays()
+    path = tmp_path / "07_undisturbed_fast_rotation_B.hdf5"
+    with h5py.File(path, "w") as f:
+        for k, v in d.items():
+            f[k] = v[:, 0] if k == "movement" else v
+    rec = load_recording(path)
+    _check_loaded(rec, d, path.stem)
+    assert rec.groups == ("all_trials", "undisturbed", "rotation", "fast", "no_breaks")
+
+
+def test_load_original_mat_with_trials_json(tmp_path: Path) -> None:
+    sio = pytest.importorskip("scipy.io")
+    d = _broad_arrays()
+    path = tmp_path / "24_disturbed_tapping_A.mat"
+    sio.savemat(path, d)
+    rec = load_recording(path)
+    _check_loaded(rec, d, path.stem)
+    assert rec.groups == ("all_trials", "disturbed", "tapping")
+    info = {"trials": {path.stem: {"groups": ["all_trials", "disturbed", "custom"]}}}
+    (tmp_path / "trials.json").write_text(json.dumps(info))
+    assert load_recording(path).groups == ("all_trials", "disturbed", "custom")
+
+
+def test_missing_optional_package_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (tmp_path / "t.hdf5").write_bytes(b"")
+    (tmp_path / "t.mat").write_bytes(b"")
+    monkeypatch.setitem(sys.modules, "h5py", None)
+    monkeypatch.setitem(sys.modules, "scipy.io", None)
+    with pytest.raises(ImportError, match="h5py"):
+        load_recording(tmp_path / "t.hdf5")
+    with pytest.raises(ImportError, match="scipy"):
+        load_recording(tmp_path / "t.mat")
+
+
+def test_groups_from_names_match_broad() -> None:
+    assert broad_groups("14_undisturbed_slow_translation_with_breaks_B") == (
+        "all_trials",
+        "undisturbed",
+        "translation",
+        "slow",
+        "with_breaks",
+    )
+    assert broad_groups("35_disturbed_attached_magnet_4cm") == ("all_trials", "disturbed", "attached_magnet")
+    assert broad_groups("37_disturbed_office_A") == ("all_trials", "disturbed", "office_environment")
+
+
+# --- accuracy regression ---------------------------------------------------------------------------
+
+# Mean over the 20 BROAD trials in ../shared (deg), measured with `attica eval --preset both`: default
+# ars 0.76 incl, mars 1.93 total, kf 3.53, ekf 6.68, gyro 24.18, tilt 22.61 incl; seed ars 17.96,
+# mars 26.69 total, kf 9.41, ekf 11.28. The bounds are a little above: (metric, default, seed).
+BROAD_BOUNDS: dict[FilterKind, tuple[str, float, float]] = {
+    FilterKind.ARS: ("inclination", 0.85, 19.0),
+    FilterKind.MARS: ("total", 2.1, 28.0),
+    FilterKind.KF: ("inclination", 3.8, 10.0),
+    FilterKind.EKF: ("inclination", 7.2, 12.0),
+    FilterKind.GYRO: ("inclination", 25.0, 25.0),
+    FilterKind.TILT: ("inclination", 23.5, 23.5),
+}
+
+
+@pytest.fixture(scope="module")
+def broad() -> list[Recording]:
+    return [load_recording(p) for p in broad_trials()]
+
+
+def test_broad_accuracy_regression(broad: list[Recording]) -> None:
+    kinds = list(BROAD_BOUNDS)
+    methods = [attica_method(k, p) for p in (Preset.DEFAULT, Preset.SEED) for k in kinds]
+    rep = run_methods(methods, broad, progress=False)
+    for k in kinds:
+        metric, bound_default, bound_seed = BROAD_BOUNDS[k]
+        d = rep.result(k.label).mean(metric)
+        s = rep.result(f"{k.label}@seed").mean(metric)
+        print(
+            f"\n{k.label:>5}: mean {metric} RMSE default {d:.2f} deg, seed {s:.2f} deg ({len(broad)} trials)"
+        )
+        assert d < bound_default and s < bound_seed
+        if k in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF):
+            assert rep.result(k.label).mean("inclination") < rep.result(f"{k.label}@seed").mean("inclination")
+
+
+# Two simulated recordings of 2 minutes (taps, gyro bias), default presets: measured ars 0.56 deg
+# inclination, mars 1.26 deg total, kf 3.56 / ekf 3.46 deg inclination. (The KF/EKF defaults were tuned on
+# BROAD, whose gyro bias is small: their 10 s time constants do worse here than the seed preset's ~1 s,
+# kf@seed 1.39 / ekf@seed 1.84 deg, as neither estimates the gyro bias; see docs/accuracy.md.)
+SIM_BOUNDS: dict[FilterKind, tuple[str, float]] = {
+    FilterKind.ARS: ("inclination", 0.7),
+    FilterKind.MARS: ("total", 1.5),
+    FilterKind.KF: ("inclination", 3.9),
+    FilterKind.EKF: ("inclination", 3.8),
+}
+
+
+@pytest.fixture(scope="module")
+def sim_recs() -> list[Recording]:
+    return [simulate(SimConfig(duration=120.0, rate=RATE, seed=s, taps=5)) for s in (11, 12)]
+
+
+def test_simulated_accuracy(sim_recs: list[Recording]) -> None:
+    rep = run_methods([attica_method(k) for k in SIM_BOUNDS], sim_recs, progress=False)
+    for k, (metric, bound) in SIM_BOUNDS.items():
+        v = rep.result(k.label).mean(metric)
+        print(f"\n{k.label:>5}: simulated mean {metric} RMSE {v:.2f} deg")
+        assert v < bound
+
+
+# --- peers: the frame conventions, checked against truth ---------------------------------------------
+
+
+def test_peers_match_truth_on_simulation(sim_recs: list[Recording]) -> None:
+    """Each installed peer's estimate agrees with the ENU truth: a wrong frame would cost ~90 deg."""
+    from attica.peers import PEERS, available_peers
+
+    for lib in sorted({p.library for p in PEERS}):
+        need(any(p.library == lib and p.installed for p in PEERS), f"peer library {lib} not installed")
+    rec = sim_recs[0]
+    short = Recording(
+        rec.gyr[: 40 * 286],
+        rec.acc[: 40 * 286],
+        rec.mag[: 40 * 286],
+        rec.rate,
+        None if rec.quat_true is None else rec.quat_true[: 40 * 286],
+        None if rec.movement is None else rec.movement[: 40 * 286],
+        "sim",
+        (),
+    )
+    peers = [p for p in available_peers() if p.setting == "default" or p.library != "ahrs"]
+    methods = [Method(p.name, p.library, p.nine_axis, p.setting, p.run) for p in peers]
+    rep = run_methods(methods, [short], progress=False)
+    for r in rep.results:
+        e = r.trials[0].errors
+        print(
+            f"\n{r.method.name:>16}: total {e.total:6.2f} heading {e.heading:6.2f} incl {e.inclination:5.2f}"
+        )
+        assert e.inclination < 5.0, r.method.name
+        if r.method.nine_axis:
+            assert e.total < 10.0, r.method.name
+
+
+# --- the command end to end ----------------------------------------------------------------------------
+
+
+def test_eval_command_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("matplotlib")
+    data = tmp_path / "data"
+    data.mkdir()
+    for seed, name in ((21, "01_undisturbed_slow_rotation_A"), (22, "24_disturbed_tapping_A")):
+        rec = simulate(SimConfig(duration=30.0, rate=RATE, seed=seed, taps=2))
+        rec.name = name
+        rec.groups = broad_groups(name)
+        rec.save(data / f"{name}.npz")
+    out = tmp_path / "out"
+    assert (
+        main(
+            ["eval", "--data", str(data), "--filter", "ars,mars", "--preset", "both", "--out", str(out), "-q"]
+        )
+        == 0
+    )
+    text = capsys.readouterr().out
+    assert "inclination RMSE" in text and "[tapping]" in text and "average" in text
+    res = json.loads((out / "results.json").read_text())
+    assert set(res["methods"]) == {"ars", "mars", "ars@seed", "mars@seed"}
+    assert res["groups"] == ["undisturbed", "rotation", "slow", "no_breaks", "disturbed", "tapping"]
+    assert res["methods"]["mars"]["mean"]["total"] < 5.0
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    assert pngs == [
+        "error_01_undisturbed_slow_rotation_A.png",
+        "error_24_disturbed_tapping_A.png",
+        "groups.png",
+        "groups_seed.png",
+    ]
+    assert all((out / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+
+
+def test_eval_command_errors(tmp_path: Path) -> None:
+    assert main(["eval", "--data", str(tmp_path / "nothing")]) == 2
+    assert main(["eval", "--data", str(tmp_path)]) == 2  # no recordings
+    with pytest.raises(FileNotFoundError):
+        load_trials(tmp_path / "nothing")
