@@ -112,19 +112,6 @@ void att_ars_reset(att_ars_t *f)
     f->flags = 0u;
 }
 
-/* Running mean w_m := (n w_m + w) / (n + 1), n capped at bias_n_max. */
-static void att_ars_bias_update(att_ars_t *f, att_vec3_t gyr)
-{
-    const float nf = (float)f->bias_n; /* exact: bias_n <= 2^24 */
-    const float den = nf + 1.0f;
-    f->bias.x = (nf * f->bias.x + gyr.x) / den;
-    f->bias.y = (nf * f->bias.y + gyr.y) / den;
-    f->bias.z = (nf * f->bias.z + gyr.z) / den;
-    if (f->bias_n < f->s.bias_n_max) {
-        f->bias_n = f->bias_n + 1u;
-    }
-}
-
 static att_quat_t att_ars_increment(const att_ars_t *f, att_vec3_t rate)
 {
     const att_vec3_t rv = att_vec3_scale(rate, f->s.dt);
@@ -182,7 +169,7 @@ uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc)
     float e;
     bool gyro_ok;
     bool accel_ok;
-    bool rest;
+    att_bias_params_t bias_params;
     att_quat_t q;
     att_quat_t qn;
     if (f == NULL) {
@@ -199,21 +186,13 @@ uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc)
     }
 
     /* rest detection and gyro bias */
-    rest = gyro_ok && accel_ok && att_vec3_norm(att_vec3_sub(gyr, f->bias)) < f->s.rest_gyro &&
-           att_absf(norm - f->s.gravity) < f->s.rest_accel;
-    if (!rest) {
-        f->rest_count = 0u;
-    } else if (f->rest_count < f->rest_n) {
-        f->rest_count = f->rest_count + 1u;
-    }
-    if (rest && f->rest_count >= f->rest_n) {
-        flags |= ATT_FLAG_AT_REST;
-    }
-    if (gyro_ok && (f->s.bias_mode == ATT_BIAS_RUNNING ||
-                    (f->s.bias_mode == ATT_BIAS_AT_REST && (flags & ATT_FLAG_AT_REST) != 0u))) {
-        att_ars_bias_update(f, gyr);
-        flags |= ATT_FLAG_BIAS_UPDATED;
-    }
+    bias_params.mode = f->s.bias_mode;
+    bias_params.n_max = f->s.bias_n_max;
+    bias_params.rest_n = f->rest_n;
+    bias_params.rest_gyro = f->s.rest_gyro;
+    bias_params.rest_accel = f->s.rest_accel;
+    bias_params.gravity = f->s.gravity;
+    flags |= att_bias_step(&bias_params, &f->bias, &f->bias_n, &f->rest_count, gyr, gyro_ok, accel_ok, norm);
 
     if (!f->initialised) {
         if (accel_ok) {

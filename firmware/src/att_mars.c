@@ -203,19 +203,6 @@ static att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
     return r;
 }
 
-/* Running mean b := (n b + w) / (n + 1), n capped at bias_n_max (as att_ars.c). */
-static void att_mars_bias_update(att_mars_t *f, att_vec3_t gyr)
-{
-    const float nf = (float)f->bias_n; /* exact: bias_n <= 2^24 */
-    const float den = nf + 1.0f;
-    f->bias.x = (nf * f->bias.x + gyr.x) / den;
-    f->bias.y = (nf * f->bias.y + gyr.y) / den;
-    f->bias.z = (nf * f->bias.z + gyr.z) / den;
-    if (f->bias_n < f->s.bias_n_max) {
-        f->bias_n = f->bias_n + 1u;
-    }
-}
-
 /* Gyro integration (not normalised): exponential map q * Q(w dt), or first order. */
 static att_quat_t att_mars_propagate(const att_mars_t *f, att_quat_t q, att_vec3_t w)
 {
@@ -325,7 +312,7 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
     att_vec3_t unit;
     att_vec3_t ae;
     att_quat_t qc;
-    bool rest;
+    att_bias_params_t bias_params;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
@@ -342,22 +329,14 @@ uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
     mag_ok = (mag_flags == 0u);
     flags |= mag_flags;
 
-    /* rest detection and gyro bias (as att_ars.c) */
-    rest = gyro_ok && accel_ok && att_vec3_norm(att_vec3_sub(gyr, f->bias)) < f->s.rest_gyro &&
-           att_absf(norm - f->s.gravity) < f->s.rest_accel;
-    if (!rest) {
-        f->rest_count = 0u;
-    } else if (f->rest_count < f->rest_n) {
-        f->rest_count = f->rest_count + 1u;
-    }
-    if (rest && f->rest_count >= f->rest_n) {
-        flags |= ATT_FLAG_AT_REST;
-    }
-    if (gyro_ok && (f->s.bias_mode == ATT_BIAS_RUNNING ||
-                    (f->s.bias_mode == ATT_BIAS_AT_REST && (flags & ATT_FLAG_AT_REST) != 0u))) {
-        att_mars_bias_update(f, gyr);
-        flags |= ATT_FLAG_BIAS_UPDATED;
-    }
+    /* rest detection and gyro bias (att_bias.c) */
+    bias_params.mode = f->s.bias_mode;
+    bias_params.n_max = f->s.bias_n_max;
+    bias_params.rest_n = f->rest_n;
+    bias_params.rest_gyro = f->s.rest_gyro;
+    bias_params.rest_accel = f->s.rest_accel;
+    bias_params.gravity = f->s.gravity;
+    flags |= att_bias_step(&bias_params, &f->bias, &f->bias_n, &f->rest_count, gyr, gyro_ok, accel_ok, norm);
 
     if (!f->initialised) {
         if (accel_ok) {

@@ -25,6 +25,7 @@
 #ifndef ATT_ARS_H
 #define ATT_ARS_H
 
+#include "attica/att_bias.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus
@@ -32,14 +33,6 @@ extern "C" {
 #endif
 
 /* ATT_CDEF_BEGIN */
-/** How the gyro bias estimate w_m is maintained. */
-typedef enum {
-    ATT_BIAS_OFF = 0,      /**< w_m = 0 */
-    ATT_BIAS_FROZEN = 1,   /**< w_m = bias_init, never updated */
-    ATT_BIAS_RUNNING = 2,  /**< running mean of every valid gyro sample (KITECH literal) */
-    ATT_BIAS_AT_REST = 3   /**< running mean of samples taken while at rest */
-} att_bias_mode_t;
-
 /** How the gyro rate is turned into an attitude increment. */
 typedef enum {
     ATT_INTEGRATE_ROTVEC = 0, /**< exponential map of (w - w_m) dt */

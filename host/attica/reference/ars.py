@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import StateSpec, as_batch, setting, split3, stack
+from attica.reference.bias import bias_step
 from attica.settings import ArsSettings, BiasMode, Flag, Integration
 
 _U0 = np.uint32(0)
@@ -130,30 +131,22 @@ class Ars:
             rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
 
-            rest = (
-                gyro_ok
-                & accel_ok
-                & (dm.vec3_norm(dm.vec3_sub(g, self.bias)) < self.rest_gyro)
-                & (dm.absf(norm - self.gravity) < self.rest_accel)
+            self.bias, self.bias_n, self.rest_count, bias_flags = bias_step(
+                self.bias_mode,
+                self.bias_n_max,
+                self.rest_n,
+                self.rest_gyro,
+                self.rest_accel,
+                self.gravity,
+                self.bias,
+                self.bias_n,
+                self.rest_count,
+                g,
+                gyro_ok,
+                accel_ok,
+                norm,
             )
-            self.rest_count = np.where(
-                ~rest,
-                _U0,
-                np.where(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count),
-            ).astype(np.uint32)
-            at_rest = rest & (self.rest_count >= self.rest_n)
-            flags = flags | np.where(at_rest, _u(Flag.AT_REST), _U0)
-            update = gyro_ok & (
-                (self.bias_mode == BiasMode.RUNNING) | ((self.bias_mode == BiasMode.AT_REST) & at_rest)
-            )
-            nf = self.bias_n.astype(np.float32)
-            den = nf + dm.ONE
-            new_bias = tuple((nf * b + w) / den for b, w in zip(self.bias, g))
-            self.bias = dm.vec3_where(update, (new_bias[0], new_bias[1], new_bias[2]), self.bias)
-            self.bias_n = np.where(
-                update & (self.bias_n < self.bias_n_max), self.bias_n + np.uint32(1), self.bias_n
-            ).astype(np.uint32)
-            flags = flags | np.where(update, _u(Flag.BIAS_UPDATED), _U0)
+            flags = flags | bias_flags
 
             # not yet initialised: attitude from the first valid accel sample
             waiting = ~self.initialised
