@@ -24,8 +24,8 @@ from attica.can.cli_can import add_subcommands as add_can_subcommands
 from attica.data import Recording, load_recording
 from attica.evaluate import add_eval_subcommand
 from attica.metrics import evaluate
-from attica.settings import FilterKind, describe_flags, implemented_kinds, make_settings
-from attica.sim import SimConfig, simulate
+from attica.settings import FilterKind, Flag, describe_flags, implemented_kinds, make_settings
+from attica.sim import SimConfig, simulate, simulate_with_truth
 
 CHUNK = 20_000
 
@@ -92,7 +92,16 @@ def parse_overrides(kind: FilterKind, items: Sequence[str]) -> dict[str, Any]:
 
 
 def _sim_config(args: argparse.Namespace) -> SimConfig:
-    return SimConfig(duration=args.duration, rate=args.rate, seed=args.seed, taps=args.taps)
+    return SimConfig(
+        duration=args.duration, rate=args.rate, seed=args.seed, taps=args.taps, rest_breaks=args.breaks
+    )
+
+
+def _simulate(cfg: SimConfig) -> Recording:
+    try:
+        return simulate(cfg)
+    except ValueError as exc:
+        raise CliError(f"simulation: {exc} (use a longer --duration or fewer --breaks)") from None
 
 
 def _recording(args: argparse.Namespace) -> Recording:
@@ -104,14 +113,17 @@ def _recording(args: argparse.Namespace) -> Recording:
             return load_recording(path)
         except ValueError as exc:
             raise CliError(f"{path}: {exc}") from None
-    return simulate(_sim_config(args))
+    return _simulate(_sim_config(args))
 
 
 def run_native(kind: FilterKind, rec: Recording, settings: Any, show_progress: bool) -> NDArray[np.void]:
     """Run the C filter over a recording in chunks (for the progress bar); (N,) output records."""
     from attica import native
 
-    f = native.Filter(kind, settings)
+    try:
+        f = native.Filter(kind, settings)
+    except native.NativeError as exc:
+        raise CliError(str(exc)) from None
     parts = []
     with _progress(len(rec.gyr), f"{kind.label} (C)", show_progress) as bar:
         for start in range(0, len(rec.gyr), CHUNK):
@@ -147,7 +159,7 @@ def _print_errors(kind: FilterKind, rec: Recording, out: NDArray[np.void]) -> No
 
 def cmd_sim(args: argparse.Namespace) -> int:
     """``attica sim``."""
-    rec = simulate(_sim_config(args))
+    rec = _simulate(_sim_config(args))
     out = Path(args.output)
     rec.save(out)
     print(f"wrote {out}: {len(rec.gyr)} samples at {rec.rate:g} Hz ({len(rec.gyr) / rec.rate:.1f} s)")
@@ -161,8 +173,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     source = args.data or f"simulation (seed {args.seed}, {args.duration:g} s)"
     print(f"{source}: {len(rec.gyr)} samples at {rec.rate:g} Hz")
     for kind in kinds:
+        overrides = parse_overrides(kind, args.set or [])
+        if "dt" in overrides:
+            raise CliError("dt is the recording's sample period (1 / rate); use --rate for simulations")
         try:
-            settings = make_settings(kind, dt=1.0 / rec.rate, **parse_overrides(kind, args.set or []))
+            settings = make_settings(kind, dt=1.0 / rec.rate, **overrides)
         except (TypeError, ValueError) as exc:
             raise CliError(str(exc)) from None
         t0 = time.perf_counter()
@@ -209,7 +224,7 @@ def _check(kind: FilterKind, rec: Recording, settings: Any, show_progress: bool)
 def cmd_demo(args: argparse.Namespace) -> int:
     """``attica demo``."""
     cfg = SimConfig(duration=args.duration, rate=args.rate, seed=args.seed, taps=3)
-    rec = simulate(cfg)
+    rec, truth = simulate_with_truth(cfg)
     print(
         f"simulated {cfg.duration:g} s of IMU data at {cfg.rate:g} Hz (seed {cfg.seed}): "
         f"{len(rec.gyr)} samples, gyro bias up to {cfg.gyro_bias} rad/s, 3 taps"
@@ -219,11 +234,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = run_native(kind, rec, settings, not args.quiet)
     ok = _check(kind, rec, settings, not args.quiet)
     _print_errors(kind, rec, out)
-    bias_true = np.abs(rec.gyr[: int(cfg.rest_start * rec.rate)].astype(np.float64).mean(axis=0))
-    print(
-        f"        gyro bias estimate {np.round(out['gyro_bias'][-1], 4)} rad/s "
-        f"(true at start about {np.round(bias_true, 4)})"
-    )
+    learnt = np.nonzero(out["flags"] & Flag.BIAS_UPDATED)[0]
+    if learnt.size:
+        i = int(learnt[-1])  # the estimate changes only at rest: compare where it was last updated
+        print(
+            f"        gyro bias estimate {np.round(out['gyro_bias'][i], 4)} rad/s "
+            f"at t = {i / rec.rate:.1f} s (true {np.round(truth.gyr_bias[i], 4)}; "
+            f"it drifts {cfg.gyro_bias_drift} rad/s/sqrt(s))"
+        )
     return 0 if ok else 1
 
 
@@ -237,6 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--rate", type=float, default=285.714, help="sample rate in Hz (default 285.714)")
         sp.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
         sp.add_argument("--taps", type=int, default=0, help="number of taps (acceleration impulses)")
+        sp.add_argument("--breaks", type=int, default=2, help="still pauses inside the motion (default 2)")
 
     sp = sub.add_parser("sim", help="write a simulated recording (.npz) with ground truth")
     sim_args(sp)
