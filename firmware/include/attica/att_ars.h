@@ -37,7 +37,7 @@ extern "C" {
 typedef enum {
     ATT_INTEGRATE_ROTVEC = 0, /**< exponential map of (w - w_m) dt */
     ATT_INTEGRATE_EULER = 1,  /**< Q(dphi, dtheta, dpsi), ZYX Euler increments (KITECH literal) */
-    ATT_INTEGRATE_FIRST_ORDER = 2 /**< q + 0.5 q (0, w) dt, normalised (MARS only: the article) */
+    ATT_INTEGRATE_FIRST_ORDER = 2 /**< q + q (0, w) dt / 2, normalised (MARS only: the article) */
 } att_integration_t;
 
 /** Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields. */

@@ -58,7 +58,7 @@ extern "C" {
 typedef struct {
     att_filter_kind_t kind;       /**< filter to run */
     att_filter_settings_t filter; /**< its settings (the member named after kind) */
-    float sample_rate;            /**< Hz, (0, 100000]; the filter's dt must be 1/sample_rate (+-0.1 %) */
+    float sample_rate;            /**< Hz, (0, 100000]; the filter's dt must be 1/sample_rate within 1e-3 relative */
     uint32_t bitrate;             /**< nominal bit/s (e.g. 500000); 1000 .. 1000000 */
     uint32_t data_bitrate;        /**< CAN FD data phase bit/s, 0 = classic only; else bitrate .. 16000000 */
     bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
