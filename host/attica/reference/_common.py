@@ -38,6 +38,28 @@ def as_batch(x: Any, width: int) -> tuple[NDArray[np.float32], bool]:
     raise ValueError(f"expected shape (N, {width}) or (N, M, {width}), got {a.shape}")
 
 
+def run_steps(obj: Any, *inputs: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
+    """Step reference filter ``obj`` through N samples of each input ((N, 3) or (N, n, 3)).
+
+    Calls ``obj.step(*rows)`` per sample and records ``obj.quat``. Returns quats (N, 4) and flags (N,)
+    when the inputs were 2-D (``obj.n`` must be 1 then, or every instance gets the same input and
+    instance 0 is returned), else (N, n, 4) and (N, n).
+    """
+    batches = [as_batch(x, 3) for x in inputs]
+    multi = batches[0][1]
+    count = batches[0][0].shape[0]
+    if any(b.shape[0] != count for b, _ in batches):
+        raise ValueError("every input must have the same number of samples")
+    quats = np.empty((count, obj.n, 4), np.float32)
+    flags = np.empty((count, obj.n), np.uint32)
+    for i in range(count):
+        flags[i] = obj.step(*(b[i] for b, _ in batches))
+        quats[i] = obj.quat
+    if multi:
+        return quats, flags
+    return quats[:, 0, :], flags[:, 0]
+
+
 StateSpec = dict[str, str]
 """Reference attribute name -> layout of the C state field of the same name.
 

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, as_batch, setting, split3, stack
+from attica.reference._common import StateSpec, run_steps, setting, split3, stack
 from attica.settings import Flag, KfSettings, KfYawMode
 
 _U0 = np.uint32(0)
@@ -278,14 +278,4 @@ class Kf:
 
         Returns quats (N, 4) or (N, n, 4) and flags (N,) or (N, n).
         """
-        g, multi = as_batch(gyr, 3)
-        a, _ = as_batch(acc, 3)
-        count = g.shape[0]
-        quats = np.empty((count, self.n, 4), np.float32)
-        flags = np.empty((count, self.n), np.uint32)
-        for i in range(count):
-            flags[i] = self.step(g[i], a[i])
-            quats[i] = self.quat
-        if multi:
-            return quats, flags
-        return quats[:, 0, :], flags[:, 0]
+        return run_steps(self, gyr, acc)

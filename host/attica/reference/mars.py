@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, as_batch, setting, split3, stack
+from attica.reference._common import StateSpec, run_steps, setting, split3, stack
 from attica.reference.bias import bias_step
 from attica.settings import BiasMode, Flag, Integration, MagMode, MarsSettings
 
@@ -326,18 +326,6 @@ class Mars:
 
         Returns quats (N, 4) or (N, n, 4) and flags (N,) or (N, n).
         """
-        g, multi = as_batch(gyr, 3)
-        a, _ = as_batch(acc, 3)
         if mag is None:
-            mg = np.zeros_like(g)
-        else:
-            mg, _ = as_batch(mag, 3)
-        count = g.shape[0]
-        quats = np.empty((count, self.n, 4), np.float32)
-        flags = np.empty((count, self.n), np.uint32)
-        for i in range(count):
-            flags[i] = self.step(g[i], a[i], mg[i])
-            quats[i] = self.quat
-        if multi:
-            return quats, flags
-        return quats[:, 0, :], flags[:, 0]
+            mag = np.zeros_like(np.asarray(gyr, np.float32))
+        return run_steps(self, gyr, acc, mag)
