@@ -212,8 +212,12 @@ class Filter:
         lib.att_filter_output(self._f, ffi.from_buffer("att_output_t[]", out))
         return out
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
-        """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record."""
+    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True) -> NDArray[np.void]:
+        """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record.
+
+        With ``full`` (default) the record is the whole att_filter_output after the step (Euler angles
+        and covariance included); otherwise only what att_filter_step fills (see the ``valid`` field).
+        """
         for name, v in (("gyr", gyr), ("acc", acc), ("mag", mag if mag is not None else (0.0, 0.0, 0.0))):
             a = _f32(v)
             if a.shape != (3,):
@@ -221,7 +225,10 @@ class Filter:
             dst = getattr(self._in, name)
             dst.x, dst.y, dst.z = float(a[0]), float(a[1]), float(a[2])
         out = np.zeros((), OUTPUT_DTYPE)
-        lib.att_filter_step(self._f, self._in, ffi.from_buffer("att_output_t[]", out))
+        buf = ffi.from_buffer("att_output_t[]", out)
+        lib.att_filter_step(self._f, self._in, buf)
+        if full:
+            lib.att_filter_output(self._f, buf)
         return out
 
     @property
@@ -229,11 +236,14 @@ class Filter:
         """The C state (``att_filter_t *``; live, not a copy)."""
         return self._f
 
-    def run(self, gyr: Any, acc: Any, mag: Any = None, snapshot_every: int = 0) -> Any:
+    def run(self, gyr: Any, acc: Any, mag: Any = None, snapshot_every: int = 0, full: bool = True) -> Any:
         """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
 
-        With ``snapshot_every`` > 0 returns ``(records, snapshots)`` where snapshots is a cffi array
-        of ``att_filter_t`` holding the state just before steps 0, k, 2k, ...
+        With ``full`` (default) every record is the whole att_filter_output after its step (Euler
+        angles, covariance); ``full=False`` keeps only what att_filter_step fills (q, gyro_bias, flags,
+        steps; see the ``valid`` field), which is what a firmware loop pays for. With
+        ``snapshot_every`` > 0 returns ``(records, snapshots)`` where snapshots is a cffi array of
+        ``att_filter_t`` holding the state just before steps 0, k, 2k, ...
         """
         g = _f32(gyr)
         a = _f32(acc)
@@ -251,6 +261,7 @@ class Filter:
             _fptr(m) if m is not None else ffi.NULL,
             g.shape[0],
             ffi.from_buffer("att_output_t[]", out),
+            1 if full else 0,
             every,
             snaps,
         )
