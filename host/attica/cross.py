@@ -287,7 +287,7 @@ VARIANTS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
         },
     ),
     "mars-full": (FilterKind.MARS, {"mag_mode": 1}),
-    "kf-yaw-zero": (FilterKind.KF, {"yaw_mode": 1}),
+    "kf-gate-adaptive": (FilterKind.KF, {"gate": 20.0, "r_accel": 50.0, "accel_reject": 0.5, "bias_mode": 2}),
     "tilt-no-normalise": (FilterKind.TILT, {"normalise": False}),
 }
 """Non-default settings compared besides the defaults of every kind (synthetic inputs)."""
