@@ -22,9 +22,10 @@ from typing import Any
 
 import pytest
 
-from attica import _build, cross, footprint, golden
-from attica.cross import TARGETS, FilterCase, MathData, Target
+from attica import _build
 from attica.settings import implemented_kinds
+from attica_dev import cross, footprint, golden
+from attica_dev.cross import TARGETS, FilterCase, MathData, Target
 
 from helpers import BROAD, need
 

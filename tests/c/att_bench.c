@@ -5,7 +5,7 @@
  * Usage: att_bench KIND N     KIND: a filter name of att_filter_name (ars, gyro, tilt, ...)
  *
  * Runs att_filter_step N times with default settings (dt = 0.01 s) through the unified interface and
- * prints a checksum of the outputs. host/attica/bench.py runs it under valgrind --tool=callgrind
+ * prints a checksum of the outputs. tools/attica_dev/bench.py runs it under valgrind --tool=callgrind
  * with --toggle-collect=att_filter_step for two values of N and divides the difference in
  * instructions by the difference in N, which removes start-up and initialisation costs.
  *

@@ -5,7 +5,7 @@
  * Test harness, not firmware: plain C99 with stdio/stdlib only (no POSIX), so the same program runs
  * natively, under qemu-user (aarch64, riscv64) and on a Cortex-M4F with semihosting. All file data
  * is explicitly little-endian, so one set of files serves every target. Python side:
- * host/attica/golden.py (writes inputs, runs this program, compares with the numpy reference).
+ * tools/attica_dev/golden.py (writes inputs, runs this program, compares with the numpy reference).
  *
  * Usage
  *   att_golden math FN in.bin out.bin          FN: sin cos atan2 asin acos sqrt wrap_pi quat_mul ...
@@ -406,7 +406,7 @@ typedef struct {
 
 static const gv_field_t gv_fields[] = {
 /* Generated from the settings dataclasses (host/attica/settings.py, whose field names are the C
- * member names) by host/attica/golden.py write_fields_header(): one GV_FIELD line per field. */
+ * member names) by tools/attica_dev/golden.py write_fields_header(): one GV_FIELD line per field. */
 #include "att_golden_fields.h"
 };
 

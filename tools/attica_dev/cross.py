@@ -1,7 +1,7 @@
 """The firmware on other CPUs: Cortex-M4F under QEMU, aarch64 and riscv64 under qemu-user, x86-64.
 
 Every target builds the same C programs from the firmware sources with the strict flags of
-firmware/cflags.txt (through :func:`attica.golden.build_program`) plus its own target flags, and
+firmware/cflags.txt (through :func:`attica_dev.golden.build_program`) plus its own target flags, and
 runs them through a command prefix (an emulator, or nothing natively):
 
 - ``m4f``: arm-none-eabi-gcc for Cortex-M4F (``-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16
@@ -16,7 +16,7 @@ runs them through a command prefix (an emulator, or nothing natively):
 :func:`golden_cases` builds the inputs of the cross-CPU golden comparison (synthetic adversarial
 streams and, when present, real BROAD recordings), :func:`reference_outputs` computes the numpy
 reference once, and :func:`compare_target` runs the golden runner of one target over all of it.
-``python -m attica.cross`` does all of that and prints the table; ``python -m attica.cross firmware``
+``python -m attica_dev.cross`` does all of that and prints the table; ``python -m attica_dev.cross firmware``
 builds the Cortex-M4F library and images (``make firmware``).
 """
 
@@ -40,8 +40,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from attica import _build, golden
+from attica import _build
 from attica.settings import FilterKind, implemented_kinds, make_settings
+from attica_dev import golden
 
 ROOT = _build.ROOT
 PORT = _build.FIRMWARE / "ports" / "cortex_m"
@@ -665,9 +666,9 @@ def compare_all(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m attica.cross [golden|firmware]``."""
+    """``python -m attica_dev.cross [golden|firmware]``."""
     p = argparse.ArgumentParser(
-        prog="python -m attica.cross", description=__doc__.split("\n")[0] if __doc__ else ""
+        prog="python -m attica_dev.cross", description=__doc__.split("\n")[0] if __doc__ else ""
     )
     p.add_argument("what", nargs="?", default="golden", choices=["golden", "firmware"])
     p.add_argument("--targets", default=",".join((*CROSS_TARGETS, *NATIVE_TARGETS)), help="comma-separated")

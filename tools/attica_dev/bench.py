@@ -1,4 +1,4 @@
-"""Benchmarks of the firmware filters: ``python -m attica.bench`` (``make bench``).
+"""Benchmarks of the firmware filters: ``python -m attica_dev.bench`` (``make bench``).
 
 Prints, per filter of :data:`FILTERS`:
 
@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from attica import _build, golden
+from attica import _build
+from attica_dev import golden
 
 BENCH_SOURCE = golden.ROOT / "tests" / "c" / "att_bench.c"
 
@@ -165,7 +166,7 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmarks and print the tables."""
     p = argparse.ArgumentParser(
-        prog="python -m attica.bench", description=__doc__.split("\n")[0] if __doc__ else ""
+        prog="python -m attica_dev.bench", description=__doc__.split("\n")[0] if __doc__ else ""
     )
     p.add_argument("--samples", type=int, default=200_000, help="samples for the native timing (200000)")
     p.add_argument("--repeat", type=int, default=3, help="repeats of the native timing, best taken (3)")

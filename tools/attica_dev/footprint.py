@@ -1,6 +1,6 @@
 """Footprint, stack and instructions per update of the firmware on a Cortex-M4F (make footprint, cycles).
 
-Footprint (``python -m attica.footprint footprint``):
+Footprint (``python -m attica_dev.footprint footprint``):
 
 - .text (code + constants), .data and .bss the library contributes to minimal firmware images
   (tests/c/att_m4f_image.c: one filter through its own API, all filters through att_filter_*, the
@@ -14,14 +14,14 @@ Footprint (``python -m attica.footprint footprint``):
   path of -fcallgraph-info (.ci) from each entry point; library leaf functions (memcpy, memset) from
   their prologues in the linked image.
 
-Instructions (``python -m attica.footprint cycles``):
+Instructions (``python -m attica_dev.footprint cycles``):
 
 - Cortex-M4F: tests/c/att_bench.c (the same synthetic inputs as the x86 callgrind figures) runs under
   ``qemu-system-arm -M mps2-an386 -d exec,nochain -singlestep`` which logs every executed
   instruction; the instructions from the entry of att_filter_step until control is back in main are
   counted for every step (mean and maximum per update). An estimate of cycles is derived from the
   same trace with the Cortex-M4 TRM instruction timings (zero wait states; see :func:`m4_cycles`);
-- x86-64: callgrind instructions per att_filter_step via :mod:`attica.bench`.
+- x86-64: callgrind instructions per att_filter_step via :mod:`attica_dev.bench`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from attica import _build, cross, golden
+from attica import _build
+from attica_dev import cross, golden
 
 ROOT = _build.ROOT
 OUT = ROOT / "build" / "firmware" / "m4f"
@@ -651,8 +652,8 @@ def check_trace(elf: Path, kind: str, steps: int = 5) -> tuple[int, list[str]]:
 
 
 def x86_instructions(kinds: Sequence[str]) -> dict[tuple[str, str], float]:
-    """Callgrind instructions per att_filter_step, (cc, kind) -> count, with attica.bench's method."""
-    from attica import bench
+    """Callgrind instructions per att_filter_step, (cc, kind) -> count, with attica_dev.bench's method."""
+    from attica_dev import bench
 
     out: dict[tuple[str, str], float] = {}
     if shutil.which("valgrind") is None:
@@ -838,9 +839,9 @@ def cycles_report(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m attica.footprint [footprint|cycles]``."""
+    """``python -m attica_dev.footprint [footprint|cycles]``."""
     p = argparse.ArgumentParser(
-        prog="python -m attica.footprint", description=__doc__.split("\n")[0] if __doc__ else ""
+        prog="python -m attica_dev.footprint", description=__doc__.split("\n")[0] if __doc__ else ""
     )
     p.add_argument("what", nargs="?", default="footprint", choices=["footprint", "cycles"])
     p.add_argument("--steps", type=int, default=BENCH_STEPS, help="steps per kind in the instruction trace")
