@@ -682,6 +682,8 @@ static int gv_run_filter(att_filter_kind_t kind, const char *set_path, const cha
             sample.mag = gv_words_v3(words + 6);
         }
         (void)att_filter_step(&filters[r % h.streams], &sample, &out);
+        /* the full record (derived outputs too: Euler angles, covariance) after every step */
+        att_filter_output(&filters[r % h.streams], &out);
         gv_output_words(&out, words);
         st = gv_write_row(fout, out_path, GV_OUT_WIDTH, words);
     }
