@@ -65,10 +65,10 @@ firmware: deps setup
 	$(DEV) -m attica_dev.cross firmware
 
 footprint: deps setup
-	$(DEV) -m attica_dev.footprint footprint
+	$(DEV) -m attica_dev.footprint
 
 cycles: deps setup
-	$(DEV) -m attica_dev.footprint cycles
+	$(DEV) -m attica_dev.cycles $(CYCLES_ARGS)
 
 # The golden comparison on every CPU as one table (the same checks as tests/test_cross.py).
 cross: deps setup

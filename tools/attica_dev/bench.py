@@ -93,8 +93,8 @@ def native_ns_per_step(
     return float(best / imu[0].shape[0] * 1e9)
 
 
-def callgrind_instructions(program: Path, kind: str, steps: int) -> int:
-    """Instructions executed inside att_filter_step for ``steps`` steps (callgrind)."""
+def callgrind_instructions(program: Path, kind: str, steps: int, function: str = "att_filter_step") -> int:
+    """Instructions executed inside ``function`` (and its callees) for ``steps`` steps (callgrind)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "callgrind.out"
         proc = subprocess.run(
@@ -102,7 +102,7 @@ def callgrind_instructions(program: Path, kind: str, steps: int) -> int:
                 "valgrind",
                 "--tool=callgrind",
                 f"--callgrind-out-file={out}",
-                "--toggle-collect=att_filter_step",
+                f"--toggle-collect={function}",
                 str(program),
                 kind,
                 str(steps),
@@ -118,10 +118,12 @@ def callgrind_instructions(program: Path, kind: str, steps: int) -> int:
     return int(m.group(1))
 
 
-def instructions_per_step(program: Path, kind: str, n1: int = 2_000, n2: int = 12_000) -> float:
-    """(I(n2) - I(n1)) / (n2 - n1) for att_filter_step of ``kind``."""
-    i1 = callgrind_instructions(program, kind, n1)
-    i2 = callgrind_instructions(program, kind, n2)
+def instructions_per_step(
+    program: Path, kind: str, n1: int = 2_000, n2: int = 12_000, function: str = "att_filter_step"
+) -> float:
+    """(I(n2) - I(n1)) / (n2 - n1) for ``function`` (att_filter_step; att_peer_step of a peer's driver)."""
+    i1 = callgrind_instructions(program, kind, n1, function)
+    i2 = callgrind_instructions(program, kind, n2, function)
     return (i2 - i1) / (n2 - n1)
 
 
