@@ -59,7 +59,10 @@ test: deps build lint pytest
 bench: deps build
 	$(DEV) -m attica_dev.bench
 
-# Cortex-M4F (firmware/ports/cortex_m, QEMU mps2-an386) and the figures of docs/performance.md.
+# Cortex-M (firmware/ports/cortex_m: M4F, M7, M33, M0+ under QEMU), attica beside Fusion and VQF (built
+# from their sdists into build/peers), the figures of docs/performance.md. `make cycles PROFILE=ars,mars`
+# adds the per-function instruction profile of those filters; CYCLES_ARGS passes more options
+# (python -m attica_dev.cycles --help).
 .PHONY: firmware footprint cycles cross
 firmware: deps setup
 	$(DEV) -m attica_dev.cross firmware
@@ -68,7 +71,7 @@ footprint: deps setup
 	$(DEV) -m attica_dev.footprint
 
 cycles: deps setup
-	$(DEV) -m attica_dev.cycles $(CYCLES_ARGS)
+	$(DEV) -m attica_dev.cycles $(if $(PROFILE),--profile $(PROFILE)) $(CYCLES_ARGS)
 
 # The golden comparison on every CPU as one table (the same checks as tests/test_cross.py).
 cross: deps setup

@@ -30,6 +30,12 @@
 
 static FusionAhrs ahrs;
 static int nine;
+/* The footprint image links one update only; the benchmark program picks at run time. */
+#if defined(ATT_PEER_IMAGE)
+#define PEER_NINE (ATT_PEER_IMAGE == 9)
+#else
+#define PEER_NINE nine
+#endif
 static float q_out[4];
 
 static void peer_init(void)
@@ -47,7 +53,7 @@ void att_peer_step(const FusionVector *g, const FusionVector *a, const FusionVec
 __attribute__((noinline)) void att_peer_step(const FusionVector *g, const FusionVector *a, const FusionVector *m)
 {
     FusionQuaternion q;
-    if (nine) {
+    if (PEER_NINE) {
         FusionAhrsUpdate(&ahrs, *g, *a, *m);
     } else {
         FusionAhrsUpdateNoMagnetometer(&ahrs, *g, *a);
@@ -69,7 +75,6 @@ int main(void)
     FusionVector g;
     FusionVector a;
     FusionVector m;
-    nine = ATT_PEER_IMAGE == 9;
     peer_init();
     while (run) {
         g.axis.x = in[0];

@@ -36,6 +36,12 @@ void *__dso_handle = nullptr;
 
 static VQF *vqf;
 static int nine;
+/* The footprint image links one update only; the benchmark program picks at run time. */
+#if defined(ATT_PEER_IMAGE)
+#define PEER_NINE (ATT_PEER_IMAGE == 9)
+#else
+#define PEER_NINE nine
+#endif
 static vqf_real_t q_out[4];
 
 extern "C" void att_peer_step(const vqf_real_t *g, const vqf_real_t *a, const vqf_real_t *m);
@@ -44,7 +50,7 @@ extern "C" void att_peer_step(const vqf_real_t *g, const vqf_real_t *a, const vq
 extern "C" __attribute__((noinline)) void att_peer_step(const vqf_real_t *g, const vqf_real_t *a,
                                                         const vqf_real_t *m)
 {
-    if (nine) {
+    if (PEER_NINE) {
         vqf->update(g, a, m);
         vqf->getQuat9D(q_out);
     } else {
@@ -65,7 +71,6 @@ int main(void)
     vqf_real_t a[3];
     vqf_real_t m[3];
     vqf = &filter;
-    nine = ATT_PEER_IMAGE == 9;
     while (run) {
         for (int j = 0; j < 3; j++) {
             g[j] = in[j];

@@ -541,15 +541,15 @@ class M4fBuild:
 M4F_LIB_OPTS = ("-Os", "-O2")
 
 
-def library_objects(opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc") -> list[Path]:
-    """Compile the firmware sources for the Cortex-M4F as a library would be (stack gate on).
+def library_objects(opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc", board: str = "m4f") -> list[Path]:
+    """Compile the firmware sources for a Cortex-M board as a library would be (stack gate on).
 
-    Flags: the firmware flags, ``opt``, the M4F CPU flags, ``-ffunction-sections -fdata-sections``
+    Flags: the firmware flags, ``opt``, the board's CPU flags, ``-ffunction-sections -fdata-sections``
     (so images keep only what they use), ``-Wstack-usage=M4F_STACK_LIMIT`` (an error with -Werror)
     and ``-fstack-usage -fcallgraph-info=su`` (.su and .ci files for the stack analysis).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    target = Target("m4f", "", cc, M4F_CPU)
+    target = Target(board, "", cc, BOARDS[board].cpu)
     extra = [*M4F_SECTIONS, f"-Wstack-usage={M4F_STACK_LIMIT}", "-fstack-usage", "-fcallgraph-info=su"]
     objs = [out_dir / (src.stem + ".o") for src in _build.firmware_sources()]
     with ThreadPoolExecutor(max(2, os.cpu_count() or 2)) as pool:

@@ -37,6 +37,7 @@ from pathlib import Path
 
 from attica import _build
 from attica_dev import cross, cycles
+from attica_dev.boards import BOARDS
 
 ROOT = _build.ROOT
 OUT = ROOT / "build" / "firmware" / "m4f"
@@ -93,18 +94,18 @@ def _tool(name: str) -> str:
 # --- library and images --------------------------------------------------------------------------------
 
 
-def library(opt: str, out: Path = OUT) -> tuple[Path, list[Path]]:
-    """libattica<opt>.a for the Cortex-M4F (stack gate on) and its objects (.su/.ci beside them)."""
-    objs = cross.library_objects(opt, out / f"obj{opt}")
+def library(opt: str, out: Path = OUT, board: str = "m4f") -> tuple[Path, list[Path]]:
+    """libattica<opt>.a for a Cortex-M board (stack gate on) and its objects (.su/.ci beside them)."""
+    objs = cross.library_objects(opt, out / f"obj{opt}", board=board)
     return cross.archive(objs, out / f"libattica{opt}.a"), objs
 
 
-def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = ()) -> None:
+def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = (), board: str = "m4f") -> None:
     cmd = [
         _tool("arm-none-eabi-gcc"),
         *_build.cflags(),
         opt,
-        *cross.M4F_CPU,
+        *BOARDS[board].cpu,
         *cross.M4F_SECTIONS,
         *defines,
         "-I",
@@ -121,26 +122,28 @@ def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = ()) -> Non
         raise FootprintError(f"{' '.join(cmd)}\n{proc.stderr}")
 
 
-def link_image(name: str, image: int, lib: Path, opt: str, out: Path) -> tuple[Path, Path]:
-    """Link footprint image ``image`` against ``lib``; return (elf, map)."""
+def link_image(
+    name: str, image: int, lib: Path, opt: str, out: Path, board: str = "m4f"
+) -> tuple[Path, Path]:
+    """Link footprint image ``image`` for ``board`` against ``lib``; return (elf, map)."""
     out.mkdir(parents=True, exist_ok=True)
     slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
     main_o = out / f"image_{slug}.o"
     start_o = out / "startup.o"
-    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}"])
-    _compile(cross.PORT / "startup.c", start_o, opt)
+    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}"], board)
+    _compile(cross.PORT / "startup.c", start_o, opt, (), board)
     elf = out / f"image_{slug}.elf"
     map_file = out / f"image_{slug}.map"
     cmd = [
         _tool("arm-none-eabi-gcc"),
-        *cross.M4F_CPU,
+        *BOARDS[board].cpu,
         str(main_o),
         str(start_o),
         str(lib),
         "--specs=nano.specs",
         "-nostartfiles",
         "-T",
-        str(cross.LINKER_SCRIPT),
+        str(BOARDS[board].script),
         "-Wl,--gc-sections",
         f"-Wl,-Map={map_file}",
         "-o",
@@ -189,9 +192,17 @@ _IN_SECTION = re.compile(r"^ (\.\S+|COMMON)\s*(?:(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s
 _CONT = re.compile(r"^\s+(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+(\S.*)$")
 
 
-def map_sizes(map_file: Path) -> ImageSizes:
-    """Attribute the input sections of a GNU ld map file to attica objects, the C library and the rest."""
-    stems = {s.stem for s in _build.firmware_sources()}
+def map_sizes(map_file: Path, archive: str = "libattica", members: set[str] | None = None) -> ImageSizes:
+    """Attribute the input sections of a GNU ld map file to attica objects, the C library and the rest.
+
+    ``archive`` and ``members``: the library whose objects count as "attica" (the firmware objects of
+    libattica by default; a peer's lib<name>.a with every member for the peers' images).
+    """
+    stems = (
+        {s.stem for s in _build.firmware_sources()} if members is None and archive == "libattica" else None
+    )
+    if members is not None:
+        stems = members
     out = ImageSizes()
     lines = map_file.read_text().splitlines()
     try:
@@ -219,10 +230,10 @@ def map_sizes(map_file: Path) -> ImageSizes:
         if sec is None or size == 0:
             continue
         member = re.search(r"\(([^()]+)\.o\)$", origin)
-        if "libattica" in origin and member and member.group(1) in stems:
+        if archive in origin and member and (stems is None or member.group(1) in stems):
             out.attica.add(sec, size)
             out.attica_objects.setdefault(member.group(1), Sizes()).add(sec, size)
-        elif re.search(r"lib(c|c_nano|g|g_nano|gcc|m|nosys|rdimon\w*)\.a", origin):
+        elif re.search(r"lib(c|c_nano|g|g_nano|gcc|m|nosys|rdimon\w*|stdc\+\+\w*|supc\+\+\w*)\.a", origin):
             out.libc.add(sec, size)
             name = sec.split(".")[-1]
             if sec.startswith(".text") and member:
@@ -516,10 +527,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m attica_dev.footprint", description=__doc__.split("\n")[0] if __doc__ else ""
     )
-    p.parse_args(argv)
+    p.add_argument("--no-peers", action="store_true", help="attica's tables only")
+    p.add_argument(
+        "--boards", default="m4f,m7,m33", help="boards of the comparison with the peers (m4f,m7,m33)"
+    )
+    args = p.parse_args(argv)
     try:
         text, ok = footprint_report()
-        print(text)
+        print(text, flush=True)
+        if not args.no_peers:
+            from attica_dev import peer_footprint
+
+            print()
+            print(peer_footprint.report([b for b in args.boards.split(",") if b]))
         return 0 if ok else 1
     except (FootprintError, cross.CrossError) as e:
         print(f"footprint: {e}", file=sys.stderr)

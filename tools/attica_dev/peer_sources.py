@@ -15,6 +15,7 @@ peer's sources and the driver for the host or for a Cortex-M board with:
 - the optimisation and floating-point flags of firmware/cflags.txt (:data:`PEER_FLAGS`: no FP
   contraction, no errno from math, no vectoriser), but not its warnings, ``-std=c99`` or
   ``-fno-builtin`` (the peers call libm; ``-fno-builtin`` would turn ``sqrtf`` into a library call);
+  ``-DNDEBUG`` (a release build);
 - VQF: ``-DVQF_SINGLE_PRECISION`` (float, as attica), ``-fno-exceptions -fno-rtti``.
 
 Where a download or a compiler is missing, :class:`PeerUnavailableError` says why and the reports print it
@@ -44,12 +45,16 @@ TESTS_C = ROOT / "tests" / "c"
 VERSIONS = {"imufusion": "1.3.3", "vqf": "2.1.2"}
 """The sdist versions counted (the releases measured in issue 9)."""
 
-PEER_FLAGS: tuple[str, ...] = tuple(
-    f
-    for f in _build.cflags()
-    if f.startswith("-f") and f != "-fno-builtin" and not f.startswith("-fvisibility")
+PEER_FLAGS: tuple[str, ...] = (
+    *(
+        f
+        for f in _build.cflags()
+        if f.startswith("-f") and f != "-fno-builtin" and not f.startswith("-fvisibility")
+    ),
+    "-DNDEBUG",
 )
-"""The optimisation-relevant flags of firmware/cflags.txt, applied to the peers too."""
+"""The optimisation-relevant flags of firmware/cflags.txt, applied to the peers too, and -DNDEBUG (a
+release build: VQF's asserts compile away, as attica has none)."""
 
 
 class PeerUnavailableError(RuntimeError):
