@@ -199,7 +199,13 @@ def test_golden_broad(
     runner, target = _runner(runners, config)
     want = {c.name: cross_data.reference(c) for c in cross_data.broad}
     results = cross.compare_filters(
-        runner, target.prefix, cross_data.broad, want, cross_data.files, tmp_path, max_streams=target.max_streams
+        runner,
+        target.prefix,
+        cross_data.broad,
+        want,
+        cross_data.files,
+        tmp_path,
+        max_streams=target.max_streams,
     )
     assert all(r.compared >= 100_000 for r in results)
     _report(config, results)
@@ -278,7 +284,11 @@ def test_cortex_m_floating_point_environment(board: str, tmp_path: Path) -> None
     need_target(TARGETS[board])
     elf = TARGETS[board].build([cross.TESTS_C / "att_m4f_fpenv.c"], "-O2", "fpenv.elf", tmp_path)
     proc = subprocess.run(
-        [*TARGETS[board].prefix, str(elf)], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL
+        [*TARGETS[board].prefix, str(elf)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        stdin=subprocess.DEVNULL,
     )
     print(proc.stdout)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -286,7 +296,7 @@ def test_cortex_m_floating_point_environment(board: str, tmp_path: Path) -> None
 
 
 def test_m4f_script_is_the_m4f_board(m4f_dir: Path) -> None:
-    """qemu-m4f.sh (the documented runner) is qemu-cortex-m.sh on the M4F board: exit status passes through."""
+    """qemu-m4f.sh (the documented runner) is qemu-cortex-m.sh on the M4F board: the status passes through."""
     elf = TARGETS["m4f"].build([cross.TESTS_C / "att_m4f_fpenv.c"], "-O2", "fpenv.elf", m4f_dir)
     proc = subprocess.run(
         [str(cross.QEMU_M4F), str(elf)], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL
@@ -311,10 +321,12 @@ def test_cortex_m_board_images(board: str, tmp_path: Path) -> None:
     out = subprocess.run(
         ["arm-none-eabi-objdump", "-h", str(runner)], capture_output=True, text=True, check=True
     ).stdout
-    sections = {p[1]: p for p in (line.split() for line in out.splitlines()) if len(p) >= 6 and p[0].isdigit()}
+    sections = {
+        p[1]: p for p in (line.split() for line in out.splitlines()) if len(p) >= 6 and p[0].isdigit()
+    }
     script = b.script.read_text()
-    flash = int(re.search(r"FLASH \(rx\)\s*:\s*ORIGIN = (0x[0-9a-fA-F]+)", script).group(1), 16)  # type: ignore[union-attr]
-    ram = int(re.search(r"RAM \(rwx\)\s*:\s*ORIGIN = (0x[0-9a-fA-F]+)", script).group(1), 16)  # type: ignore[union-attr]
+    origins = dict(re.findall(r"(FLASH|RAM) \(\w+\)\s*:\s*ORIGIN = (0x[0-9a-fA-F]+)", script))
+    flash, ram = int(origins["FLASH"], 16), int(origins["RAM"], 16)
     assert int(sections[".vectors"][3], 16) == flash
     assert int(sections[".data"][3], 16) >= ram and flash <= int(sections[".data"][4], 16) < ram
     attrs = subprocess.run(
@@ -415,6 +427,9 @@ def test_m4f_instruction_trace(tmp_path: Path) -> None:
     a = cycles.trace_steps(elf, "tilt", 30)
     b = cycles.trace_steps(elf, "tilt", 30)
     assert a.instructions == b.instructions and len(a.instructions) == 30
+    # the per-block trace counts exactly what the per-instruction trace counts, function by function
+    c = cycles.trace_steps_per_instruction(elf, "tilt", 30)
+    assert (a.instructions, a.cycles, a.by_function) == (c.instructions, c.cycles, c.by_function)
     assert all(50 < n < 5000 for n in a.instructions)
     assert all(c >= n for c, n in zip(a.cycles, a.instructions, strict=True))
     logged, gaps = cycles.check_trace(elf, "tilt", 3)
@@ -552,7 +567,7 @@ def test_can_hal_compiles_for_m4f(tmp_path: Path) -> None:
 
 
 def test_golden_configs_cover_every_cpu() -> None:
-    """The comparison covers the Cortex-M4F, M7, M33 and M0+, aarch64, riscv64 and x86-64 with gcc and clang."""
+    """The comparison covers the Cortex-M4F, M7, M33 and M0+, aarch64, riscv64, x86-64 with gcc and clang."""
     names = {t for t, _ in CONFIGS}
     assert {"m4f", "m7", "m33", "m0plus", "aarch64", "riscv64"} <= names
     if cross.NATIVE_TARGETS:

@@ -57,6 +57,10 @@ PEER_FLAGS: tuple[str, ...] = (
 release build: VQF's asserts compile away, as attica has none)."""
 
 
+PIP: list[str] = [sys.executable, "-m", "pip"]
+"""The pip that fetches the sdists (this interpreter's)."""
+
+
 class PeerUnavailableError(RuntimeError):
     """A peer cannot be fetched or built here (the message says why)."""
 
@@ -143,9 +147,7 @@ def _download(package: str, version: str, dest: Path) -> Path:
     if found:
         return found[0]
     cmd = [
-        sys.executable,
-        "-m",
-        "pip",
+        *PIP,
         "download",
         "--no-deps",
         "--no-binary",
