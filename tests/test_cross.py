@@ -38,6 +38,10 @@ CONFIGS: list[tuple[str, str]] = [
 FMA_OPTS = ["-O0", "-O2", "-O3", "-Os"]
 FMA_TARGETS = [t for t in cross.CROSS_TARGETS if t not in boards.BOARDS or boards.BOARDS[t].fpu]
 """Targets whose CPU has fused multiply-add (the Cortex-M0+ has no FPU: soft float has no fused op)."""
+SLICE_STREAMS = {"m0plus": 40}
+"""Targets whose emulation is slow (soft float) compare only the first streams of every synthetic case
+here (40 x 500 = 20 000 steps per filter kind) and skip the BROAD cases; ``make cross`` runs all of it."""
+BROAD_CONFIGS = [c for c in CONFIGS if c[0] not in SLICE_STREAMS]
 VARIANT_CONFIGS = {("m4f", "-O2"), *((t, "-O2") for t in cross.NATIVE_TARGETS)}
 """Configurations that also run the non-default settings (the others run every kind's defaults, to keep
 the emulated wall time down; ``make cross`` runs every case everywhere)."""
@@ -177,24 +181,34 @@ def test_golden_filters(
     runners: dict[tuple[str, str], Path | str], cross_data: CrossData, config: tuple[str, str], tmp_path: Path
 ) -> None:
     """Every filter kind (defaults; variants too on VARIANT_CONFIGS) over 1e5 synthetic adversarial
-    steps each: every output record (q, euler, bias, cov, flags, steps) bit-identical to the reference."""
+    steps each (2e4 on the SLICE_STREAMS targets): every output record (q, euler, bias, cov, flags, steps)
+    bit-identical to the reference."""
     runner, target = _runner(runners, config)
     cases = [c for c in cross_data.synthetic if config in VARIANT_CONFIGS or c.name.endswith("-default")]
     kinds = {c.kind for c in cases}
     assert kinds == set(implemented_kinds())
     want = {c.name: cross_data.reference(c) for c in cases}
+    streams = SLICE_STREAMS.get(config[0], 0)
     results = cross.compare_filters(
-        runner, target.prefix, cases, want, cross_data.files, tmp_path, max_streams=target.max_streams
+        runner,
+        target.prefix,
+        cases,
+        want,
+        cross_data.files,
+        tmp_path,
+        max_streams=target.max_streams,
+        streams=streams,
     )
-    assert all(r.compared >= 100_000 for r in results)
+    assert all(r.compared >= (20_000 if streams else 100_000) for r in results)
     _report(config, results)
 
 
-@pytest.mark.parametrize("config", CONFIGS, ids=_IDS)
+@pytest.mark.parametrize("config", BROAD_CONFIGS, ids=[f"{t}{o}" for t, o in BROAD_CONFIGS])
 def test_golden_broad(
     runners: dict[tuple[str, str], Path | str], cross_data: CrossData, config: tuple[str, str], tmp_path: Path
 ) -> None:
-    """Every filter kind over 1e5 real BROAD samples (4 chunks of 1250 from every recording)."""
+    """Every filter kind over 1e5 real BROAD samples (4 chunks of 1250 from every recording); every target
+    but the SLICE_STREAMS ones (``make cross`` runs those too)."""
     need(bool(cross_data.broad), f"BROAD data not found at {BROAD}")
     runner, target = _runner(runners, config)
     want = {c.name: cross_data.reference(c) for c in cross_data.broad}
