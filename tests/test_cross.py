@@ -444,6 +444,11 @@ def test_m4f_instruction_trace(tmp_path: Path) -> None:
     # the per-block trace counts exactly what the per-instruction trace counts, function by function
     c = cycles.trace_steps_per_instruction(elf, "tilt", 30)
     assert (a.instructions, a.cycles, a.by_function) == (c.instructions, c.cycles, c.by_function)
+    # the inclusive profile: the counted call holds everything, every function at least its own part
+    d = cycles.trace_steps(elf, "tilt", 30, calls=True)
+    assert d.by_function == a.by_function and d.inclusive["att_filter_step"] == sum(a.instructions)
+    assert all(d.inclusive[fn] >= n for fn, n in d.by_function.items())
+    assert d.inclusive["att_tilt_step"] > d.by_function["att_tilt_step"]
     assert all(50 < n < 5000 for n in a.instructions)
     assert all(c >= n for c, n in zip(a.cycles, a.instructions, strict=True))
     logged, gaps = cycles.check_trace(elf, "tilt", 3)

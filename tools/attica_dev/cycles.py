@@ -168,6 +168,8 @@ class StepCounts:
     cycles: list[int]
     by_function: dict[str, int] = field(default_factory=dict)
     """Instructions executed in each function over all calls (the profile)."""
+    inclusive: dict[str, int] = field(default_factory=dict)
+    """Instructions executed in each function and everything it called, over all calls (with calls=True)."""
 
     @property
     def mean(self) -> float:
@@ -180,8 +182,43 @@ class StepCounts:
         return sum(self.cycles) / max(1, len(self.cycles))
 
 
+class _Calls:
+    """A shadow call stack over the executed blocks, for the inclusive profile.
+
+    A block after one ending in BL/BLX is a callee's entry (a frame with its return address); a block at
+    a frame's return address pops it; any other block in a new function (a tail call, a jump into a
+    split-off ``.part`` function) joins the top frame. Every block's instructions count for every
+    function on the stack.
+    """
+
+    def __init__(self, owner: dict[int, str]) -> None:
+        self.owner = owner
+        self.frames: list[tuple[set[str], int]] = []
+        self.inclusive: dict[str, int] = {}
+
+    def start(self, pc: int) -> None:
+        self.frames = [({self.owner.get(pc, "?")}, -1)]
+
+    def block(self, pc: int, n: int, prev: Insn | None, prev_fall: int) -> None:
+        fn = self.owner.get(pc, "?")
+        if prev is not None and prev.mnemonic.split(".")[0].lower() in ("bl", "blx"):
+            self.frames.append(({fn}, prev_fall))
+        else:
+            back = next((i for i in range(len(self.frames) - 1, 0, -1) if self.frames[i][1] == pc), 0)
+            if back:
+                del self.frames[back:]
+            self.frames[-1][0].add(fn)
+        for f in set().union(*(fr[0] for fr in self.frames)):
+            self.inclusive[f] = self.inclusive.get(f, 0) + n
+
+
 def trace_steps(
-    elf: Path, kind: str, steps: int = BENCH_STEPS, function: str = "att_filter_step", board: str = "m4f"
+    elf: Path,
+    kind: str,
+    steps: int = BENCH_STEPS,
+    function: str = "att_filter_step",
+    board: str = "m4f",
+    calls: bool = False,
 ) -> StepCounts:
     """Instructions executed inside ``function`` (and callees) per call, from a QEMU exec trace.
 
@@ -194,6 +231,7 @@ def trace_steps(
     IT block skips included, as the core issues them). The cycle estimate uses the Cortex-M4 timings
     (:func:`m4_cycles`) whatever the board; the reports print it for the M4F only. Gives the same
     counts as :func:`trace_steps_per_instruction` (tests/test_cross.py checks), several times faster.
+    With ``calls``, also the inclusive profile (each function with its callees, :class:`_Calls`).
     """
     _tool("qemu-system-arm")
     insns = disassemble(elf)
@@ -215,6 +253,7 @@ def trace_steps(
     executed: dict[str, int] = {}
     counts: list[int] = []
     cycles: list[int] = []
+    tracker = _Calls(owner) if calls else None
     with tempfile.TemporaryDirectory(prefix="att_trace_") as tmp:
         fifo = Path(tmp) / "trace"
         os.mkfifo(fifo)
@@ -255,12 +294,16 @@ def trace_steps(
                             inside = False
                             continue
                     elif pc == entry:
-                        inside, n, cyc = True, 0, 0
+                        inside, n, cyc, last = True, 0, 0, None
+                        if tracker is not None:
+                            tracker.start(pc)
                     else:
                         continue
                     b = blocks.get(key)
                     if b is None:
                         raise CyclesError(f"{elf}: block {key} executed before it was listed")
+                    if tracker is not None:
+                        tracker.block(pc, b[0], last, fall)
                     n += b[0]
                     cyc += b[1]
                     last, fall = b[2], b[3]
@@ -276,7 +319,7 @@ def trace_steps(
         for a in block_pcs[key]:
             fn = owner.get(a, "?")
             prof[fn] = prof.get(fn, 0) + times
-    return StepCounts(counts, cycles, prof)
+    return StepCounts(counts, cycles, prof, tracker.inclusive if tracker is not None else {})
 
 
 def trace_steps_per_instruction(
@@ -442,8 +485,15 @@ class Counts:
     notes: list[str] = field(default_factory=list)
 
 
-def count_cortex(config: Config, rows: Sequence[Counted], steps: int, out: Path, counts: Counts) -> None:
-    """Trace attica and the peers on one board at one optimisation level."""
+def count_cortex(
+    config: Config,
+    rows: Sequence[Counted],
+    steps: int,
+    out: Path,
+    counts: Counts,
+    profile: Sequence[str] = (),
+) -> None:
+    """Trace attica and the peers on one board at one level (``profile``: rows with the call stack)."""
     board, opt = config
     target = cross.TARGETS[board]
     missing = target.missing()
@@ -455,7 +505,9 @@ def count_cortex(config: Config, rows: Sequence[Counted], steps: int, out: Path,
     elf = target.build([BENCH_SOURCE], opt, "att_bench.elf", out / f"{board}{opt}")
     for r in rows:
         if not r.peer:
-            counts.cortex[(config, r.label)] = trace_steps(elf, r.label, steps, board=board)
+            counts.cortex[(config, r.label)] = trace_steps(
+                elf, r.label, steps, board=board, calls=r.label in profile
+            )
     built: dict[str, Path | str] = {}
     for r in rows:
         if not r.peer:
@@ -470,7 +522,9 @@ def count_cortex(config: Config, rows: Sequence[Counted], steps: int, out: Path,
                 counts.notes.append(f"{r.peer} on {board} {opt}: {e}")
         prog = built[r.peer]
         counts.cortex[(config, r.label)] = (
-            prog if isinstance(prog, str) else trace_steps(prog, r.label, steps, r.function, board)
+            prog
+            if isinstance(prog, str)
+            else trace_steps(prog, r.label, steps, r.function, board, calls=r.label in profile)
         )
 
 
@@ -615,10 +669,11 @@ def goal_lines(counts: Counts) -> list[str]:
 
 
 def profile_lines(counts: Counts, cfg: Config, labels: Sequence[str], steps: int) -> list[str]:
-    """Per-function instructions per step (from the trace) of ``labels`` on ``cfg``."""
+    """Per-function instructions per step (from the trace) of ``labels`` on ``cfg``: self and inclusive."""
     out = [
-        f"Where the instructions of a step go ({BOARDS[cfg[0]].core} {cfg[1]}; instructions per step in each "
-        f"function itself, callees listed separately; mean over {steps} steps):"
+        f"Where the instructions of a step go ({BOARDS[cfg[0]].core} {cfg[1]}, mean over {steps} steps): "
+        "self = in the function itself, with callees = it and everything it called (the trace's call "
+        "stack), share = self / step."
     ]
     for label in labels:
         c = counts.cortex.get((cfg, label))
@@ -627,12 +682,18 @@ def profile_lines(counts: Counts, cfg: Config, labels: Sequence[str], steps: int
             continue
         total = sum(c.by_function.values())
         n = max(1, len(c.instructions))
+        order = sorted(c.by_function, key=lambda fn: (-c.inclusive.get(fn, 0), -c.by_function[fn]))
         rows = [
-            [fn, f"{v / n:.1f}", f"{100 * v / total:.1f}%"]
-            for fn, v in sorted(c.by_function.items(), key=lambda kv: -kv[1])
+            [
+                fn,
+                f"{c.by_function[fn] / n:.1f}",
+                f"{c.inclusive[fn] / n:.1f}" if fn in c.inclusive else "-",
+                f"{100 * c.by_function[fn] / total:.1f}%",
+            ]
+            for fn in order
         ]
         out.append(f"{label}: {total / n:.0f} instructions per step")
-        out.append(cross._table(["function", "instr/step", "share"], rows))
+        out.append(cross._table(["function", "self", "with callees", "share"], rows))
     return out
 
 
@@ -647,8 +708,8 @@ def cycles_report(
     """Count everything and return the report (``make cycles``)."""
     rows = attica_rows() + (peer_rows() if peers else [])
     counts = Counts()
-    for cfg in configs:
-        count_cortex(cfg, rows, steps, out, counts)
+    for i, cfg in enumerate(configs):
+        count_cortex(cfg, rows, steps, out, counts, profile if i == 0 else ())
     if x86:
         count_x86(rows, out, counts)
     return report(counts, rows, configs, steps, profile)
