@@ -25,8 +25,9 @@ import numpy as np
 import pytest
 from conftest import require_tool
 
-from attica import _build, golden
+from attica import _build
 from attica.settings import ArsSettings, BiasMode, GyroSettings, Integration, TiltSettings, implemented_kinds
+from attica_dev import golden
 
 COMPILERS = ["gcc", "clang"]
 OPTS = ["-O0", "-O2", "-O3", "-Os"]
