@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from attica.native import ffi, lib
+from attica.reference import detmath as dm
 from attica.reference.ekf import Ekf, EkfSettings
 from attica.settings import FilterKind, Flag, Preset, preset_settings
 
@@ -30,10 +31,10 @@ def c_settings(s: EkfSettings, i: int = 0) -> Any:
     cs = ffi.new("att_ekf_settings_t *")
     for f in dataclasses.fields(EkfSettings):
         v = np.asarray(getattr(s, f.name))
-        if f.name == "euler_init":
+        if f.name in ("euler_init", "bias_init"):
             e = v.astype(np.float32)
             e = e[i] if e.ndim == 2 else e
-            cs.euler_init = tuple(float(x) for x in e)
+            setattr(cs, f.name, tuple(float(x) for x in e))
             continue
         if v.ndim > 0:
             v = v[i]
@@ -51,6 +52,23 @@ def c_filters(s: EkfSettings, m: int) -> Any:
     return fs
 
 
+_IX6 = np.array(
+    [
+        [0, 1, 2, 3, 4, 5],
+        [1, 6, 7, 8, 9, 10],
+        [2, 7, 11, 12, 13, 14],
+        [3, 8, 12, 15, 16, 17],
+        [4, 9, 13, 16, 18, 19],
+        [5, 10, 14, 17, 19, 20],
+    ]
+)
+
+
+def unpack(p21: np.ndarray) -> np.ndarray:
+    """The packed upper triangles (..., 21) as full symmetric matrices (..., 6, 6)."""
+    return p21[..., _IX6]
+
+
 def run_c(fs: Any, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]:
     """Step C instances in lockstep over gyr, acc (steps, m, 3); outputs per step and instance."""
     steps, m, _ = gyr.shape
@@ -58,8 +76,8 @@ def run_c(fs: Any, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]:
     a = np.ascontiguousarray(acc, np.float32)
     out = {
         "euler": np.empty((steps, m, 3), np.float32),
-        "q": np.empty((steps, m, 4), np.float32),
-        "P": np.empty((steps, m, 9), np.float32),
+        "bias": np.empty((steps, m, 3), np.float32),
+        "P": np.empty((steps, m, 21), np.float32),
         "flags": np.empty((steps, m), np.uint32),
     }
     fb = ffi.from_buffer
@@ -70,11 +88,13 @@ def run_c(fs: Any, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]:
         fb("float[]", a),
         steps,
         fb("float[]", out["euler"]),
-        fb("float[]", out["q"]),
+        fb("float[]", out["bias"]),
         fb("float[]", out["P"]),
         fb("uint32_t[]", out["flags"]),
     )
     assert ran == steps * m
+    e = out["euler"]
+    out["q"] = np.stack(dm.quat_from_euler(e[..., 0], e[..., 1], e[..., 2]), -1).astype(np.float32)
     return out
 
 
@@ -82,20 +102,22 @@ def run_ref(ref: Ekf, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]
     steps, m, _ = gyr.shape
     out = {
         "euler": np.empty((steps, m, 3), np.float32),
+        "bias": np.empty((steps, m, 3), np.float32),
         "q": np.empty((steps, m, 4), np.float32),
-        "P": np.empty((steps, m, 9), np.float32),
+        "P": np.empty((steps, m, 21), np.float32),
         "flags": np.empty((steps, m), np.uint32),
     }
     for k in range(steps):
         out["flags"][k] = ref.step(gyr[k], acc[k])
-        out["euler"][k] = ref.euler_angles
+        out["euler"][k] = np.stack(ref.euler, -1)
+        out["bias"][k] = ref.gyro_bias
         out["q"][k] = ref.quat
-        out["P"][k] = ref.covariance.reshape(m, 9)
+        out["P"][k] = ref.covariance
     return out
 
 
 def compare(c: dict[str, np.ndarray], r: dict[str, np.ndarray], what: str) -> None:
-    for key in ("euler", "q", "P"):
+    for key in ("euler", "bias", "q", "P"):
         assert_same_bits(c[key], r[key], f"{what}/{key}")
     bad = c["flags"] != r["flags"]
     assert not bad.any(), f"{what}/flags: first differ at {np.argwhere(bad)[0]}"
@@ -187,10 +209,9 @@ def motion(
 
 
 def check_cov(cov: np.ndarray, what: str) -> float:
-    """P (..., 9) finite, exactly symmetric, positive definite; returns the smallest eigenvalue."""
-    p = cov.reshape(-1, 3, 3)
+    """P (..., 21 packed) finite and positive definite; returns the smallest eigenvalue."""
+    p = unpack(cov.reshape(-1, 21))
     assert np.isfinite(p).all(), what
-    assert (p == np.swapaxes(p, 1, 2)).all(), f"{what}: not symmetric"
     eig = np.linalg.eigvalsh(p.astype(np.float64))
     assert (eig[:, 0] > 0).all(), f"{what}: smallest eigenvalue {eig[:, 0].min()}"
     return float(eig[:, 0].min())

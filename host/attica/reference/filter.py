@@ -11,7 +11,7 @@ from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
-from attica.reference.ekf import Ekf
+from attica.reference.ekf import THIRD, Ekf
 from attica.reference.gyro import Gyro
 from attica.reference.kf import Kf
 from attica.reference.mars import Mars
@@ -115,18 +115,21 @@ class Filter:
         """att_filter_output for every instance: (n,) records of OUTPUT_DTYPE."""
         f = self.impl
         out = np.zeros(self.n, OUTPUT_DTYPE)
-        out["q"] = stack(f.q)
+        if self.kind == FilterKind.EKF:
+            out["q"] = f.quat  # derived from the angles on request
+        else:
+            out["q"] = stack(f.q)
         if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF):
             out["gyro_bias"] = stack(f.bias)
         if self.kind == FilterKind.KF:
             out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
         elif self.kind == FilterKind.EKF:
-            zero = np.zeros(self.n, np.float32)
-            out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))
+            pb = ((f.p[15] + f.p[18]) + f.p[20]) * THIRD
+            out["cov"] = stack((f.p[0], f.p[6], f.p[11], pb))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)
