@@ -99,6 +99,8 @@ static float att_node_filter_dt(att_filter_kind_t kind, const att_filter_setting
         return fs->mars.dt;
     case ATT_FILTER_KF:
         return fs->kf.dt;
+    case ATT_FILTER_EKF:
+        return fs->ekf.dt;
     case ATT_FILTER_GYRO:
         return fs->gyro.dt;
     default:
@@ -424,7 +426,7 @@ static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
         fs.ekf.r_phi = value;
         fs.ekf.r_theta = value;
     } else {
-        /* ATT_CAN_GAIN_EKF_R: answered "bad argument" until the EKF is part of att_filter_settings_t */
+        /* a gain the running kind does not have (e.g. TAU_MAG on the ARS) or an unknown parameter */
         return (uint8_t)ATT_CAN_ACK_BAD_ARG;
     }
     if (!att_isfinitef(value) || att_filter_init(&fresh_new, n->kind, &fs) != ATT_OK ||
