@@ -17,6 +17,7 @@
  * - COV_POSITIVE    kf/ekf, when valid: out.cov diagonal finite and > 0 (ekf: cov[3] == 0).
  * - P_SYMMETRIC / P_SPD   kf/ekf, when valid: the state covariance is bitwise symmetric and positive
  *                   definite (Cholesky in double).
+ * - EULER_RANGE     when valid: roll and yaw in [-pi, pi], pitch in [-pi/2, pi/2] (float32 pi, pi/2).
  * - BIAS_BOUND      ars/mars: every bias component within max(|bias_init|, gyro_range) (+ 1e-5 relative).
  * - NUMERIC_KEPT    a step flagged NUMERIC leaves q bit for bit as before the step.
  * - STUCK           after the fuzzed samples, FZ_RECOVER good samples (rest, |a| = the kind's gravity)
@@ -332,6 +333,11 @@ static void check_valid_output(ctx_t *c, const att_filter_t *f, const att_output
     if (!fz_finite(o->euler.x) || !fz_finite(o->euler.y) || !fz_finite(o->euler.z)) {
         FZ_VIOLATE(c, "EULER_FINITE", "step %u: euler (%a, %a, %a)", o->steps, (double)o->euler.x,
                    (double)o->euler.y, (double)o->euler.z);
+    }
+    if (fabs((double)o->euler.y) > (double)1.57079637f || fabs((double)o->euler.x) > (double)3.14159274f ||
+        fabs((double)o->euler.z) > (double)3.14159274f) {
+        FZ_VIOLATE(c, "EULER_RANGE", "step %u flags %04x: euler (%.9g, %.9g, %.9g) outside [-pi, pi] x [-pi/2, pi/2] x [-pi, pi]",
+                   o->steps, o->flags, (double)o->euler.x, (double)o->euler.y, (double)o->euler.z);
     }
     if (!fz_finite(o->gyro_bias.x) || !fz_finite(o->gyro_bias.y) || !fz_finite(o->gyro_bias.z)) {
         FZ_VIOLATE(c, "BIAS_FINITE", "step %u: bias (%a, %a, %a)", o->steps, (double)o->gyro_bias.x,
