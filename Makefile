@@ -116,3 +116,18 @@ $(FUZZ_DIR)/%: tests/fuzz/%.c $(FUZZ_HDR) $(FUZZ_DIR)/fw-asan.stamp
 
 fuzz: deps build fuzz-build
 	$(PY) tests/fuzz/campaign.py --time $(FUZZ_TIME)
+
+# Soak (tests/soak/att_soak.c): SOAK_STEPS steps per filter kind (default 1e8; CI runs 1e7 through
+# tests/test_soak.py), firmware built with its own flags at -O2.
+SOAK_STEPS ?= 100000000
+SOAK_DIR := build/soak
+$(SOAK_DIR)/att_soak: tests/soak/att_soak.c $(NODE_SRC) $(NODE_HDR) firmware/cflags.txt
+	@mkdir -p $(SOAK_DIR)/obj
+	cd $(SOAK_DIR)/obj && $(CC) $(shell cat firmware/cflags.txt) -O2 -I$(CURDIR)/firmware/include \
+	  $(addprefix $(CURDIR)/,$(NODE_SRC)) -c
+	$(CC) -std=c99 -O2 -Wall -Wextra -Werror -Ifirmware/include $< $(SOAK_DIR)/obj/*.o -lm -o $@
+
+soak-build: $(SOAK_DIR)/att_soak
+
+soak: soak-build
+	$(SOAK_DIR)/att_soak --steps $(SOAK_STEPS)
