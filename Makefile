@@ -52,7 +52,7 @@ lint: setup
 pytest: build
 	$(VENV)/bin/pytest -q -n 2 --dist loadfile
 
-test: deps build lint pytest
+test: deps build fuzz-deps lint pytest
 
 bench: deps build
 	$(PY) -m attica.bench
@@ -89,7 +89,10 @@ FUZZ_ASAN := -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined 
 FUZZ_MSAN := -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,memory -fsanitize-memory-track-origins=2
 FUZZ_HDR := $(wildcard tests/fuzz/*.h)
 
-.PHONY: fuzz-build fuzz soak soak-build sanitize analyze
+.PHONY: fuzz-build fuzz fuzz-deps soak soak-build
+# atheris (the host parsers' fuzzer) is a test tool only: installed into the venv here, not a dependency
+fuzz-deps: setup
+	@$(PY) -c 'import atheris' 2>/dev/null || $(PY) -m pip install -q atheris
 fuzz-build: $(FUZZ_TARGETS:%=$(FUZZ_DIR)/%) $(FUZZ_TARGETS:%=$(FUZZ_DIR)/%-msan) $(FUZZ_DIR)/fuzz_node-msan-known
 
 FUZZ_HARNESS_FLAGS := -std=c11 -Wall -Wextra -Werror -Wno-unknown-pragmas -Ifirmware/include
@@ -114,7 +117,7 @@ $(FUZZ_DIR)/%-msan: tests/fuzz/%.c $(FUZZ_HDR) $(FUZZ_DIR)/fw-msan.stamp
 $(FUZZ_DIR)/%: tests/fuzz/%.c $(FUZZ_HDR) $(FUZZ_DIR)/fw-asan.stamp
 	$(FUZZ_CC) $(FUZZ_HARNESS_FLAGS) $(FUZZ_ASAN) $< $(FUZZ_DIR)/fw-asan/*.o -lm -o $@
 
-fuzz: deps build fuzz-build
+fuzz: deps build fuzz-deps fuzz-build
 	$(PY) tests/fuzz/campaign.py --time $(FUZZ_TIME)
 
 # Soak (tests/soak/att_soak.c): SOAK_STEPS steps per filter kind (default 1e8; CI runs 1e7 through

@@ -73,11 +73,12 @@ float att_node_bus_load(const att_node_settings_t *s)
     float sets_per_s;
     float t_set;
     float t_classic;
+    uint32_t classic_bits = att_node_classic_bits(8u);
     if (s == NULL || !att_node_rates_ok(s)) {
         return -1.0f;
     }
     sets_per_s = s->sample_rate / (float)s->output_divider;
-    t_classic = (float)att_node_classic_bits(8u) / (float)s->bitrate;
+    t_classic = (float)classic_bits / (float)s->bitrate;
     if (s->fd) {
         t_set = att_node_fd_frame_time(64u, s->bitrate, s->data_bitrate);
     } else {

@@ -22,6 +22,11 @@ command -v cmake >/dev/null 2>&1 || want+=(cmake)
 command -v linux.uml >/dev/null 2>&1 || want+=(user-mode-linux)
 command -v candump >/dev/null 2>&1 || want+=(can-utils)
 command -v insmod >/dev/null 2>&1 || want+=(kmod)
+# Robustness (tests/test_sanitize.py, tests/test_fuzz.py; libFuzzer and the sanitizer runtimes come
+# with clang): static analysers and the i386 multilib for the -m32 build.
+command -v cppcheck >/dev/null 2>&1 || want+=(cppcheck)
+command -v clang-tidy >/dev/null 2>&1 || want+=(clang-tidy)
+[ -f /usr/lib/gcc/x86_64-linux-gnu/12/32/libgcc.a ] || ls /usr/lib/gcc/x86_64-linux-gnu/*/32/libgcc.a >/dev/null 2>&1 || want+=(gcc-multilib)
 for extra in "$@"; do
   case "$extra" in
     *:*) pkg=${extra%%:*}; cmd=${extra#*:} ;;
