@@ -41,7 +41,12 @@ WEVERYTHING_OFF = {
 ANALYSED = [
     ROOT / "firmware" / "src" / "att_node.c",
     ROOT / "firmware" / "src" / "att_can.c",
+    ROOT / "firmware" / "ports" / "linux" / "att_node_linux.c",
 ]
+"""The files of this baseline. Over the rest of firmware/src the tools report only (docs/robustness.md):
+cppcheck uninitvar at att_kf.c:254/261 (false positive: y[n] and w[n] are read only for indices
+written earlier in the same loop) and clang-tidy bugprone-suspicious-include at att_can_db.c:11 (on
+purpose: it compiles the generated DBC code)."""
 
 
 def _have(*tools: str) -> None:
@@ -208,7 +213,7 @@ def test_clang_tidy_clean() -> None:
             "--quiet",
             *map(str, ANALYSED),
             "--",
-            "-std=c99",
+            "-std=gnu99",  # the Linux port needs the GNU socket definitions; the core is C99 anyway
             "-I",
             str(INC),
         ],
