@@ -85,22 +85,30 @@ def test_golden_runner_asan_ubsan(golden_inputs: tuple[Path, cross.MathData, lis
     _golden(t, *golden_inputs)
 
 
-def test_golden_runner_m32(golden_inputs: tuple[Path, cross.MathData, list[cross.FilterCase]]) -> None:
+def test_golden_runner_m32(
+    golden_inputs: tuple[Path, cross.MathData, list[cross.FilterCase]], tmp_path: Path
+) -> None:
+    """i386 with SSE2 arithmetic (x87 would break FLT_EVAL_METHOD == 0, which att_fp.h refuses).
+
+    Needs libc6-dev-i386 and lib32gcc (not gcc-multilib, which conflicts with the cross compilers on
+    Debian): the one header gcc-multilib would add, /usr/include/asm, is given here.
+    """
     _have("gcc")
+    inc = tmp_path / "m32-include"
+    inc.mkdir()
+    (inc / "asm").symlink_to("/usr/include/x86_64-linux-gnu/asm")
+    cpu = ("-m32", "-msse2", "-mfpmath=sse", "-idirafter", str(inc))
     probe = subprocess.run(
-        ["gcc", "-m32", "-x", "c", "-", "-o", "/dev/null"],
-        input="int main(void){return 0;}",
+        ["gcc", *cpu, "-x", "c", "-", "-o", str(tmp_path / "probe"), "-lm"],
+        input="#include <errno.h>\n#include <math.h>\nint main(void){return 0;}\n",
         capture_output=True,
         text=True,
     )
-    need(probe.returncode == 0, "gcc -m32 cannot link (Debian package gcc-multilib)")
-    t = cross.Target(
-        "i386-sse2",
-        "i386, gcc -m32 -msse2 -mfpmath=sse",
-        "gcc",
-        cpu=("-m32", "-msse2", "-mfpmath=sse"),
-        ldflags=("-lm",),
+    need(
+        probe.returncode == 0,
+        f"gcc -m32 cannot build (libc6-dev-i386, lib32gcc-12-dev): {probe.stderr[-300:]}",
     )
+    t = cross.Target("i386-sse2", "i386, gcc -m32 -msse2 -mfpmath=sse", "gcc", cpu=cpu, ldflags=("-lm",))
     _golden(t, *golden_inputs)
 
 
