@@ -186,7 +186,7 @@ def _job(tmp: Path, py: str) -> Path:
     return job
 
 
-def _boot(job: Path, timeout: float = 150.0) -> tuple[int | None, str, str]:
+def _boot(job: Path, timeout: float = 300.0) -> tuple[int | None, str, str]:
     """Boot the guest on ``job``; (job exit status or None if the guest died, job log, console)."""
     assert UML is not None
     cmd = [
