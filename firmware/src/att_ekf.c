@@ -21,7 +21,7 @@
 #define ATT_EKF_PMAX_MIN 0.000001f           /* lower limit of p_max and p0 */
 #define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
-#define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps */
+#define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
 
 static const uint8_t att_ekf_ix[6][6] = {
     {0u, 1u, 2u, 3u, 4u, 5u},     {1u, 6u, 7u, 8u, 9u, 10u},    {2u, 7u, 11u, 12u, 13u, 14u},
@@ -261,7 +261,7 @@ static bool att_ekf_pd_ok(const float *p)
 }
 
 /*
- * Conditioning (every 16 steps): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
+ * Conditioning (every 16 steps, and at every step flagged GIMBAL): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
  * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
  * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
@@ -688,7 +688,8 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
     } else {
         att_ekf_p_copy(st->p, pa);
     }
-    if ((st->steps & ATT_EKF_COND_MASK) == 0u) {
+    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
+        /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */
         flags |= att_ekf_condition(st->p, c->p_max);
     }
     st->steps = st->steps + 1u;

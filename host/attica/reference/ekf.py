@@ -157,8 +157,30 @@ class Ekf:
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
-    COEFFS: StateSpec = {"c.q_step": "f32x4", "c.r_step": "f32x2", "c.soft": "f32", "c.k_lp": "f32"}
-    """C coefficients computed by att_ekf_init that this class derives itself (compared by the tests)."""
+    COEFFS: StateSpec = {
+        "c.dt": "f32",
+        "c.q_step": "f32x4",
+        "c.r_step": "f32x2",
+        "c.r_accel": "f32",
+        "c.gate": "f32",
+        "c.soft": "f32",
+        "c.p0": "f32",
+        "c.p0_bias": "f32",
+        "c.p_max": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
+        "c.cos_min": "f32",
+        "c.k_lp": "f32",
+        "c.euler_init": "vec3",
+        "c.bias_init": "vec3",
+        "c.init_from_accel": "bool",
+        "c.lp_on": "bool",
+        "c.need_norm": "bool",
+    }
+    """Every C coefficient of att_ekf_coeffs_t (set by att_ekf_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: EkfSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else EkfSettings()
@@ -195,6 +217,7 @@ class Ekf:
         self.bias_init = split3(s.bias_init, n)
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
         self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
+        self.lp_on = self.k_lp > dm.ZERO
         self._zeros = np.zeros(n, np.float32)
         self.reset()
 
@@ -438,7 +461,8 @@ class Ekf:
             self.p = [np.where(take_u, p_u[i], self.p[i]).astype(np.float32) for i in range(21)]
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
-            cond = run & ((self.steps & COND_MASK) == _U0)
+            gimbal = (flags & _u(Flag.GIMBAL)) != _U0
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal)
             p_c, changed = _condition(self.p, self.p_max)
             self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
             flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)

@@ -19,6 +19,13 @@ from attica.reference.tilt import Tilt
 from attica.settings import FilterKind, make_settings
 
 
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, np.floating):
+        fb = np.float32(b)
+        return bool((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32))
+    return int(a) == int(b)
+
+
 class Filter:
     """Any reference filter by kind, ``n`` instances in lockstep, with the C interface's outputs.
 
@@ -86,20 +93,24 @@ class Filter:
                 raise ValueError(f"state {i} is a {int(st.kind)} filter, expected {self.kind.label}")
             load_c_state(self.impl, self.impl.STATE, i, getattr(st.u, self.kind.label))
 
+    def state_diff(self, i: int, c_state: Any) -> list[str]:
+        """The fields where instance i and the C ``att_filter_t`` differ (bit for bit, NaN == NaN).
+
+        Compared: every state field (``STATE``) and every coefficient (``COEFFS``: what init / retune
+        derived from the settings), so a wrong gain left by a retune is seen as well as a wrong state.
+        """
+        c_kind = getattr(c_state.u, self.kind.label)
+        diff = []
+        for name, layout in {**self.impl.STATE, **self.impl.COEFFS}.items():
+            ours = state_values(self.impl, {name: layout}, i)
+            theirs = c_state_values({name: layout}, c_kind)
+            if len(ours) != len(theirs) or not all(_same(a, b) for a, b in zip(ours, theirs, strict=True)):
+                diff.append(name)
+        return diff
+
     def state_matches(self, i: int, c_state: Any) -> bool:
-        """True when instance i's state equals the C ``att_filter_t`` bit for bit (NaN == NaN)."""
-        ours = state_values(self.impl, self.impl.STATE, i)
-        theirs = c_state_values(self.impl.STATE, getattr(c_state.u, self.kind.label))
-        if len(ours) != len(theirs):
-            return False
-        for a, b in zip(ours, theirs, strict=True):
-            if isinstance(a, np.floating):
-                fb = np.float32(b)
-                if not ((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32)):
-                    return False
-            elif int(a) != int(b):
-                return False
-        return True
+        """True when instance i equals the C ``att_filter_t`` bit for bit: :meth:`state_diff` is empty."""
+        return not self.state_diff(i, c_state)
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         f = self.impl
