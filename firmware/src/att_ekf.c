@@ -21,6 +21,8 @@
 #define ATT_EKF_PMAX_MIN 0.000001f           /* lower limit of p_max and p0 */
 #define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
+#define ATT_EKF_SETTLED 0x1.47ae14p-9f         /* (0.05 rad)^2: the tilt error that ends the convergence phase */
+#define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
 #define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
 
 static const uint8_t att_ekf_ix[6][6] = {
@@ -179,6 +181,7 @@ void att_ekf_reset(att_ekf_t *f)
     att_ekf_p_diag(f->st.p, f->c.p0, f->c.p0_bias);
     f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
     f->st.lp2 = f->st.lp1;
+    f->st.lp_ready = false;
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.initialised = !f->c.init_from_accel;
@@ -240,8 +243,10 @@ static bool att_ekf_pd_ok(const float *p)
     int i;
     int j;
     int k;
+    ATT_EKF_UNROLL
     for (j = 0; j < 6; j++) {
         float dj = P_(p, j, j);
+        ATT_EKF_UNROLL
         for (k = 0; k < j; k++) {
             dj = dj - (l[j][k] * l[j][k]) * d[k];
         }
@@ -249,8 +254,10 @@ static bool att_ekf_pd_ok(const float *p)
             return false;
         }
         d[j] = dj;
+        ATT_EKF_UNROLL
         for (i = j + 1; i < 6; i++) {
             float v = P_(p, i, j);
+            ATT_EKF_UNROLL
             for (k = 0; k < j; k++) {
                 v = v - (l[i][k] * l[j][k]) * d[k];
             }
@@ -271,6 +278,7 @@ static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
     bool capped = false;
     int i;
     int j;
+    ATT_EKF_UNROLL
     for (i = 0; i < 6; i++) {
         dd[i] = 1.0f;
         if (P_(p, i, i) > p_max) {
@@ -307,17 +315,18 @@ static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
 static void att_ekf_p_copy(float *dst, const float *src)
 {
     int i;
+    ATT_EKF_UNROLL
     for (i = 0; i < 21; i++) {
         dst[i] = src[i];
     }
 }
 
 /*
- * Prediction of the angles (into st) and of P (into pn); returns its flags (ATT_FLAG_NUMERIC:
- * discarded, the angles kept and pn = P).
+ * The motion of a step with usable rates: the angles into *eo, F P F^T into pn (Q not yet added);
+ * returns ATT_FLAG_GIMBAL when the cos(theta) guard was used.
  */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
-                                                  bool gyro_ok, float *pn)
+static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
+                                                    att_vec3_t w, float *pn, att_vec3_t *eo)
 {
     const float dt = c->dt;
     float sphi;
@@ -355,9 +364,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
     att_i_sincosf(st->euler.y, &sth, &cth);
     if (att_i_absf(cth) < c->cos_min) {
         cth = (cth < 0.0f) ? -c->cos_min : c->cos_min;
-        if (gyro_ok) {
-            flags |= ATT_FLAG_GIMBAL;
-        }
+        flags = ATT_FLAG_GIMBAL;
     }
     tth = sth / cth;
     sec = 1.0f / cth;
@@ -460,6 +467,27 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
             P_(pn, i, j) = P_(p, i, j);
         }
     }
+    *eo = e;
+    return flags;
+}
+
+/*
+ * Prediction of the angles (into st) and of P (into pn); returns its flags (ATT_FLAG_NUMERIC:
+ * discarded, the angles kept and pn = P). Without usable rates the angles are kept and F = I (the
+ * bias did not enter the prediction): P := P + Q.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
+                                                  bool gyro_ok, float *pn)
+{
+    const float *p = st->p;
+    att_vec3_t e;
+    uint32_t flags = 0u;
+    if (gyro_ok) {
+        flags = att_ekf_propagate(c, st, w, pn, &e);
+    } else {
+        att_ekf_p_copy(pn, p);
+        e = st->euler;
+    }
     P_(pn, 0, 0) = P_(pn, 0, 0) + c->q_step[0];
     P_(pn, 1, 1) = P_(pn, 1, 1) + c->q_step[1];
     P_(pn, 2, 2) = P_(pn, 2, 2) + c->q_step[2];
@@ -497,10 +525,19 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     float ey;
     float y0;
     float y1;
-    float s00;
-    float s01;
-    float s11;
+    float sec;
+    float fa;
+    float r0;
+    float r1;
+    float dp;
+    float t0;
+    float t1;
     float det;
+    float inv;
+    float yb0;
+    float yb1;
+    float fb;
+    bool ready;
     float i00;
     float i01;
     float i11;
@@ -509,9 +546,12 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     float k0[6];
     float k1[6];
     float *pn = st->p;
+    int i;
+    int j;
     att_vec3_t lp1 = st->lp1;
     att_vec3_t lp2 = st->lp2;
     att_vec3_t vv;
+    att_vec3_t va;
     att_vec3_t e;
     att_vec3_t eps;
     att_i_sincosf(st->euler.x, &sphi, &cphi);
@@ -523,8 +563,14 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     vv.y = (spsi * cth) * acc.x + ((spsi * sth) * sphi + cpsi * cphi) * acc.y +
            ((spsi * sth) * cphi - cpsi * sphi) * acc.z;
     vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
+    va = vv;
     if (c->lp_on) {
-        att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
+        if (st->lp_ready) {
+            att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
+        } else {
+            lp1 = vv; /* not started: the raw sample is the measurement (the convergence phase) */
+            lp2 = vv;
+        }
         vv = lp2;
     }
     if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
@@ -532,27 +578,46 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         return 0u; /* no direction: no update */
     }
     (void)cw;
-    (void)n;
     /* the tilt error e (earth frame) and the roll and pitch that remove it */
     ex = 2.0f * cx;
     ey = 2.0f * cy;
+    /* the convergence phase ends (the stages start from this sample) once the estimate agrees with it */
+    ready = st->lp_ready || (ex * ex + ey * ey < ATT_EKF_SETTLED);
     cg = cth;
     if (att_i_absf(cg) < c->cos_min) {
         cg = (cg < 0.0f) ? -c->cos_min : c->cos_min;
     }
-    y0 = (cpsi * ex + spsi * ey) / cg;
+    sec = 1.0f / cg;
+    y0 = (cpsi * ex + spsi * ey) * sec;
     y1 = cpsi * ey - spsi * ex;
-    s00 = P_(p, 0, 0) + c->r_step[0] * (1.0f + c->r_accel * e2);
-    s01 = P_(p, 0, 1);
-    s11 = P_(p, 1, 1) + c->r_step[1] * (1.0f + c->r_accel * e2);
-    det = s00 * s11 - s01 * s01;
+    /* the same for the raw sample, to first order (e = (v_y, -v_x) / |v|): the bias states measure
+     * against it (their gain averages over minutes; the lag of the stages would hide the bias) */
+    {
+        const float in = 1.0f / n;
+        const float ax = va.y * in;
+        const float ay = -(va.x * in);
+        yb0 = (cpsi * ax + spsi * ay) * sec;
+        yb1 = cpsi * ay - spsi * ax;
+    }
+    /* R: the tilt error has the same noise about both earth axes; its roll is (..) / cos(theta), so
+     * the roll noise is r_phi / cos^2(theta) (roll is not observable at +-90 deg pitch) */
+    fa = 1.0f + c->r_accel * e2;
+    r1 = c->r_step[1] * fa;
+    r0 = (c->r_step[0] * fa) * (sec * sec);
+    /* det S = det P2 + r1 P00 + r0 P11 + r0 r1 (P2 = P[0:2,0:2], det P2 >= 0): > 0 by construction */
+    dp = P_(p, 0, 0) * P_(p, 1, 1) - P_(p, 0, 1) * P_(p, 0, 1);
+    dp = (dp > 0.0f) ? dp : 0.0f;
+    t0 = dp + r1 * P_(p, 0, 0);
+    t1 = dp + r0 * P_(p, 1, 1);
+    det = (t0 + r0 * P_(p, 1, 1)) + r0 * r1;
     if (!(det > 0.0f) || !att_i_isfinitef(det)) {
         att_ekf_p_copy(st->p, p);
         return ATT_FLAG_NUMERIC;
     }
-    i00 = s11 / det;
-    i01 = -s01 / det;
-    i11 = s00 / det;
+    inv = 1.0f / det;
+    i00 = (P_(p, 1, 1) + r1) * inv;
+    i01 = -P_(p, 0, 1) * inv;
+    i11 = (P_(p, 0, 0) + r0) * inv;
     d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1);
     if (c->gate > 0.0f) {
         if (d2 > c->gate) {
@@ -563,44 +628,43 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
             fk = c->soft / d2; /* the innovation covariance inflated so that d^2 = gate / 4 */
         }
     }
-    /* K = f P H^T S^-1 */
-    k0[0] = (p[0] * i00 + p[1] * i01) * fk;
-    k1[0] = (p[0] * i01 + p[1] * i11) * fk;
-    k0[1] = (p[1] * i00 + p[6] * i01) * fk;
-    k1[1] = (p[1] * i01 + p[6] * i11) * fk;
-    k0[2] = (p[2] * i00 + p[7] * i01) * fk;
-    k1[2] = (p[2] * i01 + p[7] * i11) * fk;
-    k0[3] = (p[3] * i00 + p[8] * i01) * fk;
-    k1[3] = (p[3] * i01 + p[8] * i11) * fk;
-    k0[4] = (p[4] * i00 + p[9] * i01) * fk;
-    k1[4] = (p[4] * i01 + p[9] * i11) * fk;
-    k0[5] = (p[5] * i00 + p[10] * i01) * fk;
-    k1[5] = (p[5] * i01 + p[10] * i11) * fk;
-    e.x = st->euler.x + (k0[0] * y0 + k1[0] * y1);
-    e.y = st->euler.y + (k0[1] * y0 + k1[1] * y1);
-    e.z = st->euler.z + (k0[2] * y0 + k1[2] * y1);
-    /* P := P - K S K^T = P - K (P H^T)^T, the upper triangle */
-    pn[0] = p[0] - (k0[0] * p[0] + k1[0] * p[1]);
-    pn[1] = p[1] - (k0[0] * p[1] + k1[0] * p[6]);
-    pn[2] = p[2] - (k0[0] * p[2] + k1[0] * p[7]);
-    pn[3] = p[3] - (k0[0] * p[3] + k1[0] * p[8]);
-    pn[4] = p[4] - (k0[0] * p[4] + k1[0] * p[9]);
-    pn[5] = p[5] - (k0[0] * p[5] + k1[0] * p[10]);
-    pn[6] = p[6] - (k0[1] * p[1] + k1[1] * p[6]);
-    pn[7] = p[7] - (k0[1] * p[2] + k1[1] * p[7]);
-    pn[8] = p[8] - (k0[1] * p[3] + k1[1] * p[8]);
-    pn[9] = p[9] - (k0[1] * p[4] + k1[1] * p[9]);
-    pn[10] = p[10] - (k0[1] * p[5] + k1[1] * p[10]);
-    pn[11] = p[11] - (k0[2] * p[2] + k1[2] * p[7]);
-    pn[12] = p[12] - (k0[2] * p[3] + k1[2] * p[8]);
-    pn[13] = p[13] - (k0[2] * p[4] + k1[2] * p[9]);
-    pn[14] = p[14] - (k0[2] * p[5] + k1[2] * p[10]);
-    pn[15] = p[15] - (k0[3] * p[3] + k1[3] * p[8]);
-    pn[16] = p[16] - (k0[3] * p[4] + k1[3] * p[9]);
-    pn[17] = p[17] - (k0[3] * p[5] + k1[3] * p[10]);
-    pn[18] = p[18] - (k0[4] * p[4] + k1[4] * p[9]);
-    pn[19] = p[19] - (k0[4] * p[5] + k1[4] * p[10]);
-    pn[20] = p[20] - (k0[5] * p[5] + k1[5] * p[10]);
+    {
+        const float db = yb0 * (i00 * yb0 + i01 * yb1) + yb1 * (i01 * yb0 + i11 * yb1);
+        fb = (db > ATT_EKF_BIAS_SOFT) ? (ATT_EKF_BIAS_SOFT / db) * fk : fk;
+    }
+    /* K = P H^T S^-1 (columns k0, k1) */
+    ATT_EKF_UNROLL
+    for (i = 0; i < 6; i++) {
+        k0[i] = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
+        k1[i] = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
+    }
+    e.x = st->euler.x + (k0[0] * y0 + k1[0] * y1) * fk;
+    e.y = st->euler.y + (k0[1] * y0 + k1[1] * y1) * fk;
+    e.z = st->euler.z + (k0[2] * y0 + k1[2] * y1) * fk;
+    /* P := P - K S K^T without cancellation in the rows of roll and pitch: (I - K H) P there is
+     * R S^-1 P (rows 0, 1), so P2 := R S^-1 P2 = [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0
+     * P11)] / det S (positive definite) and P(0:2, j) := R (K^T)(:, j); the rest P - K (H P) */
+    pn[0] = (r0 * inv) * t0;
+    pn[1] = ((r0 * r1) * inv) * P_(p, 0, 1);
+    pn[6] = (r1 * inv) * t1;
+    ATT_EKF_UNROLL
+    for (i = 2; i < 6; i++) {
+        P_(pn, 0, i) = r0 * k0[i];
+        P_(pn, 1, i) = r1 * k1[i];
+    }
+    ATT_EKF_UNROLL
+    for (i = 2; i < 6; i++) {
+        ATT_EKF_UNROLL
+        for (j = i; j < 6; j++) {
+            P_(pn, i, j) = P_(p, i, j) - (k0[i] * P_(p, 0, j) + k1[i] * P_(p, 1, j));
+        }
+    }
+    if (fk < 1.0f) {
+        /* the soft limit: P - f K S K^T = P + f (P_update - P) */
+        for (i = 0; i < 21; i++) {
+            pn[i] = p[i] + fk * (pn[i] - p[i]);
+        }
+    }
     /* the earth-frame rotation of the correction, for the low-pass stages */
     {
         const float dphi = e.x - st->euler.x;
@@ -616,12 +680,13 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         return ATT_FLAG_NUMERIC; /* update discarded */
     }
     st->euler = e;
-    st->bias.x = st->bias.x + (k0[3] * y0 + k1[3] * y1);
-    st->bias.y = st->bias.y + (k0[4] * y0 + k1[4] * y1);
-    st->bias.z = st->bias.z + (k0[5] * y0 + k1[5] * y1);
+    st->bias.x = st->bias.x + (k0[3] * yb0 + k1[3] * yb1) * fb;
+    st->bias.y = st->bias.y + (k0[4] * yb0 + k1[4] * yb1) * fb;
+    st->bias.z = st->bias.z + (k0[5] * yb0 + k1[5] * yb1) * fb;
     if (c->lp_on) {
         st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
         st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
+        st->lp_ready = ready;
     }
     return 0u;
 }
@@ -635,6 +700,7 @@ static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, const att_vec3_t *ac
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(st->euler.x, st->euler.y, 0.0f), &q);
     st->lp1 = att_i_quat_rotate(q, *acc);
     st->lp2 = st->lp1;
+    st->lp_ready = true;
     st->initialised = true;
 }
 
@@ -680,6 +746,9 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
         st->steps = st->steps + 1u;
         st->flags = flags;
         return flags;
+    }
+    if (!gyro_ok) {
+        st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's earth frame) are stale */
     }
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
     flags |= att_ekf_predict(c, st, w, gyro_ok, pa);

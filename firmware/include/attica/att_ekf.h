@@ -26,10 +26,18 @@
  *     tilt error of the prediction as an earth-frame rotation e = 2 (c_x, c_y, 0); the roll and pitch
  *     that remove it are, to first order (e = M d for Euler differences d, M the earth-frame axes of the
  *     three Euler rotations), y = ((cos(psi) e_x + sin(psi) e_y) / cos(theta), -sin(psi) e_x +
- *     cos(psi) e_y): the innovation. S = P[0:2,0:2] + diag(r_phi, r_theta) (1 + r_accel (|a|/g - 1)^2);
+ *     cos(psi) e_y): the innovation. S = P[0:2,0:2] + R, R = diag(r_phi / cos^2(theta), r_theta) (1 + r_accel
+ *     (|a|/g - 1)^2): the tilt error has the same noise about both earth axes, so roll (e / cos(theta)) is
+ *     not observable at +-90 deg pitch (cos guarded as in the prediction); det S = det P2 + ... > 0 by construction;
  *     with the chi-square gate d^2 = y^T S^-1 y > gate the update is rejected (ATT_FLAG_ACCEL_REJECTED)
  *     and above gate / 4 the measurement noise is scaled so that d^2 = gate / 4 (a soft limit);
- *     K = P H^T S^-1, x := x + K y, P := P - K S K^T (upper triangle, mirrored). The earth-frame rotation
+ *     K = P H^T S^-1, x := x + K y, P := P - K S K^T written without cancellation: the roll/pitch
+ *     rows are R S^-1 P (their 2x2 block [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0 P11)] /
+ *     det S, positive definite), the rest P - K H P. The bias states measure against the raw sample
+ *     (first order, e = (v_y, -v_x) / |v|; their gain averages over minutes, while the lag of the stages
+ *     would hide a bias), weighted by min(1, (1/16) / d_raw^2). The stages start from the first usable
+ *     sample after reset or an unusable gyro sample (an unmeasured rotation makes them stale); until the
+ *     tilt error of a sample is below 0.05 rad that raw sample is the measurement (the convergence phase). The earth-frame rotation
  *     of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), so they stay
  *     in the estimate's earth frame.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
@@ -118,6 +126,7 @@ typedef struct {
     float p[21];          /**< covariance of (phi, theta, psi, b_x, b_y, b_z): upper triangle row by row */
     att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
     att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
+    bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     bool initialised;     /**< euler holds a valid attitude */

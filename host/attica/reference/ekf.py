@@ -25,6 +25,8 @@ PIVOT_MIN = dm.c("0x1p-12")
 SHRINK = dm.c("0x1.ff8p-1")
 QUARTER = dm.c("0x1p-2")
 THIRD = dm.c("0x1.555556p-2")
+SETTLED = dm.c("0x1.47ae14p-9")
+BIAS_SOFT = dm.c("0x1p-4")
 COND_MASK = np.uint32(15)
 
 _IX = [
@@ -151,6 +153,7 @@ class Ekf:
         "st.p": "f32x21",
         "st.lp1": "vec3",
         "st.lp2": "vec3",
+        "st.lp_ready": "bool",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.initialised": "bool",
@@ -234,6 +237,7 @@ class Ekf:
         self.p: list[Any] = p
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
+        self.lp_ready = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
@@ -332,13 +336,16 @@ class Ekf:
             for i in range(3, 6):
                 for j in range(i, 6):
                     pn[_IX[i][j]] = pp(i, j)
+            # without usable rates F = I and the angles are kept
+            pn = [np.where(gyro_ok, pn[k], p[k]).astype(np.float32) for k in range(21)]
+            e = dm.vec3_where(gyro_ok, e, self.euler)
             for i, qi in ((0, 0), (1, 1), (2, 2), (3, 3), (4, 3), (5, 3)):
                 pn[_IX[i][i]] = pn[_IX[i][i]] + self.q_step[qi]
             e, pn = _canon(e, pn)
             ok = dm.vec3_isfinite(e) & _usable(pn)
         return ok, e, pn, flags
 
-    def _update(self, a: dm.Vec3, e2: Any) -> tuple[Any, Any, tuple[Any, ...]]:
+    def _update(self, a: dm.Vec3, e2: Any, lp_ready: Any) -> tuple[Any, Any, tuple[Any, ...]]:
         """att_ekf_update: (applied, flags, new state parts) of the update at the current state."""
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -347,7 +354,7 @@ class Ekf:
             sth, cth = dm.sinf(ey0), dm.cosf(ey0)
             spsi, cpsi = dm.sinf(ez0), dm.cosf(ez0)
             ax, ay, az = a
-            vv = (
+            va = (
                 (cpsi * cth) * ax
                 + ((cpsi * sth) * sphi - spsi * cphi) * ay
                 + ((cpsi * sth) * cphi + spsi * sphi) * az,
@@ -357,44 +364,68 @@ class Ekf:
                 (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
             )
             lp_on = self.k_lp > dm.ZERO
-            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(vv, self.lp1), self.k_lp))
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(va, self.lp1), self.k_lp))
             lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            lp1 = dm.vec3_where(lp_ready, lp1, va)
+            lp2 = dm.vec3_where(lp_ready, lp2, va)
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
-            vv = dm.vec3_where(lp_on, lp2, vv)
-            ok_a, (_, cx, cy), _ = align_up(vv)
+            vv = dm.vec3_where(lp_on, lp2, va)
+            ok_a, (_, cx, cy), n = align_up(vv)
             exx = dm.TWO * cx
             eyy = dm.TWO * cy
+            ready = lp_ready | (exx * exx + eyy * eyy < SETTLED)
             cg, _ = self._guard(cth)
-            y0 = (cpsi * exx + spsi * eyy) / cg
+            sec = dm.ONE / cg
+            y0 = (cpsi * exx + spsi * eyy) * sec
             y1 = cpsi * eyy - spsi * exx
-            s00 = p[0] + self.r_step[0] * (dm.ONE + self.r_accel * e2)
-            s01 = p[1]
-            s11 = p[6] + self.r_step[1] * (dm.ONE + self.r_accel * e2)
-            det = s00 * s11 - s01 * s01
+            inn = dm.ONE / n
+            bx = va[1] * inn
+            by = -(va[0] * inn)
+            yb0 = (cpsi * bx + spsi * by) * sec
+            yb1 = cpsi * by - spsi * bx
+            fa = dm.ONE + self.r_accel * e2
+            r1 = self.r_step[1] * fa
+            r0 = (self.r_step[0] * fa) * (sec * sec)
+            dp = p[0] * p[6] - p[1] * p[1]
+            dp = np.where(dp > dm.ZERO, dp, dm.ZERO).astype(np.float32)
+            t0 = dp + r1 * p[0]
+            t1 = dp + r0 * p[6]
+            det = (t0 + r0 * p[6]) + r0 * r1
             ok_det = (det > dm.ZERO) & dm.isfinitef(det)
-            i00 = s11 / det
-            i01 = -s01 / det
-            i11 = s00 / det
+            inv = dm.ONE / det
+            i00 = (p[6] + r1) * inv
+            i01 = (-p[1]) * inv
+            i11 = (p[0] + r0) * inv
             d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1)
             gate_on = self.gate > dm.ZERO
             gated = gate_on & (d2 > self.gate)
             fk = np.where(gate_on & (d2 > self.soft), self.soft / d2, dm.ONE).astype(np.float32)
+            db = yb0 * (i00 * yb0 + i01 * yb1) + yb1 * (i01 * yb0 + i11 * yb1)
+            fb = np.where(db > BIAS_SOFT, (BIAS_SOFT / db) * fk, fk).astype(np.float32)
             k0 = []
             k1 = []
             for i in range(6):
                 pi0, pi1 = p[_IX[i][0]], p[_IX[i][1]]
-                k0.append((pi0 * i00 + pi1 * i01) * fk)
-                k1.append((pi0 * i01 + pi1 * i11) * fk)
+                k0.append(pi0 * i00 + pi1 * i01)
+                k1.append(pi0 * i01 + pi1 * i11)
             e = (
-                ex0 + (k0[0] * y0 + k1[0] * y1),
-                ey0 + (k0[1] * y0 + k1[1] * y1),
-                ez0 + (k0[2] * y0 + k1[2] * y1),
+                ex0 + (k0[0] * y0 + k1[0] * y1) * fk,
+                ey0 + (k0[1] * y0 + k1[1] * y1) * fk,
+                ez0 + (k0[2] * y0 + k1[2] * y1) * fk,
             )
             pn: list[Any] = [None] * 21
-            for i in range(6):
+            pn[0] = (r0 * inv) * t0
+            pn[1] = ((r0 * r1) * inv) * p[1]
+            pn[6] = (r1 * inv) * t1
+            for i in range(2, 6):
+                pn[_IX[0][i]] = r0 * k0[i]
+                pn[_IX[1][i]] = r1 * k1[i]
+            for i in range(2, 6):
                 for j in range(i, 6):
                     pn[_IX[i][j]] = p[_IX[i][j]] - (k0[i] * p[_IX[j][0]] + k1[i] * p[_IX[j][1]])
+            soft = fk < dm.ONE
+            pn = [np.where(soft, p[k] + fk * (pn[k] - p[k]), pn[k]).astype(np.float32) for k in range(21)]
             dphi = e[0] - ex0
             dth = e[1] - ey0
             dpsi = e[2] - ez0
@@ -402,9 +433,9 @@ class Ekf:
             e, pn = _canon(e, pn)
             ok_u = dm.vec3_isfinite(e) & _usable(pn)
             bias = (
-                self.bias[0] + (k0[3] * y0 + k1[3] * y1),
-                self.bias[1] + (k0[4] * y0 + k1[4] * y1),
-                self.bias[2] + (k0[5] * y0 + k1[5] * y1),
+                self.bias[0] + (k0[3] * yb0 + k1[3] * yb1) * fb,
+                self.bias[1] + (k0[4] * yb0 + k1[4] * yb1) * fb,
+                self.bias[2] + (k0[5] * yb0 + k1[5] * yb1) * fb,
             )
             lp1n = dm.vec3_add(lp1, dm.vec3_cross(eps, lp1))
             lp2n = dm.vec3_add(lp2, dm.vec3_cross(eps, lp2))
@@ -417,7 +448,14 @@ class Ekf:
         return (
             applied,
             flags,
-            (e, bias, pn, dm.vec3_where(lp_apply, lp1n, self.lp1), dm.vec3_where(lp_apply, lp2n, self.lp2)),
+            (
+                e,
+                bias,
+                pn,
+                dm.vec3_where(lp_apply, lp1n, self.lp1),
+                dm.vec3_where(lp_apply, lp2n, self.lp2),
+                np.where(lp_apply, ready, lp_ready),
+            ),
         )
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
@@ -452,8 +490,10 @@ class Ekf:
             flags = flags | np.where(run, fl_p, _U0) | np.where(run & ~ok_p, _u(Flag.NUMERIC), _U0)
             self.euler = dm.vec3_where(take_p, e_p, self.euler)
             self.p = [np.where(take_p, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
+            # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
+            self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
-            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u) = self._update(a, e2)
+            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u) = self._update(a, e2, self.lp_ready)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
@@ -461,6 +501,7 @@ class Ekf:
             self.p = [np.where(take_u, p_u[i], self.p[i]).astype(np.float32) for i in range(21)]
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
+            self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
             cond = run & (((self.steps & COND_MASK) == _U0) | gimbal)
             p_c, changed = _condition(self.p, self.p_max)
@@ -469,6 +510,7 @@ class Ekf:
             self.euler = dm.vec3_where(init_now, start, self.euler)
             self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
             self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)
+            self.lp_ready = self.lp_ready | init_now
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
