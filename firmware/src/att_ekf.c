@@ -21,7 +21,7 @@
 #define ATT_EKF_PMAX_MIN 0.000001f           /* lower limit of p_max and p0 */
 #define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
-#define ATT_EKF_SETTLED 0x1.47ae14p-9f         /* (0.05 rad)^2: the tilt error that ends the convergence phase */
+#define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
 #define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
 
@@ -182,6 +182,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
     f->st.lp2 = f->st.lp1;
     f->st.lp_ready = false;
+    f->st.converging = false;
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.initialised = !f->c.init_from_accel;
@@ -564,13 +565,19 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
            ((spsi * sth) * cphi - cpsi * sphi) * acc.z;
     vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
     va = vv;
+    ready = st->lp_ready;
     if (c->lp_on) {
-        if (st->lp_ready) {
-            att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
-        } else {
-            lp1 = vv; /* not started: the raw sample is the measurement (the convergence phase) */
-            lp2 = vv;
+        if (!ready) {
+            /* not started: a sample within 0.05 rad of the estimate's gravity starts the stages, from
+             * that gravity (0, 0, g) after a reset or an unusable gyro sample (a right estimate kept: no
+             * pull onto one noisy sample), from the sample at the end of the convergence phase (no
+             * residual error left in the stages); otherwise the raw sample is the measurement */
+            const float h2 = va.x * va.x + va.y * va.y;
+            ready = va.z > 0.0f && h2 < ATT_EKF_SETTLED * (h2 + va.z * va.z);
+            lp1 = (ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : va;
+            lp2 = lp1;
         }
+        att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
         vv = lp2;
     }
     if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
@@ -581,8 +588,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     /* the tilt error e (earth frame) and the roll and pitch that remove it */
     ex = 2.0f * cx;
     ey = 2.0f * cy;
-    /* the convergence phase ends (the stages start from this sample) once the estimate agrees with it */
-    ready = st->lp_ready || (ex * ex + ey * ey < ATT_EKF_SETTLED);
     cg = cth;
     if (att_i_absf(cg) < c->cos_min) {
         cg = (cg < 0.0f) ? -c->cos_min : c->cos_min;
@@ -687,6 +692,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
         st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
         st->lp_ready = ready;
+        st->converging = !ready;
     }
     return 0u;
 }
@@ -701,6 +707,7 @@ static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, const att_vec3_t *ac
     st->lp1 = att_i_quat_rotate(q, *acc);
     st->lp2 = st->lp1;
     st->lp_ready = true;
+    st->converging = false;
     st->initialised = true;
 }
 

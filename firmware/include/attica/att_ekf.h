@@ -127,6 +127,7 @@ typedef struct {
     att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
     att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
+    bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     bool initialised;     /**< euler holds a valid attitude */

@@ -25,7 +25,7 @@ PIVOT_MIN = dm.c("0x1p-12")
 SHRINK = dm.c("0x1.ff8p-1")
 QUARTER = dm.c("0x1p-2")
 THIRD = dm.c("0x1.555556p-2")
-SETTLED = dm.c("0x1.47ae14p-9")
+SETTLED = dm.c("0x1.47ae14p-7")
 BIAS_SOFT = dm.c("0x1p-4")
 COND_MASK = np.uint32(15)
 
@@ -154,6 +154,7 @@ class Ekf:
         "st.lp1": "vec3",
         "st.lp2": "vec3",
         "st.lp_ready": "bool",
+        "st.converging": "bool",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.initialised": "bool",
@@ -238,6 +239,7 @@ class Ekf:
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp_ready = np.zeros(self.n, np.bool_)
+        self.converging = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
@@ -364,17 +366,24 @@ class Ekf:
                 (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
             )
             lp_on = self.k_lp > dm.ZERO
-            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(va, self.lp1), self.k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
-            lp1 = dm.vec3_where(lp_ready, lp1, va)
-            lp2 = dm.vec3_where(lp_ready, lp2, va)
+            # not started: a sample within 0.05 rad of the estimate's gravity starts the stages, from
+            # (0, 0, g) after a reset or an unusable gyro sample, from the sample at the end of the
+            # convergence phase; otherwise the raw sample is the measurement
+            h2 = va[0] * va[0] + va[1] * va[1]
+            agrees = (va[2] > dm.ZERO) & (h2 < SETTLED * (h2 + va[2] * va[2]))
+            ready = lp_ready | agrees
+            up = (self._zeros, self._zeros, self.gravity)
+            start = dm.vec3_where(agrees & ~self.converging, up, va)
+            b1 = dm.vec3_where(lp_ready, self.lp1, start)
+            b2 = dm.vec3_where(lp_ready, self.lp2, start)
+            lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), self.k_lp))
+            lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), self.k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
             vv = dm.vec3_where(lp_on, lp2, va)
             ok_a, (_, cx, cy), n = align_up(vv)
             exx = dm.TWO * cx
             eyy = dm.TWO * cy
-            ready = lp_ready | (exx * exx + eyy * eyy < SETTLED)
             cg, _ = self._guard(cth)
             sec = dm.ONE / cg
             y0 = (cpsi * exx + spsi * eyy) * sec
@@ -455,6 +464,7 @@ class Ekf:
                 dm.vec3_where(lp_apply, lp1n, self.lp1),
                 dm.vec3_where(lp_apply, lp2n, self.lp2),
                 np.where(lp_apply, ready, lp_ready),
+                np.where(lp_apply, ~ready, self.converging),
             ),
         )
 
@@ -493,7 +503,7 @@ class Ekf:
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
-            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u) = self._update(a, e2, self.lp_ready)
+            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(a, e2, self.lp_ready)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
@@ -502,6 +512,7 @@ class Ekf:
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
+            self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
             cond = run & (((self.steps & COND_MASK) == _U0) | gimbal)
             p_c, changed = _condition(self.p, self.p_max)
@@ -511,6 +522,7 @@ class Ekf:
             self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
             self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)
             self.lp_ready = self.lp_ready | init_now
+            self.converging = self.converging & ~init_now
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
