@@ -10,15 +10,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from attica import native
-from attica.native import ffi, lib
-from attica.outputs import OUT_ALL, OUT_BIAS, OUT_EULER
-from attica.reference import detmath as dm
-from attica.reference._common import c_state_values, load_c_state, state_values
-from attica.reference.ekf import Ekf, EkfSettings
-from attica.settings import FilterKind, Flag, Preset, preset_settings
-
 from ekf_support import (
     ADVERSARIAL_VARIANTS,
     DIAG,
@@ -44,6 +35,15 @@ from ekf_support import (
     step_both,
     unpack,
 )
+
+from attica import native
+from attica.native import ffi, lib
+from attica.outputs import OUT_ALL, OUT_BIAS, OUT_EULER
+from attica.reference import detmath as dm
+from attica.reference._common import c_state_values, load_c_state, state_values
+from attica.reference.ekf import Ekf, EkfSettings
+from attica.settings import FilterKind, Flag, Preset, preset_settings
+
 from helpers import assert_same_bits
 
 F32 = np.float32
@@ -278,7 +278,8 @@ def test_retune_keeps_the_state(change: dict[str, Any]) -> None:
     assert bytes(ffi.buffer(ffi.addressof(f[0], "st"), ffi.sizeof("att_ekf_state_t"))) == st_before
     fresh = c_filters(new, 1)
     size = ffi.sizeof("att_ekf_coeffs_t")
-    assert bytes(ffi.buffer(ffi.addressof(f[0], "c"), size)) == bytes(ffi.buffer(ffi.addressof(fresh[0], "c"), size))
+    got = bytes(ffi.buffer(ffi.addressof(f[0], "c"), size))
+    assert got == bytes(ffi.buffer(ffi.addressof(fresh[0], "c"), size))
     ref.retune(new)
     assert_state_matches(f, ref, "after retune")
     for k in range(300, 600):
@@ -307,7 +308,8 @@ def test_output_quaternion_derived_from_the_angles() -> None:
         assert_same_bits(out["euler"], c["euler"][:, 0], "output euler")
         assert_same_bits(out["gyro_bias"], c["bias"][:, 0], "bias")
         assert (out["flags"] == c["flags"][:, 0]).all() and (out["steps"] == np.arange(1, 2001)).all()
-        q_c = np.array([[q.w, q.x, q.y, q.z] for q in (lib.att_quat_from_euler(*map(float, e)) for e in out["euler"])], F32)
+        qs = (lib.att_quat_from_euler(*map(float, e)) for e in out["euler"])
+        q_c = np.array([[q.w, q.x, q.y, q.z] for q in qs], F32)
         assert_same_bits(out["q"], q_c, "q = att_quat_from_euler(euler)")
         e = c["euler"][:, 0]
         assert_same_bits(out["q"], np.stack(dm.quat_from_euler(e[:, 0], e[:, 1], e[:, 2]), -1), "reference q")
@@ -365,8 +367,9 @@ def test_bit_exact_normal() -> None:
     fl = c["flags"]
     gated = np.mean(fl & Flag.ACCEL_REJECTED > 0)
     print(
-        f"\nnormal: {steps * m} steps bit-identical; accel rejected or gated {gated:.4f}; smallest eigenvalue "
-        f"of P {lo:.3g} ({rel:.3g} of its largest variance); final |bias| max {np.abs(c['bias'][-1]).max():.4f}"
+        f"\nnormal: {steps * m} steps bit-identical; accel rejected or gated {gated:.4f}; "
+        f"smallest eigenvalue of P {lo:.3g} ({rel:.3g} of its largest variance); "
+        f"final |bias| max {np.abs(c['bias'][-1]).max():.4f}"
     )
     assert steps * m >= 1_000_000 and 0 < gated < 0.2
     assert not np.any(fl & (Flag.CLAMPED | Flag.NUMERIC | Flag.GIMBAL))  # the guards stay out of the way
@@ -377,10 +380,10 @@ def test_bit_exact_adversarial_1e6_steps() -> None:
     gimbal lock and fast rotation, with every limit of the settings contract reached by some instance:
     every output and the final state bit-identical, angles canonical, P finite with variances > 0.
 
-    P is positive definite (6x6) after every conditioning step (every 16 steps). Between them, near
-    gimbal lock, it is not: this is a defect of the filter, with the figures printed here and the
-    minimal reproducer test_ekf_behaviour.py::test_defect_p_indefinite_near_gimbal_lock (xfail); the
-    same holds for the NUMERIC flags (test_defect_update_numeric_failure_at_gimbal_lock).
+    P is positive definite (6x6) after every conditioning step (every 16 steps); the steps between are
+    printed here (near gimbal lock the update keeps the roll/pitch block positive definite; the
+    minimal reproducers are test_ekf_behaviour.py::test_p_positive_definite_near_gimbal_lock and
+    test_update_at_gimbal_lock_keeps_the_variances_positive, for the NUMERIC flags).
     """
     nv = len(ADVERSARIAL_VARIANTS)
     m, steps = 64 * nv, 1000

@@ -10,10 +10,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from attica.reference.ekf import Ekf
-from attica.settings import Flag
-
 from ekf_support import (
     DIAG,
     G,
@@ -40,6 +36,9 @@ from ekf_support import (
     unpack,
 )
 
+from attica.reference.ekf import Ekf
+from attica.settings import Flag
+
 F32 = np.float32
 NAN = float("nan")
 PI2 = float(F32(np.pi / 2))
@@ -56,7 +55,15 @@ ERR0 = [
     (150, 0),
     (-100, 30),
     (0, 80),
-    (179, -60),
+    pytest.param(
+        (179, -60),
+        marks=pytest.mark.xfail(
+            strict=True,
+            raises=AssertionError,
+            reason="defect: from a 100+ deg tilt error the first-order innovation drives theta to -89 deg at "
+            "once, and the pitch variance collapses while the pitch is still 70 deg off (62 deg after 2 s)",
+        ),
+    ),
 ]
 
 
@@ -66,12 +73,14 @@ def test_converges_from_wrong_start(err0: tuple[float, float]) -> None:
     to 86 deg); the accel update pulls the tilt back.
 
     Measured (50 instances, 100 Hz, accel noise 0.2 m/s^2), max tilt error after 2 s / 5 s / over
-    10..30 s, rms 10..30 s: (60, -45) 2.0 / 0.58 / 0.25, 0.082 deg; (150, 0) 5.2 / 1.4 / 0.32, 0.090;
-    (-100, 30) 3.2 / 0.81 / 0.27, 0.084; (0, 80) 8.3 / 2.0 / 0.33, 0.086. (179, -60): 45 / 14 / 1.9,
-    0.17 deg, where the 3-state filter before it gave 6.3 / 1.7 / 0.54, 0.12 on the same input: the
-    first updates, at a 100+ deg error, drive theta to -89 deg, where the clamped Jacobian correlates
-    roll and pitch so strongly that the roll measurement collapses the pitch variance (0.75 to 0.004
-    rad^2 in one step) with the pitch still 66 deg off (xfail, the innovation defect).
+    10..30 s, rms 10..30 s: (60, -45) 2.3 / 0.63 / 0.25, 0.083 deg; (150, 0) 6.4 / 1.6 / 0.36, 0.091;
+    (-100, 30) 3.5 / 0.86 / 0.28, 0.084; (0, 80) 8.5 / 2.1 / 0.33, 0.086. (179, -60): 62 / 22 / 2.9,
+    0.32 deg (45 / 14 / 1.9 before the gimbal-lock fixes; the 3-state filter before that gave 6.3 /
+    1.7 / 0.54, 0.12 on the same input): the first updates, at a 100+ deg error, drive theta to -80 ..
+    -89 deg within two steps, where roll is barely observable (R_phi / cos^2 theta) and the roll
+    variance grows to 7e3 rad^2 while the pitch variance falls to 0.036 rad^2 with the pitch still 70
+    deg off; the pitch then converges at the rate of a confident state (xfail, still open: the
+    first-order innovation is not valid at such errors).
     """
     m, steps, dt = 50, 3000, 0.01
     gyr, acc, e_true = motion(m, steps, dt, seed=21, acc_noise=0.2)
@@ -130,8 +139,11 @@ def test_converges_from_wrong_start_through_the_low_pass(err0: tuple[float, floa
 def test_tracks_with_correct_start_including_yaw(preset: str) -> None:
     """Started at the truth, roll/pitch stay close and yaw follows the gyro (no yaw reference).
 
-    Measured over 60 s (50 instances, accel noise 0.2 m/s^2): seed tilt error max 0.60 deg, full
-    attitude error max 2.1 deg; default (low-pass, bias states) tilt max 0.45 deg, full max 1.0 deg.
+    Measured over 60 s (50 instances, accel noise 0.2 m/s^2): seed tilt error first step 0.46 deg, then
+    max 0.92 deg, full attitude max 0.92 deg; default (low-pass, bias states) first step 0.02 deg, then
+    max 0.30 deg, full max 3.0 deg. The default starts its stages from the estimate's gravity when the
+    first sample agrees with it within 0.1 rad (all 50 here; with 0.05 rad one instance, whose first
+    sample is 3.3 deg off, took it as the measurement with p0 = 1 rad^2: 3.3 deg after the first step).
     """
     m, steps, dt = 50, 6000, 0.01
     gyr, acc, e_true = motion(m, steps, dt, seed=31, acc_noise=0.2)
@@ -170,7 +182,8 @@ def test_gimbal_lock_pitch_through_90_noise_free(preset: str) -> None:
     full = quat_angle_deg(c["q"][:, 0], quat_from_euler64(e_true[:, 0]))
     theta = c["euler"][:, 0, 1]
     print(
-        f"\ngimbal ({preset}): {np.count_nonzero(fl & Flag.GIMBAL)} GIMBAL steps; max theta {theta.max():.6f}; "
+        f"\ngimbal ({preset}): {np.count_nonzero(fl & Flag.GIMBAL)} GIMBAL steps; "
+        f"max theta {theta.max():.6f}; "
         f"attitude error max {full.max():.3f} deg, final {full[-1]:.3f} deg"
     )
     assert np.any(fl & Flag.GIMBAL)
@@ -204,7 +217,8 @@ def test_gimbal_lock_pitch_through_90_noisy(preset: str) -> None:
     fl = c["flags"]
     print(
         f"\ngimbal noisy ({preset}): GIMBAL {np.count_nonzero(fl & Flag.GIMBAL)}, CLAMPED "
-        f"{np.count_nonzero(fl & Flag.CLAMPED)}, NUMERIC {np.count_nonzero(fl & Flag.NUMERIC)} steps; tilt error "
+        f"{np.count_nonzero(fl & Flag.CLAMPED)}, NUMERIC {np.count_nonzero(fl & Flag.NUMERIC)} steps; "
+        f"tilt error "
         f"max {tilt.max():.2f} rms {np.sqrt(np.mean(tilt**2)):.2f} deg; median final attitude error "
         f"{np.median(full[-1]):.2f} deg"
     )
@@ -242,8 +256,9 @@ def test_gimbal_lock_hold_at_90(preset: str) -> None:
         tilt = tilt_err_deg(c["euler"], e_true)
         fl = c["flags"]
         print(
-            f"\nhold at 90 deg ({preset}), accel noise {acc_noise}: GIMBAL on {np.mean(fl & Flag.GIMBAL > 0):.1%} "
-            f"of steps, NUMERIC {np.count_nonzero(fl & Flag.NUMERIC)}; tilt error max {tilt.max():.3g}, final "
+            f"\nhold at 90 deg ({preset}), accel noise {acc_noise}: "
+            f"GIMBAL on {np.mean(fl & Flag.GIMBAL > 0):.1%} of steps, "
+            f"NUMERIC {np.count_nonzero(fl & Flag.NUMERIC)}; tilt error max {tilt.max():.3g}, final "
             f"max {tilt[-1].max():.3g} deg"
         )
         if acc_noise == 0.0:
@@ -442,7 +457,8 @@ def test_low_pass_rejects_sustained_linear_acceleration(duration: float) -> None
     passed = 1 - np.exp(-x) * (1 + x)
     print(
         f"\nlinear acceleration 2 m/s^2 for {duration} s: tilt error max low-pass {lp:.2f} deg (the low-pass "
-        f"passes {passed:.0%} of {apparent:.1f} deg), raw {raw:.2f} deg; before the pulse both below {quiet:.2f} deg"
+        f"passes {passed:.0%} of {apparent:.1f} deg), raw {raw:.2f} deg; "
+        f"before the pulse both below {quiet:.2f} deg"
     )
     assert raw > 0.9 * apparent
     assert lp < passed * apparent + 1.5 and lp < raw
@@ -500,8 +516,8 @@ def _repro(name: str) -> tuple[Any, dict[str, np.ndarray]]:
 
 
 def test_regression_reproducers_are_the_same_in_c_and_reference() -> None:
-    """The xfail tests below see the C filter; on their streams the reference gives the same bits, so the
-    defects are the design's, and a fix must change both."""
+    """The regression tests below see the C filter; on their streams the reference gives the same bits,
+    so C and reference were fixed together."""
     for name, (s, gyr, acc) in _repro_streams().items():
         compare(run_c(c_filters(s, 1), gyr, acc), run_ref(Ekf(s, 1), gyr, acc), name)
 
@@ -534,7 +550,10 @@ def test_wrong_start_leaves_the_bias_alone() -> None:
     _, c = _repro("bias")
     roll = np.degrees(c["euler"][:, 0, 0])
     bias = np.abs(c["bias"][:, 0]).max()
-    print(f"\nwrong start at rest: roll after 10 s {roll[999]:.2f}, 30 s {roll[-1]:.2f} deg; |bias| max {bias:.4f} rad/s")
+    print(
+        f"\nwrong start at rest: roll after 10 s {roll[999]:.2f}, 30 s {roll[-1]:.2f} deg; "
+        f"|bias| max {bias:.4f} rad/s"
+    )
     assert np.abs(roll[2000:]).max() < 0.5 and bias < 0.01
 
 

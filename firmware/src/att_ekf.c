@@ -568,7 +568,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     ready = st->lp_ready;
     if (c->lp_on) {
         if (!ready) {
-            /* not started: a sample within 0.05 rad of the estimate's gravity starts the stages, from
+            /* not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
              * that gravity (0, 0, g) after a reset or an unusable gyro sample (a right estimate kept: no
              * pull onto one noisy sample), from the sample at the end of the convergence phase (no
              * residual error left in the stages); otherwise the raw sample is the measurement */

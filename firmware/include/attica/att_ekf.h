@@ -35,9 +35,11 @@
  *     rows are R S^-1 P (their 2x2 block [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0 P11)] /
  *     det S, positive definite), the rest P - K H P. The bias states measure against the raw sample
  *     (first order, e = (v_y, -v_x) / |v|; their gain averages over minutes, while the lag of the stages
- *     would hide a bias), weighted by min(1, (1/16) / d_raw^2). The stages start from the first usable
- *     sample after reset or an unusable gyro sample (an unmeasured rotation makes them stale); until the
- *     tilt error of a sample is below 0.05 rad that raw sample is the measurement (the convergence phase). The earth-frame rotation
+ *     would hide a bias), weighted by min(1, (1/16) / d_raw^2). The stages restart after reset or an
+ *     unusable gyro sample (an unmeasured rotation makes them stale): a sample within 0.1 rad of the
+ *     estimate's gravity (sin^2 of its tilt error < 0.01) starts them from that gravity (0, 0, g), so a
+ *     right estimate is kept; otherwise the raw sample is the measurement (the convergence phase, state
+ *     converging) until one is within 0.1 rad, which then starts them from itself. The earth-frame rotation
  *     of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), so they stay
  *     in the estimate's earth frame.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude

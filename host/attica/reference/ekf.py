@@ -366,7 +366,7 @@ class Ekf:
                 (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
             )
             lp_on = self.k_lp > dm.ZERO
-            # not started: a sample within 0.05 rad of the estimate's gravity starts the stages, from
+            # not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
             # (0, 0, g) after a reset or an unusable gyro sample, from the sample at the end of the
             # convergence phase; otherwise the raw sample is the measurement
             h2 = va[0] * va[0] + va[1] * va[1]
