@@ -15,8 +15,11 @@ from attica.reference.ekf import Ekf
 from attica.reference.gyro import Gyro
 from attica.reference.kf import Kf
 from attica.reference.mars import Mars
+from attica.reference.mekf import Mekf
 from attica.reference.tilt import Tilt
 from attica.settings import FilterKind, make_settings
+
+THREE = dm.c("0x1.8p+1")
 
 
 class Filter:
@@ -61,6 +64,8 @@ class Filter:
             impl = Gyro(self.settings, n)
         elif self.kind == FilterKind.TILT:
             impl = Tilt(self.settings, n)
+        elif self.kind == FilterKind.MEKF:
+            impl = Mekf(self.settings, n)
         else:  # pragma: no cover - make_settings refuses unimplemented kinds
             raise ValueError(f"filter {self.kind.label} has no reference implementation")
         self.impl = impl
@@ -105,7 +110,7 @@ class Filter:
         f = self.impl
         if self.kind in (FilterKind.ARS, FilterKind.KF, FilterKind.EKF):
             return f.step(gyr, acc)  # type: ignore[no-any-return]
-        if self.kind == FilterKind.MARS:
+        if self.kind in (FilterKind.MARS, FilterKind.MEKF):
             return f.step(gyr, acc, mag)  # type: ignore[no-any-return]
         if self.kind == FilterKind.GYRO:
             return f.step(gyr)  # type: ignore[no-any-return]
@@ -116,17 +121,21 @@ class Filter:
         f = self.impl
         out = np.zeros(self.n, OUTPUT_DTYPE)
         out["q"] = stack(f.q)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
+        quat_state = (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.MEKF)
+        if self.kind in quat_state:
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
+        if self.kind in quat_state:
             out["gyro_bias"] = stack(f.bias)
         if self.kind == FilterKind.KF:
             out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
         elif self.kind == FilterKind.EKF:
             zero = np.zeros(self.n, np.float32)
             out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))
+        elif self.kind == FilterKind.MEKF:
+            p = f.p  # packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20
+            out["cov"] = stack((p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)
