@@ -29,6 +29,15 @@
 #define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
 
+/* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants); no
+ * effect on results. */
+#if defined(__GNUC__)
+#define ATT_MEKF_PRAGMA(x) _Pragma(#x)
+#define ATT_MEKF_UNROLL ATT_MEKF_PRAGMA(GCC unroll 6)
+#else
+#define ATT_MEKF_UNROLL
+#endif
+
 /* Packed index of P(i, j), i <= j < 6; and of a symmetric access with any order. */
 #define ATT_MEKF_IX(i, j) ((i) * (11u - (i)) / 2u + (j))
 #define ATT_MEKF_S(i, j) (((i) <= (j)) ? ATT_MEKF_IX(i, j) : ATT_MEKF_IX(j, i))
@@ -390,7 +399,9 @@ static ATT_ALWAYS_INLINE void att_mekf_predict(float *p, const float *r, float h
     float h[9];
     uint32_t i;
     uint32_t j;
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
         for (j = 0u; j < 3u; j++) {
             const float m = r[3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
                             r[3u * i + 2u] * p[ATT_MEKF_S(5u, 3u + j)];
@@ -399,7 +410,9 @@ static ATT_ALWAYS_INLINE void att_mekf_predict(float *p, const float *r, float h
             p[ATT_MEKF_IX(i, 3u + j)] = hh - hdt * m;
         }
     }
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
         for (j = i; j < 3u; j++) {
             const float nij = r[3u * i] * h[3u * j] + r[3u * i + 1u] * h[3u * j + 1u] + r[3u * i + 2u] * h[3u * j + 2u];
             const float nji = r[3u * j] * h[3u * i] + r[3u * j + 1u] * h[3u * i + 1u] + r[3u * j + 2u] * h[3u * i + 2u];
@@ -462,6 +475,7 @@ static ATT_ALWAYS_INLINE void att_mekf_accel_apply(const att_mekf_coeffs_t *c, f
     float a2;
     uint32_t i;
     uint32_t j;
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
         g0[i] = p[ATT_MEKF_IX(0u, i)];
         g1[i] = p[ATT_MEKF_S(1u, i)];
@@ -473,10 +487,12 @@ static ATT_ALWAYS_INLINE void att_mekf_accel_apply(const att_mekf_coeffs_t *c, f
     a0 = v.s11 * ks;
     a1 = -(v.s01 * ks);
     a2 = v.s00 * ks;
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
         const float k0 = g0[i] * a0 + g1[i] * a1;
         const float k1 = g0[i] * a1 + g1[i] * a2;
         dx[i] = k0 * y0 + k1 * y1;
+        ATT_MEKF_UNROLL
         for (j = i; j < 6u; j++) {
             p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - (k0 * g0[j] + k1 * g1[j]);
         }
@@ -501,6 +517,7 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, con
     float k;
     uint32_t i;
     uint32_t j;
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
         g[i] = p[ATT_MEKF_S(i, 2u)] + hx * p[ATT_MEKF_S(i, 0u)] + hy * p[ATT_MEKF_S(i, 1u)];
     }
@@ -513,10 +530,13 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, con
     if (c->mag_gate > 0.0f && y2 > c->mag_soft * s) {
         k = c->mag_soft / y2;
     }
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
         kg[i] = k * g[i];
     }
+    ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
+        ATT_MEKF_UNROLL
         for (j = (i < 2u) ? 2u : i; j < 6u; j++) {
             p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - kg[i] * g[j];
         }
@@ -543,20 +563,25 @@ static bool att_mekf_pd(const float *p)
         return false; /* the first pivot is P_00 itself */
     }
     inv = 1.0f / d;
+    ATT_MEKF_UNROLL
     for (i = 1u; i < 6u; i++) {
         const float li = p[ATT_MEKF_IX(0u, i)] * inv;
+        ATT_MEKF_UNROLL
         for (j = i; j < 6u; j++) {
             w[ATT_MEKF_IX5(i - 1u, j - 1u)] = p[ATT_MEKF_IX(i, j)] - li * p[ATT_MEKF_IX(0u, j)];
         }
     }
+    ATT_MEKF_UNROLL
     for (k = 0u; k < 5u; k++) {
         d = w[ATT_MEKF_IX5(k, k)];
         if (!(d > ATT_MEKF_PIVOT_MIN * p[ATT_MEKF_IX(k + 1u, k + 1u)])) {
             return false;
         }
         inv = 1.0f / d;
+        ATT_MEKF_UNROLL
         for (i = k + 1u; i < 5u; i++) {
             const float li = w[ATT_MEKF_IX5(k, i)] * inv;
+            ATT_MEKF_UNROLL
             for (j = i; j < 5u; j++) {
                 w[ATT_MEKF_IX5(i, j)] = w[ATT_MEKF_IX5(i, j)] - li * w[ATT_MEKF_IX5(k, j)];
             }
@@ -685,14 +710,17 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
     w[0] = gyr.x;
     w[1] = gyr.y;
     w[2] = gyr.z;
+    ATT_MEKF_UNROLL
     for (k = 0u; k < 3u; k++) {
         float ks;
         float y;
+        ATT_MEKF_UNROLL
         for (i = 0u; i < 6u; i++) {
             g[i] = p[ATT_MEKF_S(i, 3u + k)];
         }
         ks = 1.0f / (g[3u + k] + c->r_rest);
         y = w[k] - b[k];
+        ATT_MEKF_UNROLL
         for (i = 0u; i < 6u; i++) {
             const float gk = g[i] * ks;
             if (i < 3u) {
@@ -700,6 +728,7 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
             } else {
                 b[i - 3u] = b[i - 3u] + gk * y;
             }
+            ATT_MEKF_UNROLL
             for (j = i; j < 6u; j++) {
                 p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - gk * g[j];
             }

@@ -453,7 +453,7 @@ def attica_rows() -> list[Counted]:
     """Every implemented attica kind (mars is the 9-axis one; gyro and tilt are baselines)."""
     from attica.settings import implemented_kinds
 
-    axes = {"ars": 6, "kf": 6, "ekf": 6, "mars": 9}
+    axes = {"ars": 6, "kf": 6, "ekf": 6, "mars": 9, "mekf": 9}
     return [Counted(k.label, axes.get(k.label, 0)) for k in implemented_kinds()]
 
 
