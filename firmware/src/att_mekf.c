@@ -29,9 +29,9 @@
 #define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
 
-/* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants); no
- * effect on results. */
-#if defined(__GNUC__)
+/* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants), not
+ * when optimising for size (-Os); no effect on results. */
+#if defined(__GNUC__) && !defined(__OPTIMIZE_SIZE__)
 #define ATT_MEKF_PRAGMA(x) _Pragma(#x)
 #define ATT_MEKF_UNROLL ATT_MEKF_PRAGMA(GCC unroll 6)
 #else
@@ -168,7 +168,7 @@ static float att_mekf_dip(att_vec3_t v)
  * Derived quantities of the reference field m0 (state m0): the unit horizontal direction, the H entries
  * of the tilt in the heading innovation, the accepted |m| interval and sin(dip) interval (as att_mars.c).
  */
-static void att_mekf_m0_limits(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
+static ATT_ALWAYS_INLINE void att_mekf_m0_limits(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
 {
     const float norm = att_i_vec3_norm(st->m0);
     const bool ref_ok = att_i_vec3_normalize(att_i_vec3(st->m0.x, st->m0.y, 0.0f), &st->m0_ref);
@@ -204,7 +204,7 @@ static void att_mekf_m0_limits(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
 }
 
 /* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
-static bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t m0)
+static ATT_ALWAYS_INLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t m0)
 {
     att_vec3_t unit;
     if (!att_i_vec3_normalize(m0, &unit)) {
@@ -302,10 +302,25 @@ void att_mekf_reset(att_mekf_t *f)
 /* --- the step -------------------------------------------------------------------------------- */
 
 /*
+ * att_i_quat_from_rotvec_fast with its large-angle case inlined too (att_i_quat_from_rotvec, the twin of
+ * the att_quat_from_rotvec it calls: the same bits), so that no extra frame is stacked under a phase.
+ */
+static ATT_ALWAYS_INLINE att_quat_t att_mekf_exp(att_vec3_t rv)
+{
+    const float z = att_i_vec3_dot(rv, rv);
+    float k;
+    if (z <= ATT_ROTVEC_Z_SMALL) {
+        k = ATT_ROTVEC_S0 + z * (ATT_ROTVEC_S1 + z * ATT_ROTVEC_S2);
+        return att_i_quat(1.0f + z * (ATT_ROTVEC_C1 + z * ATT_ROTVEC_C2), rv.x * k, rv.y * k, rv.z * k);
+    }
+    return att_i_quat_from_rotvec(rv);
+}
+
+/*
  * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points north
  * (+y); *m0 = (0, |m_e,xy|, m_e,z) for the aligned attitude. Returns false when mag has no direction.
  */
-static bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
+static ATT_ALWAYS_INLINE bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
 {
     att_vec3_t me = att_i_quat_rotate(q, mag);
     att_vec3_t unit;
@@ -313,7 +328,7 @@ static bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_
     if (!att_i_vec3_normalize(me, &unit)) {
         return false;
     }
-    qa = att_i_quat_mul(att_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
+    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
     if (!att_i_quat_normalize_bounded(qa, &qa)) {
         return false;
     }
@@ -338,12 +353,14 @@ static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, float *p)
 static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *acc,
                                             const att_vec3_t *mag, bool mag_ok)
 {
-    const att_vec3_t t = att_sensor_tilt(*acc);
+    /* att_sensor_tilt(*acc), written here to keep its frame off the stack */
+    const float phi = att_atan2f(acc->y, acc->z);
+    const float theta = att_atan2f(-acc->x, att_i_sqrtf(acc->y * acc->y + acc->z * acc->z));
     uint32_t flags = ATT_FLAG_INITIALISED;
     att_quat_t q;
     att_quat_t qa;
     att_vec3_t m0;
-    (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &q);
+    (void)att_i_quat_normalize_bounded(att_i_quat_from_euler(phi, theta, 0.0f), &q);
     if (mag_ok) {
         if (att_mekf_align(q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
             q = qa;
@@ -360,67 +377,69 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     return flags;
 }
 
-/* The attitude and flags after a mag sample taken before the reference field is known. */
-typedef struct {
-    att_quat_t q;
-    uint32_t flags;
-} att_mekf_first_t;
-
-/* A usable mag sample before the reference field is known: yaw alignment, or m0 from it. */
-static ATT_NOINLINE att_mekf_first_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_mekf_state_t *st,
-                                                        att_quat_t q, const att_vec3_t *mag)
+/* A usable mag sample before the reference field is known: yaw alignment of *q, or m0 from it; flags. */
+static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
+                                                const att_vec3_t *mag)
 {
-    att_mekf_first_t r;
     att_quat_t qa;
     att_vec3_t m0;
-    r.q = q;
-    r.flags = 0u;
     if (c->init_from_sensors) {
-        if (att_mekf_align(q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
-            r.q = qa;
-            r.flags = ATT_FLAG_INITIALISED;
+        if (att_mekf_align(*q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+            *q = qa;
             att_mekf_yaw_reset(c, st->p);
-        } else {
-            r.flags = ATT_FLAG_MAG_REJECTED;
+            return ATT_FLAG_INITIALISED;
         }
-    } else if (!att_mekf_set_m0(c, st, att_i_quat_rotate(q, *mag))) {
-        r.flags = ATT_FLAG_MAG_REJECTED;
+        return ATT_FLAG_MAG_REJECTED;
     }
-    return r;
+    if (!att_mekf_set_m0(c, st, att_i_quat_rotate(*q, *mag))) {
+        return ATT_FLAG_MAG_REJECTED;
+    }
+    return 0u;
 }
 
 /*
  * Covariance prediction P := Phi P Phi^T + Q with Phi = [[I, -R dt], [0, I]], written out (see
- * att_mekf.h): M = R C, H = B - (dt/2) M, B := H - (dt/2) M, A := A - dt (N + N^T) + qa I with
- * N = R H^T, C := C + qb I. r is R row-major.
+ * att_mekf.h): M = R C, H = B - (dt/2) M, A := A - dt (N + N^T) + qa I with N = R H^T, B := H - (dt/2) M,
+ * C := C + qb I. r is R row-major. H is kept in the B entries of P between the two passes (M is
+ * computed again, the same operations on the same values), so no 3x3 scratch is needed on the stack.
  */
+static ATT_ALWAYS_INLINE float att_mekf_rc(const float *p, const float *r, uint32_t i, uint32_t j)
+{
+    return r[3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
+           r[3u * i + 2u] * p[ATT_MEKF_S(5u, 3u + j)];
+}
+
 static ATT_ALWAYS_INLINE void att_mekf_predict(float *p, const float *r, float hdt, float dt, float qa, float qb)
 {
-    float h[9];
     uint32_t i;
     uint32_t j;
     ATT_MEKF_UNROLL
     for (i = 0u; i < 3u; i++) {
         ATT_MEKF_UNROLL
         for (j = 0u; j < 3u; j++) {
-            const float m = r[3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
-                            r[3u * i + 2u] * p[ATT_MEKF_S(5u, 3u + j)];
-            const float hh = p[ATT_MEKF_IX(i, 3u + j)] - hdt * m;
-            h[3u * i + j] = hh;
-            p[ATT_MEKF_IX(i, 3u + j)] = hh - hdt * m;
+            p[ATT_MEKF_IX(i, 3u + j)] = p[ATT_MEKF_IX(i, 3u + j)] - hdt * att_mekf_rc(p, r, i, j); /* H */
         }
     }
     ATT_MEKF_UNROLL
     for (i = 0u; i < 3u; i++) {
         ATT_MEKF_UNROLL
         for (j = i; j < 3u; j++) {
-            const float nij = r[3u * i] * h[3u * j] + r[3u * i + 1u] * h[3u * j + 1u] + r[3u * i + 2u] * h[3u * j + 2u];
-            const float nji = r[3u * j] * h[3u * i] + r[3u * j + 1u] * h[3u * i + 1u] + r[3u * j + 2u] * h[3u * i + 2u];
+            const float *hi = &p[ATT_MEKF_IX(i, 3u)];
+            const float *hj = &p[ATT_MEKF_IX(j, 3u)];
+            const float nij = r[3u * i] * hj[0] + r[3u * i + 1u] * hj[1] + r[3u * i + 2u] * hj[2];
+            const float nji = r[3u * j] * hi[0] + r[3u * j + 1u] * hi[1] + r[3u * j + 2u] * hi[2];
             float a = p[ATT_MEKF_IX(i, j)] - dt * (nij + nji);
             if (i == j) {
                 a = a + qa;
             }
             p[ATT_MEKF_IX(i, j)] = a;
+        }
+    }
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
+        for (j = 0u; j < 3u; j++) {
+            p[ATT_MEKF_IX(i, 3u + j)] = p[ATT_MEKF_IX(i, 3u + j)] - hdt * att_mekf_rc(p, r, i, j); /* B */
         }
     }
     p[ATT_MEKF_IX(3u, 3u)] = p[ATT_MEKF_IX(3u, 3u)] + qb;
@@ -452,7 +471,7 @@ static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_innov(const float *p, float r
  * The gate recovery: the tilt variances grow by |y|^2 / (gate / 4) (then d^2 <= gate / 4); returns the
  * new innovation covariance.
  */
-static ATT_NOINLINE att_mekf_innov_t att_mekf_recover(const att_mekf_coeffs_t *c, float *p, float r, float y0, float y1)
+static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_recover(const att_mekf_coeffs_t *c, float *p, float r, float y0, float y1)
 {
     const float add = (y0 * y0 + y1 * y1) / c->soft;
     p[ATT_MEKF_IX(0u, 0u)] = p[ATT_MEKF_IX(0u, 0u)] + add;
@@ -550,7 +569,7 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, con
  * Positive definite with margin: the pivots of P = L D L^T satisfy d_i > ATT_MEKF_PIVOT_MIN P_ii (which
  * needs P_00 > 0; NaN fails). The first elimination reads P, the rest runs on the 5x5 trailing matrix.
  */
-static bool att_mekf_pd(const float *p)
+static ATT_NOINLINE bool att_mekf_pd(const float *p)
 {
     float w[15];
     float d;
@@ -692,7 +711,7 @@ static ATT_ALWAYS_INLINE bool att_mekf_heading(const att_mekf_state_t *st, att_v
  * dx = g (w_k - b_k) / s, P := P - g g^T / s. The attitude correction (through the correlations) is
  * applied to *q and the low-pass stages as in the accel update.
  */
-static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t gyr,
+static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
                                               att_quat_t *q)
 {
     float *p = st->p;
@@ -707,9 +726,9 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
     b[0] = st->bias.x;
     b[1] = st->bias.y;
     b[2] = st->bias.z;
-    w[0] = gyr.x;
-    w[1] = gyr.y;
-    w[2] = gyr.z;
+    w[0] = gyr->x;
+    w[1] = gyr->y;
+    w[2] = gyr->z;
     ATT_MEKF_UNROLL
     for (k = 0u; k < 3u; k++) {
         float ks;
@@ -735,7 +754,7 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
         }
     }
     st->bias = att_i_vec3(b[0], b[1], b[2]);
-    dq = att_i_quat_from_rotvec_fast(att_i_vec3(dth[0], dth[1], dth[2]));
+    dq = att_mekf_exp(att_i_vec3(dth[0], dth[1], dth[2]));
     *q = att_i_quat_mul(dq, *q);
     if (c->lp_on) {
         st->lp1 = att_i_quat_rotate(dq, st->lp1);
@@ -743,79 +762,29 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
     }
 }
 
-static ATT_ALWAYS_INLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
-                                                  const att_vec3_t *mag_in)
+/* What the phases of a step pass on (in memory: nothing float stays in registers across the calls). */
+typedef struct {
+    att_quat_t q; /**< the attitude (not normalised until the end of the step) */
+    att_vec3_t v; /**< R a of the predicted attitude, m/s^2, earth frame */
+    float e2;     /**< (|a|/g - 1)^2 of a usable accel sample (0 when not needed) */
+    float mnorm;  /**< |m| of a usable mag sample, uT */
+} att_mekf_work_t;
+
+/* Step 1a: integration of w - b; returns qa, the attitude process noise of the step. */
+static ATT_NOINLINE float att_mekf_integrate(const att_mekf_coeffs_t *c, const att_mekf_state_t *st,
+                                             const att_vec3_t *gyr, att_mekf_work_t *wk)
 {
-    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
-    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
-    const att_mekf_coeffs_t *c;
-    att_mekf_state_t *st;
-    uint32_t flags;
-    uint32_t accel_flags;
-    float n2;
-    float e2 = 0.0f;
-    float mnorm = 0.0f;
-    float qa;
+    const att_vec3_t w = att_i_vec3_sub(*gyr, st->bias);
+    wk->q = att_i_quat_mul(wk->q, att_mekf_exp(att_i_vec3_scale(w, c->dt)));
+    return c->qa + c->qw * att_i_vec3_dot(w, w);
+}
+
+/* Step 1b: the rotation matrix R of the prediction, P := Phi P Phi^T + Q, v = R a. */
+static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *acc,
+                                            float qa, att_mekf_work_t *wk)
+{
+    const att_quat_t q = wk->q;
     float r[9];
-    bool gyro_ok;
-    bool accel_ok;
-    bool mag_ok = false;
-    att_quat_t q;
-    att_quat_t qn;
-    if (f == NULL) {
-        return ATT_FLAG_BAD_ARG;
-    }
-    c = &f->c;
-    st = &f->st;
-    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
-    gyro_ok = (flags == 0u);
-    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
-    accel_ok = (accel_flags == 0u);
-    flags |= accel_flags;
-    if (accel_ok && c->need_norm) {
-        const float e = att_i_sqrtf(n2) / c->gravity - 1.0f;
-        e2 = e * e;
-        if (c->accel_reject > 0.0f && att_i_absf(e) > c->accel_reject) {
-            flags |= ATT_FLAG_ACCEL_REJECTED;
-        }
-    }
-    if (c->use_mag) {
-        const uint32_t mag_flags = att_i_sensor_check_mag(*mag_in, c->mag_range, &mnorm);
-        mag_ok = (mag_flags == 0u);
-        flags |= mag_flags;
-    }
-
-    if (!st->initialised) {
-        flags |= accel_ok ? att_mekf_start(c, st, acc_in, mag_in, mag_ok) : ATT_FLAG_NOT_READY;
-        st->steps = st->steps + 1u;
-        st->flags = flags;
-        return flags;
-    }
-
-    /* 0. rest: the zero-rate pseudo-measurement */
-    q = st->q;
-    {
-        const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);
-        const bool rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < c->rest_gyro2 && n2 > c->acc2_lo &&
-                          n2 < c->acc2_hi;
-        if (!rest) {
-            st->rest_count = 0u;
-        } else if (st->rest_count < c->rest_n) {
-            st->rest_count = st->rest_count + 1u;
-        }
-        if (rest && st->rest_count >= c->rest_n) {
-            att_mekf_rest_update(c, st, gyr, &q);
-            flags |= ATT_FLAG_AT_REST | ATT_FLAG_BIAS_UPDATED;
-        }
-    }
-
-    /* 1. prediction */
-    qa = c->qa;
-    if (gyro_ok) {
-        const att_vec3_t w = att_i_vec3_sub(gyr, st->bias);
-        q = att_i_quat_mul(q, att_i_quat_from_rotvec_fast(att_i_vec3_scale(w, c->dt)));
-        qa = qa + c->qw * att_i_vec3_dot(w, w);
-    }
     {
         const float xx = q.x * q.x;
         const float yy = q.y * q.y;
@@ -837,90 +806,168 @@ static ATT_ALWAYS_INLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_
         r[8] = 1.0f - 2.0f * (xx + yy);
     }
     att_mekf_predict(st->p, r, c->half_dt, c->dt, qa, c->qb);
+    wk->v = att_i_vec3(r[0] * acc->x + r[1] * acc->y + r[2] * acc->z, r[3] * acc->x + r[4] * acc->y + r[5] * acc->z,
+                       r[6] * acc->x + r[7] * acc->y + r[8] * acc->z);
+}
 
-    /* 2. accelerometer update */
-    if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_vec3_t lp1 = st->lp1;
-        att_vec3_t lp2 = st->lp2;
-        att_vec3_t u = att_i_vec3(r[0] * acc.x + r[1] * acc.y + r[2] * acc.z, r[3] * acc.x + r[4] * acc.y + r[5] * acc.z,
-                                  r[6] * acc.x + r[7] * acc.y + r[8] * acc.z);
-        float cw;
-        float cx;
-        float cy;
-        float n;
+/* Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. */
+static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk)
+{
+    uint32_t flags = 0u;
+    att_vec3_t lp1 = st->lp1;
+    att_vec3_t lp2 = st->lp2;
+    att_vec3_t u = wk->v;
+    float cw;
+    float cx;
+    float cy;
+    float n;
+    float y0;
+    float y1;
+    float rn;
+    att_mekf_innov_t v;
+    if (c->lp_on) {
+        if (!st->lp_valid) {
+            lp1 = u; /* the first sample starts the low-pass */
+            lp2 = u;
+        }
+        att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
+        u = lp2;
+    }
+    if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {
+        return 0u;
+    }
+    y0 = 2.0f * cx;
+    y1 = 2.0f * cy;
+    rn = c->r_acc * (1.0f + c->r_accel * wk->e2);
+    v = att_mekf_innov(st->p, rn, y0, y1);
+    if (c->gate > 0.0f && v.dn > c->gate * v.det) {
+        if (st->gated < ATT_MEKF_GATED_MAX) {
+            st->gated = st->gated + 1u;
+        }
+        if (!(c->n_recover > 0u && st->gated >= c->n_recover)) {
+            return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
+        }
+        v = att_mekf_recover(c, st->p, rn, y0, y1);
+    }
+    if (!(v.det > 0.0f)) {
+        return ATT_FLAG_NUMERIC; /* cannot happen with a conditioned P */
+    }
+    {
+        float dx[6];
+        att_quat_t dq;
+        st->gated = 0u;
+        att_mekf_accel_apply(c, st->p, v, y0, y1, dx);
+        dq = att_mekf_exp(att_i_vec3(dx[0], dx[1], dx[2]));
+        wk->q = att_i_quat_mul(dq, wk->q);
+        st->bias = att_i_vec3(st->bias.x + dx[3], st->bias.y + dx[4], st->bias.z + dx[5]);
         if (c->lp_on) {
-            if (!st->lp_valid) {
-                lp1 = u; /* the first sample starts the low-pass */
-                lp2 = u;
-            }
-            att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
-            u = lp2;
+            st->lp1 = att_i_quat_rotate(dq, lp1);
+            st->lp2 = att_i_quat_rotate(dq, lp2);
+            st->lp_valid = true;
         }
-        if (att_i_align_up(u, &cw, &cx, &cy, &n)) {
-            const float y0 = 2.0f * cx;
-            const float y1 = 2.0f * cy;
-            const float rn = c->r_acc * (1.0f + c->r_accel * e2);
-            att_mekf_innov_t v = att_mekf_innov(st->p, rn, y0, y1);
-            bool apply = true;
-            if (c->gate > 0.0f && v.dn > c->gate * v.det) {
-                if (st->gated < ATT_MEKF_GATED_MAX) {
-                    st->gated = st->gated + 1u;
-                }
-                if (c->n_recover > 0u && st->gated >= c->n_recover) {
-                    v = att_mekf_recover(c, st->p, rn, y0, y1);
-                } else {
-                    flags |= ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
-                    apply = false;
-                }
-            }
-            if (apply && !(v.det > 0.0f)) {
-                flags |= ATT_FLAG_NUMERIC; /* cannot happen with a conditioned P */
-                apply = false;
-            }
-            if (apply) {
-                float dx[6];
-                att_quat_t dq;
-                st->gated = 0u;
-                att_mekf_accel_apply(c, st->p, v, y0, y1, dx);
-                dq = att_i_quat_from_rotvec_fast(att_i_vec3(dx[0], dx[1], dx[2]));
-                q = att_i_quat_mul(dq, q);
-                st->bias = att_i_vec3(st->bias.x + dx[3], st->bias.y + dx[4], st->bias.z + dx[5]);
-                if (c->lp_on) {
-                    st->lp1 = att_i_quat_rotate(dq, lp1);
-                    st->lp2 = att_i_quat_rotate(dq, lp2);
-                    st->lp_valid = true;
-                }
-                flags |= ATT_FLAG_BIAS_UPDATED;
-            }
+        flags |= ATT_FLAG_BIAS_UPDATED;
+    }
+    return flags;
+}
+
+/* Step 3: the heading update with a usable mag sample of norm mnorm (m0 known); returns its flags. */
+static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
+                                          const att_vec3_t *mag, float mnorm)
+{
+    const att_vec3_t me = att_i_quat_rotate(*q, *mag);
+    float y;
+    float dz;
+    att_vec3_t db;
+    att_quat_t dq;
+    if (!att_mekf_heading(st, me, mnorm, &y) || !att_mekf_mag_apply(c, st, st->p, y, &dz, &db)) {
+        return ATT_FLAG_MAG_REJECTED;
+    }
+    dq = att_mekf_exp(att_i_vec3(0.0f, 0.0f, dz));
+    *q = att_i_quat_mul_z(dq.w, dq.z, *q);
+    st->bias = att_i_vec3_add(st->bias, db);
+    return ATT_FLAG_BIAS_UPDATED;
+}
+
+/*
+ * One step: the sample checks, then the phases (each its own leaf function, so that the stack holds one
+ * phase's frame at a time): rest update, propagation, accel update, mag update, conditioning.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
+                                                  const att_vec3_t *mag_in)
+{
+    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
+    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
+    const att_mekf_coeffs_t *c;
+    att_mekf_state_t *st;
+    uint32_t flags;
+    uint32_t accel_flags;
+    float n2;
+    bool gyro_ok;
+    bool accel_ok;
+    bool mag_ok = false;
+    bool rest;
+    att_mekf_work_t wk;
+    if (f == NULL) {
+        return ATT_FLAG_BAD_ARG;
+    }
+    c = &f->c;
+    st = &f->st;
+    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
+    gyro_ok = (flags == 0u);
+    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
+    accel_ok = (accel_flags == 0u);
+    flags |= accel_flags;
+    wk.e2 = 0.0f;
+    wk.mnorm = 0.0f;
+    if (accel_ok && c->need_norm) {
+        const float e = att_i_sqrtf(n2) / c->gravity - 1.0f;
+        wk.e2 = e * e;
+        if (c->accel_reject > 0.0f && att_i_absf(e) > c->accel_reject) {
+            flags |= ATT_FLAG_ACCEL_REJECTED;
         }
     }
+    if (c->use_mag) {
+        const uint32_t mag_flags = att_i_sensor_check_mag(*mag_in, c->mag_range, &wk.mnorm);
+        mag_ok = (mag_flags == 0u);
+        flags |= mag_flags;
+    }
+    {
+        const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);
+        rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < c->rest_gyro2 && n2 > c->acc2_lo && n2 < c->acc2_hi;
+    }
 
-    /* 3. magnetometer update */
+    if (!st->initialised) {
+        flags |= accel_ok ? att_mekf_start(c, st, acc_in, mag_in, mag_ok) : ATT_FLAG_NOT_READY;
+        st->steps = st->steps + 1u;
+        st->flags = flags;
+        return flags;
+    }
+
+    /* 0. rest: the zero-rate pseudo-measurement */
+    wk.q = st->q;
+    {
+        if (!rest) {
+            st->rest_count = 0u;
+        } else if (st->rest_count < c->rest_n) {
+            st->rest_count = st->rest_count + 1u;
+        }
+        if (rest && st->rest_count >= c->rest_n) {
+            att_mekf_rest_update(c, st, gyr_in, &wk.q);
+            flags |= ATT_FLAG_AT_REST | ATT_FLAG_BIAS_UPDATED;
+        }
+    }
+    /* 1. prediction, 2. accel update, 3. mag update */
+    att_mekf_propagate(c, st, acc_in, gyro_ok ? att_mekf_integrate(c, st, gyr_in, &wk) : c->qa, &wk);
+    if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
+        flags |= att_mekf_accel(c, st, &wk);
+    }
     if (mag_ok) {
-        if (st->m0_valid) {
-            const att_vec3_t me = att_i_quat_rotate(q, *mag_in);
-            float y;
-            float dz;
-            att_vec3_t db;
-            if (att_mekf_heading(st, me, mnorm, &y) && att_mekf_mag_apply(c, st, st->p, y, &dz, &db)) {
-                const att_quat_t dq = att_i_quat_from_rotvec_fast(att_i_vec3(0.0f, 0.0f, dz));
-                q = att_i_quat_mul_z(dq.w, dq.z, q);
-                st->bias = att_i_vec3_add(st->bias, db);
-                flags |= ATT_FLAG_BIAS_UPDATED;
-            } else {
-                flags |= ATT_FLAG_MAG_REJECTED;
-            }
-        } else {
-            const att_mekf_first_t m = att_mekf_mag_first(c, st, q, mag_in);
-            q = m.q;
-            flags |= m.flags;
-        }
+        flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, wk.mnorm) : att_mekf_mag_first(c, st, &wk.q, mag_in);
     }
-
     /* 4. conditioning of P, 5. normalisation */
     flags |= att_mekf_condition(c, st->p);
-    if (att_i_quat_normalize_bounded(q, &qn)) {
-        st->q = qn;
+    if (att_i_quat_normalize_bounded(wk.q, &wk.q)) {
+        st->q = wk.q;
     } else {
         flags |= ATT_FLAG_NUMERIC; /* keep the attitude from before the step */
     }
@@ -944,9 +991,15 @@ uint32_t att_mekf_step_out(att_mekf_t *restrict f, const att_sample_t *restrict 
 
 uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
 {
-    att_sample_t in;
-    in.gyr = gyr;
-    in.acc = acc;
-    in.mag = mag;
+    att_sample_t in; /* member by member: no temporary copies of the vectors on the stack */
+    in.gyr.x = gyr.x;
+    in.gyr.y = gyr.y;
+    in.gyr.z = gyr.z;
+    in.acc.x = acc.x;
+    in.acc.y = acc.y;
+    in.acc.z = acc.z;
+    in.mag.x = mag.x;
+    in.mag.y = mag.y;
+    in.mag.z = mag.z;
     return att_mekf_step_out(f, &in, NULL);
 }

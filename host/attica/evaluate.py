@@ -49,8 +49,14 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-NINE_AXIS = {FilterKind.MARS}
-"""attica kinds that use the magnetometer (judged by total error)."""
+NINE_AXIS = {FilterKind.MARS, FilterKind.MEKF}
+"""attica kinds that use the magnetometer by default (judged by total error)."""
+
+VARIANTS: dict[str, tuple[FilterKind, dict[str, Any], bool]] = {
+    "mekf6": (FilterKind.MEKF, {"use_mag": False}, False),
+}
+"""Named variants of a kind: name -> (kind, setting overrides, nine_axis); ``--filter all`` runs them
+after their kind, ``--filter mekf6`` alone."""
 
 DATA_SUFFIXES = (".npz", ".csv", ".hdf5", ".h5", ".mat")
 """Recording files ``load_trials`` picks up from a directory."""
@@ -91,6 +97,7 @@ GRIDS: dict[FilterKind, dict[str, list[Any]]] = {
         "r_phi,r_theta": [0.3, 1.0, 3.0],
         "accel_reject": [0.1, 0.2],
     },
+    FilterKind.MEKF: {"mag_noise": [0.1, 0.2, 0.3, 0.5], "mag_norm_reject": [0.1, 0.2, 0.3]},
 }
 """The grid searched for each tunable kind, around the default settings (``a,b`` sets both fields)."""
 
@@ -130,9 +137,19 @@ class Method:
 
 
 def attica_method(
-    kind: FilterKind, preset: str | Preset = Preset.DEFAULT, overrides: dict[str, Any] | None = None
+    kind: FilterKind,
+    preset: str | Preset = Preset.DEFAULT,
+    overrides: dict[str, Any] | None = None,
+    variant: str = "",
 ) -> Method:
-    """An attica C filter (through the cffi binding) with a preset and optional setting overrides."""
+    """An attica C filter (through the cffi binding) with a preset and optional setting overrides.
+
+    ``variant`` names an entry of :data:`VARIANTS` (its overrides apply first, its name and axes are used).
+    """
+    nine = kind in NINE_AXIS
+    if variant:
+        kind, base, nine = VARIANTS[variant]
+        overrides = {**base, **(overrides or {})}
     p = Preset.parse(preset)
     extra = dict(overrides or {})
 
@@ -145,10 +162,12 @@ def attica_method(
         out = native.Filter(kind, settings).run(rec.gyr, rec.acc, rec.mag)
         return np.asarray(out["q"], dtype=np.float64)
 
-    name = kind.label if p == Preset.DEFAULT else f"{kind.label}@{p.label}"
-    if extra:
-        name += "[" + ",".join(f"{k}={v}" for k, v in extra.items()) + "]"
-    return Method(name, "attica", kind in NINE_AXIS, p.label, run, f"attica {kind.label}, preset {p.label}")
+    label = variant or kind.label
+    name = label if p == Preset.DEFAULT else f"{label}@{p.label}"
+    shown = {k: v for k, v in extra.items() if not variant or k not in VARIANTS[variant][1]}
+    if shown:
+        name += "[" + ",".join(f"{k}={v}" for k, v in shown.items()) + "]"
+    return Method(name, "attica", nine, p.label, run, f"attica {label}, preset {p.label}")
 
 
 def peer_methods(names: Sequence[str] | None = None) -> list[Method]:
@@ -488,11 +507,19 @@ def grid_search(
 
 
 def _methods_for(args: argparse.Namespace) -> list[Method]:
-    kinds = (
-        implemented_kinds() if args.filter == "all" else [FilterKind.parse(k) for k in args.filter.split(",")]
-    )
+    labels: list[str] = []
+    for k in implemented_kinds() if args.filter == "all" else args.filter.split(","):
+        label = k.label if isinstance(k, FilterKind) else k
+        labels.append(label if label in VARIANTS else FilterKind.parse(label).label)
+        if args.filter == "all":
+            labels += [v for v, (kind, _, _) in VARIANTS.items() if kind.label == label]
     presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
-    methods = [attica_method(k, p) for p in presets for k in kinds]
+    methods = []
+    for p in presets:
+        for n in labels:
+            variant = n if n in VARIANTS else ""
+            kind = VARIANTS[n][0] if variant else FilterKind.parse(n)
+            methods.append(attica_method(kind, p, variant=variant))
     if args.peers is not None:
         names = None if args.peers in ("", "all") else args.peers.split(",")
         peers = peer_methods(names)
@@ -589,7 +616,7 @@ def _write_plots(report: Report, recs: Iterable[Recording], out: Path) -> None:
 
 def add_eval_subcommand(sub: Any) -> None:
     """Register ``attica eval`` on the subparsers object of ``attica``'s parser."""
-    choices = ", ".join(k.label for k in FilterKind)
+    choices = ", ".join([k.label for k in FilterKind] + list(VARIANTS))
     sp = sub.add_parser("eval", help="accuracy on recorded trials (BROAD metrics), tables, plots, peers")
     sp.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds ({choices})")
     sp.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")

@@ -145,8 +145,8 @@ class Mekf:
         """Back to the state after construction (att_mekf_reset)."""
         n = self.n
         z = self._zeros
-        self.q: dm.Quat = tuple(a.copy() for a in self.q_init)  # type: ignore[assignment]
-        self.bias: dm.Vec3 = tuple(a.copy() for a in self.bias_init)  # type: ignore[assignment]
+        self.q: dm.Quat = tuple(a.copy() for a in self.q_init)
+        self.bias: dm.Vec3 = tuple(a.copy() for a in self.bias_init)
         self.p: cv.Cov = cv.diag(self.p0_att, self.p0_bias, n)
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
@@ -324,7 +324,7 @@ class Mekf:
             p_rec = cv.recover(p, self.soft, y0, y1)
             v_rec = cv.innov(p_rec, rn, y0, y1)
             p = cv.where(recover, p_rec, p)
-            v = tuple(w(recover, x1, x0).astype(np.float32) for x0, x1 in zip(v, v_rec, strict=True))  # type: ignore[assignment]
+            v = tuple(w(recover, x1, x0).astype(np.float32) for x0, x1 in zip(v, v_rec, strict=True))
             flags = flags | w(hit & ~recover, _u(Flag.ACCEL_REJECTED), _U0)
             want = measure & (~hit | recover)
             det_ok = v[3] > dm.ZERO
