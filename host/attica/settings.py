@@ -334,8 +334,8 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
     FilterKind.MEKF: {},
 }
 """The seed preset: the literal settings each filter had before it was tuned on BROAD (per-sample gains,
-per-step noises; no accel low-pass, no bias estimation in MARS); the MEKF has none (its seed = its defaults). The C twin is
-``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
+per-step noises; no accel low-pass, no bias estimation in MARS); the MEKF has none (its seed = its
+defaults). The C twin is ``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
 
 
 def preset_settings(

@@ -309,7 +309,14 @@ VARIANTS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
     "mekf-6axis": (FilterKind.MEKF, {"use_mag": False}),
     "mekf-raw-gated": (
         FilterKind.MEKF,
-        {"tau_acc_lp": 0.0, "gate": 9.0, "gate_recover": 0.3, "mag_gate": 6.0, "r_accel": 30.0, "accel_reject": 0.5},
+        {
+            "tau_acc_lp": 0.0,
+            "gate": 9.0,
+            "gate_recover": 0.3,
+            "mag_gate": 6.0,
+            "r_accel": 30.0,
+            "accel_reject": 0.5,
+        },
     ),
     "mekf-noinit": (
         FilterKind.MEKF,

@@ -233,7 +233,8 @@ class Mekf:
             rx, ry, _ = self.m0_ref
             a = hn + (me[0] * rx + me[1] * ry)
             b = me[0] * ry - me[1] * rx
-            y = np.where(a > A_MIN * hn, (dm.TWO * b) / dm.sqrtf((dm.TWO * hn) * a), dm.TWO).astype(np.float32)
+            arc = (dm.TWO * b) / dm.sqrtf((dm.TWO * hn) * a)
+            y = np.where(a > A_MIN * hn, arc, dm.TWO).astype(np.float32)
         return ~reject & ok_h, y
 
     # --- the step ------------------------------------------------------------------------------
@@ -278,7 +279,8 @@ class Mekf:
             d = dm.vec3_sub(g, self.bias)
             rest = gyro_ok & accel_ok & (dm.vec3_dot(d, d) < self.rest_gyro2) & (n2 > self.acc2_lo)
             rest = rest & (n2 < self.acc2_hi)
-            count = w(~rest, _U0, w(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count))
+            inc = w(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count)
+            count = w(~rest, _U0, inc)
             rest_count = w(run, count, self.rest_count).astype(np.uint32)
             at_rest = run & rest & (rest_count >= self.rest_n)
             flags = flags | w(at_rest, _u(Flag.AT_REST) | _u(Flag.BIAS_UPDATED), _U0)
@@ -293,7 +295,8 @@ class Mekf:
 
             # 1. prediction
             wr = dm.vec3_sub(g, bias)
-            q = dm.quat_where(gyro_ok, dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(wr, self.dt))), q)
+            q_int = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(wr, self.dt)))
+            q = dm.quat_where(gyro_ok, q_int, q)
             qa = w(gyro_ok, self.qa + self.qw * dm.vec3_dot(wr, wr), self.qa).astype(np.float32)
             r = _matrix(q)
             p = cv.where(run, cv.predict(p, r, self.half_dt, self.dt, qa, self.qb), p)
@@ -378,7 +381,8 @@ class Mekf:
 
             # commit (the start for the waiting instances)
             lp_init = dm.quat_rotate(q_start, a)
-            self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_start, self.q), dm.quat_where(ok_n, qn, self.q))
+            q_wait = dm.quat_where(init_now, q_start, self.q)
+            self.q = dm.quat_where(waiting, q_wait, dm.quat_where(ok_n, qn, self.q))
             p_start = cv.where(init_mag, cv.yaw_reset(self.p, self.p0_att), self.p)
             self.p = cv.where(waiting, p_start, p)
             self.bias = dm.vec3_where(run, bias, self.bias)

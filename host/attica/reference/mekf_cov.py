@@ -44,7 +44,7 @@ def where(cond: Any, a: Cov, b: Cov) -> Cov:
 
 
 def diag(a: Any, b: Any, n: int) -> Cov:
-    """diag(a I3, b I3) as a packed covariance (att_mekf_p_reset)."""
+    """The packed covariance with a on the attitude and b on the bias diagonal (att_mekf_p_reset)."""
     p = [np.zeros(n, np.float32) for _ in range(P_LEN)]
     for i in range(3):
         p[ix(i, i)] = np.broadcast_to(np.asarray(a, np.float32), (n,)).copy()
