@@ -68,6 +68,7 @@ class Mekf:
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     COEFFS: StateSpec = {
+        "c.dt": "f32",
         "c.half_dt": "f32",
         "c.qa": "f32",
         "c.qw": "f32",
@@ -84,8 +85,28 @@ class Mekf:
         "c.acc2_hi": "f32",
         "c.rest_n": "u32",
         "c.q_init": "quat",
+        "c.r_accel": "f32",
+        "c.gate": "f32",
+        "c.mag_gate": "f32",
+        "c.p0_att": "f32",
+        "c.p0_bias": "f32",
+        "c.p_max": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
+        "c.mag_range": "f32",
+        "c.mag_norm_reject": "f32",
+        "c.mag_dip_reject": "f32",
+        "c.m0_init": "vec3",
+        "c.bias_init": "vec3",
+        "c.use_mag": "bool",
+        "c.init_from_sensors": "bool",
+        "c.lp_on": "bool",
+        "c.need_norm": "bool",
     }
-    """C coefficients computed by att_mekf_init that this class derives itself (compared by the tests)."""
+    """Every C coefficient of att_mekf_coeffs_t (set by att_mekf_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: MekfSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else MekfSettings()
