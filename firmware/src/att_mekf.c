@@ -50,14 +50,14 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->gyro_noise = 1e-4f;  /* rad/s/sqrt(Hz): a MEMS gyro (BROAD's reads 9.5e-5 at rest) */
-    settings->gyro_rate_noise = 0.0f;
-    settings->bias_noise = 1e-4f;  /* rad/s/sqrt(s) */
-    settings->accel_noise = 0.03f; /* rad sqrt(s): the low-passed up direction, linear accelerations */
+    settings->gyro_noise = 1e-4f;       /* rad/s/sqrt(Hz): a MEMS gyro's white noise (BROAD's: 9.5e-5 at rest) */
+    settings->gyro_rate_noise = 0.01f;  /* sqrt(s): 1 % of the rate (scale factor, misalignment, sampling) */
+    settings->bias_noise = 1e-4f;       /* rad/s/sqrt(s): bias instability with temperature */
+    settings->accel_noise = 0.003f;     /* rad sqrt(s): the low-passed up direction (linear accelerations) */
     settings->r_accel = 0.0f;
-    settings->gate = 0.0f;
+    settings->gate = 16.0f;             /* chi-square, 2 dof: P(d^2 > 16) = 3e-4 for a consistent filter */
     settings->gate_recover = 2.0f;
-    settings->mag_noise = 0.1f; /* rad sqrt(s): the heading, indoor field disturbances */
+    settings->mag_noise = 0.6f;         /* rad sqrt(s): the heading, indoor field disturbances */
     settings->mag_gate = 0.0f;
     settings->p0_att = 0.01f;  /* (0.1 rad)^2 */
     settings->p0_bias = 1e-4f; /* (0.01 rad/s)^2 */
@@ -68,7 +68,7 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->gyro_range = 34.906586f; /* 2000 deg/s */
     settings->mag_range = 1000.0f;
     settings->mag_norm_reject = 0.2f;
-    settings->mag_dip_reject = 0.3f; /* about 17 deg */
+    settings->mag_dip_reject = 0.5f; /* about 29 deg */
     settings->tau_acc_lp = 1.5f;
     settings->rest_noise = 1e-3f; /* rad/s/sqrt(Hz): gyro noise and tremor at rest */
     settings->rest_gyro = 0.05f;

@@ -200,13 +200,13 @@ class MekfSettings:
 
     dt: float = 0.01
     gyro_noise: float = 1e-4
-    gyro_rate_noise: float = 0.0
+    gyro_rate_noise: float = 0.01
     bias_noise: float = 1e-4
-    accel_noise: float = 0.03
+    accel_noise: float = 0.003
     r_accel: float = 0.0
-    gate: float = 0.0
+    gate: float = 16.0
     gate_recover: float = 2.0
-    mag_noise: float = 0.1
+    mag_noise: float = 0.6
     mag_gate: float = 0.0
     p0_att: float = 0.01
     p0_bias: float = 1e-4
@@ -217,7 +217,7 @@ class MekfSettings:
     gyro_range: float = 34.906586
     mag_range: float = 1000.0
     mag_norm_reject: float = 0.2
-    mag_dip_reject: float = 0.3
+    mag_dip_reject: float = 0.5
     tau_acc_lp: float = 1.5
     rest_noise: float = 1e-3
     rest_gyro: float = 0.05

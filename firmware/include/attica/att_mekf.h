@@ -68,7 +68,12 @@
  * (q a q*), never from a prior: a fictitious history would tell the filter its tilt is right.
  *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
- * during any motion that tilts, the vertical one from the heading in 9-axis use); no rest detector.
+ * during any motion that tilts, the vertical one from the heading in 9-axis use), and at rest (step 0,
+ * before the prediction: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time) by the zero-rate
+ * pseudo-measurement w = b + noise (r_rest = rest_noise^2 / dt per axis, three scalar updates; its
+ * attitude correction through the correlations is applied as the accel update's; ATT_FLAG_AT_REST).
+ * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt
+ * (scale factor and misalignment errors, and the sampling of a rate that changes within a sample).
  * ATT_FLAG_BIAS_UPDATED when an update changed b.
  *
  * Units: rad/s, m/s^2, uT, s; variances rad^2 and (rad/s)^2. Frames: samples in the sensor frame,
