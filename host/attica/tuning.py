@@ -68,14 +68,15 @@ class GridResult:
 
     def means(self) -> NDArray[np.float64]:
         """(points, 3) mean errors over the trials (NaN when a trial is NaN)."""
-        return np.mean(self.errors, axis=1)
+        out: NDArray[np.float64] = np.mean(self.errors, axis=1)
+        return out
 
     def ranked(self) -> list[tuple[dict[str, Any], Errors]]:
         """``(overrides, mean errors)`` best first (non-finite scores last)."""
         m = self.means()
         s = m[:, METRICS.index(self.metric)]
         order = sorted(range(len(self.points)), key=lambda i: (not np.isfinite(s[i]), s[i]))
-        return [(self.points[i], Errors(*map(float, m[i]))) for i in order]
+        return [(self.points[i], Errors(float(m[i, 0]), float(m[i, 1]), float(m[i, 2]))) for i in order]
 
 
 @dataclass
