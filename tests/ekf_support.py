@@ -123,7 +123,7 @@ def run_ref(ref: Ekf, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]
     return out
 
 
-class BitMismatch(Exception):
+class BitMismatch(Exception):  # noqa: N818 (a mismatch, not an error of the test)
     """C and reference differ. Not an AssertionError, so that an xfail(raises=AssertionError) test (a
     defect reproducer) cannot pass off a mismatch as the expected failure."""
 
@@ -339,7 +339,9 @@ def min_eig(cov: np.ndarray) -> np.ndarray:
     flat = cov.reshape(-1, 21)
     out = np.empty(flat.shape[0])
     for start in range(0, flat.shape[0], 100_000):
-        out[start : start + 100_000] = np.linalg.eigvalsh(unpack(flat[start : start + 100_000]).astype(np.float64))[:, 0]
+        out[start : start + 100_000] = np.linalg.eigvalsh(
+            unpack(flat[start : start + 100_000]).astype(np.float64)
+        )[:, 0]
     return out.reshape(cov.shape[:-1])
 
 
@@ -350,7 +352,15 @@ ADVERSARIAL_VARIANTS: list[dict[str, Any]] = [
     {"dt": 1.0, "cos_min": 0.5},
     {"gyro_range": 1e3, "accel_range": 1e4, "accel_reject": 0.0},
     {"p0": 1.0, "p_max": 2.0, "cos_min": 1e-6},
-    {"q_phi": 1e-20, "q_theta": 1e-20, "q_psi": 1e-20, "q_bias": 1e-20, "r_phi": 1e-6, "r_theta": 1e-6, "dt": 0.1},
+    {
+        "q_phi": 1e-20,
+        "q_theta": 1e-20,
+        "q_psi": 1e-20,
+        "q_bias": 1e-20,
+        "r_phi": 1e-6,
+        "r_theta": 1e-6,
+        "dt": 0.1,
+    },
     {"r_phi": 1e6, "r_theta": 1e6, "q_psi": 1e6, "q_phi": 1.0, "p_max": 1e6, "p0": 1e6, "p0_bias": 1e6},
     {"init_from_accel": False, "euler_init": (8000.0, 1.5707964, -3.1415927)},
     {"init_from_accel": False, "euler_init": (-3.1415927, -1.5707964, 3.1415927), "cos_min": 0.9},

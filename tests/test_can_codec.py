@@ -298,7 +298,7 @@ def test_encoders_c_and_python_give_the_same_bytes() -> None:
         cc = _c_encode_imu(g, a, m, 5, fd)
         assert py.tobytes() == cc.tobytes()
     o = _random_outputs(3000, 2)
-    for kind in (1, 3, 6):
+    for kind in (1, 3, 6, 7):
         for fd in (False, True):
             py = c.encode_outputs(o, kind, counter0=9, fd=fd)
             cc = _c_encode_outputs(o, kind, 9, fd)

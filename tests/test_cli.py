@@ -26,10 +26,10 @@ def test_sim_then_run_every_filter(tmp_path: Path, capsys: pytest.CaptureFixture
     out_path = tmp_path / "out.npz"
     assert main(["run", "--filter", "all", "--data", str(path), "-q", "--check", "-o", str(out_path)]) == 0
     out = capsys.readouterr().out
-    for kind in ("ars", "mars", "kf", "ekf", "gyro", "tilt"):
+    for kind in ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"):
         assert f"{kind}:" in out
         assert np.load(tmp_path / f"out_{kind}.npz")["q"].shape == (len(rec.gyr), 4)
-    assert out.count("0 differ: bit-exact") == 6
+    assert out.count("0 differ: bit-exact") == 7
     assert "heading" in out  # the 9-axis filter is judged by total and heading too
 
 

@@ -23,7 +23,7 @@ from attica.settings import FilterKind
 from helpers import same_bits
 
 ffi = native.ffi
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt")
+KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")
 
 
 def _flip(arr: np.ndarray, index: tuple[int, ...], bit: int) -> None:

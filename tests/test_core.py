@@ -102,6 +102,7 @@ RETUNE_CHANGES: dict[str, dict[str, Any]] = {
     "ekf": {"r_phi": 2.0, "r_theta": 2.0},
     "gyro": {"cos_min": 0.01},
     "tilt": {"normalise": False},
+    "mekf": {"tau_acc_lp": 0.7, "gyro_noise": 0.01, "mag_norm_reject": 0.3, "rest_time": 0.01, "gate": 9.0},
 }
 
 
@@ -194,7 +195,7 @@ def test_flag_names() -> None:
     assert lib.ATT_FLAGS_OUTPUT_INVALID == int(Flag.NOT_READY | Flag.BAD_ARG)
 
 
-@pytest.mark.parametrize("kind", ["ars", "mars", "kf", "ekf", "gyro", "tilt"])
+@pytest.mark.parametrize("kind", ["ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"])
 @pytest.mark.parametrize(
     "changes",
     [{}, {"tau_acc_lp": 0.0}, {"rest_time": 0.123, "rest_gyro": 0.2}],

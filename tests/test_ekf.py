@@ -10,6 +10,15 @@ from typing import Any
 
 import numpy as np
 import pytest
+
+from attica import native
+from attica.native import ffi, lib
+from attica.outputs import OUT_ALL, OUT_BIAS, OUT_EULER
+from attica.reference import detmath as dm
+from attica.reference._common import c_state_values, load_c_state, state_values
+from attica.reference.ekf import Ekf, EkfSettings
+from attica.settings import FilterKind, Flag, Preset, preset_settings
+
 from ekf_support import (
     ADVERSARIAL_VARIANTS,
     DIAG,
@@ -35,15 +44,6 @@ from ekf_support import (
     step_both,
     unpack,
 )
-
-from attica import native
-from attica.native import ffi, lib
-from attica.outputs import OUT_ALL, OUT_BIAS, OUT_EULER
-from attica.reference import detmath as dm
-from attica.reference._common import c_state_values, load_c_state, state_values
-from attica.reference.ekf import Ekf, EkfSettings
-from attica.settings import FilterKind, Flag, Preset, preset_settings
-
 from helpers import assert_same_bits
 
 F32 = np.float32

@@ -10,6 +10,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+
+from attica.reference.ekf import Ekf
+from attica.settings import Flag
+
 from ekf_support import (
     DIAG,
     G,
@@ -36,12 +40,10 @@ from ekf_support import (
     unpack,
 )
 
-from attica.reference.ekf import Ekf
-from attica.settings import Flag
-
 F32 = np.float32
 NAN = float("nan")
 PI2 = float(F32(np.pi / 2))
+
 
 def _start_before(e_true: np.ndarray) -> np.ndarray:
     """The state before the first sample: the truth at t = 0 (the first interval extrapolated back)."""
@@ -191,9 +193,7 @@ def test_gimbal_lock_pitch_through_90_noise_free(preset: str) -> None:
     assert full.max() < 0.5
 
 
-@pytest.mark.parametrize(
-    "preset", ["default", "seed"]
-)
+@pytest.mark.parametrize("preset", ["default", "seed"])
 def test_gimbal_lock_pitch_through_90_noisy(preset: str) -> None:
     """Noisy sensors through +-90 deg pitch (40 crossings, accel noise 0.1 m/s^2): state healthy and
     tilt kept; yaw and roll may jump there (the singularity of the Euler angles).
@@ -226,9 +226,7 @@ def test_gimbal_lock_pitch_through_90_noisy(preset: str) -> None:
     assert np.median(full[-1]) < 3.0
 
 
-@pytest.mark.parametrize(
-    "preset", ["default", "seed"]
-)
+@pytest.mark.parametrize("preset", ["default", "seed"])
 def test_gimbal_lock_hold_at_90(preset: str) -> None:
     """Pitch held at exactly 90 deg while roll and yaw move (20 instances, 10 s): noise-free, GIMBAL every
     step and the tilt exact; with noise (accel 0.1 m/s^2, gyro 0.003 rad/s) the tilt is kept.
@@ -317,8 +315,10 @@ def test_z_bias_learnt_from_the_raw_accel() -> None:
     gyr, acc, _ = motion(m, int(300 / dt), dt, seed=62, acc_noise=0.2, gyro_bias=(0.0, 0.0, 0.02))
     c = run_c(c_filters(ekf_default(tau_acc_lp=0.0), m), gyr, acc)
     bz = c["bias"][:, :, 2]
-    print(f"\nz bias 0.02 rad/s, raw accel: median estimate after 60 s {np.median(bz[5999]):.4f}, 300 s "
-          f"{np.median(bz[-1]):.4f}, smallest {bz[-1].min():.4f} rad/s")
+    print(
+        f"\nz bias 0.02 rad/s, raw accel: median estimate after 60 s {np.median(bz[5999]):.4f}, 300 s "
+        f"{np.median(bz[-1]):.4f}, smallest {bz[-1].min():.4f} rad/s"
+    )
     assert np.median(bz[-1]) > 0.005 and bz[-1].min() > 0.0 and np.median(bz[-1]) > np.median(bz[5999])
 
 

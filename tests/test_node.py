@@ -462,7 +462,7 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
     s = _settings(rate=200.0)
     s.filter.ars.dt = 0.01  # the filter's period does not match the sample rate
     bad.append(s)
-    for kind in ("mars", "kf", "ekf", "gyro"):  # every kind with a dt (the EKF was once forgotten)
+    for kind in ("mars", "kf", "ekf", "gyro", "mekf"):  # every kind with a dt (the EKF was once forgotten)
         s = _settings(rate=200.0)
         s.kind = getattr(lib, f"ATT_FILTER_{kind.upper()}")
         assert lib.att_filter_settings_default(s.kind, 0.01, ffi.addressof(s[0], "filter")) == lib.ATT_OK

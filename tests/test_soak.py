@@ -20,7 +20,7 @@ from helpers import ROOT
 ffi, lib = native.ffi, native.lib
 SOAK = ROOT / "build" / "soak" / "att_soak"
 STEPS = int(os.environ.get("ATT_SOAK_STEPS", "10000000"))
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt")
+KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")
 
 
 @pytest.fixture(scope="module")

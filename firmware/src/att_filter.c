@@ -33,6 +33,9 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
     case ATT_FILTER_TILT:
         att_tilt_settings_default(&settings->tilt);
         return ATT_OK;
+    case ATT_FILTER_MEKF:
+        att_mekf_settings_default(&settings->mekf, dt);
+        return ATT_OK;
     default:
         return ATT_ERR_KIND;
     }
@@ -93,7 +96,7 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
         settings->ekf.noise_rates = false;
         break;
     default:
-        break; /* gyro, tilt: nothing was tuned */
+        break; /* gyro, tilt: nothing was tuned; mekf: the defaults are its first settings */
     }
     return ATT_OK;
 }
@@ -116,6 +119,8 @@ att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filt
         return att_gyro_settings_validate(&settings->gyro);
     case ATT_FILTER_TILT:
         return att_tilt_settings_validate(&settings->tilt);
+    case ATT_FILTER_MEKF:
+        return att_mekf_settings_validate(&settings->mekf);
     default:
         return ATT_ERR_KIND;
     }
@@ -148,6 +153,9 @@ att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_
     case ATT_FILTER_GYRO:
         st = att_gyro_init(&f->u.gyro, &settings->gyro);
         break;
+    case ATT_FILTER_MEKF:
+        st = att_mekf_init(&f->u.mekf, &settings->mekf);
+        break;
     default:
         st = att_tilt_init(&f->u.tilt, &settings->tilt);
         break;
@@ -176,6 +184,8 @@ att_status_t att_filter_retune(att_filter_t *f, const att_filter_settings_t *set
         return att_gyro_retune(&f->u.gyro, &settings->gyro);
     case ATT_FILTER_TILT:
         return att_tilt_retune(&f->u.tilt, &settings->tilt);
+    case ATT_FILTER_MEKF:
+        return att_mekf_retune(&f->u.mekf, &settings->mekf);
     default:
         return ATT_ERR_KIND;
     }
@@ -204,6 +214,9 @@ void att_filter_reset(att_filter_t *f)
         break;
     case ATT_FILTER_TILT:
         att_tilt_reset(&f->u.tilt);
+        break;
+    case ATT_FILTER_MEKF:
+        att_mekf_reset(&f->u.mekf);
         break;
     default:
         break;
@@ -272,6 +285,12 @@ static bool att_filter_basic(const att_filter_t *f, att_output_t *out)
         out->steps = f->u.tilt.st.steps;
         out->valid |= ATT_OUT_EULER;
         return true;
+    case ATT_FILTER_MEKF:
+        out->q = f->u.mekf.st.q;
+        out->gyro_bias = f->u.mekf.st.bias;
+        out->flags = f->u.mekf.st.flags;
+        out->steps = f->u.mekf.st.steps;
+        return true;
     default:
         return false;
     }
@@ -304,6 +323,12 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         out->cov[1] = f->u.ekf.st.p[6];
         out->cov[2] = f->u.ekf.st.p[11];
         out->cov[3] = ((f->u.ekf.st.p[15] + f->u.ekf.st.p[18]) + f->u.ekf.st.p[20]) * 0x1.555556p-2f;
+    } else if (f->kind == ATT_FILTER_MEKF) {
+        const float *p = f->u.mekf.st.p; /* packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20 */
+        out->cov[0] = p[0];
+        out->cov[1] = p[6];
+        out->cov[2] = p[11];
+        out->cov[3] = (p[15] + p[18] + p[20]) / 3.0f;
     }
     out->valid = ATT_OUT_ALL;
 }
@@ -325,6 +350,8 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
         return att_mars_step_out(&f->u.mars, in, out);
     case ATT_FILTER_KF:
         return att_kf_step_out(&f->u.kf, in, out);
+    case ATT_FILTER_MEKF:
+        return att_mekf_step_out(&f->u.mekf, in, out);
     case ATT_FILTER_EKF:
         return att_ekf_step_out(&f->u.ekf, in, out);
     case ATT_FILTER_GYRO:
@@ -361,6 +388,8 @@ const char *att_filter_name(att_filter_kind_t kind)
         return "gyro";
     case ATT_FILTER_TILT:
         return "tilt";
+    case ATT_FILTER_MEKF:
+        return "mekf";
     default:
         return "?";
     }

@@ -104,6 +104,8 @@ static float att_node_filter_dt(att_filter_kind_t kind, const att_filter_setting
         return fs->ekf.dt;
     case ATT_FILTER_GYRO:
         return fs->gyro.dt;
+    case ATT_FILTER_MEKF:
+        return fs->mekf.dt;
     default:
         return 0.0f;
     }

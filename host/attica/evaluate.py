@@ -17,7 +17,6 @@ all trials, ranked by the mean over trials (the dataset authors' "TAGP").
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import sys
 import time
@@ -35,6 +34,7 @@ from attica.settings import FilterKind, Preset, implemented_kinds, make_settings
 
 __all__ = [
     "GRIDS",
+    "VARIANT_GRIDS",
     "GROUP_ORDER",
     "Method",
     "MethodResult",
@@ -49,8 +49,14 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-NINE_AXIS = {FilterKind.MARS}
-"""attica kinds that use the magnetometer (judged by total error)."""
+NINE_AXIS = {FilterKind.MARS, FilterKind.MEKF}
+"""attica kinds that use the magnetometer by default (judged by total error)."""
+
+VARIANTS: dict[str, tuple[FilterKind, dict[str, Any], bool]] = {
+    "mekf6": (FilterKind.MEKF, {"use_mag": False}, False),
+}
+"""Named variants of a kind: name -> (kind, setting overrides, nine_axis); ``--filter all`` runs them
+after their kind, ``--filter mekf6`` alone."""
 
 DATA_SUFFIXES = (".npz", ".csv", ".hdf5", ".h5", ".mat")
 """Recording files ``load_trials`` picks up from a directory."""
@@ -91,8 +97,22 @@ GRIDS: dict[FilterKind, dict[str, list[Any]]] = {
         "r_phi,r_theta": [0.3, 1.0, 3.0],
         "accel_reject": [0.1, 0.2],
     },
+    FilterKind.MEKF: {
+        "mag_noise": [0.3, 0.6, 1.0],
+        "mag_norm_reject": [0.1, 0.2],
+        "mag_dip_reject": [0.3, 0.5],
+    },
 }
 """The grid searched for each tunable kind, around the default settings (``a,b`` sets both fields)."""
+
+VARIANT_GRIDS: dict[str, dict[str, list[Any]]] = {
+    "mekf6": {
+        "accel_noise": [0.001, 0.003, 0.01],
+        "gyro_rate_noise": [0.003, 0.01, 0.03],
+        "tau_acc_lp": [1.0, 1.5, 2.5],
+    },
+}
+"""The grid of a variant (the MEKF's 6-axis noise densities: the 9-axis grid tunes the mag on top)."""
 
 
 @dataclass(frozen=True)
@@ -130,9 +150,19 @@ class Method:
 
 
 def attica_method(
-    kind: FilterKind, preset: str | Preset = Preset.DEFAULT, overrides: dict[str, Any] | None = None
+    kind: FilterKind,
+    preset: str | Preset = Preset.DEFAULT,
+    overrides: dict[str, Any] | None = None,
+    variant: str = "",
 ) -> Method:
-    """An attica C filter (through the cffi binding) with a preset and optional setting overrides."""
+    """An attica C filter (through the cffi binding) with a preset and optional setting overrides.
+
+    ``variant`` names an entry of :data:`VARIANTS` (its overrides apply first, its name and axes are used).
+    """
+    nine = kind in NINE_AXIS
+    if variant:
+        kind, base, nine = VARIANTS[variant]
+        overrides = {**base, **(overrides or {})}
     p = Preset.parse(preset)
     extra = dict(overrides or {})
 
@@ -145,10 +175,12 @@ def attica_method(
         out = native.Filter(kind, settings).run(rec.gyr, rec.acc, rec.mag)
         return np.asarray(out["q"], dtype=np.float64)
 
-    name = kind.label if p == Preset.DEFAULT else f"{kind.label}@{p.label}"
-    if extra:
-        name += "[" + ",".join(f"{k}={v}" for k, v in extra.items()) + "]"
-    return Method(name, "attica", kind in NINE_AXIS, p.label, run, f"attica {kind.label}, preset {p.label}")
+    label = variant or kind.label
+    name = label if p == Preset.DEFAULT else f"{label}@{p.label}"
+    shown = {k: v for k, v in extra.items() if not variant or k not in VARIANTS[variant][1]}
+    if shown:
+        name += "[" + ",".join(f"{k}={v}" for k, v in shown.items()) + "]"
+    return Method(name, "attica", nine, p.label, run, f"attica {label}, preset {p.label}")
 
 
 def peer_methods(names: Sequence[str] | None = None) -> list[Method]:
@@ -466,33 +498,29 @@ def grid_search(
     Returns ``(overrides, mean errors over trials)`` sorted best first (9-axis kinds by total error, the
     others by inclination error): one parameter set for all trials, as BROAD's authors tune.
     """
+    from attica.tuning import grid_scores
+
     g = grid if grid is not None else GRIDS[kind]
-    keys = list(g)
-    rows: list[tuple[dict[str, Any], Errors]] = []
-    points = list(itertools.product(*g.values()))
-    metric = "total" if kind in NINE_AXIS else "inclination"
-    with _progress(len(points), f"grid {kind.label}", progress) as bar:
-        for vals in points:
-            over: dict[str, Any] = {}
-            for k, v in zip(keys, vals):
-                for name in k.split(","):
-                    over[name] = v
-            res = run_methods([attica_method(kind, Preset.DEFAULT, over)], recs, progress=False).results[0]
-            rows.append((over, Errors(res.mean("total"), res.mean("heading"), res.mean("inclination"))))
-            bar.update(1)
-    rows.sort(key=lambda r: (not np.isfinite(getattr(r[1], metric)), getattr(r[1], metric)))
-    return rows
+    return grid_scores(kind, recs, g, progress=progress).ranked()
 
 
 # --- command line -----------------------------------------------------------------------------------------
 
 
 def _methods_for(args: argparse.Namespace) -> list[Method]:
-    kinds = (
-        implemented_kinds() if args.filter == "all" else [FilterKind.parse(k) for k in args.filter.split(",")]
-    )
+    labels: list[str] = []
+    for k in implemented_kinds() if args.filter == "all" else args.filter.split(","):
+        label = k.label if isinstance(k, FilterKind) else k
+        labels.append(label if label in VARIANTS else FilterKind.parse(label).label)
+        if args.filter == "all":
+            labels += [v for v, (kind, _, _) in VARIANTS.items() if kind.label == label]
     presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
-    methods = [attica_method(k, p) for p in presets for k in kinds]
+    methods = []
+    for p in presets:
+        for n in labels:
+            variant = n if n in VARIANTS else ""
+            kind = VARIANTS[n][0] if variant else FilterKind.parse(n)
+            methods.append(attica_method(kind, p, variant=variant))
     if args.peers is not None:
         names = None if args.peers in ("", "all") else args.peers.split(",")
         peers = peer_methods(names)
@@ -500,6 +528,44 @@ def _methods_for(args: argparse.Namespace) -> list[Method]:
             print("attica eval: no peer installed (pip install '.[peers]')", file=sys.stderr)
         methods += peers
     return methods
+
+
+def _cmd_grid(args: argparse.Namespace, recs: Sequence[Recording], out: Path | None) -> int:
+    """``attica eval --grid``: every grid (kinds and variants), best five, in-sample and leave-one-out."""
+    from attica.tuning import grid_scores, leave_one_out
+
+    names: list[str] = [k.label for k in implemented_kinds() if k in GRIDS] + list(VARIANT_GRIDS)
+    if args.filter != "all":
+        names = [n if n in VARIANT_GRIDS else FilterKind.parse(n).label for n in args.filter.split(",")]
+    grids: dict[str, Any] = {}
+    for name in names:
+        variant = name if name in VARIANT_GRIDS else ""
+        kind = VARIANTS[name][0] if variant else FilterKind.parse(name)
+        grid = VARIANT_GRIDS[name] if variant else GRIDS[kind]
+        res = grid_scores(kind, recs, grid, variant=variant, progress=not args.quiet)
+        rows = res.ranked()
+        print(f"\ngrid {name} ({len(rows)} points, ranked by mean {res.metric} RMSE); best 5:")
+        for over, e in rows[:5]:
+            print(f"  {e.total:7.2f} {e.heading:7.2f} {e.inclination:7.2f}  {over}")
+        entry: dict[str, Any] = {
+            "grid": grid,
+            "ranked": [{"settings": o, **{k: getattr(e, k) for k in METRICS}} for o, e in rows],
+        }
+        if len(recs) >= 2:
+            loo = leave_one_out(res)
+            print(
+                f"  {res.metric}: in-sample {loo.in_sample:.3f}, leave-one-trial-out {loo.mean:.3f} "
+                f"(the best point on the other {len(recs) - 1} trials, scored on the held-out one)"
+            )
+            entry["in_sample"] = loo.in_sample
+            entry["leave_one_out"] = loo.mean
+            entry["held_out"] = {t: float(v) for t, v in zip(res.trials, loo.held_out, strict=True)}
+            entry["chosen"] = {t: res.points[i] for t, i in zip(res.trials, loo.chosen, strict=True)}
+        grids[name] = entry
+    if out is not None:
+        (out / "grid.json").write_text(json.dumps(grids, indent=1, default=str))
+        print(f"wrote {out / 'grid.json'}")
+    return 0
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -514,24 +580,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     print(f"{args.data}: {len(recs)} trials, {sum(len(r) for r in recs)} samples")
     if args.grid:
-        kinds = [k for k in implemented_kinds() if k in GRIDS]
-        if args.filter != "all":
-            kinds = [FilterKind.parse(k) for k in args.filter.split(",")]
-        grids: dict[str, Any] = {}
-        for kind in kinds:
-            rows = grid_search(kind, recs, progress=not args.quiet)
-            metric = "total" if kind in NINE_AXIS else "inclination"
-            print(f"\ngrid {kind.label} ({len(rows)} points, ranked by mean {metric} RMSE); best 5:")
-            for over, e in rows[:5]:
-                print(f"  {e.total:7.2f} {e.heading:7.2f} {e.inclination:7.2f}  {over}")
-            grids[kind.label] = {
-                "grid": GRIDS[kind],
-                "ranked": [{"settings": o, **{k: getattr(e, k) for k in METRICS}} for o, e in rows],
-            }
-        if out is not None:
-            (out / "grid.json").write_text(json.dumps(grids, indent=1, default=str))
-            print(f"wrote {out / 'grid.json'}")
-        return 0
+        return _cmd_grid(args, recs, out)
     try:
         methods = _methods_for(args)
     except ValueError as exc:
@@ -589,7 +638,7 @@ def _write_plots(report: Report, recs: Iterable[Recording], out: Path) -> None:
 
 def add_eval_subcommand(sub: Any) -> None:
     """Register ``attica eval`` on the subparsers object of ``attica``'s parser."""
-    choices = ", ".join(k.label for k in FilterKind)
+    choices = ", ".join([k.label for k in FilterKind] + list(VARIANTS))
     sp = sub.add_parser("eval", help="accuracy on recorded trials (BROAD metrics), tables, plots, peers")
     sp.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds ({choices})")
     sp.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")

@@ -194,6 +194,42 @@ class EkfSettings:
     noise_rates: bool = True
 
 
+@dataclass
+class MekfSettings:
+    """Multiplicative EKF settings (``att_mekf_settings_t``); see att_mekf.h for meanings."""
+
+    dt: float = 0.01
+    gyro_noise: float = 1e-4
+    gyro_rate_noise: float = 0.01
+    bias_noise: float = 1e-4
+    accel_noise: float = 0.003
+    r_accel: float = 0.0
+    gate: float = 16.0
+    gate_recover: float = 2.0
+    mag_noise: float = 0.6
+    mag_gate: float = 0.0
+    p0_att: float = 0.01
+    p0_bias: float = 1e-4
+    p_max: float = 10.0
+    gravity: float = 9.80665
+    accel_reject: float = 0.0
+    accel_range: float = 156.9064
+    gyro_range: float = 34.906586
+    mag_range: float = 1000.0
+    mag_norm_reject: float = 0.2
+    mag_dip_reject: float = 0.5
+    tau_acc_lp: float = 1.5
+    rest_noise: float = 1e-3
+    rest_gyro: float = 0.05
+    rest_accel: float = 0.5
+    rest_time: float = 0.5
+    use_mag: bool = True
+    init_from_sensors: bool = True
+    q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
+    m0_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class FilterKind(enum.IntEnum):
     """``att_filter_kind_t`` (values are part of the CAN contract)."""
 
@@ -203,6 +239,7 @@ class FilterKind(enum.IntEnum):
     EKF = 4
     GYRO = 5
     TILT = 6
+    MEKF = 7
 
     @property
     def label(self) -> str:
@@ -230,6 +267,7 @@ SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
     FilterKind.EKF: EkfSettings,
     FilterKind.GYRO: GyroSettings,
     FilterKind.TILT: TiltSettings,
+    FilterKind.MEKF: MekfSettings,
 }
 """Settings dataclass of each implemented kind."""
 
@@ -304,10 +342,11 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
     },
     FilterKind.GYRO: {},
     FilterKind.TILT: {},
+    FilterKind.MEKF: {},
 }
 """The seed preset: the literal settings each filter had before it was tuned on BROAD (per-sample gains,
-per-step noises; no accel low-pass, no bias estimation in MARS). The C twin is
-``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
+per-step noises; no accel low-pass, no bias estimation in MARS); the MEKF has none (its seed = its
+defaults). The C twin is ``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
 
 
 def preset_settings(

@@ -7,8 +7,8 @@
  * to volatile globals, so nothing is optimised away; the state lives in this file's .bss (so the
  * library's own .data/.bss stay what the library itself needs: nothing).
  *
- *   ATT_IMAGE  1..6  one filter through its own API (att_<kind>_settings_default, init, reset, step):
- *                    1 ars, 2 mars, 3 kf, 4 ekf, 5 gyro, 6 tilt (the att_filter_kind_t values)
+ *   ATT_IMAGE  1..7  one filter through its own API (att_<kind>_settings_default, init, reset, step):
+ *                    1 ars, 2 mars, 3 kf, 4 ekf, 5 gyro, 6 tilt, 7 mekf (the att_filter_kind_t values)
  *              10    every filter through the unified interface (att_filter_*)
  *              11    the CAN codec: every att_can_* function
  *              12    the CAN node (att_node_*): filters + codec + node
@@ -159,6 +159,24 @@ int main(void)
         put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_tilt_reset(&state);
+        }
+    }
+    return 0;
+}
+#elif ATT_IMAGE == 7
+static att_mekf_t state;
+int main(void)
+{
+    att_mekf_settings_t s;
+    att_mekf_settings_default(&s, 0.01f);
+    if (att_mekf_init(&state, &s) != ATT_OK) {
+        return 1;
+    }
+    while (run) {
+        out_flags = att_mekf_step(&state, v3(0), v3(3), v3(6));
+        put_q(state.st.q);
+        if (out_flags == 0xffffffffu) {
+            att_mekf_reset(&state);
         }
     }
     return 0;

@@ -3,7 +3,7 @@
  * @brief libFuzzer target: att_filter_init with fuzzed settings, then att_filter_step with fuzzed samples,
  * for every kind, through the public att_filter API only (docs/robustness.md).
  *
- * Input: kind, preset and dt, then up to 12 field mutations of the settings
+ * Input: kind (1 + byte % 7), preset and dt, then up to 12 field mutations of the settings
  * (att_filter_settings_default + per-field writes of raw or special values), then up to 256 samples
  * (good motion, rest, raw floats, or a good sample with one fuzzed component), then a fixed recovery
  * sequence of good samples.
@@ -15,9 +15,9 @@
  * - STEPS           out.steps counts the steps (mod 2^32).
  * - Q_FINITE / Q_UNIT   unless a flag of FZ_INVALID says the output is not valid: q finite and
  *                   | |q| - 1 | <= FZ_Q_TOL; euler and gyro_bias finite (EULER_FINITE, BIAS_FINITE).
- * - COV_POSITIVE    kf/ekf, when valid: the four out.cov values finite and > 0.
- * - P_SPD           kf/ekf, when valid: the state covariance (kf: P = p I; ekf: the 6x6 matrix of the
- *                   packed upper triangle) is positive definite (Cholesky in double).
+ * - COV_POSITIVE    kf/ekf/mekf, when valid: the four out.cov values finite and > 0.
+ * - P_SPD           kf/ekf/mekf, when valid: the state covariance (kf: P = p I; ekf, mekf: the 6x6 matrix
+ *                   of the packed upper triangle) is positive definite (Cholesky in double).
  * - EULER_RANGE     when valid: roll and yaw in [-pi, pi], pitch in [-pi/2, pi/2] (float32 pi, pi/2).
  * - BIAS_BOUND      ars/mars: every bias component within max(|bias_init|, gyro_range) (+ 1e-5 relative).
  * - NUMERIC_KEPT    a step flagged NUMERIC leaves q bit for bit as before the step.
@@ -95,6 +95,17 @@ static const field_t f_ekf[] = {
     FF(ekf, gyro_range, T_F32), FF(ekf, cos_min, T_F32), FF(ekf, tau_acc_lp, T_F32),
     FF(ekf, init_from_accel, T_BOOL), FV(ekf, euler_init), FV(ekf, bias_init), FF(ekf, noise_rates, T_BOOL),
 };
+static const field_t f_mekf[] = {
+    FF(mekf, dt, T_F32), FF(mekf, gyro_noise, T_F32), FF(mekf, gyro_rate_noise, T_F32),
+    FF(mekf, bias_noise, T_F32), FF(mekf, accel_noise, T_F32), FF(mekf, r_accel, T_F32), FF(mekf, gate, T_F32),
+    FF(mekf, gate_recover, T_F32), FF(mekf, mag_noise, T_F32), FF(mekf, mag_gate, T_F32), FF(mekf, p0_att, T_F32),
+    FF(mekf, p0_bias, T_F32), FF(mekf, p_max, T_F32), FF(mekf, gravity, T_F32), FF(mekf, accel_reject, T_F32),
+    FF(mekf, accel_range, T_F32), FF(mekf, gyro_range, T_F32), FF(mekf, mag_range, T_F32),
+    FF(mekf, mag_norm_reject, T_F32), FF(mekf, mag_dip_reject, T_F32), FF(mekf, tau_acc_lp, T_F32),
+    FF(mekf, rest_noise, T_F32), FF(mekf, rest_gyro, T_F32), FF(mekf, rest_accel, T_F32),
+    FF(mekf, rest_time, T_F32), FF(mekf, use_mag, T_BOOL), FF(mekf, init_from_sensors, T_BOOL),
+    FQ(mekf, q_init), FV(mekf, m0_init), FV(mekf, bias_init),
+};
 static const field_t f_gyro[] = {
     FF(gyro, dt, T_F32), FF(gyro, gyro_range, T_F32), FF(gyro, cos_min, T_F32), FV(gyro, euler_init),
 };
@@ -116,6 +127,7 @@ static fields_t fields_of(att_filter_kind_t kind)
     case ATT_FILTER_MARS: FZ_SET(f_mars); break;
     case ATT_FILTER_KF: FZ_SET(f_kf); break;
     case ATT_FILTER_EKF: FZ_SET(f_ekf); break;
+    case ATT_FILTER_MEKF: FZ_SET(f_mekf); break;
     case ATT_FILTER_GYRO: FZ_SET(f_gyro); break;
     default: FZ_SET(f_tilt); break;
     }
@@ -293,7 +305,8 @@ static bool spd(const double *a, int n)
     return true;
 }
 
-/** The full covariance (n x n, double) of the filter state: kf P = p I, ekf the packed 6x6 upper triangle. */
+/** The full covariance (n x n, double) of the filter state: kf P = p I, ekf and mekf the packed 6x6 upper
+ * triangle. */
 static int full_cov(const att_filter_t *f, att_filter_kind_t kind, double *a)
 {
     int i;
@@ -303,11 +316,12 @@ static int full_cov(const att_filter_t *f, att_filter_kind_t kind, double *a)
         return 4;
     }
     {
+        const float *p = (kind == ATT_FILTER_MEKF) ? f->u.mekf.st.p : f->u.ekf.st.p;
         int k = 0;
         for (i = 0; i < 6; ++i) {
             for (j = i; j < 6; ++j) {
-                a[i * 6 + j] = (double)f->u.ekf.st.p[k];
-                a[j * 6 + i] = (double)f->u.ekf.st.p[k];
+                a[i * 6 + j] = (double)p[k];
+                a[j * 6 + i] = (double)p[k];
                 ++k;
             }
         }
@@ -369,7 +383,7 @@ static void check_valid_output(ctx_t *c, const att_filter_t *f, const att_output
             }
         }
     }
-    if (c->kind == ATT_FILTER_KF || c->kind == ATT_FILTER_EKF) {
+    if (c->kind == ATT_FILTER_KF || c->kind == ATT_FILTER_EKF || c->kind == ATT_FILTER_MEKF) {
         check_cov(c, f, o);
     }
 }
@@ -563,7 +577,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     g_input = data;
     g_input_size = size;
     fz_init(&r, data, size);
-    kind = (att_filter_kind_t)(1 + fz_u8(&r) % 6u);
+    kind = (att_filter_kind_t)(1 + fz_u8(&r) % 7u);
     b1 = fz_u8(&r);
     dt = (b1 & 0x10u) ? fz_float(&r) : dts[(b1 >> 5) & 7u];
     if (att_filter_settings_preset(kind, (b1 & 1u) ? ATT_PRESET_SEED : ATT_PRESET_DEFAULT, dt, &s) != ATT_OK) {

@@ -258,7 +258,7 @@ static bool run(att_node_t *n, tracker_t *t, const uint8_t *data, size_t size, u
     size_t op;
     fz_init(&r, data, size);
     memset(t, 0, sizeof *t);
-    kind = (att_filter_kind_t)(1 + fz_u8(&r) % 6u);
+    kind = (att_filter_kind_t)(1 + fz_u8(&r) % 7u);
     b1 = fz_u8(&r);
     if (att_node_settings_default(kind, rates[(b1 >> 6) & 3u], &s) != ATT_OK) {
         FZ_FAIL("node defaults refused for kind %d", (int)kind);

@@ -23,7 +23,7 @@ import numpy as np
 from attica import sim
 from attica.can import codec as c
 
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt")
+KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")  # index = kind - 1
 KNOWN_IDS = [0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204, 0x205, 0x206, 0x210, 0x300]
 
 
@@ -90,7 +90,7 @@ def node_seeds(out: Path) -> int:
                 if i == 12:  # reset
                     body += bytes([2, 3, 0x10, 0, 0, 0])
                 if i == 16:  # select every kind
-                    for kk in range(1, 7):
+                    for kk in range(1, len(KINDS) + 1):
                         body += bytes([2, 4, 0x12, kk, 0, 0])
             (out / f"seed-{kind}-{'fd' if fd else 'classic'}").write_bytes(bytes(body))
             n += 1

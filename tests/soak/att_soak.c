@@ -12,9 +12,9 @@
  *
  * Invariants (a violation prints its class kind:NAME; classes given with --known are counted only):
  * - Q_UNIT     every step whose flags have no bit of SOAK_INVALID: q finite, | |q| - 1 | <= SOAK_Q_TOL.
- * - COV        kf/ekf, valid steps: out.cov diagonal finite and > 0; every 4096th step the whole state
+ * - COV        kf/ekf/mekf, valid steps: out.cov diagonal finite and > 0; every 4096th step the whole state
  *              covariance is symmetric and positive definite (Cholesky in double).
- * - BIAS       ars/mars: |bias_i| <= 0.5 rad/s (the true bias is 0.01 rad/s; a bias learnt from motion or
+ * - BIAS       ars/mars/mekf: |bias_i| <= 0.5 rad/s (the true bias is 0.01 rad/s; a bias learnt from motion or
  *              bad samples would exceed it).
  * - STEPS      out.steps counts every step (mod 2^32; the wrap itself is tested in tests/test_soak.py).
  * - STUCK      after every bad burst, within SOAK_RECOVER good samples the flags have no NUMERIC and no
@@ -83,7 +83,7 @@ static void to_sensor(dq_t q, const double e[3], double s[3])
 }
 
 static char g_known[1024];
-static unsigned long g_viol[6][8];
+static unsigned long g_viol[7][8]; /* per kind (1 .. ATT_FILTER_MEKF) */
 static const char *inv_names[8] = {"Q_UNIT", "COV", "BIAS", "STEPS", "STUCK", "FROZEN", "", ""};
 static int g_unknown;
 static unsigned long long g_break_at; /* --break-at: self test, the state is overwritten with NaN there */
@@ -118,10 +118,11 @@ static int spd(const double *a, int n)
     return 1;
 }
 
-/** The state covariance (kf: P = p I; ekf: the packed 6x6 upper triangle) is positive definite. */
+/** The state covariance (kf: P = p I; ekf, mekf: the packed 6x6 upper triangle) is positive definite. */
 static int cov_ok(const att_filter_t *f)
 {
     double a[36];
+    const float *p = (f->kind == ATT_FILTER_MEKF) ? f->u.mekf.st.p : f->u.ekf.st.p;
     int i, j, k = 0;
     if (f->kind == ATT_FILTER_KF) {
         for (i = 0; i < 16; ++i) a[i] = (i % 5 == 0) ? (double)f->u.kf.st.p : 0.0;
@@ -129,8 +130,8 @@ static int cov_ok(const att_filter_t *f)
     }
     for (i = 0; i < 6; ++i) {
         for (j = i; j < 6; ++j) {
-            a[i * 6 + j] = (double)f->u.ekf.st.p[k];
-            a[j * 6 + i] = (double)f->u.ekf.st.p[k];
+            a[i * 6 + j] = (double)p[k];
+            a[j * 6 + i] = (double)p[k];
             ++k;
         }
     }
@@ -255,14 +256,14 @@ static result_t soak(att_filter_kind_t kind, unsigned long long n_steps)
             } else if (e > res.max_qerr) {
                 res.max_qerr = e;
             }
-            if (kind == ATT_FILTER_KF || kind == ATT_FILTER_EKF) {
+            if (kind == ATT_FILTER_KF || kind == ATT_FILTER_EKF || kind == ATT_FILTER_MEKF) {
                 int i;
                 for (i = 0; i < 4; ++i) {
                     if (!(o.cov[i] > 0.0f) || !isfinite(o.cov[i])) violation(kind, 1, k, "cov diagonal not > 0");
                 }
                 if ((k & 4095u) == 0u && !cov_ok(&f)) violation(kind, 1, k, "P not symmetric positive definite");
             }
-            if (kind == ATT_FILTER_ARS || kind == ATT_FILTER_MARS) {
+            if (kind == ATT_FILTER_ARS || kind == ATT_FILTER_MARS || kind == ATT_FILTER_MEKF) {
                 if (!(fabsf(o.gyro_bias.x) <= 0.5f && fabsf(o.gyro_bias.y) <= 0.5f && fabsf(o.gyro_bias.z) <= 0.5f)) {
                     char d[120];
                     snprintf(d, sizeof d, "bias (%g, %g, %g)", (double)o.gyro_bias.x, (double)o.gyro_bias.y,
@@ -307,7 +308,7 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    for (kind = ATT_FILTER_ARS; kind <= ATT_FILTER_TILT; ++kind) {
+    for (kind = ATT_FILTER_ARS; kind <= ATT_FILTER_MEKF; ++kind) {
         result_t r;
         clock_t t0;
         double sec;

@@ -55,6 +55,7 @@ FILTERS: list[BenchCase] = [
     BenchCase("ekf", "ekf"),
     BenchCase("gyro", "gyro"),
     BenchCase("tilt", "tilt"),
+    BenchCase("mekf", "mekf"),
 ]
 """Filters to benchmark, one line each. att_bench runs a kind with its default settings, so cases
 with ``overrides`` get only the native timing (the callgrind columns say n/a)."""

@@ -453,7 +453,7 @@ def attica_rows() -> list[Counted]:
     """Every implemented attica kind (mars is the 9-axis one; gyro and tilt are baselines)."""
     from attica.settings import implemented_kinds
 
-    axes = {"ars": 6, "kf": 6, "ekf": 6, "mars": 9}
+    axes = {"ars": 6, "kf": 6, "ekf": 6, "mars": 9, "mekf": 9}
     return [Counted(k.label, axes.get(k.label, 0)) for k in implemented_kinds()]
 
 
@@ -660,7 +660,7 @@ def goal_lines(counts: Counts) -> list[str]:
             r = va / vp
             verdict = "met" if r <= 1.0 else "within the 1.5 limit" if r <= 1.5 else "missed"
             out.append(f"goal {a} <= 1.0 x {p} (at most 1.5 x) on the M4F -O2: {r:.2f} x: {verdict}")
-    for k, goal in (("kf", 1500), ("ekf", 1000)):
+    for k, goal in (("kf", 1500), ("ekf", 1000), ("mekf", 2000)):
         v = m(k)
         if v is not None:
             verdict = "met" if v <= goal else "missed"

@@ -138,6 +138,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_STATUS_KIND_EKF_CHOICE (4u)
 #define ATT_CAN_DB_ATT_STATUS_KIND_GYRO_CHOICE (5u)
 #define ATT_CAN_DB_ATT_STATUS_KIND_TILT_CHOICE (6u)
+#define ATT_CAN_DB_ATT_STATUS_KIND_MEKF_CHOICE (7u)
 
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_NONE_CHOICE (0u)
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_ARS_CHOICE (1u)
@@ -146,6 +147,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_EKF_CHOICE (4u)
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_GYRO_CHOICE (5u)
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_TILT_CHOICE (6u)
+#define ATT_CAN_DB_ATT_OUT_FD_KIND_MEKF_CHOICE (7u)
 
 #define ATT_CAN_DB_CMD_CMD_SELECT_FILTER_CHOICE (1u)
 #define ATT_CAN_DB_CMD_CMD_RESET_CHOICE (2u)
@@ -969,7 +971,7 @@ struct att_can_db_att_out_fd_t {
     float bias_z;
 
     /**
-     * Covariance diagonal element 0 (KF: w, EKF: phi), float32.
+     * Covariance diagonal element 0 (KF: w, EKF: phi, MEKF: earth-frame attitude error x, rad^2), float32.
      *
      * Range: -
      * Scale: 1
@@ -992,6 +994,8 @@ struct att_can_db_att_out_fd_t {
     float cov_2;
 
     /**
+     * Covariance diagonal element 3 (KF: z, EKF: 0, MEKF: mean gyro bias variance, (rad/s)^2), float32.
+     *
      * Range: -
      * Scale: 1
      * Offset: 0

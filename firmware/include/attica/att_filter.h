@@ -21,6 +21,7 @@
 #include "attica/att_gyro.h"
 #include "attica/att_kf.h"
 #include "attica/att_mars.h"
+#include "attica/att_mekf.h"
 #include "attica/att_tilt.h"
 #include "attica/att_types.h"
 
@@ -37,7 +38,8 @@ typedef enum {
     ATT_FILTER_KF = 3,   /**< linear quaternion Kalman filter, 6-axis */
     ATT_FILTER_EKF = 4,  /**< Euler-angle extended Kalman filter, 6-axis */
     ATT_FILTER_GYRO = 5, /**< gyro-only Euler-rate integration baseline (att_gyro.h) */
-    ATT_FILTER_TILT = 6  /**< accel-only tilt baseline (att_tilt.h) */
+    ATT_FILTER_TILT = 6, /**< accel-only tilt baseline (att_tilt.h) */
+    ATT_FILTER_MEKF = 7  /**< multiplicative (error-state) EKF with gyro bias, 6- or 9-axis (att_mekf.h) */
 } att_filter_kind_t;
 
 /** One IMU sample, sensor frame. */
@@ -73,7 +75,8 @@ typedef struct {
     att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t euler;     /**< ZYX (roll phi, pitch theta, yaw psi), rad */
     att_vec3_t gyro_bias; /**< gyro bias estimate, rad/s, sensor frame (0 if not estimated) */
-    float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi, 0) rad^2; else 0 */
+    float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi, 0) rad^2; MEKF
+                               (dtheta x, y, z (earth frame), rad^2; mean bias variance, (rad/s)^2); else 0 */
     uint32_t flags;       /**< ATT_FLAG_* of the step */
     uint32_t steps;       /**< steps since init/reset (wraps) */
     uint32_t valid;       /**< ATT_OUT_* bits of the fields written by the call that filled the record */
@@ -93,6 +96,7 @@ typedef union {
     att_ekf_settings_t ekf;
     att_gyro_settings_t gyro;
     att_tilt_settings_t tilt;
+    att_mekf_settings_t mekf;
 } att_filter_settings_t;
 
 /** State of any filter; the member named after the kind is used. */
@@ -103,6 +107,7 @@ typedef union {
     att_ekf_t ekf;
     att_gyro_t gyro;
     att_tilt_t tilt;
+    att_mekf_t mekf;
 } att_filter_state_t;
 
 /** A filter of any kind. */
@@ -117,8 +122,8 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
  * Settings of a named preset for sample period dt (s). ATT_PRESET_SEED restores the literal settings of
  * the first implementation: ARS k = 0.1 per sample, c = 100, no accel low-pass; MARS alpha_acc 0.02,
  * alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass; KF
- * Q = 1e-4 I and R = 10 I per step; EKF Q = diag(1e-4, 1e-4, 0.1) and R = 6 I2 per step. ATT_ERR_KIND for
- * an unknown kind or preset.
+ * Q = 1e-4 I and R = 10 I per step; EKF Q = diag(1e-4, 1e-4, 0.1) and R = 6 I2 per step; MEKF: its
+ * defaults (it has no earlier literal settings). ATT_ERR_KIND for an unknown kind or preset.
  */
 att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
                                         att_filter_settings_t *settings);
@@ -145,7 +150,7 @@ void att_filter_reset(att_filter_t *f);
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out);
 /** The whole output record of the current state (flags and steps of the last step), valid = ATT_OUT_ALL. */
 void att_filter_output(const att_filter_t *f, att_output_t *out);
-/** Short lower-case name of a kind ("ars", "mars", "kf", "ekf", "gyro", "tilt"; "?" if unknown). */
+/** Short lower-case name of a kind ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"; "?" if unknown). */
 const char *att_filter_name(att_filter_kind_t kind);
 /** Upper-case name of one ATT_FLAG_* bit ("GYRO_INVALID", ...); NULL when flag is not exactly one known bit. */
 const char *att_flag_name(uint32_t flag);

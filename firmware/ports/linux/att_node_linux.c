@@ -94,7 +94,7 @@ static void usage(FILE *to) {
             "\n"
             "Run an attica filter as a CAN node on a SocketCAN interface (vcan0, can0...).\n"
             "  --channel IFACE       SocketCAN interface (required)\n"
-            "  --filter KIND         ars, mars, kf, ekf, gyro or tilt (default ars)\n"
+            "  --filter KIND         ars, mars, kf, ekf, gyro, tilt or mekf (default ars)\n"
             "  --rate HZ             IMU sample rate = 1/dt of the filter (default 285.714)\n"
             "  --fd                  CAN FD: IMU_FD in, ATT_OUT_FD out (interface MTU must be 72)\n"
             "  --bitrate BIT/S       nominal bit rate used for the bus load check (default 500000)\n"
@@ -203,8 +203,8 @@ static int parse_args(int argc, char **argv, options_t *o) {
 
 /** The filter kind named `name`, or ATT_FILTER_NONE. */
 static att_filter_kind_t parse_kind(const char *name) {
-    static const att_filter_kind_t kinds[] = {ATT_FILTER_ARS,  ATT_FILTER_MARS, ATT_FILTER_KF,
-                                              ATT_FILTER_EKF,  ATT_FILTER_GYRO, ATT_FILTER_TILT};
+    static const att_filter_kind_t kinds[] = {ATT_FILTER_ARS,  ATT_FILTER_MARS, ATT_FILTER_KF,  ATT_FILTER_EKF,
+                                              ATT_FILTER_GYRO, ATT_FILTER_TILT, ATT_FILTER_MEKF};
     size_t i;
     for (i = 0; i < sizeof kinds / sizeof kinds[0]; ++i) {
         if (strcmp(name, att_filter_name(kinds[i])) == 0) return kinds[i];
@@ -364,7 +364,7 @@ int main(int argc, char **argv) {
     if (parse_args(argc, argv, &o) != 0) return 2;
     kind = parse_kind(o.filter);
     if (kind == ATT_FILTER_NONE) {
-        fprintf(stderr, PROG ": error: unknown filter '%s' (known: ars, mars, kf, ekf, gyro, tilt)\n", o.filter);
+        fprintf(stderr, PROG ": error: unknown filter '%s' (known: ars, mars, kf, ekf, gyro, tilt, mekf)\n", o.filter);
         return 2;
     }
 

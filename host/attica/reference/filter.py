@@ -15,8 +15,11 @@ from attica.reference.ekf import THIRD, Ekf
 from attica.reference.gyro import Gyro
 from attica.reference.kf import Kf
 from attica.reference.mars import Mars
+from attica.reference.mekf import Mekf
 from attica.reference.tilt import Tilt
 from attica.settings import FilterKind, make_settings
+
+THREE = dm.c("0x1.8p+1")
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -68,6 +71,8 @@ class Filter:
             impl = Gyro(self.settings, n)
         elif self.kind == FilterKind.TILT:
             impl = Tilt(self.settings, n)
+        elif self.kind == FilterKind.MEKF:
+            impl = Mekf(self.settings, n)
         else:  # pragma: no cover - make_settings refuses unimplemented kinds
             raise ValueError(f"filter {self.kind.label} has no reference implementation")
         self.impl = impl
@@ -116,7 +121,7 @@ class Filter:
         f = self.impl
         if self.kind in (FilterKind.ARS, FilterKind.KF, FilterKind.EKF):
             return f.step(gyr, acc)  # type: ignore[no-any-return]
-        if self.kind == FilterKind.MARS:
+        if self.kind in (FilterKind.MARS, FilterKind.MEKF):
             return f.step(gyr, acc, mag)  # type: ignore[no-any-return]
         if self.kind == FilterKind.GYRO:
             return f.step(gyr)  # type: ignore[no-any-return]
@@ -130,17 +135,20 @@ class Filter:
             out["q"] = f.quat  # derived from the angles on request
         else:
             out["q"] = stack(f.q)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.MEKF):
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF):
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF, FilterKind.MEKF):
             out["gyro_bias"] = stack(f.bias)
         if self.kind == FilterKind.KF:
             out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
         elif self.kind == FilterKind.EKF:
             pb = ((f.p[15] + f.p[18]) + f.p[20]) * THIRD
             out["cov"] = stack((f.p[0], f.p[6], f.p[11], pb))
+        elif self.kind == FilterKind.MEKF:
+            p = f.p  # packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20
+            out["cov"] = stack((p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)

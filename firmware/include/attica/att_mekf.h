@@ -1,0 +1,232 @@
+/**
+ * @file att_mekf.h
+ * @brief Multiplicative (error-state) extended Kalman filter ("MEKF"), 6-axis or 9-axis, with gyro
+ * bias states: the attitude filter of spacecraft and drones (Markley's MEKF), made robust to linear
+ * acceleration and magnetic disturbances.
+ *
+ * Nominal state: the unit quaternion q (sensor-to-earth, ENU) and the gyro bias b (rad/s, sensor
+ * frame). Error state dx = (dtheta, db): dtheta (rad) is a rotation vector in the EARTH frame,
+ * multiplied on the left, q_true = exp(dtheta) (x) q; db = b_true - b. Its 6x6 covariance P is kept as
+ * the 21 floats of its upper triangle (row-major: (0,0) (0,1) .. (0,5) (1,1) .. (5,5)); P = [[A, B],
+ * [B^T, C]] with A the attitude block (rad^2), B attitude-bias, C the bias block ((rad/s)^2).
+ * Derivation in docs/filters.md. Per step, once initialised:
+ *
+ *  1. prediction: q := q (x) exp((w - b) dt) (att_i_quat_from_rotvec_fast: the exact exponential map,
+ *     small angles by its series); R = R(q) of the predicted attitude. With the earth-frame error the
+ *     attitude block of the transition is the identity, F = [[I, -R dt], [0, I]], and Q = diag(qa I3,
+ *     qb I3), qa = gyro_noise^2 dt, qb = bias_noise^2 dt (noise densities: rate-independent):
+ *       A := A - dt (R H^T + H R^T) + qa I,  B := H - (dt / 2) R C,  C := C + qb I,
+ *     with H = B - (dt / 2) R C (which is Phi P Phi^T + Q exactly, written out for the structure).
+ *     An unusable gyro sample leaves q (the covariance is still predicted).
+ *  2. accelerometer update (skipped for an unusable sample or ||a|/g - 1| > accel_reject): the specific
+ *     force in the earth frame of the prediction, v = R a, low-passed by two cascaded first-order stages
+ *     lp1, lp2 (gain dt / (tau_acc_lp + dt) each, as att_ars.h; tau_acc_lp = 0: v itself) is the
+ *     measured up direction u. The residual is the horizontal part of the shortest rotation taking u
+ *     to z = (0, 0, 1) in half-angle form, y = 2 (c_x, c_y) with (c_w, c_x, c_y, 0) = att_i_align_up(u):
+ *     to first order u = z - dtheta x z, so y = (dtheta_x, dtheta_y), H = [I2 0]; unlike the raw
+ *     (u_x, u_y) it grows monotonically up to a half turn (|y| = 2 sin(angle / 2)).
+ *     Noise r = r_acc (1 + r_accel (|a|/g - 1)^2) per axis, r_acc = accel_noise^2 / dt; S = A_xy + r I2.
+ *     Chi-square gate on d^2 = y^T S^-1 y (2 degrees of freedom): d^2 > gate rejects the update
+ *     (ATT_FLAG_ACCEL_REJECTED, nothing applied, the sample not entered into the low-pass); above gate / 4
+ *     the innovation covariance is scaled by lambda = d^2 / (gate / 4), so that an applied update never
+ *     has d^2 > gate / 4 (the measurement noise then is lambda S - A_xy >= lambda r: a Huber-like soft
+ *     limit). After gate_recover s of consecutive gate rejections the tilt variances grow by
+ *     |y|^2 / (gate / 4), the error the innovation reveals, and the update is applied (a wrong start or
+ *     an over-confident filter recovers; a PSD addition, P stays positive definite).
+ *     Update K = P H^T (lambda S)^-1, dx = K y, P := P - K (lambda S) K^T (the optimal gain for that
+ *     noise), q := exp(dtheta) (x) q, b := b + db; lp1 and lp2 are rotated by exp(dtheta) too, so they
+ *     stay in the estimate's earth frame.
+ *  3. magnetometer update (use_mag, a usable mag sample, the reference field m0 known): m' = q m q*
+ *     with the corrected q; rejected (ATT_FLAG_MAG_REJECTED) for |m| outside |m0| (1 -+ mag_norm_reject)
+ *     or a dip off that of m0 by more than mag_dip_reject (the bounds of att_mars.h), or no horizontal
+ *     part. The innovation is the heading error: with h the horizontal part of m' and r the unit
+ *     horizontal direction of m0, y = 2 sin(alpha / 2) for the angle alpha from h to r about z,
+ *     y = 2 (h x r)_z / sqrt(2 |h| (|h| + h . r)) (no trigonometry; 2 when h points away from r).
+ *     To first order y = dtheta_z - c (r_x dtheta_x + r_y dtheta_y), c = m0_z / |m0_xy| (a tilt error
+ *     moves the horizontal projection), so H = [-c r_x, -c r_y, 1, 0, 0, 0]; noise r_mag =
+ *     mag_noise^2 / dt; s = H P H^T + r_mag; its own gate and soft limit on y^2 / s (1 degree of freedom,
+ *     mag_gate). The gain K = P H^T / s has its dtheta_x, dtheta_y entries set to zero, so the field
+ *     can change only the heading (and the bias), never the tilt; P takes the Joseph form for that
+ *     suboptimal gain, (I - K H) P (I - K H)^T + K r K^T (the tilt block is left unchanged).
+ *     Heading is relative to magnetic north (m0 = (0, |m_xy|, m_z) after the yaw alignment).
+ *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
+ *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
+ *     unobservable yaw variance at p_max, a normal condition that is not flagged). P must then pass a
+ *     positive definiteness test with margin (the pivots of P = L D L^T: d_i > 2^-16 P_ii); if it
+ *     does not, or a variance is not > 0, the variance is set to its cap and the correlations are
+ *     multiplied by 1 - 2^-10 (dropped when that is not enough): ATT_FLAG_CLAMPED.
+ *  5. q is normalised (ATT_FLAG_NUMERIC keeps the attitude of the step before; it cannot happen with
+ *     the finite ranges of the settings contract).
+ *
+ * Initialisation (init_from_sensors, default): at the first usable accel sample, roll and pitch from
+ * att_sensor_tilt(a), yaw 0, lp1 = lp2 = q a q*. With use_mag, the first usable mag sample (at that
+ * step or later) aligns the yaw with north as att_mars.h does and sets m0 = (0, |m_xy|, m_z); the
+ * heading variance and its correlations are then reset to p0_att, 0 (ATT_FLAG_INITIALISED).
+ * Without init_from_sensors the attitude is q_init from the start and m0 = m0_init, or when m0_init
+ * is zero the first usable mag sample in the earth frame of q (its yaw is trusted). P starts as
+ * diag(p0_att I3, p0_bias I3), b as bias_init. The low-pass stages start from the first usable sample
+ * (q a q*), never from a prior: a fictitious history would tell the filter its tilt is right.
+ *
+ * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
+ * during any motion that tilts, the vertical one from the heading in 9-axis use), and at rest (step 0,
+ * before the prediction: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time) by the zero-rate
+ * pseudo-measurement w = b + noise (r_rest = rest_noise^2 / dt per axis, three scalar updates; its
+ * attitude correction through the correlations is applied as the accel update's; ATT_FLAG_AT_REST).
+ * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt
+ * (scale factor and misalignment errors, and the sampling of a rate that changes within a sample).
+ * ATT_FLAG_BIAS_UPDATED when an update changed b.
+ *
+ * Units: rad/s, m/s^2, uT, s; variances rad^2 and (rad/s)^2. Frames: samples in the sensor frame,
+ * q sensor-to-earth (ENU, z up), dtheta in the earth frame, b in the sensor frame. Mirrored bit for
+ * bit by host/attica/reference/mekf.py.
+ */
+#ifndef ATT_MEKF_H
+#define ATT_MEKF_H
+
+#include "attica/att_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ATT_CDEF_BEGIN */
+/** Entries of the packed upper triangle of the 6x6 covariance (the length of att_mekf_state_t.p). */
+#define ATT_MEKF_P_LEN 21
+
+/**
+ * Settings of the MEKF. Fill with att_mekf_settings_default, then change fields. Each field's valid
+ * range is given in brackets; init refuses anything else (NaN and Inf included).
+ */
+typedef struct {
+    float dt;              /**< sample period, s; [1e-6, 1] */
+    float gyro_noise;      /**< gyro white-noise density, rad/s/sqrt(Hz) (= rad/sqrt(s)); [1e-7, 1] */
+    float gyro_rate_noise; /**< rate-proportional gyro error density (scale factor, misalignment), sqrt(s); [0, 1] */
+    float bias_noise;      /**< gyro bias random walk, rad/s/sqrt(s); [1e-9, 1] */
+    float accel_noise;     /**< noise density of the measured up direction (low-passed), rad sqrt(s); [1e-6, 1e3] */
+    float r_accel;         /**< growth of the accel noise with (|a|/g - 1)^2; [0, 1e6] */
+    float gate;            /**< chi-square gate on the accel d^2 (2 dof); [0, 1e6]; 0 = off */
+    float gate_recover;    /**< after this long of consecutive gate rejections, recover, s; [0, 1e4]; 0 = never */
+    float mag_noise;       /**< noise density of the heading innovation, rad sqrt(s); [1e-6, 1e3] */
+    float mag_gate;        /**< chi-square gate on the heading innovation (1 dof); [0, 1e6]; 0 = off */
+    float p0_att;          /**< initial attitude error variance per axis, rad^2; [1e-12, p_max] */
+    float p0_bias;         /**< initial bias variance per axis and its cap, (rad/s)^2; [1e-12, 100] */
+    float p_max;           /**< cap on each attitude error variance, rad^2; [1e-6, 1000] */
+    float gravity;         /**< g, m/s^2; [1, 100] */
+    float accel_reject;    /**< skip the accel update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
+    float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;      /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
+    float mag_range;       /**< |m| above this: sample invalid, uT; (0, 1e5] */
+    float mag_norm_reject; /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
+    float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
+    float tau_acc_lp;      /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    float rest_noise;      /**< zero-rate pseudo-measurement noise density at rest, rad/s/sqrt(Hz); [1e-7, 1] */
+    float rest_gyro;       /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range]; 0 = no rest updates ... */
+    float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
+    float rest_time;       /**< ... for at least rest_time, s, [0, 1e4] */
+    bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
+    bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
+    att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
+    att_vec3_t m0_init;    /**< reference field when init_from_sensors is false, uT, earth (ENU); zero =
+                                from the first usable mag sample; else |m0_init| in [1e-3, mag_range] */
+    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+} att_mekf_settings_t;
+
+/** Coefficients derived from the settings by att_mekf_init: what a step needs, and the reset values. */
+typedef struct {
+    float dt;              /**< sample period, s */
+    float half_dt;         /**< dt / 2, s */
+    float qa;              /**< attitude process noise per step, gyro_noise^2 dt, rad^2 */
+    float qw;              /**< growth of qa with |w - b|^2, gyro_rate_noise^2 dt, s^2 */
+    float qb;              /**< bias process noise per step, bias_noise^2 dt, (rad/s)^2 */
+    float r_acc;           /**< accel noise per sample and axis, accel_noise^2 / dt, rad^2 */
+    float r_accel;         /**< growth of r with (|a|/g - 1)^2 */
+    float gate;            /**< accel chi-square gate (0 = off) */
+    float soft;            /**< gate / 4: the soft limit of d^2 */
+    float r_mag;           /**< heading noise per sample, mag_noise^2 / dt, rad^2 */
+    float mag_gate;        /**< heading chi-square gate (0 = off) */
+    float mag_soft;        /**< mag_gate / 4 */
+    float p0_att;          /**< initial attitude variance, rad^2 */
+    float p0_bias;         /**< initial bias variance and its cap, (rad/s)^2 */
+    float p_max;           /**< cap on the attitude variances, rad^2 */
+    float gravity;         /**< g, m/s^2 */
+    float accel_reject;    /**< ||a|/g - 1| limit (0 = never) */
+    float accel_range2;    /**< saturation limit of |a|^2, (m/s^2)^2 */
+    float gyro_range;      /**< saturation limit of |w_i|, rad/s */
+    float mag_range;       /**< validity limit of |m|, uT */
+    float mag_norm_reject; /**< ||m|/|m0| - 1| limit (0 = never) */
+    float mag_dip_reject;  /**< dip deviation limit, rad (0 = never) */
+    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
+    uint32_t n_recover;    /**< consecutive gate rejections before the recovery (0 = never) */
+    float r_rest;          /**< zero-rate noise per sample and axis, rest_noise^2 / dt, (rad/s)^2 */
+    float rest_gyro2;      /**< rest_gyro^2, (rad/s)^2 */
+    float acc2_lo;         /**< (g - rest_accel)^2, (m/s^2)^2 */
+    float acc2_hi;         /**< (g + rest_accel)^2, (m/s^2)^2 */
+    uint32_t rest_n;       /**< rest_time in samples */
+    att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
+    att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
+    att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
+    bool use_mag;          /**< the magnetometer is used */
+    bool init_from_sensors; /**< wait for the first usable accel sample, align yaw with the first mag */
+    bool lp_on;            /**< k_lp > 0 */
+    bool need_norm;        /**< |a| is needed (r_accel or accel_reject set) */
+} att_mekf_coeffs_t;
+
+/** Dynamic state of an MEKF instance. */
+typedef struct {
+    att_quat_t q;          /**< nominal attitude, unit, sensor-to-earth (ENU) */
+    att_vec3_t bias;       /**< gyro bias estimate b, rad/s, sensor frame */
+    float p[21];           /**< covariance of (dtheta (earth, rad), db (rad/s)), packed upper triangle */
+    att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
+    att_vec3_t lp2;        /**< second accel low-pass stage (the measured up direction), m/s^2, earth */
+    att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
+    att_vec3_t m0_ref;     /**< unit horizontal direction of m0 (z = 0), earth */
+    float mag_hx;          /**< H entry of dtheta_x in the heading innovation, -c r_x (c = m0_z / |m0_xy|) */
+    float mag_hy;          /**< H entry of dtheta_y, -c r_y */
+    float m0_lo;           /**< smallest accepted |m|, uT (norm rejection; INF: no usable reference) */
+    float m0_hi;           /**< largest accepted |m|, uT */
+    float dip_lo;          /**< smallest accepted sin(dip) of q m q* (-2 = none) */
+    float dip_hi;          /**< largest accepted sin(dip) (2 = none) */
+    uint32_t gated;        /**< consecutive accel gate rejections */
+    uint32_t rest_count;   /**< consecutive samples that pass the rest test (saturates at rest_n) */
+    uint32_t steps;        /**< steps taken since init/reset (wraps) */
+    uint32_t flags;        /**< flags of the last step */
+    bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
+    bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
+    bool initialised;      /**< q holds a valid attitude */
+} att_mekf_state_t;
+
+/** One MEKF instance (no heap; copy freely). */
+typedef struct {
+    att_mekf_coeffs_t c;  /**< derived from the settings at init / retune */
+    att_mekf_state_t st;  /**< changes every step */
+} att_mekf_t;
+
+/**
+ * Default settings for sample period dt (s): noise densities of a MEMS IMU, tuned on BROAD with one
+ * parameter set for all trials (docs/accuracy.md), 9-axis (use_mag). See att_mekf.c for the values.
+ * They are also the seed preset (att_filter_settings_preset): the MEKF has no earlier literal settings.
+ */
+void att_mekf_settings_default(att_mekf_settings_t *settings, float dt);
+/** ATT_OK when every field is within its range, else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
+att_status_t att_mekf_settings_validate(const att_mekf_settings_t *settings);
+/** Validate settings and initialise f. ATT_ERR_NULL / ATT_ERR_SETTINGS leave f unchanged. */
+att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
+/**
+ * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
+ * derived limits recomputed, counters); the new caps apply from the next step. On error f is unchanged.
+ */
+att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings);
+/** Back to the state right after att_mekf_init, keeping the settings. */
+void att_mekf_reset(att_mekf_t *f);
+/**
+ * One update with gyro (rad/s), accel (m/s^2) and mag (uT; zero or NaN vector = no sample; ignored
+ * without use_mag), sensor frame; returns ATT_FLAG_* bits.
+ */
+uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag);
+/* ATT_CDEF_END */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ATT_MEKF_H */

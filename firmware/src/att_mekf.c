@@ -1,0 +1,1005 @@
+/**
+ * @file att_mekf.c
+ * @brief Multiplicative (error-state) EKF (see att_mekf.h). Mirrored by host/attica/reference/mekf.py.
+ *
+ * The covariance P is the packed upper triangle of a symmetric 6x6 matrix: P(i, j) for i <= j is
+ * p[ATT_MEKF_IX(i, j)]; every formula below computes the upper triangle only, so P is exactly
+ * symmetric by construction.
+ */
+#include "att_fp.h"
+
+#include "att_core.h"
+#include "att_step.h"
+#include "attica/att_math.h"
+#include "attica/att_mekf.h"
+#include "attica/att_sensor.h"
+
+#define ATT_MEKF_PI_F 0x1.921fb6p+1f
+#define ATT_MEKF_PIO2_F 0x1.921fb6p+0f
+#define ATT_MEKF_M0_MIN 0x1.0624dep-10f     /* 1e-3 uT: smallest |m0_init| */
+#define ATT_MEKF_GYRO_NOISE_MIN 0x1.ad7f2ap-24f /* 1e-7 rad/s/sqrt(Hz) */
+#define ATT_MEKF_BIAS_NOISE_MIN 0x1.12e0bep-30f /* 1e-9 rad/s/sqrt(s) */
+#define ATT_MEKF_DENSITY_MIN 0x1.0c6f7ap-20f    /* 1e-6 rad sqrt(s) */
+#define ATT_MEKF_DENSITY_MAX 1000.0f
+#define ATT_MEKF_VAR_MIN 0x1.19799800p-40f      /* 1e-12 */
+#define ATT_MEKF_PMAX_MIN 0x1.0c6f7ap-20f       /* 1e-6 rad^2 */
+#define ATT_MEKF_PMAX_MAX 1000.0f
+#define ATT_MEKF_PBIAS_MAX 100.0f
+#define ATT_MEKF_PIVOT_MIN 0x1p-16f /* relative pivot margin of the positive definiteness test */
+#define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
+#define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
+
+/* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants), not
+ * when optimising for size (-Os); no effect on results. */
+#if defined(__GNUC__) && !defined(__OPTIMIZE_SIZE__)
+#define ATT_MEKF_PRAGMA(x) _Pragma(#x)
+#define ATT_MEKF_UNROLL ATT_MEKF_PRAGMA(GCC unroll 6)
+#else
+#define ATT_MEKF_UNROLL
+#endif
+
+/* Packed index of P(i, j), i <= j < 6; and of a symmetric access with any order. */
+#define ATT_MEKF_IX(i, j) ((i) * (11u - (i)) / 2u + (j))
+#define ATT_MEKF_S(i, j) (((i) <= (j)) ? ATT_MEKF_IX(i, j) : ATT_MEKF_IX(j, i))
+/* Packed index in a 5x5 upper triangle (the PD test's trailing matrix). */
+#define ATT_MEKF_IX5(i, j) ((i) * (9u - (i)) / 2u + (j))
+
+void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
+{
+    if (settings == NULL) {
+        return;
+    }
+    settings->dt = dt;
+    settings->gyro_noise = 1e-4f;       /* rad/s/sqrt(Hz): a MEMS gyro's white noise (BROAD's: 9.5e-5 at rest) */
+    settings->gyro_rate_noise = 0.01f;  /* sqrt(s): 1 % of the rate (scale factor, misalignment, sampling) */
+    settings->bias_noise = 1e-4f;       /* rad/s/sqrt(s): bias instability with temperature */
+    settings->accel_noise = 0.003f;     /* rad sqrt(s): the low-passed up direction (linear accelerations) */
+    settings->r_accel = 0.0f;
+    settings->gate = 16.0f;             /* chi-square, 2 dof: P(d^2 > 16) = 3e-4 for a consistent filter */
+    settings->gate_recover = 2.0f;
+    settings->mag_noise = 0.6f;         /* rad sqrt(s): the heading, indoor field disturbances */
+    settings->mag_gate = 0.0f;
+    settings->p0_att = 0.01f;  /* (0.1 rad)^2 */
+    settings->p0_bias = 1e-4f; /* (0.01 rad/s)^2 */
+    settings->p_max = 10.0f;   /* rad^2: beyond a turn a variance means "unknown" */
+    settings->gravity = 9.80665f;
+    settings->accel_reject = 0.0f;
+    settings->accel_range = 156.9064f; /* 16 g */
+    settings->gyro_range = 34.906586f; /* 2000 deg/s */
+    settings->mag_range = 1000.0f;
+    settings->mag_norm_reject = 0.2f;
+    settings->mag_dip_reject = 0.5f; /* about 29 deg */
+    settings->tau_acc_lp = 1.5f;
+    settings->rest_noise = 1e-3f; /* rad/s/sqrt(Hz): gyro noise and tremor at rest */
+    settings->rest_gyro = 0.05f;
+    settings->rest_accel = 0.5f;
+    settings->rest_time = 0.5f;
+    settings->use_mag = true;
+    settings->init_from_sensors = true;
+    settings->q_init = att_i_quat_identity();
+    settings->m0_init = att_i_vec3(0.0f, 0.0f, 0.0f);
+    settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
+}
+
+static bool att_mekf_vec3_is_zero(att_vec3_t v)
+{
+    return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
+}
+
+att_status_t att_mekf_settings_validate(const att_mekf_settings_t *s)
+{
+    bool ok;
+    if (s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->gyro_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f) &&
+         att_i_in(s->gyro_rate_noise, 0.0f, 1.0f) && att_i_in(s->bias_noise, ATT_MEKF_BIAS_NOISE_MIN, 1.0f) &&
+         att_i_in(s->accel_noise, ATT_MEKF_DENSITY_MIN, ATT_MEKF_DENSITY_MAX) &&
+         att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) &&
+         att_i_in(s->gate_recover, 0.0f, ATT_TAU_MAX) &&
+         att_i_in(s->mag_noise, ATT_MEKF_DENSITY_MIN, ATT_MEKF_DENSITY_MAX) &&
+         att_i_in(s->mag_gate, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->p_max, ATT_MEKF_PMAX_MIN, ATT_MEKF_PMAX_MAX) &&
+         att_i_in(s->p0_att, ATT_MEKF_VAR_MIN, s->p_max) && att_i_in(s->p0_bias, ATT_MEKF_VAR_MIN, ATT_MEKF_PBIAS_MAX) &&
+         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
+         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
+         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->mag_range > 0.0f && s->mag_range <= ATT_MAG_RANGE_MAX &&
+         att_i_in(s->mag_norm_reject, 0.0f, ATT_REJECT_MAX) && att_i_in(s->mag_dip_reject, 0.0f, ATT_MEKF_PI_F) &&
+         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_in(s->rest_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f) &&
+         att_i_in(s->rest_gyro, 0.0f, s->gyro_range) && att_i_in(s->rest_accel, 0.0f, s->gravity) &&
+         att_i_in(s->rest_time, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->use_mag) &&
+         att_i_bool_ok(&s->init_from_sensors) && att_i_quat_init_ok(s->q_init) &&
+         att_i_vec3_within(s->m0_init, s->mag_range) &&
+         (att_mekf_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MEKF_M0_MIN) &&
+         att_i_vec3_within(s->bias_init, s->gyro_range);
+    return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
+{
+    c->dt = s->dt;
+    c->half_dt = s->dt * 0.5f;
+    c->qa = (s->gyro_noise * s->gyro_noise) * s->dt;
+    c->qw = (s->gyro_rate_noise * s->gyro_rate_noise) * s->dt;
+    c->qb = (s->bias_noise * s->bias_noise) * s->dt;
+    c->r_acc = (s->accel_noise * s->accel_noise) / s->dt;
+    c->r_accel = s->r_accel;
+    c->gate = s->gate;
+    c->soft = s->gate * 0.25f;
+    c->r_mag = (s->mag_noise * s->mag_noise) / s->dt;
+    c->mag_gate = s->mag_gate;
+    c->mag_soft = s->mag_gate * 0.25f;
+    c->p0_att = s->p0_att;
+    c->p0_bias = s->p0_bias;
+    c->p_max = s->p_max;
+    c->gravity = s->gravity;
+    c->accel_reject = s->accel_reject;
+    c->accel_range2 = s->accel_range * s->accel_range;
+    c->gyro_range = s->gyro_range;
+    c->mag_range = s->mag_range;
+    c->mag_norm_reject = s->mag_norm_reject;
+    c->mag_dip_reject = s->mag_dip_reject;
+    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (s->tau_acc_lp + s->dt) : 0.0f;
+    c->n_recover = att_sensor_samples(s->gate_recover, s->dt);
+    c->r_rest = (s->rest_noise * s->rest_noise) / s->dt;
+    c->rest_gyro2 = s->rest_gyro * s->rest_gyro;
+    {
+        const float lo = s->gravity - s->rest_accel;
+        const float hi = s->gravity + s->rest_accel;
+        c->acc2_lo = lo * lo;
+        c->acc2_hi = hi * hi;
+    }
+    c->rest_n = att_sensor_samples(s->rest_time, s->dt);
+    (void)att_i_quat_normalize(s->q_init, &c->q_init);
+    c->m0_init = s->init_from_sensors ? att_i_vec3(0.0f, 0.0f, 0.0f) : s->m0_init;
+    c->bias_init = s->bias_init;
+    c->use_mag = s->use_mag;
+    c->init_from_sensors = s->init_from_sensors;
+    c->lp_on = c->k_lp > 0.0f;
+    c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
+}
+
+/* Dip angle of v: atan2(v.z, |v_xy|), rad. */
+static float att_mekf_dip(att_vec3_t v)
+{
+    return att_atan2f(v.z, att_i_sqrtf(v.x * v.x + v.y * v.y));
+}
+
+/*
+ * Derived quantities of the reference field m0 (state m0): the unit horizontal direction, the H entries
+ * of the tilt in the heading innovation, the accepted |m| interval and sin(dip) interval (as att_mars.c).
+ */
+static ATT_ALWAYS_INLINE void att_mekf_m0_limits(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
+{
+    const float norm = att_i_vec3_norm(st->m0);
+    const bool ref_ok = att_i_vec3_normalize(att_i_vec3(st->m0.x, st->m0.y, 0.0f), &st->m0_ref);
+    st->mag_hx = 0.0f;
+    st->mag_hy = 0.0f;
+    if (ref_ok) {
+        const float cz = st->m0.z / att_i_sqrtf(st->m0.x * st->m0.x + st->m0.y * st->m0.y);
+        st->mag_hx = -(cz * st->m0_ref.x);
+        st->mag_hy = -(cz * st->m0_ref.y);
+    }
+    st->m0_lo = 0.0f;
+    st->m0_hi = c->mag_range;
+    if (c->mag_norm_reject > 0.0f) {
+        st->m0_lo = norm * (1.0f - c->mag_norm_reject);
+        st->m0_hi = norm * (1.0f + c->mag_norm_reject);
+    }
+    if (!ref_ok) {
+        st->m0_lo = INFINITY; /* no horizontal reference: every sample is rejected */
+    }
+    st->dip_lo = -2.0f;
+    st->dip_hi = 2.0f;
+    if (c->mag_dip_reject > 0.0f) {
+        const float dip = att_mekf_dip(st->m0);
+        const float lo = dip - c->mag_dip_reject;
+        const float hi = dip + c->mag_dip_reject;
+        if (lo > -ATT_MEKF_PIO2_F) {
+            st->dip_lo = att_sinf(lo);
+        }
+        if (hi < ATT_MEKF_PIO2_F) {
+            st->dip_hi = att_sinf(hi);
+        }
+    }
+}
+
+/* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
+static ATT_ALWAYS_INLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t m0)
+{
+    att_vec3_t unit;
+    if (!att_i_vec3_normalize(m0, &unit)) {
+        return false;
+    }
+    st->m0 = m0;
+    st->m0_valid = true;
+    att_mekf_m0_limits(c, st);
+    return true;
+}
+
+/* P := diag(p0_att I3, p0_bias I3). */
+static void att_mekf_p_reset(const att_mekf_coeffs_t *c, float *p)
+{
+    uint32_t i;
+    for (i = 0u; i < ATT_MEKF_P_LEN; i++) {
+        p[i] = 0.0f;
+    }
+    p[ATT_MEKF_IX(0u, 0u)] = c->p0_att;
+    p[ATT_MEKF_IX(1u, 1u)] = c->p0_att;
+    p[ATT_MEKF_IX(2u, 2u)] = c->p0_att;
+    p[ATT_MEKF_IX(3u, 3u)] = c->p0_bias;
+    p[ATT_MEKF_IX(4u, 4u)] = c->p0_bias;
+    p[ATT_MEKF_IX(5u, 5u)] = c->p0_bias;
+}
+
+att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_mekf_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
+    }
+    att_mekf_coeffs(&f->c, settings);
+    att_mekf_reset(f);
+    return ATT_OK;
+}
+
+att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_mekf_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
+    }
+    att_mekf_coeffs(&f->c, settings);
+    if (f->st.m0_valid) {
+        att_mekf_m0_limits(&f->c, &f->st);
+    }
+    if (f->st.rest_count > f->c.rest_n) {
+        f->st.rest_count = f->c.rest_n;
+    }
+    return ATT_OK;
+}
+
+void att_mekf_reset(att_mekf_t *f)
+{
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    att_mekf_state_t *st;
+    if (f == NULL) {
+        return;
+    }
+    st = &f->st;
+    st->q = f->c.q_init;
+    st->bias = f->c.bias_init;
+    att_mekf_p_reset(&f->c, st->p);
+    st->lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
+    st->lp2 = st->lp1;
+    st->m0 = zero;
+    st->m0_ref = zero;
+    st->mag_hx = 0.0f;
+    st->mag_hy = 0.0f;
+    st->m0_lo = 0.0f;
+    st->m0_hi = 0.0f;
+    st->dip_lo = 0.0f;
+    st->dip_hi = 0.0f;
+    st->gated = 0u;
+    st->rest_count = 0u;
+    st->steps = 0u;
+    st->flags = 0u;
+    st->m0_valid = false;
+    st->lp_valid = false;
+    st->initialised = !f->c.init_from_sensors;
+    if (!att_mekf_vec3_is_zero(f->c.m0_init)) {
+        (void)att_mekf_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
+    }
+}
+
+/* --- the step -------------------------------------------------------------------------------- */
+
+/*
+ * att_i_quat_from_rotvec_fast with its large-angle case inlined too (att_i_quat_from_rotvec, the twin of
+ * the att_quat_from_rotvec it calls: the same bits), so that no extra frame is stacked under a phase.
+ */
+static ATT_ALWAYS_INLINE att_quat_t att_mekf_exp(att_vec3_t rv)
+{
+    const float z = att_i_vec3_dot(rv, rv);
+    float k;
+    if (z <= ATT_ROTVEC_Z_SMALL) {
+        k = ATT_ROTVEC_S0 + z * (ATT_ROTVEC_S1 + z * ATT_ROTVEC_S2);
+        return att_i_quat(1.0f + z * (ATT_ROTVEC_C1 + z * ATT_ROTVEC_C2), rv.x * k, rv.y * k, rv.z * k);
+    }
+    return att_i_quat_from_rotvec(rv);
+}
+
+/*
+ * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points north
+ * (+y); *m0 = (0, |m_e,xy|, m_e,z) for the aligned attitude. Returns false when mag has no direction.
+ */
+static ATT_ALWAYS_INLINE bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
+{
+    att_vec3_t me = att_i_quat_rotate(q, mag);
+    att_vec3_t unit;
+    att_quat_t qa;
+    if (!att_i_vec3_normalize(me, &unit)) {
+        return false;
+    }
+    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
+    if (!att_i_quat_normalize_bounded(qa, &qa)) {
+        return false;
+    }
+    me = att_i_quat_rotate(qa, mag);
+    *m0 = att_i_vec3(0.0f, att_i_sqrtf(me.x * me.x + me.y * me.y), me.z);
+    *q_out = qa;
+    return true;
+}
+
+/* The heading was aligned: its variance back to p0_att, its correlations to zero (P stays PD). */
+static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, float *p)
+{
+    p[ATT_MEKF_IX(0u, 2u)] = 0.0f;
+    p[ATT_MEKF_IX(1u, 2u)] = 0.0f;
+    p[ATT_MEKF_IX(2u, 2u)] = c->p0_att;
+    p[ATT_MEKF_IX(2u, 3u)] = 0.0f;
+    p[ATT_MEKF_IX(2u, 4u)] = 0.0f;
+    p[ATT_MEKF_IX(2u, 5u)] = 0.0f;
+}
+
+/* First usable accel sample: roll and pitch from it, yaw from the mag sample when used and usable. */
+static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *acc,
+                                            const att_vec3_t *mag, bool mag_ok)
+{
+    /* att_sensor_tilt(*acc), written here to keep its frame off the stack */
+    const float phi = att_atan2f(acc->y, acc->z);
+    const float theta = att_atan2f(-acc->x, att_i_sqrtf(acc->y * acc->y + acc->z * acc->z));
+    uint32_t flags = ATT_FLAG_INITIALISED;
+    att_quat_t q;
+    att_quat_t qa;
+    att_vec3_t m0;
+    (void)att_i_quat_normalize_bounded(att_i_quat_from_euler(phi, theta, 0.0f), &q);
+    if (mag_ok) {
+        if (att_mekf_align(q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+            q = qa;
+            att_mekf_yaw_reset(c, st->p);
+        } else {
+            flags |= ATT_FLAG_MAG_REJECTED;
+        }
+    }
+    st->q = q;
+    st->lp1 = att_i_quat_rotate(q, *acc);
+    st->lp2 = st->lp1;
+    st->lp_valid = true;
+    st->initialised = true;
+    return flags;
+}
+
+/* A usable mag sample before the reference field is known: yaw alignment of *q, or m0 from it; flags. */
+static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
+                                                const att_vec3_t *mag)
+{
+    att_quat_t qa;
+    att_vec3_t m0;
+    if (c->init_from_sensors) {
+        if (att_mekf_align(*q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+            *q = qa;
+            att_mekf_yaw_reset(c, st->p);
+            return ATT_FLAG_INITIALISED;
+        }
+        return ATT_FLAG_MAG_REJECTED;
+    }
+    if (!att_mekf_set_m0(c, st, att_i_quat_rotate(*q, *mag))) {
+        return ATT_FLAG_MAG_REJECTED;
+    }
+    return 0u;
+}
+
+/*
+ * Covariance prediction P := Phi P Phi^T + Q with Phi = [[I, -R dt], [0, I]], written out (see
+ * att_mekf.h): M = R C, H = B - (dt/2) M, A := A - dt (N + N^T) + qa I with N = R H^T, B := H - (dt/2) M,
+ * C := C + qb I. r is R row-major. H is kept in the B entries of P between the two passes (M is
+ * computed again, the same operations on the same values), so no 3x3 scratch is needed on the stack.
+ */
+static ATT_ALWAYS_INLINE float att_mekf_rc(const float *p, const float *r, uint32_t i, uint32_t j)
+{
+    return r[3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
+           r[3u * i + 2u] * p[ATT_MEKF_S(5u, 3u + j)];
+}
+
+static ATT_ALWAYS_INLINE void att_mekf_predict(float *p, const float *r, float hdt, float dt, float qa, float qb)
+{
+    uint32_t i;
+    uint32_t j;
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
+        for (j = 0u; j < 3u; j++) {
+            p[ATT_MEKF_IX(i, 3u + j)] = p[ATT_MEKF_IX(i, 3u + j)] - hdt * att_mekf_rc(p, r, i, j); /* H */
+        }
+    }
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
+        for (j = i; j < 3u; j++) {
+            const float *hi = &p[ATT_MEKF_IX(i, 3u)];
+            const float *hj = &p[ATT_MEKF_IX(j, 3u)];
+            const float nij = r[3u * i] * hj[0] + r[3u * i + 1u] * hj[1] + r[3u * i + 2u] * hj[2];
+            const float nji = r[3u * j] * hi[0] + r[3u * j + 1u] * hi[1] + r[3u * j + 2u] * hi[2];
+            float a = p[ATT_MEKF_IX(i, j)] - dt * (nij + nji);
+            if (i == j) {
+                a = a + qa;
+            }
+            p[ATT_MEKF_IX(i, j)] = a;
+        }
+    }
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 3u; i++) {
+        ATT_MEKF_UNROLL
+        for (j = 0u; j < 3u; j++) {
+            p[ATT_MEKF_IX(i, 3u + j)] = p[ATT_MEKF_IX(i, 3u + j)] - hdt * att_mekf_rc(p, r, i, j); /* B */
+        }
+    }
+    p[ATT_MEKF_IX(3u, 3u)] = p[ATT_MEKF_IX(3u, 3u)] + qb;
+    p[ATT_MEKF_IX(4u, 4u)] = p[ATT_MEKF_IX(4u, 4u)] + qb;
+    p[ATT_MEKF_IX(5u, 5u)] = p[ATT_MEKF_IX(5u, 5u)] + qb;
+}
+
+/* The innovation covariance of the accel update and the quantities derived from it. */
+typedef struct {
+    float s00; /**< S = A_xy + r I2 */
+    float s01;
+    float s11;
+    float det; /**< det S */
+    float dn;  /**< y^T adj(S) y = d^2 det S */
+} att_mekf_innov_t;
+
+static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_innov(const float *p, float r, float y0, float y1)
+{
+    att_mekf_innov_t v;
+    v.s00 = p[ATT_MEKF_IX(0u, 0u)] + r;
+    v.s01 = p[ATT_MEKF_IX(0u, 1u)];
+    v.s11 = p[ATT_MEKF_IX(1u, 1u)] + r;
+    v.det = v.s00 * v.s11 - v.s01 * v.s01;
+    v.dn = y0 * y0 * v.s11 - 2.0f * y0 * y1 * v.s01 + y1 * y1 * v.s00;
+    return v;
+}
+
+/*
+ * The gate recovery: the tilt variances grow by |y|^2 / (gate / 4) (then d^2 <= gate / 4); returns the
+ * new innovation covariance.
+ */
+static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_recover(const att_mekf_coeffs_t *c, float *p, float r, float y0, float y1)
+{
+    const float add = (y0 * y0 + y1 * y1) / c->soft;
+    p[ATT_MEKF_IX(0u, 0u)] = p[ATT_MEKF_IX(0u, 0u)] + add;
+    p[ATT_MEKF_IX(1u, 1u)] = p[ATT_MEKF_IX(1u, 1u)] + add;
+    return att_mekf_innov(p, r, y0, y1);
+}
+
+/*
+ * Accel update with the residual y (H = [I2 0]) and the innovation v: P := P - K (lambda S) K^T with
+ * K = G (lambda S)^-1, G = P H^T (the first two columns of P), the error estimate into dx.
+ */
+static ATT_ALWAYS_INLINE void att_mekf_accel_apply(const att_mekf_coeffs_t *c, float *p, att_mekf_innov_t v, float y0,
+                                                   float y1, float *dx)
+{
+    float g0[6];
+    float g1[6];
+    float ks;
+    float a0;
+    float a1;
+    float a2;
+    uint32_t i;
+    uint32_t j;
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        g0[i] = p[ATT_MEKF_IX(0u, i)];
+        g1[i] = p[ATT_MEKF_S(1u, i)];
+    }
+    ks = 1.0f / v.det;
+    if (c->gate > 0.0f && v.dn > c->soft * v.det) {
+        ks = c->soft / v.dn; /* the soft limit: (lambda S)^-1 = adj(S) (gate / 4) / (y^T adj(S) y) */
+    }
+    a0 = v.s11 * ks;
+    a1 = -(v.s01 * ks);
+    a2 = v.s00 * ks;
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        const float k0 = g0[i] * a0 + g1[i] * a1;
+        const float k1 = g0[i] * a1 + g1[i] * a2;
+        dx[i] = k0 * y0 + k1 * y1;
+        ATT_MEKF_UNROLL
+        for (j = i; j < 6u; j++) {
+            p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - (k0 * g0[j] + k1 * g1[j]);
+        }
+    }
+}
+
+/*
+ * Heading update with innovation y and noise r: H = [hx, hy, 1, 0, 0, 0], g = P H^T, s = H g + r, the
+ * gain K = g / (lambda s) with K_0 = K_1 = 0 and the Joseph form, which for that gain subtracts
+ * k g_i g_j from every entry outside the tilt block (k = 1 / (lambda s)). Returns false (nothing
+ * changed) when the gate rejects y; else dz (the heading correction) and db.
+ */
+static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, const att_mekf_state_t *st, float *p,
+                                                 float y, float *dz, att_vec3_t *db)
+{
+    const float hx = st->mag_hx;
+    const float hy = st->mag_hy;
+    float g[6];
+    float kg[6];
+    float s;
+    float y2;
+    float k;
+    uint32_t i;
+    uint32_t j;
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        g[i] = p[ATT_MEKF_S(i, 2u)] + hx * p[ATT_MEKF_S(i, 0u)] + hy * p[ATT_MEKF_S(i, 1u)];
+    }
+    s = g[2] + hx * g[0] + hy * g[1] + c->r_mag;
+    y2 = y * y;
+    if (c->mag_gate > 0.0f && y2 > c->mag_gate * s) {
+        return false;
+    }
+    k = 1.0f / s;
+    if (c->mag_gate > 0.0f && y2 > c->mag_soft * s) {
+        k = c->mag_soft / y2;
+    }
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        kg[i] = k * g[i];
+    }
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        ATT_MEKF_UNROLL
+        for (j = (i < 2u) ? 2u : i; j < 6u; j++) {
+            p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - kg[i] * g[j];
+        }
+    }
+    *dz = kg[2] * y;
+    *db = att_i_vec3(kg[3] * y, kg[4] * y, kg[5] * y);
+    return true;
+}
+
+/*
+ * Positive definite with margin: the pivots of P = L D L^T satisfy d_i > ATT_MEKF_PIVOT_MIN P_ii (which
+ * needs P_00 > 0; NaN fails). The first elimination reads P, the rest runs on the 5x5 trailing matrix.
+ */
+static ATT_NOINLINE bool att_mekf_pd(const float *p)
+{
+    float w[15];
+    float d;
+    float inv;
+    uint32_t i;
+    uint32_t j;
+    uint32_t k;
+    d = p[ATT_MEKF_IX(0u, 0u)];
+    if (!(d > 0.0f)) {
+        return false; /* the first pivot is P_00 itself */
+    }
+    inv = 1.0f / d;
+    ATT_MEKF_UNROLL
+    for (i = 1u; i < 6u; i++) {
+        const float li = p[ATT_MEKF_IX(0u, i)] * inv;
+        ATT_MEKF_UNROLL
+        for (j = i; j < 6u; j++) {
+            w[ATT_MEKF_IX5(i - 1u, j - 1u)] = p[ATT_MEKF_IX(i, j)] - li * p[ATT_MEKF_IX(0u, j)];
+        }
+    }
+    ATT_MEKF_UNROLL
+    for (k = 0u; k < 5u; k++) {
+        d = w[ATT_MEKF_IX5(k, k)];
+        if (!(d > ATT_MEKF_PIVOT_MIN * p[ATT_MEKF_IX(k + 1u, k + 1u)])) {
+            return false;
+        }
+        inv = 1.0f / d;
+        ATT_MEKF_UNROLL
+        for (i = k + 1u; i < 5u; i++) {
+            const float li = w[ATT_MEKF_IX5(k, i)] * inv;
+            ATT_MEKF_UNROLL
+            for (j = i; j < 5u; j++) {
+                w[ATT_MEKF_IX5(i, j)] = w[ATT_MEKF_IX5(i, j)] - li * w[ATT_MEKF_IX5(k, j)];
+            }
+        }
+    }
+    return true;
+}
+
+/* Multiply every correlation (off-diagonal entry) of P by s. */
+static void att_mekf_shrink(float *p, float s)
+{
+    uint32_t i;
+    uint32_t j;
+    for (i = 0u; i < 6u; i++) {
+        for (j = i + 1u; j < 6u; j++) {
+            p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] * s;
+        }
+    }
+}
+
+/*
+ * The conditioning of step 4 (see att_mekf.h), slow part: variances above their cap brought to it by
+ * D P D; a variance not > 0 (or NaN) set to its cap (ATT_FLAG_CLAMPED); then the positive definiteness
+ * test and the repair (ATT_FLAG_CLAMPED).
+ */
+static ATT_NOINLINE uint32_t att_mekf_repair(const att_mekf_coeffs_t *c, float *p, bool diag_ok)
+{
+    uint32_t flags = 0u;
+    uint32_t i;
+    uint32_t j;
+    if (!diag_ok) {
+        float d[6];
+        for (i = 0u; i < 6u; i++) {
+            const float cap = (i < 3u) ? c->p_max : c->p0_bias;
+            const float v = p[ATT_MEKF_IX(i, i)];
+            d[i] = 1.0f;
+            if (v > cap) {
+                d[i] = att_i_sqrtf(cap / v); /* D P D: the correlations kept */
+                p[ATT_MEKF_IX(i, i)] = cap;
+            } else if (!(v > 0.0f)) {
+                p[ATT_MEKF_IX(i, i)] = cap; /* not > 0 or NaN: unknown */
+                flags |= ATT_FLAG_CLAMPED;
+            }
+        }
+        for (i = 0u; i < 6u; i++) {
+            for (j = i + 1u; j < 6u; j++) {
+                p[ATT_MEKF_IX(i, j)] = (p[ATT_MEKF_IX(i, j)] * d[i]) * d[j];
+            }
+        }
+        if (att_mekf_pd(p)) {
+            return flags;
+        }
+    }
+    att_mekf_shrink(p, ATT_MEKF_SHRINK);
+    if (!att_mekf_pd(p)) {
+        att_mekf_shrink(p, 0.0f);
+    }
+    return flags | ATT_FLAG_CLAMPED;
+}
+
+/* Step 4: every variance in (0, cap] and P positive definite with margin, else the repair. */
+static ATT_ALWAYS_INLINE uint32_t att_mekf_condition(const att_mekf_coeffs_t *c, float *p)
+{
+    const float pa = c->p_max;
+    const float pb = c->p0_bias;
+    const bool diag_ok = p[ATT_MEKF_IX(0u, 0u)] <= pa && p[ATT_MEKF_IX(1u, 1u)] <= pa &&
+                         p[ATT_MEKF_IX(2u, 2u)] <= pa && p[ATT_MEKF_IX(3u, 3u)] <= pb &&
+                         p[ATT_MEKF_IX(4u, 4u)] <= pb && p[ATT_MEKF_IX(5u, 5u)] <= pb &&
+                         p[ATT_MEKF_IX(0u, 0u)] > 0.0f && p[ATT_MEKF_IX(1u, 1u)] > 0.0f &&
+                         p[ATT_MEKF_IX(2u, 2u)] > 0.0f && p[ATT_MEKF_IX(3u, 3u)] > 0.0f &&
+                         p[ATT_MEKF_IX(4u, 4u)] > 0.0f && p[ATT_MEKF_IX(5u, 5u)] > 0.0f;
+    if (diag_ok && att_mekf_pd(p)) {
+        return 0u;
+    }
+    return att_mekf_repair(c, p, diag_ok);
+}
+
+/*
+ * The heading innovation of the earth-frame field me (reference known, sample of norm mnorm): false
+ * when the sample is rejected (norm, dip, no horizontal part), else *y = 2 sin(alpha / 2).
+ */
+static ATT_ALWAYS_INLINE bool att_mekf_heading(const att_mekf_state_t *st, att_vec3_t me, float mnorm, float *y)
+{
+    float h2;
+    float hn;
+    float a;
+    float b;
+    if (mnorm < st->m0_lo || mnorm > st->m0_hi || me.z < st->dip_lo * mnorm || me.z > st->dip_hi * mnorm) {
+        return false;
+    }
+    h2 = me.x * me.x + me.y * me.y;
+    if (!(h2 >= ATT_NORM2_MIN)) {
+        return false; /* vertical field: no heading information */
+    }
+    hn = att_i_sqrtf(h2);
+    a = hn + (me.x * st->m0_ref.x + me.y * st->m0_ref.y);
+    b = me.x * st->m0_ref.y - me.y * st->m0_ref.x;
+    *y = 2.0f;
+    if (a > ATT_ALIGN_A_MIN * hn) {
+        *y = (2.0f * b) / att_i_sqrtf((2.0f * hn) * a);
+    }
+    return true;
+}
+
+/*
+ * The zero-rate pseudo-measurement at rest: w_k = b_k + noise (r_rest) for k = 0, 1, 2, H = [0 e_k], as
+ * three sequential scalar updates (exact for the diagonal noise): g = P e_(3+k), s = g_(3+k) + r_rest,
+ * dx = g (w_k - b_k) / s, P := P - g g^T / s. The attitude correction (through the correlations) is
+ * applied to *q and the low-pass stages as in the accel update.
+ */
+static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
+                                              att_quat_t *q)
+{
+    float *p = st->p;
+    float dth[3] = {0.0f, 0.0f, 0.0f};
+    float b[3];
+    float w[3];
+    float g[6];
+    att_quat_t dq;
+    uint32_t i;
+    uint32_t j;
+    uint32_t k;
+    b[0] = st->bias.x;
+    b[1] = st->bias.y;
+    b[2] = st->bias.z;
+    w[0] = gyr->x;
+    w[1] = gyr->y;
+    w[2] = gyr->z;
+    ATT_MEKF_UNROLL
+    for (k = 0u; k < 3u; k++) {
+        float ks;
+        float y;
+        ATT_MEKF_UNROLL
+        for (i = 0u; i < 6u; i++) {
+            g[i] = p[ATT_MEKF_S(i, 3u + k)];
+        }
+        ks = 1.0f / (g[3u + k] + c->r_rest);
+        y = w[k] - b[k];
+        ATT_MEKF_UNROLL
+        for (i = 0u; i < 6u; i++) {
+            const float gk = g[i] * ks;
+            if (i < 3u) {
+                dth[i] = dth[i] + gk * y;
+            } else {
+                b[i - 3u] = b[i - 3u] + gk * y;
+            }
+            ATT_MEKF_UNROLL
+            for (j = i; j < 6u; j++) {
+                p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - gk * g[j];
+            }
+        }
+    }
+    st->bias = att_i_vec3(b[0], b[1], b[2]);
+    dq = att_mekf_exp(att_i_vec3(dth[0], dth[1], dth[2]));
+    *q = att_i_quat_mul(dq, *q);
+    if (c->lp_on) {
+        st->lp1 = att_i_quat_rotate(dq, st->lp1);
+        st->lp2 = att_i_quat_rotate(dq, st->lp2);
+    }
+}
+
+/* What the phases of a step pass on (in memory: nothing float stays in registers across the calls). */
+typedef struct {
+    att_quat_t q; /**< the attitude (not normalised until the end of the step) */
+    att_vec3_t v; /**< R a of the predicted attitude, m/s^2, earth frame */
+    float e2;     /**< (|a|/g - 1)^2 of a usable accel sample (0 when not needed) */
+    float mnorm;  /**< |m| of a usable mag sample, uT */
+} att_mekf_work_t;
+
+/* Step 1a: integration of w - b; returns qa, the attitude process noise of the step. */
+static ATT_NOINLINE float att_mekf_integrate(const att_mekf_coeffs_t *c, const att_mekf_state_t *st,
+                                             const att_vec3_t *gyr, att_mekf_work_t *wk)
+{
+    const att_vec3_t w = att_i_vec3_sub(*gyr, st->bias);
+    wk->q = att_i_quat_mul(wk->q, att_mekf_exp(att_i_vec3_scale(w, c->dt)));
+    return c->qa + c->qw * att_i_vec3_dot(w, w);
+}
+
+/* Step 1b: the rotation matrix R of the prediction, P := Phi P Phi^T + Q, v = R a. */
+static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *acc,
+                                            float qa, att_mekf_work_t *wk)
+{
+    const att_quat_t q = wk->q;
+    float r[9];
+    {
+        const float xx = q.x * q.x;
+        const float yy = q.y * q.y;
+        const float zz = q.z * q.z;
+        const float xy = q.x * q.y;
+        const float xz = q.x * q.z;
+        const float yz = q.y * q.z;
+        const float wx = q.w * q.x;
+        const float wy = q.w * q.y;
+        const float wz = q.w * q.z;
+        r[0] = 1.0f - 2.0f * (yy + zz);
+        r[1] = 2.0f * (xy - wz);
+        r[2] = 2.0f * (xz + wy);
+        r[3] = 2.0f * (xy + wz);
+        r[4] = 1.0f - 2.0f * (xx + zz);
+        r[5] = 2.0f * (yz - wx);
+        r[6] = 2.0f * (xz - wy);
+        r[7] = 2.0f * (yz + wx);
+        r[8] = 1.0f - 2.0f * (xx + yy);
+    }
+    att_mekf_predict(st->p, r, c->half_dt, c->dt, qa, c->qb);
+    wk->v = att_i_vec3(r[0] * acc->x + r[1] * acc->y + r[2] * acc->z, r[3] * acc->x + r[4] * acc->y + r[5] * acc->z,
+                       r[6] * acc->x + r[7] * acc->y + r[8] * acc->z);
+}
+
+/* Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. */
+static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk)
+{
+    uint32_t flags = 0u;
+    att_vec3_t lp1 = st->lp1;
+    att_vec3_t lp2 = st->lp2;
+    att_vec3_t u = wk->v;
+    float cw;
+    float cx;
+    float cy;
+    float n;
+    float y0;
+    float y1;
+    float rn;
+    att_mekf_innov_t v;
+    if (c->lp_on) {
+        if (!st->lp_valid) {
+            lp1 = u; /* the first sample starts the low-pass */
+            lp2 = u;
+        }
+        att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
+        u = lp2;
+    }
+    if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {
+        return 0u;
+    }
+    y0 = 2.0f * cx;
+    y1 = 2.0f * cy;
+    rn = c->r_acc * (1.0f + c->r_accel * wk->e2);
+    v = att_mekf_innov(st->p, rn, y0, y1);
+    if (c->gate > 0.0f && v.dn > c->gate * v.det) {
+        if (st->gated < ATT_MEKF_GATED_MAX) {
+            st->gated = st->gated + 1u;
+        }
+        if (!(c->n_recover > 0u && st->gated >= c->n_recover)) {
+            return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
+        }
+        v = att_mekf_recover(c, st->p, rn, y0, y1);
+    }
+    if (!(v.det > 0.0f)) {
+        return ATT_FLAG_NUMERIC; /* cannot happen with a conditioned P */
+    }
+    {
+        float dx[6];
+        att_quat_t dq;
+        st->gated = 0u;
+        att_mekf_accel_apply(c, st->p, v, y0, y1, dx);
+        dq = att_mekf_exp(att_i_vec3(dx[0], dx[1], dx[2]));
+        wk->q = att_i_quat_mul(dq, wk->q);
+        st->bias = att_i_vec3(st->bias.x + dx[3], st->bias.y + dx[4], st->bias.z + dx[5]);
+        if (c->lp_on) {
+            st->lp1 = att_i_quat_rotate(dq, lp1);
+            st->lp2 = att_i_quat_rotate(dq, lp2);
+            st->lp_valid = true;
+        }
+        flags |= ATT_FLAG_BIAS_UPDATED;
+    }
+    return flags;
+}
+
+/* Step 3: the heading update with a usable mag sample of norm mnorm (m0 known); returns its flags. */
+static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
+                                          const att_vec3_t *mag, float mnorm)
+{
+    const att_vec3_t me = att_i_quat_rotate(*q, *mag);
+    float y;
+    float dz;
+    att_vec3_t db;
+    att_quat_t dq;
+    if (!att_mekf_heading(st, me, mnorm, &y) || !att_mekf_mag_apply(c, st, st->p, y, &dz, &db)) {
+        return ATT_FLAG_MAG_REJECTED;
+    }
+    dq = att_mekf_exp(att_i_vec3(0.0f, 0.0f, dz));
+    *q = att_i_quat_mul_z(dq.w, dq.z, *q);
+    st->bias = att_i_vec3_add(st->bias, db);
+    return ATT_FLAG_BIAS_UPDATED;
+}
+
+/*
+ * One step: the sample checks, then the phases (each its own leaf function, so that the stack holds one
+ * phase's frame at a time): rest update, propagation, accel update, mag update, conditioning.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
+                                                  const att_vec3_t *mag_in)
+{
+    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
+    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
+    const att_mekf_coeffs_t *c;
+    att_mekf_state_t *st;
+    uint32_t flags;
+    uint32_t accel_flags;
+    float n2;
+    bool gyro_ok;
+    bool accel_ok;
+    bool mag_ok = false;
+    bool rest;
+    att_mekf_work_t wk;
+    if (f == NULL) {
+        return ATT_FLAG_BAD_ARG;
+    }
+    c = &f->c;
+    st = &f->st;
+    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
+    gyro_ok = (flags == 0u);
+    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
+    accel_ok = (accel_flags == 0u);
+    flags |= accel_flags;
+    wk.e2 = 0.0f;
+    wk.mnorm = 0.0f;
+    if (accel_ok && c->need_norm) {
+        const float e = att_i_sqrtf(n2) / c->gravity - 1.0f;
+        wk.e2 = e * e;
+        if (c->accel_reject > 0.0f && att_i_absf(e) > c->accel_reject) {
+            flags |= ATT_FLAG_ACCEL_REJECTED;
+        }
+    }
+    if (c->use_mag) {
+        const uint32_t mag_flags = att_i_sensor_check_mag(*mag_in, c->mag_range, &wk.mnorm);
+        mag_ok = (mag_flags == 0u);
+        flags |= mag_flags;
+    }
+    {
+        const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);
+        rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < c->rest_gyro2 && n2 > c->acc2_lo && n2 < c->acc2_hi;
+    }
+
+    if (!st->initialised) {
+        flags |= accel_ok ? att_mekf_start(c, st, acc_in, mag_in, mag_ok) : ATT_FLAG_NOT_READY;
+        st->steps = st->steps + 1u;
+        st->flags = flags;
+        return flags;
+    }
+
+    /* 0. rest: the zero-rate pseudo-measurement */
+    wk.q = st->q;
+    {
+        if (!rest) {
+            st->rest_count = 0u;
+        } else if (st->rest_count < c->rest_n) {
+            st->rest_count = st->rest_count + 1u;
+        }
+        if (rest && st->rest_count >= c->rest_n) {
+            att_mekf_rest_update(c, st, gyr_in, &wk.q);
+            flags |= ATT_FLAG_AT_REST | ATT_FLAG_BIAS_UPDATED;
+        }
+    }
+    /* 1. prediction, 2. accel update, 3. mag update */
+    att_mekf_propagate(c, st, acc_in, gyro_ok ? att_mekf_integrate(c, st, gyr_in, &wk) : c->qa, &wk);
+    if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
+        flags |= att_mekf_accel(c, st, &wk);
+    }
+    if (mag_ok) {
+        flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, wk.mnorm) : att_mekf_mag_first(c, st, &wk.q, mag_in);
+    }
+    /* 4. conditioning of P, 5. normalisation */
+    flags |= att_mekf_condition(c, st->p);
+    if (att_i_quat_normalize_bounded(wk.q, &wk.q)) {
+        st->q = wk.q;
+    } else {
+        flags |= ATT_FLAG_NUMERIC; /* keep the attitude from before the step */
+    }
+    st->steps = st->steps + 1u;
+    st->flags = flags;
+    return flags;
+}
+
+uint32_t att_mekf_step_out(att_mekf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_mekf_update(f, &in->gyr, &in->acc, &in->mag);
+    if (out != NULL) {
+        out->q = f->st.q;
+        out->gyro_bias = f->st.bias;
+        out->flags = flags;
+        out->steps = f->st.steps;
+        out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    }
+    return flags;
+}
+
+uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
+{
+    att_sample_t in; /* member by member: no temporary copies of the vectors on the stack */
+    in.gyr.x = gyr.x;
+    in.gyr.y = gyr.y;
+    in.gyr.z = gyr.z;
+    in.acc.x = acc.x;
+    in.acc.y = acc.y;
+    in.acc.z = acc.z;
+    in.mag.x = mag.x;
+    in.mag.y = mag.y;
+    in.mag.z = mag.z;
+    return att_mekf_step_out(f, &in, NULL);
+}

@@ -1,0 +1,231 @@
+"""The covariance algebra of the MEKF (firmware/src/att_mekf.c), operation for operation.
+
+P is the packed upper triangle of a symmetric 6x6 matrix: a list of 21 float32 arrays (one value per
+instance), ``p[ix(i, j)]`` for ``i <= j``. Every function returns new lists (the inputs are not changed)
+and computes what the C function of the same name computes, in the same order.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from attica.reference import detmath as dm
+
+P_LEN = 21
+PIVOT_MIN = dm.c("0x1p-16")
+"""ATT_MEKF_PIVOT_MIN: relative pivot margin of the positive definiteness test."""
+SHRINK = dm.c("0x1.ff8p-1")
+"""ATT_MEKF_SHRINK = 1 - 2^-10."""
+
+Cov = list[Any]
+"""21 float32 arrays: the packed upper triangle."""
+
+
+def ix(i: int, j: int) -> int:
+    """ATT_MEKF_IX: packed index of (i, j), i <= j < 6."""
+    return i * (11 - i) // 2 + j
+
+
+def sx(i: int, j: int) -> int:
+    """ATT_MEKF_S: packed index of (i, j) in either order."""
+    return ix(i, j) if i <= j else ix(j, i)
+
+
+def ix5(i: int, j: int) -> int:
+    """ATT_MEKF_IX5: packed index in a 5x5 upper triangle."""
+    return i * (9 - i) // 2 + j
+
+
+def where(cond: Any, a: Cov, b: Cov) -> Cov:
+    """Entry-wise ``cond ? a : b``."""
+    return [np.where(cond, x, y).astype(np.float32) for x, y in zip(a, b, strict=True)]
+
+
+def diag(a: Any, b: Any, n: int) -> Cov:
+    """The packed covariance with a on the attitude and b on the bias diagonal (att_mekf_p_reset)."""
+    p = [np.zeros(n, np.float32) for _ in range(P_LEN)]
+    for i in range(3):
+        p[ix(i, i)] = np.broadcast_to(np.asarray(a, np.float32), (n,)).copy()
+        p[ix(3 + i, 3 + i)] = np.broadcast_to(np.asarray(b, np.float32), (n,)).copy()
+    return p
+
+
+def predict(p: Cov, r: list[Any], hdt: Any, dt: Any, qa: Any, qb: Any) -> Cov:
+    """att_mekf_predict: Phi P Phi^T + Q written out (r: R row-major)."""
+    out = list(p)
+    h = [None] * 9
+    for i in range(3):
+        for j in range(3):
+            m = r[3 * i] * p[sx(3, 3 + j)] + r[3 * i + 1] * p[sx(4, 3 + j)] + r[3 * i + 2] * p[sx(5, 3 + j)]
+            hh = p[ix(i, 3 + j)] - hdt * m
+            h[3 * i + j] = hh
+            out[ix(i, 3 + j)] = hh - hdt * m
+    for i in range(3):
+        for j in range(i, 3):
+            nij = r[3 * i] * h[3 * j] + r[3 * i + 1] * h[3 * j + 1] + r[3 * i + 2] * h[3 * j + 2]
+            nji = r[3 * j] * h[3 * i] + r[3 * j + 1] * h[3 * i + 1] + r[3 * j + 2] * h[3 * i + 2]
+            a = p[ix(i, j)] - dt * (nij + nji)
+            if i == j:
+                a = a + qa
+            out[ix(i, j)] = a
+    for k in (3, 4, 5):
+        out[ix(k, k)] = p[ix(k, k)] + qb
+    return out
+
+
+def innov(p: Cov, r: Any, y0: Any, y1: Any) -> tuple[Any, Any, Any, Any, Any]:
+    """att_mekf_innov: (s00, s01, s11, det, dn) of S = A_xy + r I2, dn = y^T adj(S) y."""
+    s00 = p[ix(0, 0)] + r
+    s01 = p[ix(0, 1)]
+    s11 = p[ix(1, 1)] + r
+    det = s00 * s11 - s01 * s01
+    dn = y0 * y0 * s11 - dm.TWO * y0 * y1 * s01 + y1 * y1 * s00
+    return s00, s01, s11, det, dn
+
+
+def recover(p: Cov, soft: Any, y0: Any, y1: Any) -> Cov:
+    """att_mekf_recover: the tilt variances grow by |y|^2 / soft."""
+    out = list(p)
+    add = (y0 * y0 + y1 * y1) / soft
+    out[ix(0, 0)] = p[ix(0, 0)] + add
+    out[ix(1, 1)] = p[ix(1, 1)] + add
+    return out
+
+
+def accel_apply(
+    p: Cov, v: tuple[Any, Any, Any, Any, Any], y0: Any, y1: Any, gate_on: Any, soft: Any
+) -> tuple[Cov, list[Any]]:
+    """att_mekf_accel_apply: (P - K (lambda S) K^T, dx)."""
+    s00, s01, s11, det, dn = v
+    g0 = [p[ix(0, i)] for i in range(6)]
+    g1 = [p[sx(1, i)] for i in range(6)]
+    ks = np.where(gate_on & (dn > soft * det), soft / dn, dm.ONE / det)
+    a0 = s11 * ks
+    a1 = -(s01 * ks)
+    a2 = s00 * ks
+    out = list(p)
+    dx = []
+    for i in range(6):
+        k0 = g0[i] * a0 + g1[i] * a1
+        k1 = g0[i] * a1 + g1[i] * a2
+        dx.append(k0 * y0 + k1 * y1)
+        for j in range(i, 6):
+            out[ix(i, j)] = p[ix(i, j)] - (k0 * g0[j] + k1 * g1[j])
+    return out, dx
+
+
+def mag_apply(
+    p: Cov, hx: Any, hy: Any, r_mag: Any, gate: Any, soft: Any, y: Any
+) -> tuple[Any, Cov, Any, list[Any]]:
+    """att_mekf_mag_apply: (accepted, Joseph-form P, dz, db) of the heading update."""
+    g = [p[sx(i, 2)] + hx * p[sx(i, 0)] + hy * p[sx(i, 1)] for i in range(6)]
+    s = g[2] + hx * g[0] + hy * g[1] + r_mag
+    y2 = y * y
+    gate_on = gate > dm.ZERO
+    ok = ~(gate_on & (y2 > gate * s))
+    k = np.where(gate_on & (y2 > soft * s), soft / y2, dm.ONE / s)
+    kg = [k * gi for gi in g]
+    out = list(p)
+    for i in range(6):
+        for j in range(2 if i < 2 else i, 6):
+            out[ix(i, j)] = p[ix(i, j)] - kg[i] * g[j]
+    return ok, out, kg[2] * y, [kg[3] * y, kg[4] * y, kg[5] * y]
+
+
+def rest_apply(p: Cov, r_rest: Any, gyr: dm.Vec3, bias: dm.Vec3) -> tuple[Cov, list[Any], list[Any]]:
+    """att_mekf_rest_update's algebra: (P, dtheta (3), bias (3)) after the three scalar updates."""
+    zero = np.zeros(np.shape(p[0]), np.float32)
+    dth = [zero, zero, zero]
+    b = list(bias)
+    out = list(p)
+    for k in range(3):
+        g = [out[sx(i, 3 + k)] for i in range(6)]
+        ks = dm.ONE / (g[3 + k] + r_rest)
+        y = gyr[k] - b[k]
+        nxt = list(out)
+        for i in range(6):
+            gk = g[i] * ks
+            if i < 3:
+                dth[i] = dth[i] + gk * y
+            else:
+                b[i - 3] = b[i - 3] + gk * y
+            for j in range(i, 6):
+                nxt[ix(i, j)] = out[ix(i, j)] - gk * g[j]
+        out = nxt
+    return out, dth, b
+
+
+def yaw_reset(p: Cov, p0_att: Any) -> Cov:
+    """att_mekf_yaw_reset: the heading row and column to (0, .., p0_att, .., 0)."""
+    out = list(p)
+    zero = np.zeros(np.shape(p[0]), np.float32)
+    for i, j in ((0, 2), (1, 2), (2, 3), (2, 4), (2, 5)):
+        out[ix(i, j)] = zero
+    out[ix(2, 2)] = np.broadcast_to(np.asarray(p0_att, np.float32), np.shape(p[0])).copy()
+    return out
+
+
+def pd(p: Cov) -> Any:
+    """att_mekf_pd: positive definite with margin (every pivot of L D L^T > 2^-16 P_ii)."""
+    with np.errstate(all="ignore"):
+        d = p[ix(0, 0)]
+        ok = d > dm.ZERO
+        inv = dm.ONE / d
+        w: list[Any] = [None] * 15
+        for i in range(1, 6):
+            li = p[ix(0, i)] * inv
+            for j in range(i, 6):
+                w[ix5(i - 1, j - 1)] = p[ix(i, j)] - li * p[ix(0, j)]
+        for k in range(5):
+            d = w[ix5(k, k)]
+            ok = ok & (d > PIVOT_MIN * p[ix(k + 1, k + 1)])
+            inv = dm.ONE / d
+            for i in range(k + 1, 5):
+                li = w[ix5(k, i)] * inv
+                for j in range(i, 5):
+                    w[ix5(i, j)] = w[ix5(i, j)] - li * w[ix5(k, j)]
+    return ok
+
+
+def shrink(p: Cov, s: Any) -> Cov:
+    """att_mekf_shrink: every off-diagonal entry times s."""
+    out = list(p)
+    for i in range(6):
+        for j in range(i + 1, 6):
+            out[ix(i, j)] = p[ix(i, j)] * s
+    return out
+
+
+def condition(p: Cov, p_max: Any, p0_bias: Any) -> tuple[Cov, Any]:
+    """att_mekf_condition with att_mekf_repair: (P, ATT_FLAG_CLAMPED raised)."""
+    with np.errstate(all="ignore"):
+        caps = [p_max, p_max, p_max, p0_bias, p0_bias, p0_bias]
+        dv = [p[ix(i, i)] for i in range(6)]
+        diag_ok = np.ones(np.shape(p[0]), np.bool_)
+        for i in range(6):
+            diag_ok = diag_ok & (dv[i] <= caps[i]) & (dv[i] > dm.ZERO)
+        ok0 = diag_ok & pd(p)
+        # the diagonal repair (only used where diag_ok is false)
+        fixed = list(p)
+        d = []
+        bad = np.zeros(np.shape(p[0]), np.bool_)
+        for i in range(6):
+            over = dv[i] > caps[i]
+            nonpos = ~over & ~(dv[i] > dm.ZERO)
+            d.append(np.where(over, dm.sqrtf(caps[i] / dv[i]), dm.ONE).astype(np.float32))
+            fixed[ix(i, i)] = np.where(over | nonpos, caps[i], dv[i]).astype(np.float32)
+            bad = bad | nonpos
+        for i in range(6):
+            for j in range(i + 1, 6):
+                fixed[ix(i, j)] = (p[ix(i, j)] * d[i]) * d[j]
+        base = where(diag_ok, p, fixed)
+        ok1 = ~diag_ok & pd(fixed)
+        shrunk = shrink(base, SHRINK)
+        ok2 = pd(shrunk)
+        dropped = shrink(base, dm.ZERO)
+    repaired = where(ok2, shrunk, dropped)
+    out = where(ok0, p, where(ok1, fixed, repaired))
+    clamped = (~diag_ok & bad) | (~ok0 & ~ok1)
+    return out, clamped
