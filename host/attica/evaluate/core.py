@@ -1,11 +1,12 @@
-"""Accuracy on recorded data with the BROAD metrics: ``attica eval``.
+"""Accuracy on recorded data with the BROAD metrics: methods, scores, group means, the grid search.
 
 Runs attica's C filters (through the cffi binding, in batch) and optionally other people's filters
 (:mod:`attica.peers`) over every recording of a directory, scores each with :func:`attica.metrics.evaluate`
 (total, heading and inclination RMSE in degrees over the ``movement`` samples, as BROAD defines them),
 averages per trial group (the recordings' ``groups``: undisturbed/disturbed, rotation/translation,
-tapping, vibration, magnet ...) and over all trials, prints the tables, and writes a JSON of every figure
-and PNG plots (error over time per trial with the movement phases shaded; per-group bars).
+tapping, vibration, magnet ...) and over all trials (:class:`Report`, also as JSON-able data). The
+tables are :mod:`attica.evaluate.tables`, the plots :mod:`attica.evaluate.plots`, the command
+:mod:`attica.commands.eval`.
 
 9-axis methods (attica ``mars``, the peers' 9D variants) are ranked by the total error; 6-axis methods
 cannot know the heading and are judged by the inclination error only, as BROAD prescribes.
@@ -16,12 +17,10 @@ all trials, ranked by the mean over trials (the dataset authors' "TAGP").
 
 from __future__ import annotations
 
-import argparse
 import itertools
-import json
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,19 +30,21 @@ from numpy.typing import NDArray
 
 from attica.data import Recording, load_recording
 from attica.metrics import Errors, error_angles, evaluate
-from attica.settings import FilterKind, Preset, implemented_kinds, make_settings, preset_settings
+from attica.settings import FilterKind, Preset, make_settings, preset_settings
 
 __all__ = [
     "GRIDS",
     "GROUP_ORDER",
+    "METRICS",
+    "NINE_AXIS",
     "Method",
     "MethodResult",
     "Report",
-    "add_eval_subcommand",
+    "TrialScore",
     "attica_method",
-    "cmd_eval",
     "grid_search",
     "load_trials",
+    "peer_methods",
     "run_methods",
 ]
 
@@ -142,7 +143,7 @@ def attica_method(
         settings = preset_settings(kind, p, dt=1.0 / rec.rate)
         if extra:
             settings = make_settings(kind, settings, **extra)
-        out = native.Filter(kind, settings).run(rec.gyr, rec.acc, rec.mag)
+        out = native.Filter(kind, settings=settings).run(rec.gyr, rec.acc, rec.mag, check_units=False)
         return np.asarray(out["q"], dtype=np.float64)
 
     name = kind.label if p == Preset.DEFAULT else f"{kind.label}@{p.label}"
@@ -322,136 +323,6 @@ def run_methods(
     return report
 
 
-# --- tables -----------------------------------------------------------------------------------------
-
-
-def _fmt(x: float) -> str:
-    return f"{x:7.2f}" if np.isfinite(x) else "    nan"
-
-
-def format_tables(report: Report) -> str:
-    """Plain-text tables of the RMSE in degrees, per trial, per group and averaged over trials.
-
-    Inclination for every method, total for the 9-axis ones.
-    """
-    lines: list[str] = []
-    blocks = [("inclination", report.results), ("total", [r for r in report.results if r.method.nine_axis])]
-    for metric, results in blocks:
-        if not results:
-            continue
-        names = [r.method.name for r in results]
-        width = max(28, max(len(t) for t in report.trials) if report.trials else 0)
-        colw = [max(7, len(n)) for n in names]
-        head = f"{metric} RMSE (deg)".ljust(width) + " " + " ".join(n.rjust(w) for n, w in zip(names, colw))
-        lines += [head, "-" * len(head)]
-
-        def row(label: str, vals: list[float], width: int = width, colw: list[int] = colw) -> str:
-            return label.ljust(width) + " " + " ".join(_fmt(v).rjust(w) for v, w in zip(vals, colw))
-
-        for i, t in enumerate(report.trials):
-            lines.append(row(t, [getattr(r.trials[i].errors, metric) for r in results]))
-        lines.append("-" * len(head))
-        for g in report.groups:
-            lines.append(row(f"[{g}]", [r.mean(metric, g) for r in results]))
-        lines.append(row("average", [r.mean(metric) for r in results]))
-        lines.append("")
-    return "\n".join(lines)
-
-
-def format_summary(report: Report) -> str:
-    """One line per method: mean total, heading and inclination RMSE and the score metric."""
-    out = [f"{'method':<24} {'total':>7} {'heading':>7} {'incl':>7}  judged by"]
-    for r in report.results:
-        m = r.method
-        out.append(
-            f"{m.name:<24} {_fmt(r.mean('total'))} {_fmt(r.mean('heading'))} {_fmt(r.mean('inclination'))}"
-            f"  {m.score_metric}{'' if m.nine_axis else ' (6-axis)'}"
-        )
-    return "\n".join(out)
-
-
-# --- plots --------------------------------------------------------------------------------------------
-
-
-def _pyplot() -> Any:
-    try:
-        import matplotlib
-    except ImportError:
-        raise RuntimeError("plots need matplotlib: pip install '.[eval]' (or use --no-plots)") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _phases(movement: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    m = np.concatenate([[False], movement, [False]]).astype(np.int8)
-    d = np.diff(m)
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
-def plot_trial(report: Report, rec: Recording, path: Path, methods: Sequence[str] | None = None) -> None:
-    """Error over time of the given methods on one trial as a small PNG, movement phases shaded.
-
-    9-axis methods show the total error, 6-axis ones the inclination error.
-    """
-    plt = _pyplot()
-    names = [r.method.name for r in report.results if methods is None or r.method.name in methods]
-    fig, ax = plt.subplots(figsize=(8, 3), dpi=80)
-    t = rec.t
-    step = max(1, len(t) // 2000)
-    if rec.movement is not None:
-        for a, b in _phases(rec.movement):
-            ax.axvspan(t[a], t[min(b, len(t) - 1)], color="0.9", lw=0)
-    top = 5.0
-    colours = plt.get_cmap("tab10").colors
-    for i, name in enumerate(names):
-        res = report.result(name)
-        score, _ = report.curves[(name, rec.name)]
-        label = f"{name} ({res.method.score_metric[:5]})"
-        ax.plot(t[::step], score[::step], lw=0.8, label=label, color=colours[i % 10])
-        finite = score[np.isfinite(score)]
-        if finite.size:
-            top = max(top, float(np.percentile(finite, 99.5)) * 1.1)
-    ax.set_xlabel("time (s); movement phases shaded")
-    ax.set_ylabel("error (deg)")
-    ax.set_title(rec.name, fontsize=9)
-    ax.set_ylim(0, min(top, 180.0))
-    ax.legend(fontsize=6, ncol=4, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
-def plot_groups(report: Report, path: Path, methods: Sequence[str] | None = None) -> None:
-    """Per-group bars of each method's score metric (RMSE, deg), plus the all-trial average."""
-    plt = _pyplot()
-    results = [r for r in report.results if methods is None or r.method.name in methods]
-    labels = [*report.groups, "average"]
-    fig, ax = plt.subplots(figsize=(9, 3.6), dpi=80)
-    width = 0.8 / max(1, len(results))
-    x = np.arange(len(labels))
-    colours = plt.get_cmap("tab20").colors
-    for i, r in enumerate(results):
-        vals = [r.score(g) for g in report.groups] + [r.score()]
-        pos = x + (i - (len(results) - 1) / 2) * width
-        ax.bar(
-            pos,
-            vals,
-            width,
-            label=f"{r.method.name}",
-            color=colours[(2 * i) % 20 if i < 10 else 2 * i % 20 + 1],
-        )
-    ax.set_xticks(x)
-    ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=7)
-    ax.set_ylabel("RMSE (deg): total (9-axis) / incl. (6-axis)", fontsize=7)
-    ax.set_yscale("log")
-    ax.legend(fontsize=6, ncol=4)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
 # --- grid search ------------------------------------------------------------------------------------------
 
 
@@ -482,129 +353,3 @@ def grid_search(
             bar.update(1)
     rows.sort(key=lambda r: (not np.isfinite(getattr(r[1], metric)), getattr(r[1], metric)))
     return rows
-
-
-# --- command line -----------------------------------------------------------------------------------------
-
-
-def _methods_for(args: argparse.Namespace) -> list[Method]:
-    kinds = (
-        implemented_kinds() if args.filter == "all" else [FilterKind.parse(k) for k in args.filter.split(",")]
-    )
-    presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
-    methods = [attica_method(k, p) for p in presets for k in kinds]
-    if args.peers is not None:
-        names = None if args.peers in ("", "all") else args.peers.split(",")
-        peers = peer_methods(names)
-        if not peers:
-            print("attica eval: no peer installed (pip install '.[peers]')", file=sys.stderr)
-        methods += peers
-    return methods
-
-
-def cmd_eval(args: argparse.Namespace) -> int:
-    """``attica eval``."""
-    try:
-        recs = load_trials(args.data, args.limit)
-    except (FileNotFoundError, ValueError, RuntimeError) as exc:
-        print(f"attica: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-    print(f"{args.data}: {len(recs)} trials, {sum(len(r) for r in recs)} samples")
-    if args.grid:
-        kinds = [k for k in implemented_kinds() if k in GRIDS]
-        if args.filter != "all":
-            kinds = [FilterKind.parse(k) for k in args.filter.split(",")]
-        grids: dict[str, Any] = {}
-        for kind in kinds:
-            rows = grid_search(kind, recs, progress=not args.quiet)
-            metric = "total" if kind in NINE_AXIS else "inclination"
-            print(f"\ngrid {kind.label} ({len(rows)} points, ranked by mean {metric} RMSE); best 5:")
-            for over, e in rows[:5]:
-                print(f"  {e.total:7.2f} {e.heading:7.2f} {e.inclination:7.2f}  {over}")
-            grids[kind.label] = {
-                "grid": GRIDS[kind],
-                "ranked": [{"settings": o, **{k: getattr(e, k) for k in METRICS}} for o, e in rows],
-            }
-        if out is not None:
-            (out / "grid.json").write_text(json.dumps(grids, indent=1, default=str))
-            print(f"wrote {out / 'grid.json'}")
-        return 0
-    try:
-        methods = _methods_for(args)
-    except ValueError as exc:
-        print(f"attica: error: {exc}", file=sys.stderr)
-        return 2
-    t0 = time.perf_counter()
-    report = run_methods(methods, recs, progress=not args.quiet, curves=out is not None and not args.no_plots)
-    print(f"{len(methods)} methods x {len(recs)} trials in {time.perf_counter() - t0:.1f} s\n")
-    print(format_tables(report))
-    print(format_summary(report))
-    if out is not None:
-        data = {
-            "command": " ".join(["attica", *sys.argv[2:]]) if sys.argv[1:2] == ["eval"] else "attica eval"
-        }
-        data.update(report.as_dict())
-        (out / "results.json").write_text(json.dumps(data, indent=1))
-        print(f"\nwrote {out / 'results.json'}")
-        if not args.no_plots:
-            try:
-                _write_plots(report, recs, out)
-            except RuntimeError as exc:
-                print(f"attica: error: {exc}", file=sys.stderr)
-                return 2
-    return 0
-
-
-PLOT_PEERS = ("vqf9", "vqf6", "basicvqf9", "fusion9", "madgwick9", "mahony9", "ekf9")
-"""Peers drawn in the plots (when they were run; the tables and the JSON have every method)."""
-
-
-def _write_plots(report: Report, recs: Iterable[Recording], out: Path) -> None:
-    """Write the PNGs.
-
-    error_<trial>.png: attica's filters at their defaults (without the gyro-only and accel-only baselines)
-    and VQF; groups.png: the same filters and the default-setting peers of :data:`PLOT_PEERS`;
-    groups_seed.png: attica's tuned filters against their seed preset.
-    """
-    baselines = (FilterKind.GYRO.label, FilterKind.TILT.label)
-    ran = [r.method for r in report.results]
-    mine = [
-        m.name for m in ran if m.family == "attica" and m.setting == "default" and m.name not in baselines
-    ]
-    peers = [m.name for m in ran if m.family != "attica" and m.name in PLOT_PEERS]
-    for rec in recs:
-        plot_trial(
-            report, rec, out / f"error_{rec.name}.png", mine + [n for n in peers if n.startswith("vqf")]
-        )
-    plot_groups(report, out / "groups.png", mine + peers)
-    seeds = {m.name for m in ran if m.setting == "seed"}
-    pairs = [n for k in mine for n in (k, f"{k}@seed") if f"{k}@seed" in seeds]
-    if pairs:
-        plot_groups(report, out / "groups_seed.png", pairs)
-    print(f"wrote {out}/error_*.png and {out}/groups*.png")
-
-
-def add_eval_subcommand(sub: Any) -> None:
-    """Register ``attica eval`` on the subparsers object of ``attica``'s parser."""
-    choices = ", ".join(k.label for k in FilterKind)
-    sp = sub.add_parser("eval", help="accuracy on recorded trials (BROAD metrics), tables, plots, peers")
-    sp.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds ({choices})")
-    sp.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")
-    sp.add_argument(
-        "--preset", default="default", choices=["default", "seed", "both"], help="settings preset"
-    )
-    sp.add_argument("--out", help="directory for results.json and the PNG plots")
-    sp.add_argument(
-        "--peers",
-        nargs="?",
-        const="all",
-        help="also run the installed peers (all, or comma-separated names such as vqf9,fusion9)",
-    )
-    sp.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
-    sp.add_argument("--limit", type=int, help="only the first N trials")
-    sp.add_argument("--no-plots", action="store_true", help="write no PNGs")
-    sp.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    sp.set_defaults(func=cmd_eval)
