@@ -51,7 +51,10 @@ def test_run_with_settings(capsys: pytest.CaptureFixture[str]) -> None:
         (["run", "--filter", "ars", "--set", "dt=-1"], "dt is the recording's sample period"),
         (["run", "--filter", "ars", "--set", "tau=0", "--set", "gain=5"], "out of range"),
         (["run", "--filter", "ars", "--set", "gain=0.3", "--set", "tau=0.5"], "gain=0.3 (a per-sample gain)"),
-        (["sim", "--duration", "6", "-o", "/tmp/never.npz"], "use a longer --duration or fewer --breaks"),
+        (
+            ["sim", "--duration", "6", "--breaks", "2", "-o", "/tmp/never.npz"],
+            "use a longer --duration or fewer",
+        ),
     ],
 )
 def test_errors_are_clear(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:

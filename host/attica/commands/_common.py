@@ -75,16 +75,28 @@ def sim_value(args: argparse.Namespace, name: str) -> Any:
 
 
 def sim_config(args: argparse.Namespace) -> Any:
-    """The :class:`attica.sim.SimConfig` of the simulation options."""
+    """The :class:`attica.sim.SimConfig` of the simulation options.
+
+    Without ``--breaks``, a short simulation gets as many of the default still pauses as fit in it.
+    """
+    import math
+
     from attica.sim import SimConfig
 
-    return SimConfig(
+    cfg = SimConfig(
         duration=sim_value(args, "duration"),
         rate=sim_value(args, "rate"),
         seed=sim_value(args, "seed"),
         taps=sim_value(args, "taps"),
         rest_breaks=sim_value(args, "breaks"),
     )
+    if getattr(args, "breaks", None) is None:
+        motion = cfg.duration - cfg.rest_start - cfg.rest_end
+        if motion > 0:
+            # nb pauses of break_duration need motion left between them
+            fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
+            cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+    return cfg
 
 
 def simulate(args: argparse.Namespace) -> Any:
@@ -112,8 +124,9 @@ def check_data_or_sim(args: argparse.Namespace) -> None:
     """Refuse simulation options together with ``--data`` (a recording has its own rate and length)."""
     given = sim_options_given(args)
     if getattr(args, "data", None) and given:
+        verb = "describes" if len(given) == 1 else "describe"
         raise CliError(
-            f"{', '.join(given)} {'describes' if len(given) == 1 else 'describe'} a simulation, but --data gives a recording (with its own sample "
+            f"{', '.join(given)} {verb} a simulation, but --data gives a recording (with its own sample "
             "rate and length); drop them or drop --data"
         )
     if not getattr(args, "data", None):
