@@ -150,7 +150,7 @@ _SAMPLE_ROWS = 20_000
 """Rows looked at (evenly spread) when computing the median magnitudes of a long recording."""
 
 
-def _median_norm(x: ArrayLike | None) -> float:
+def _median_norm(x: ArrayLike | None, q: float = 50.0) -> float:
     if x is None:
         return math.nan
     with np.errstate(all="ignore"):
@@ -162,20 +162,27 @@ def _median_norm(x: ArrayLike | None) -> float:
             a = a[:: a.shape[0] // _SAMPLE_ROWS]
         n: NDArray[np.float64] = np.sqrt(a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1] + a[:, 2] * a[:, 2])
         n = n[np.isfinite(n) & (n > 0)]  # zero or NaN rows: no sample
-        return float(np.median(n)) if n.size else math.nan
+        return float(np.percentile(n, q)) if n.size else math.nan
 
 
 def unit_problems(gyr: ArrayLike | None, acc: ArrayLike | None, mag: ArrayLike | None = None) -> list[str]:
     """What looks wrong with the units of the inputs, judged by median magnitudes (empty: nothing).
 
     attica takes gyro in rad/s, accel in m/s^2 (|a| about 9.81 at rest) and mag in uT (the earth's
-    field is 25..65 uT). Looks like deg/s: median |gyr| > 8 rad/s; g: median |acc| in 0.3..3;
-    milli-g: 300..3000; gauss: median |mag| in 0.05..2; nT: 2000..200000.
+    field is 25..65 uT). Looks like deg/s: median |gyr| > 8 rad/s, or more than 1 % of the samples above
+    35 rad/s (2000 deg/s, the full scale of common MEMS gyros and the default ``gyro_range``; a recording
+    mostly at rest has a small median in any unit, and the fastest BROAD trial's 99th percentile is
+    19 rad/s); g: median |acc| in 0.3..3; milli-g: 300..3000; gauss: median |mag| in 0.05..2; nT:
+    2000..200000.
     """
     out = []
     g = _median_norm(gyr)
-    if g > 8.0:
-        out.append(f"median |gyr| = {g:.3g} looks like deg/s (attica takes rad/s: multiply by pi/180)")
+    g99 = _median_norm(gyr, 99.0)
+    if g > 8.0 or g99 > 35.0:
+        out.append(
+            f"|gyr| (median {g:.3g}, 99th percentile {g99:.3g}) looks like deg/s "
+            "(attica takes rad/s: multiply by pi/180)"
+        )
     a = _median_norm(acc)
     if 0.3 <= a <= 3.0:
         out.append(f"median |acc| = {a:.3g} looks like g (attica takes m/s^2: multiply by 9.80665)")

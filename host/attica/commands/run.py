@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.commands._common import (
+    CliError,
     add_sim_arguments,
     add_unit_check_argument,
     check_data_or_sim,
@@ -113,6 +114,8 @@ def crosscheck_line(kind: FilterKind, rec: Any, settings: Any, show_progress: bo
 
 def output_paths(path: Path, kinds: list[FilterKind]) -> dict[FilterKind, Path]:
     """Where each filter's outputs go (checked before any work)."""
+    if path.is_dir():
+        raise CliError(f"output {path} is a directory (give a file name, e.g. {path / 'out.npz'})")
     base = path if path.suffix else path.with_name(path.name + ".npz")
     if len(kinds) == 1:
         return {kinds[0]: check_output_file(base)}
