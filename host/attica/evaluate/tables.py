@@ -61,7 +61,13 @@ def _table(
         lines += [head, rule]
 
         def row(label: str, vals: list[float], colw: list[int] = colw) -> str:
-            text = label if len(label) <= label_width else label[: label_width - 1] + "~"
+            # too long: keep the start (trial number) and the end (variant), "~" between
+            half = (label_width - 1) // 2
+            text = (
+                label
+                if len(label) <= label_width
+                else label[:half] + "~" + label[-(label_width - 1 - half) :]
+            )
             return text.ljust(label_width) + " " + " ".join(_fmt(v).rjust(w) for v, w in zip(vals, colw))
 
         for k, t in enumerate(report.trials):
