@@ -21,7 +21,7 @@ from typing import IO, Any
 import can
 from can.io.canutils import CanutilsLogReader
 
-__all__ = ["LOG_SUFFIXES", "LogError", "LogTee", "open_writer", "read_log"]
+__all__ = ["LOG_SUFFIXES", "LogError", "LogMessage", "LogTee", "open_writer", "read_log"]
 
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
 """Log formats read and written (by python-can)."""
@@ -31,6 +31,43 @@ _FD_LENGTHS = frozenset({0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64})
 
 class LogError(Exception):
     """A log file could not be read or written (the message names the file and, for .log, the line)."""
+
+
+class LogMessage(can.Message):
+    """A CAN FD frame read from a candump log, with the log's flags digit (e.g. 5 = FDF | BRS).
+
+    python-can keeps only BRS and ESI of that digit; candump (can-utils) also writes the FDF bit, and
+    the monitor prints the frame as the log has it.
+    """
+
+    __slots__ = ("fd_flags",)
+
+    fd_flags: int
+
+
+def _with_fd_flags(msg: can.Message, line: str) -> can.Message:
+    """``msg`` as a :class:`LogMessage` when its line's flags digit says more than BRS and ESI."""
+    _, sep, rest = line.partition("##")
+    if not sep or not rest:
+        return msg
+    flags = int(rest[0], 16)
+    if flags == (1 if msg.bitrate_switch else 0) | (2 if msg.error_state_indicator else 0):
+        return msg
+    out = LogMessage(
+        timestamp=msg.timestamp,
+        arbitration_id=msg.arbitration_id,
+        is_extended_id=msg.is_extended_id,
+        is_fd=True,
+        is_rx=msg.is_rx,
+        bitrate_switch=msg.bitrate_switch,
+        error_state_indicator=msg.error_state_indicator,
+        dlc=msg.dlc,
+        data=msg.data,
+        channel=msg.channel,
+        check=False,
+    )
+    out.fd_flags = flags
+    return out
 
 
 class _Lines:
@@ -87,7 +124,7 @@ def _read_candump(p: Path) -> Iterator[can.Message]:
             why = _problem(msg)
             if why:
                 raise LogError(f"{p}:{lines.lineno}: bad log line {lines.line[:80]!r}: {why}")
-            yield msg
+            yield _with_fd_flags(msg, lines.line) if msg.is_fd else msg
     finally:
         lines.close()
 

@@ -77,8 +77,10 @@ def candump_text(msg: can.Message, channel: str | None = None) -> str:
     if msg.is_remote_frame:
         return f"({ts:.6f}) {ch} {ident}#R"
     data = bytes(msg.data).hex().upper()
-    if msg.is_fd:  # the flags digit as python-can's CanutilsLogWriter writes it: BRS 1, ESI 2
-        flags = (1 if msg.bitrate_switch else 0) | (2 if msg.error_state_indicator else 0)
+    if msg.is_fd:  # the log's own flags digit (candump adds FDF 4), else BRS 1 | ESI 2 as python-can writes
+        flags = getattr(msg, "fd_flags", None)
+        if flags is None:
+            flags = (1 if msg.bitrate_switch else 0) | (2 if msg.error_state_indicator else 0)
         return f"({ts:.6f}) {ch} {ident}##{flags:X}{data}"
     return f"({ts:.6f}) {ch} {ident}#{data}"
 
