@@ -85,6 +85,9 @@ def test_gain_and_time_constant_conflict() -> None:
             make("mars", 0.01, alpha_mag=0.05)
         make("ars", 0.01, gain=0.3, tau=0.0)  # the per-sample gain alone is fine
         make("mars", 0.01, alpha_acc=0.05, tau_acc=0.0)
+        # only the time constant given: the default gain yields (0 = unused), no error
+        assert make("ars", 0.01, tau=0.5).settings.gain == 0.0
+        assert make("mars", 0.01, tau_acc=0.3, tau_mag=10.0).settings.alpha_acc == 0.0
     with pytest.raises(SettingsConflictError):
         from attica.can.node import Node
 

@@ -2,7 +2,8 @@
 
 - :func:`filter_settings`: the settings of a new filter from ``(kind, dt, settings, **overrides)``,
   with the sample period required (a positional float after the kind is ``dt``, as in VQF) and a
-  per-sample gain refused while a time constant replaces it (:func:`check_gains`).
+  per-sample gain refused while a time constant replaces it (:func:`check_gains`); setting only the
+  time constant leaves the gain at 0, unused (:func:`implied_gains`).
 - :func:`unit_problems` / :func:`warn_units`: median magnitudes of the inputs that look like deg/s, g,
   milli-g, gauss or nT instead of rad/s, m/s^2 and uT, reported as a :class:`UnitWarning`.
 
@@ -29,6 +30,7 @@ __all__ = [
     "UnitWarning",
     "check_gains",
     "filter_settings",
+    "implied_gains",
     "unit_problems",
     "warn_units",
 ]
@@ -70,9 +72,32 @@ def check_gains(kind: FilterKind, settings: Any) -> None:
         if t > 0 and g != 0 and g != float(getattr(defaults, gain)):
             raise SettingsConflictError(
                 f"{kind.label}: {gain}={g:g} (a per-sample gain) is set together with {tau}={t:g} s (a time "
-                f"constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, or leave "
-                f"{gain} unset to use {tau}"
+                f"constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, or "
+                f"{gain}=0 (or leave it unset) to use {tau}"
             )
+
+
+def implied_gains(kind: FilterKind, base: Any, overrides: dict[str, Any]) -> dict[str, Any]:
+    """``overrides`` with each per-sample gain set to 0 where only its time constant is given (> 0).
+
+    A per-sample gain that was not given (it still has its default value) yields to a time constant the
+    caller sets: the gain's default means "unused" once a time constant is in use. A gain given
+    explicitly together with its time constant is left for :func:`check_gains` to refuse.
+    """
+    out = dict(overrides)
+    cls = SETTINGS_CLASS[kind]
+    defaults = cls()
+    current = base if base is not None else defaults
+    for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
+        t = out.get(tau)
+        if (
+            t is not None
+            and float(t) > 0
+            and gain not in out
+            and float(getattr(current, gain)) == float(getattr(defaults, gain))
+        ):
+            out[gain] = 0.0
+    return out
 
 
 def _is_real(x: Any) -> bool:
@@ -139,7 +164,7 @@ def filter_settings(
                 UnitWarning,
                 stacklevel=4,
             )
-    s = make_settings(k, settings, None if dt is None else float(dt), **overrides)
+    s = make_settings(k, settings, None if dt is None else float(dt), **implied_gains(k, settings, overrides))
     check_gains(k, s)
     return k, s
 

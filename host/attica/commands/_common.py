@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from attica.checks import SettingsConflictError, check_gains, unit_problems
+from attica.checks import SettingsConflictError, check_gains, implied_gains, unit_problems
 from attica.settings import FilterKind, make_settings
 
 
@@ -303,7 +303,7 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
 def filter_settings(kind: FilterKind, rate: float, overrides: dict[str, Any], base: Any = None) -> Any:
     """Settings of ``kind`` at ``rate`` with the overrides, checked (conflicts and C refusals: CliError)."""
     try:
-        s = make_settings(kind, base, dt=1.0 / rate, **overrides)
+        s = make_settings(kind, base, dt=1.0 / rate, **implied_gains(kind, base, overrides))
         check_gains(kind, s)
     except SettingsConflictError as exc:
         raise CliError(f"{exc} (with --set)") from None
