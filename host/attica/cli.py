@@ -50,10 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="attica: deterministic attitude estimation firmware, its bit-exact reference and tools.",
     )
     p.add_argument("--version", action="version", version=_version(), help="print the version and exit")
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser, help="one of:"
+    )
     for name in COMMANDS:
         mod = importlib.import_module(f"attica.commands.{name}")
-        sp = sub.add_parser(mod.NAME, help=mod.HELP, description=(mod.__doc__ or mod.HELP).strip())
+        text = (mod.__doc__ or mod.HELP).strip().replace("``", "")  # the docstring, without rST quotes
+        sp = sub.add_parser(mod.NAME, help=mod.HELP, description=text)
         sp.formatter_class = argparse.RawDescriptionHelpFormatter
         mod.add_arguments(sp)
         sp.set_defaults(func=mod.run)

@@ -5,7 +5,7 @@ An installed attica carries a copy of the repository's firmware/ tree as package
 :mod:`importlib.resources`; an editable checkout uses the repository's firmware/ itself. ``attica
 paths`` prints these locations for firmware builds, e.g.::
 
-    cc $(attica paths --cflags) -I"$(attica paths --include)" "$(attica paths --src)"/*.c main.c
+    cc $(attica paths --cflags) -O2 -I"$(attica paths --include)" -c $(attica paths --sources)
 
 Nothing here writes files or compiles anything.
 """

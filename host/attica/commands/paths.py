@@ -2,7 +2,7 @@
 
 Without options it prints every location; one option prints that one value alone (for scripts)::
 
-    cc $(attica paths --cflags) -I"$(attica paths --include)" "$(attica paths --src)"/*.c main.c -o app
+    cc $(attica paths --cflags) -O2 -I"$(attica paths --include)" -c $(attica paths --sources)
     cmake -DATTICA_DIR="$(attica paths --firmware)" ...     # add_subdirectory(${ATTICA_DIR} attica)
 """
 
