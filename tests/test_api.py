@@ -152,3 +152,45 @@ def test_unit_warnings(rec: attica.Recording) -> None:
     nan_mag = np.full_like(rec.mag, np.nan)
     assert unit_problems(rec.gyr, rec.acc, nan_mag) == []  # no mag samples: nothing to judge
     assert unit_problems(np.zeros((10, 3)), rec.acc[:10], None) == []  # at rest: no gyro judgement
+
+
+@pytest.mark.parametrize(
+    "kind,changes", [("ars", {"tau": 0.5}), ("mars", {"tau_mag": 5.0}), ("kf", {"r_noise": 0.3})]
+)
+def test_retune_keeps_the_state(rec: attica.Recording, kind: str, changes: dict[str, float]) -> None:
+    half = 1200
+    f = native.Filter(kind, 1 / RATE)
+    r = reference.Filter(kind, 1 / RATE)
+    first = f.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
+    r.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
+    f.retune(**changes)  # att_filter_retune
+    r.retune(**changes)
+    for name, value in changes.items():
+        assert getattr(f.settings, name) == getattr(r.settings, name) == value
+    if kind == "ars":
+        assert f.settings.gain == 0.0  # only the time constant given: the per-sample gain yields
+    assert r.state_matches(0, f.state[0])
+    out = f.run(rec.gyr[half:1400], rec.acc[half:1400], rec.mag[half:1400])
+    got = r.run(rec.gyr[half:1400], rec.acc[half:1400], rec.mag[half:1400])
+    assert (out["q"].view(np.uint32) == got["q"].view(np.uint32)).all()
+    assert int(out["steps"][0]) == int(first["steps"][-1]) + 1  # the state went on
+    fresh = native.Filter(kind, settings=f.settings).run(
+        rec.gyr[half:1400], rec.acc[half:1400], rec.mag[half:1400]
+    )
+    assert not np.array_equal(fresh["q"], out["q"])
+
+
+def test_retune_refusals_leave_the_filter_as_it_was(rec: attica.Recording) -> None:
+    f = native.Filter("ars", 1 / RATE)
+    f.run(rec.gyr[:500], rec.acc[:500])
+    before, settings = bytes(native.ffi.buffer(f.state)), f.settings
+    with pytest.raises(SettingsConflictError, match="gain=0.5 .* tau=0.2"):
+        f.retune(gain=0.5, tau=0.2)
+    with pytest.raises(native.NativeError, match="att_filter_retune"):
+        f.retune(gravity=-1.0)
+    with pytest.raises(TypeError, match="no field"):
+        f.retune(gian=0.1)
+    assert bytes(native.ffi.buffer(f.state)) == before and f.settings == settings
+    r = reference.Filter("ars", 1 / RATE)
+    with pytest.raises(SettingsConflictError):
+        r.retune(gain=0.5, tau=0.2)

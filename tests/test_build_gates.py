@@ -388,7 +388,9 @@ FILTER_CASES: dict[str, tuple[str, Any]] = {  # name: (kind, settings)
     "ars-default": ("ars", ArsSettings()),
     "ars-euler-running": (
         "ars",
-        ArsSettings(integration=Integration.EULER, bias_mode=BiasMode.RUNNING, accel_reject=0.2, tau=0.5),
+        ArsSettings(
+            integration=Integration.EULER, bias_mode=BiasMode.RUNNING, accel_reject=0.2, tau=0.5, gain=0.0
+        ),
     ),
     "ars-frozen-noinit": (
         "ars",

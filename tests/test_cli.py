@@ -36,7 +36,7 @@ def test_sim_then_run_every_filter(tmp_path: Path, capsys: pytest.CaptureFixture
 
 
 def test_run_with_settings(capsys: pytest.CaptureFixture[str]) -> None:
-    args = ["run", "--filter", "ars", "--duration", "12", "-q", "--set", "tau=0.5"]
+    args = ["run", "--filter", "ars", "--duration", "12", "-q", "--set", "tau=0.5", "--set", "gain=0"]
     args += ["--set", "bias_mode=frozen"]
     assert main(args) == 0
     assert "ars:" in capsys.readouterr().out

@@ -300,8 +300,8 @@ def test_bit_exact_adversarial() -> None:
         "q_noise": rng.choice([1e-4, 1e-12, 1e12, 1.0], m),
         "r_noise": rng.choice([10.0, 1e-12, 1e12], m),
         "p0": rng.choice([1.0, 1e-12, 1e12], m),
-        "gyro_range": rng.choice([34.906586, np.inf], m),
-        "accel_range": rng.choice([156.9064, np.inf], m),
+        "gyro_range": rng.choice([34.906586, 1e3], m),  # up to the largest ranges of the contract
+        "accel_range": rng.choice([156.9064, 1e4], m),
     }
     # rates where q_noise * dt and r_noise / dt stay within the valid 1e-12 .. 1e12
     per["noise_rates"] = (rng.random(m) < 0.5) & (per["q_noise"] != 1e-12) & (per["r_noise"] != 1e12)
@@ -564,6 +564,8 @@ BAD_SETTINGS = [
     ("p0", 0.0), ("p0", -1.0), ("p0", np.nan), ("p0", np.inf),
     ("gravity", 0.0), ("gravity", -G), ("gravity", np.nan), ("gravity", np.inf),
     ("accel_reject", -0.1), ("accel_reject", np.nan), ("accel_reject", np.inf),
+    ("accel_range", np.inf), ("accel_range", 2e4), ("gyro_range", np.inf), ("gyro_range", 2e3),
+    ("gravity", 0.5), ("dt", 1e-7),
     ("accel_range", 0.0), ("accel_range", np.nan), ("accel_range", -1.0),
     ("gyro_range", 0.0), ("gyro_range", np.nan), ("gyro_range", -1.0),
     ("yaw_mode", 2), ("yaw_mode", 0x7FFFFFFF),
@@ -586,7 +588,7 @@ def test_settings_rejected(name: str, value: Any) -> None:
 
 GOOD_SETTINGS = [
     ("dt", 1.0), ("dt", 1e-6), ("q_noise", 1e-12), ("q_noise", 1e12), ("r_noise", 1e-12), ("r_noise", 1e12),
-    ("p0", 1e-12), ("p0", 1e12), ("accel_reject", 0.0), ("accel_range", np.inf), ("gyro_range", np.inf),
+    ("p0", 1e-12), ("p0", 1e12), ("accel_reject", 0.0), ("accel_range", 1e4), ("gyro_range", 1e3),
     ("yaw_mode", 1), ("q_init", (0.0, 0.0, 0.0, 2.0)),
 ]  # fmt: skip
 

@@ -214,12 +214,12 @@ def compare(
             k = int(np.argmax(fl_c != fl_ref[:, i]))
             raise AssertionError(f"instance {i} flags at step {k}: C {fl_c[k]:#x} ref {fl_ref[k, i]:#x}")
         assert_same_bits(
-            [f.m0.x, f.m0.y, f.m0.z], [ref.m0[0][i], ref.m0[1][i], ref.m0[2][i]], f"instance {i} m0"
+            [f.st.m0.x, f.st.m0.y, f.st.m0.z], [ref.m0[0][i], ref.m0[1][i], ref.m0[2][i]], f"instance {i} m0"
         )
-        assert f.steps == ref.steps[i]
-        assert bool(f.m0_valid) == bool(ref.m0_valid[i])
-        assert bool(f.initialised) == bool(ref.initialised[i])
-        assert_same_bits([f.k_acc, f.k_mag], [ref.k_acc[i], ref.k_mag[i]], "gains")
+        assert f.st.steps == ref.steps[i]
+        assert bool(f.st.m0_valid) == bool(ref.m0_valid[i])
+        assert bool(f.st.initialised) == bool(ref.initialised[i])
+        assert_same_bits([f.c.k_acc, f.c.k_mag], [ref.k_acc[i], ref.k_mag[i]], "gains")
     counts = {fl: int(((fl_ref & fl) != 0).sum()) for fl in Flag}
     print("\nflag counts: " + ", ".join(f"{fl.name} {c}" for fl, c in counts.items() if c))
     return g.shape[0] * n, ref, counts
@@ -233,10 +233,13 @@ def _variety(n: int, rng: np.random.Generator, q0: np.ndarray) -> list[dict[str,
             "alpha_acc": rng.uniform(0.005, 0.1),
             "alpha_mag": rng.uniform(0.002, 0.05),
         }
+        d["tau_mag"] = 0.0  # the per-sample gains above (a time constant and a gain together are refused)
         if i % 5 == 0:
             d["tau_acc"] = rng.uniform(0.2, 2.0)
+            d["alpha_acc"] = 0.0
         if i % 7 == 0:
             d["tau_mag"] = rng.uniform(0.5, 5.0)
+            d["alpha_mag"] = 0.0
         if i % 4 == 3:
             d["init_from_sensors"] = False
             err = q_euler(*rng.uniform(-0.5, 0.5, 3))
@@ -325,23 +328,30 @@ def test_bit_exact_adversarial() -> None:
         k = i % 10
         if k == 0:
             d.update(
-                accel_range=np.inf,
-                gyro_range=np.inf,
-                mag_range=np.inf,
+                accel_range=1e4,
+                gyro_range=1e3,
+                mag_range=1e5,
                 accel_reject=0.0,
                 mag_norm_reject=0.0,
                 mag_dip_reject=0.0,
             )
         elif k == 1:
-            d.update(alpha_acc=1.0, alpha_mag=1.0, accel_reject=0.0, mag_norm_reject=0.0, mag_dip_reject=0.0)
+            d.update(
+                alpha_acc=1.0,
+                alpha_mag=1.0,
+                tau_mag=0.0,
+                accel_reject=0.0,
+                mag_norm_reject=0.0,
+                mag_dip_reject=0.0,
+            )
         elif k == 2:
             d.update(dt=1.0)
         elif k == 3:
-            d.update(init_from_sensors=False, q_init=(0.0, 0.0, 0.0, 3.0), m0_init=(0.0, 0.0, -1e-10))
+            d.update(init_from_sensors=False, q_init=(0.0, 0.0, 0.0, 3.0), m0_init=(0.0, 0.0, -1e-3))
         elif k == 4:
-            d.update(bias_init=(1e20, -1e20, 0.0))  # integration overflows: NUMERIC
+            d.update(bias_init=(34.9, -34.9, 0.0), integration=int(Integration.FIRST_ORDER), dt=1.0)
         elif k == 5:
-            d.update(init_from_sensors=False, m0_init=(1e19, 0.0, 0.0), mag_mode=1)
+            d.update(init_from_sensors=False, m0_init=(999.0, 0.0, 0.0), mag_mode=1)
         elif k == 6:
             d.update(alpha_acc=0.0, alpha_mag=0.0)
     g32 = gyr.astype(np.float32)
@@ -369,8 +379,10 @@ def test_bit_exact_adversarial() -> None:
     qq = ref.quat.astype(np.float64)
     assert np.all(np.isfinite(qq))
     assert np.all(np.abs(np.linalg.norm(qq, axis=1) - 1) < 1e-5)
+    # NUMERIC cannot happen within the settings contract (bounded samples, finite ranges): never seen
+    assert counts[Flag.NUMERIC] == 0
     for fl in Flag:
-        if fl not in (Flag.AT_REST, Flag.BIAS_UPDATED, Flag.GIMBAL, Flag.CLAMPED, Flag.BAD_ARG):
+        if fl not in (Flag.AT_REST, Flag.BIAS_UPDATED, Flag.GIMBAL, Flag.CLAMPED, Flag.BAD_ARG, Flag.NUMERIC):
             assert counts[fl] > 0, fl
 
 
@@ -555,13 +567,15 @@ def test_horizontal_disturbance_in_motion_keeps_tilt() -> None:
 )
 def test_opposite_vectors_fallback_axes(mode: MagMode, acc: Any, mag: Any, axis: int) -> None:
     """Exactly opposite vectors (cross product zero) rotate about the documented fallback axis."""
-    f, ref = _fresh(mag_mode=int(mode), mag_dip_reject=0.0, accel_reject=0.0, alpha_acc=0.1, alpha_mag=0.1)
+    f, ref = _fresh(
+        mag_mode=int(mode), mag_dip_reject=0.0, accel_reject=0.0, alpha_acc=0.1, alpha_mag=0.1, tau_mag=0.0
+    )
     z = (0.0, 0.0, 0.0)
     for _ in range(3):
         fl = lib.att_mars_step(f, z, acc, mag)
         assert fl == int(ref.step(z, acc, mag)[0])
-        assert_same_bits([f.q.w, f.q.x, f.q.y, f.q.z], ref.quat[0], "quat")
-    q = np.array([f.q.w, f.q.x, f.q.y, f.q.z], float)
+        assert_same_bits([f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z], ref.quat[0], "quat")
+    q = np.array([f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z], float)
     vec = q[1:]
     others = [k for k in range(3) if k != axis]
     assert abs(vec[axis]) > 0.1 and np.all(np.abs(vec[others]) < 1e-6), q
@@ -605,12 +619,12 @@ def test_bad_input_flags(gyr: Any, acc: Any, mag: Any, expect: Flag) -> None:
     # settle one good step first
     lib.att_mars_step(f, GOOD_G, GOOD_A, GOOD_M)
     ref.step(GOOD_G, GOOD_A, GOOD_M)
-    q_before = (f.q.w, f.q.x, f.q.y, f.q.z)
+    q_before = (f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z)
     fl = lib.att_mars_step(f, gyr, acc, mag)
     fr = int(ref.step(gyr, acc, mag)[0])
     assert fl == fr
     assert fl & expect, f"{fl:#x} lacks {expect!r}"
-    q_after = np.array([f.q.w, f.q.x, f.q.y, f.q.z], np.float32)
+    q_after = np.array([f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z], np.float32)
     assert_same_bits(q_after, ref.quat[0], "quat")
     assert np.all(np.isfinite(q_after)) and abs(np.linalg.norm(q_after.astype(float)) - 1) < 1e-6
     # the flagged part was skipped: redo the step without the bad sensor and compare
@@ -623,12 +637,14 @@ def test_bad_input_flags(gyr: Any, acc: Any, mag: Any, expect: Flag) -> None:
         m2 = (0.0, 0.0, 0.0)
     f2, _ = _fresh()
     lib.att_mars_step(f2, GOOD_G, GOOD_A, GOOD_M)
-    assert (f2.q.w, f2.q.x, f2.q.y, f2.q.z) == q_before
+    assert (f2.st.q.w, f2.st.q.x, f2.st.q.y, f2.st.q.z) == q_before
     lib.att_mars_step(f2, g2, a2, m2)
     if expect not in (Flag.GYRO_INVALID, Flag.GYRO_RANGE):
-        assert (f2.q.w, f2.q.x, f2.q.y, f2.q.z) == (f.q.w, f.q.x, f.q.y, f.q.z)
+        assert (f2.st.q.w, f2.st.q.x, f2.st.q.y, f2.st.q.z) == (f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z)
     else:  # zero rate integrates to the same attitude as a skipped integration
-        assert np.allclose([f2.q.w, f2.q.x, f2.q.y, f2.q.z], [f.q.w, f.q.x, f.q.y, f.q.z], atol=1e-7)
+        assert np.allclose(
+            [f2.st.q.w, f2.st.q.x, f2.st.q.y, f2.st.q.z], [f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z], atol=1e-7
+        )
 
 
 def test_not_ready_init_and_bad_arg() -> None:
@@ -639,45 +655,53 @@ def test_not_ready_init_and_bad_arg() -> None:
     for gyr, acc, mag in [(GOOD_G, (NAN, 0, 0), GOOD_M), (GOOD_G, (0, 0, 0), (0, 0, 0))]:
         fl = lib.att_mars_step(f, gyr, acc, mag)
         assert fl == int(ref.step(gyr, acc, mag)[0])
-        assert fl & Flag.NOT_READY and not f.initialised
+        assert fl & Flag.NOT_READY and not f.st.initialised
     acc0 = (-G * np.sin(0.3) * 1.0, G * np.sin(0.2) * np.cos(0.3), G * np.cos(0.2) * np.cos(0.3))
     fl = lib.att_mars_step(f, (5.0, 5.0, 5.0), acc0, GOOD_M)
     assert fl == int(ref.step((5.0, 5.0, 5.0), acc0, GOOD_M)[0])
-    assert fl == Flag.INITIALISED and f.initialised and f.m0_valid
-    e = euler(np.array([f.q.w, f.q.x, f.q.y, f.q.z]))
+    assert fl == Flag.INITIALISED and f.st.initialised and f.st.m0_valid
+    e = euler(np.array([f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z]))
     assert np.allclose(e[:2], [0.2, 0.3], atol=1e-5)
     assert lib.att_mars_step(ffi.NULL, GOOD_G, GOOD_A, GOOD_M) == Flag.BAD_ARG
     # reset returns to the initial state
     lib.att_mars_reset(f)
-    assert not f.initialised and not f.m0_valid and f.steps == 0 and (f.q.w, f.q.x) == (1.0, 0.0)
+    assert (
+        not f.st.initialised and not f.st.m0_valid and f.st.steps == 0 and (f.st.q.w, f.st.q.x) == (1.0, 0.0)
+    )
     lib.att_mars_reset(ffi.NULL)
 
 
-def test_numeric_flag() -> None:
-    """A bias that makes the first-order step overflow: NUMERIC, attitude kept, state finite."""
-    f, ref = _fresh(bias_init=(3e38, 0.0, 0.0), accel_reject=0.0)
-    q0 = (f.q.w, f.q.x, f.q.y, f.q.z)
-    fl = lib.att_mars_step(f, (0.0, 0.0, 0.0), GOOD_A, GOOD_M)
-    assert fl == int(ref.step((0.0, 0.0, 0.0), GOOD_A, GOOD_M)[0])
-    assert fl & Flag.NUMERIC
-    assert (f.q.w, f.q.x, f.q.y, f.q.z) == q0
+def test_extremes_within_the_contract_stay_finite() -> None:
+    """A bias that could overflow the first-order step is refused; the largest accepted rates, bias and
+    period (first-order integration, dt = 1 s) keep the state finite and unit, with no NUMERIC."""
+    s = c_settings({"bias_init": (3e38, 0.0, 0.0)})
+    assert lib.att_mars_settings_validate(s) == lib.ATT_ERR_SETTINGS
+    d = {"bias_init": (1e3, -1e3, 1e3), "gyro_range": 1e3, "dt": 1.0, "accel_reject": 0.0}
+    f, ref = _fresh(**d)
+    for g in [(-1e3, 1e3, -1e3), (1e3, 1e3, 1e3), (0.0, -1e3, 0.0)] * 4:
+        fl = lib.att_mars_step(f, g, GOOD_A, GOOD_M)
+        assert fl == int(ref.step(g, GOOD_A, GOOD_M)[0])
+        assert not fl & Flag.NUMERIC
+        q = np.array([f.st.q.w, f.st.q.x, f.st.q.y, f.st.q.z])
+        assert_same_bits(q.astype(np.float32), ref.quat[0], "quat")
+        assert abs(np.linalg.norm(q) - 1) < 1e-6
 
 
 def test_m0_from_first_mag_with_q_init() -> None:
     """init_from_sensors false and m0_init zero: m0 = q m q* of the first valid mag sample, no yaw change."""
     qi = tuple(q_euler(0.1, -0.2, 0.7))
     f, ref = _fresh(q_init=qi, m0_init=(0.0, 0.0, 0.0))
-    assert not f.m0_valid
+    assert not f.st.m0_valid
     z = (0.0, 0.0, 0.0)
     assert lib.att_mars_step(f, z, z, z) == int(ref.step(z, z, z)[0])
-    assert not f.m0_valid
+    assert not f.st.m0_valid
     m = (10.0, 20.0, -30.0)
     fl = lib.att_mars_step(f, z, z, m)
     assert fl == int(ref.step(z, z, m)[0])
-    assert f.m0_valid and not (fl & Flag.INITIALISED)
+    assert f.st.m0_valid and not (fl & Flag.INITIALISED)
     me = qrot(np.array(qi), np.array(m))
-    assert np.allclose([f.m0.x, f.m0.y, f.m0.z], me, atol=1e-4)
-    assert_same_bits([f.m0.x, f.m0.y, f.m0.z], ref.mag_ref[0], "m0")
+    assert np.allclose([f.st.m0.x, f.st.m0.y, f.st.m0.z], me, atol=1e-4)
+    assert_same_bits([f.st.m0.x, f.st.m0.y, f.st.m0.z], ref.mag_ref[0], "m0")
 
 
 # --- settings ----------------------------------------------------------------------------------
@@ -700,11 +724,11 @@ def test_settings_defaults_match() -> None:
     lib.att_mars_settings_default(ffi.NULL, DT)
 
 
-def test_tau_overrides_alpha() -> None:
-    f, ref = _fresh(tau_acc=0.5, tau_mag=2.0)
-    assert f.k_acc == np.float32(np.float32(DT) / (np.float32(0.5) + np.float32(DT)))
-    assert f.k_mag == np.float32(np.float32(DT) / (np.float32(2.0) + np.float32(DT)))
-    assert f.k_acc == ref.k_acc[0] and f.k_mag == ref.k_mag[0]
+def test_tau_sets_gain() -> None:
+    f, ref = _fresh(tau_acc=0.5, alpha_acc=0.0, tau_mag=2.0, alpha_mag=0.0)
+    assert f.c.k_acc == np.float32(np.float32(DT) / (np.float32(0.5) + np.float32(DT)))
+    assert f.c.k_mag == np.float32(np.float32(DT) / (np.float32(2.0) + np.float32(DT)))
+    assert f.c.k_acc == ref.k_acc[0] and f.c.k_mag == ref.k_mag[0]
 
 
 BAD_SETTINGS: list[tuple[str, Any]] = [
@@ -739,6 +763,27 @@ BAD_SETTINGS: list[tuple[str, Any]] = [
     ("mag_norm_reject", INF),
     ("mag_dip_reject", -0.1),
     ("mag_dip_reject", NAN),
+    ("mag_dip_reject", 3.2),
+    ("dt", 1e-7),
+    ("gravity", 0.5),
+    ("gravity", 101.0),
+    ("accel_range", INF),
+    ("accel_range", 9.0),  # not above gravity
+    ("accel_range", 2e4),
+    ("gyro_range", INF),
+    ("gyro_range", 1001.0),
+    ("mag_range", INF),
+    ("mag_range", 2e5),
+    ("tau_acc", 0.5),  # with the default alpha_acc = 1: a gain and a time constant
+    ("alpha_mag", 0.1),  # with the default tau_mag = 20 s
+    ("bias_init", (35.0, 0.0, 0.0)),  # beyond gyro_range
+    ("rest_gyro", 35.0),
+    ("rest_accel", 10.0),
+    ("rest_time", -1.0),
+    ("bias_n_max", 0),
+    ("bias_n_max", (1 << 24) + 1),
+    ("bias_mode", 4),
+    ("integration", 1),  # EULER is the ARS's option only
     ("bias_init", (NAN, 0.0, 0.0)),
     ("bias_init", (0.0, INF, 0.0)),
     ("q_init", (0.0, 0.0, 0.0, 0.0)),
@@ -747,6 +792,9 @@ BAD_SETTINGS: list[tuple[str, Any]] = [
     ("m0_init", (INF, 0.0, 0.0)),
     ("m0_init", (1e-30, 0.0, 0.0)),
     ("m0_init", (3e38, 3e38, 0.0)),
+    ("m0_init", (1001.0, 0.0, 0.0)),  # beyond mag_range
+    ("q_init", (1e-4, 0.0, 0.0, 0.0)),
+    ("q_init", (2000.0, 0.0, 0.0, 0.0)),
 ]
 
 
@@ -759,9 +807,21 @@ def test_settings_rejected(name: str, value: Any) -> None:
     else:
         setattr(s, name, value)
     f = ffi.new("att_mars_t *")
-    f.steps = 12345
+    f.st.steps = 12345
+    assert lib.att_mars_settings_validate(s) == lib.ATT_ERR_SETTINGS
     assert lib.att_mars_init(f, s) == lib.ATT_ERR_SETTINGS
-    assert f.steps == 12345  # untouched
+    assert f.st.steps == 12345  # untouched
+
+
+def test_settings_bool_bytes_checked() -> None:
+    """A bool field whose byte is neither 0 nor 1 (possible from a memcpy or a bus) is refused."""
+    s = ffi.new("att_mars_settings_t *")
+    lib.att_mars_settings_default(s, DT)
+    raw = ffi.cast("unsigned char *", ffi.addressof(s[0], "init_from_sensors"))
+    raw[0] = 2
+    assert lib.att_mars_settings_validate(s) == lib.ATT_ERR_SETTINGS
+    raw[0] = 0
+    assert lib.att_mars_settings_validate(s) == lib.ATT_OK
 
 
 def test_settings_accepted_edges_and_null() -> None:
@@ -772,14 +832,19 @@ def test_settings_accepted_edges_and_null() -> None:
     assert lib.att_mars_init(f, ffi.NULL) == lib.ATT_ERR_NULL
     for name, value in [
         ("dt", 1.0),
+        ("dt", 1e-6),
         ("alpha_acc", 0.0),
-        ("alpha_mag", 1.0),
-        ("accel_range", INF),
-        ("mag_range", INF),
+        ("tau_mag", 0.0),
+        ("accel_range", 1e4),
+        ("gyro_range", 1e3),
+        ("mag_range", 1e5),
         ("mag_norm_reject", 0.0),
         ("mag_dip_reject", 0.0),
+        ("mag_dip_reject", 3.14159),
         ("mag_mode", 1),
-        ("m0_init", (0.0, 1e-10, 0.0)),
+        ("gravity", 1.0),
+        ("gravity", 100.0),
+        ("m0_init", (0.0, 1e-3, 0.0)),
     ]:
         lib.att_mars_settings_default(s, DT)
         setattr(s, name, value)

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import copy
 import functools
 from collections import Counter
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -486,11 +484,6 @@ def _ref_run(ref: RefFilter, g: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.
     return ref.run(g, a, m)
 
 
-def _transplant(old: RefFilter, new: RefFilter) -> None:
-    for name in old.impl.STATE:
-        setattr(new.impl, name, copy.deepcopy(getattr(old.impl, name)))
-
-
 def test_command_reset_select_and_set_gain_bit_exact() -> None:
     n = 480
     gyr, acc, mag = _recording(n, 7)
@@ -522,16 +515,16 @@ def test_command_reset_select_and_set_gain_bit_exact() -> None:
     ars = make_settings(FilterKind.ARS, None, DT)
     ref = RefFilter("ars", ars)
     parts = [ref.run(g[:k1], a[:k1], m[:k1])]
-    ref2 = RefFilter("ars", replace(ars, tau=0.5))
-    _transplant(ref, ref2)  # set gain keeps the state
+    ref2 = ref
+    ref2.retune(tau=0.5, gain=0.0)  # set gain keeps the state; a time constant replaces the gain
     parts.append(ref2.run(g[k1:k2], a[k1:k2], m[k1:k2]))
     ref2.reset()
     parts.append(ref2.run(g[k2:k3], a[k2:k3], m[k2:k3]))
     kf = make_settings(FilterKind.KF, None, DT)
     ref3 = RefFilter("kf", kf)
     parts.append(ref3.run(g[k3:k4], a[k3:k4], m[k3:k4]))
-    ref4 = RefFilter("kf", replace(kf, r_noise=2.5))
-    _transplant(ref3, ref4)
+    ref4 = ref3
+    ref4.retune(r_noise=2.5)
     parts.append(ref4.run(g[k4:], a[k4:], m[k4:]))
     ref_out = np.concatenate(parts)
     sets = c.decode_outputs(out).sets
@@ -542,14 +535,14 @@ def test_command_reset_select_and_set_gain_bit_exact() -> None:
         sets["flags"] == ref_out["flags"] & 0xFFFF
     ).all()
     assert (sets["kind"][:k3] == 1).all() and (sets["kind"][k3:] == 3).all()
-    assert float(node.state.f.u.kf.s.r_noise) == 2.5 and node.running_kind == FilterKind.KF
+    assert float(node.state.fs.kf.r_noise) == 2.5 and node.running_kind == FilterKind.KF
 
 
 def test_set_gain_changes_the_gain_and_keeps_the_state() -> None:
     gyr, acc, mag = _recording(100, 8)
     node = c.Node("mars", sample_rate=RATE)
     node.run(c.encode_imu(gyr, acc, mag))
-    q_before = [float(getattr(node.state.f.u.mars.q, k)) for k in "wxyz"]
+    q_before = [float(getattr(node.state.f.u.mars.st.q, k)) for k in "wxyz"]
     out, _ = node.run(
         np.concatenate(
             [
@@ -561,8 +554,8 @@ def test_set_gain_changes_the_gain_and_keeps_the_state() -> None:
     assert [(x.result, x.counter) for x in _answers(out)] == [(c.Ack.OK, 5), (c.Ack.OK, 6)]
     f32 = np.float32
     mars = node.state.f.u.mars
-    assert mars.k_acc == f32(DT) / (f32(2.0) + f32(DT)) and mars.k_mag == f32(DT) / (f32(4.0) + f32(DT))
-    assert [float(getattr(mars.q, k)) for k in "wxyz"] == q_before and mars.steps == 100
+    assert mars.c.k_acc == f32(DT) / (f32(2.0) + f32(DT)) and mars.c.k_mag == f32(DT) / (f32(4.0) + f32(DT))
+    assert [float(getattr(mars.st.q, k)) for k in "wxyz"] == q_before and mars.st.steps == 100
 
 
 @pytest.mark.parametrize(
@@ -632,7 +625,7 @@ def test_command_with_bad_crc_is_ignored_and_counted() -> None:
 
 
 def test_select_back_to_the_init_kind_uses_the_init_settings() -> None:
-    node = c.Node("ars", sample_rate=RATE, tau=0.25)
+    node = c.Node("ars", sample_rate=RATE, tau=0.25, gain=0.0)
     out, _ = node.run(
         np.concatenate(
             [
@@ -642,4 +635,6 @@ def test_select_back_to_the_init_kind_uses_the_init_settings() -> None:
         )
     )
     assert [(x.result, x.kind) for x in _answers(out)] == [(c.Ack.OK, 6), (c.Ack.OK, 1)]
-    assert float(node.state.f.u.ars.s.tau) == 0.25
+    assert float(node.state.fs.ars.tau) == 0.25
+    f32 = np.float32
+    assert node.state.f.u.ars.c.k == f32(DT) / (f32(0.25) + f32(DT))

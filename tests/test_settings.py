@@ -56,7 +56,7 @@ def test_preset_bad_arguments() -> None:
 
 
 def test_output_layout() -> None:
-    assert native.ffi.sizeof("att_output_t") == OUTPUT_DTYPE.itemsize == 64
+    assert native.ffi.sizeof("att_output_t") == OUTPUT_DTYPE.itemsize == 68
     for name in OUTPUT_DTYPE.names or ():
         assert native.ffi.offsetof("att_output_t", name) == OUTPUT_DTYPE.fields[name][1]  # type: ignore[index]
 

@@ -4,39 +4,25 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
 #include "attica/att_bias.h"
-#include "attica/att_math.h"
+#include "attica/att_sensor.h"
+
+void att_bias_params_set(att_bias_params_t *p, att_bias_mode_t mode, uint32_t n_max, float rest_gyro,
+                         float rest_accel, float rest_time, float gravity, float dt)
+{
+    if (p == NULL) {
+        return;
+    }
+    att_i_bias_params(p, mode, n_max, rest_gyro, rest_accel, att_sensor_samples(rest_time, dt), gravity);
+}
 
 uint32_t att_bias_step(const att_bias_params_t *p, att_vec3_t *bias, uint32_t *n, uint32_t *rest_count,
-                       att_vec3_t gyr, bool gyro_ok, bool accel_ok, float norm)
+                       att_vec3_t gyr, bool gyro_ok, bool accel_ok, float acc_norm2)
 {
-    uint32_t flags = 0u;
-    bool rest;
-    float nf;
-    float den;
+    att_vec3_t d;
     if (p == NULL || bias == NULL || n == NULL || rest_count == NULL) {
         return 0u;
     }
-    rest = gyro_ok && accel_ok && att_vec3_norm(att_vec3_sub(gyr, *bias)) < p->rest_gyro &&
-           att_absf(norm - p->gravity) < p->rest_accel;
-    if (!rest) {
-        *rest_count = 0u;
-    } else if (*rest_count < p->rest_n) {
-        *rest_count = *rest_count + 1u;
-    }
-    if (rest && *rest_count >= p->rest_n) {
-        flags |= ATT_FLAG_AT_REST;
-    }
-    if (gyro_ok && (p->mode == ATT_BIAS_RUNNING || (p->mode == ATT_BIAS_AT_REST && (flags & ATT_FLAG_AT_REST) != 0u))) {
-        nf = (float)*n; /* exact: n <= 2^24 */
-        den = nf + 1.0f;
-        bias->x = (nf * bias->x + gyr.x) / den;
-        bias->y = (nf * bias->y + gyr.y) / den;
-        bias->z = (nf * bias->z + gyr.z) / den;
-        if (*n < p->n_max) {
-            *n = *n + 1u;
-        }
-        flags |= ATT_FLAG_BIAS_UPDATED;
-    }
-    return flags;
+    return att_i_bias_step(p, bias, n, rest_count, gyr, gyro_ok, accel_ok, acc_norm2, &d);
 }

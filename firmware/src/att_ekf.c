@@ -4,6 +4,7 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
 #include "attica/att_ekf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -45,39 +46,33 @@ static bool att_ekf_var_ok(float v, bool zero_ok)
     return (zero_ok ? (v >= 0.0f) : (v > 0.0f)) && v <= ATT_EKF_VAR_MAX;
 }
 
-static bool att_ekf_settings_valid(const att_ekf_settings_t *s)
+att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
 {
-    const att_vec3_t e = s->euler_init;
-    /* NaN fails every comparison below; ranges may be +Inf (no limit) */
-    if (!(s->dt > 0.0f && s->dt <= 1.0f) || !att_ekf_var_ok(s->q_phi, true) ||
-        !att_ekf_var_ok(s->q_theta, true) || !att_ekf_var_ok(s->q_psi, true) ||
-        !att_ekf_var_ok(s->r_phi, false) || !att_ekf_var_ok(s->r_theta, false) ||
-        !att_ekf_var_ok(s->p_max, false) || !(s->p_max >= ATT_EKF_PMAX_MIN) ||
-        !(s->p0 > 0.0f && s->p0 <= s->p_max)) {
-        return false;
-    }
-    if (!(s->gravity > 0.0f) || !att_isfinitef(s->gravity) || !(s->accel_reject >= 0.0f) ||
-        !att_isfinitef(s->accel_reject) || !(s->accel_range > 0.0f) || !(s->gyro_range > 0.0f) ||
-        !(s->cos_min > 0.0f && s->cos_min < 1.0f)) {
-        return false;
-    }
-    if (s->noise_rates && (!att_ekf_var_ok(s->q_phi * s->dt, true) || !att_ekf_var_ok(s->q_theta * s->dt, true) ||
-                           !att_ekf_var_ok(s->q_psi * s->dt, true) || !att_ekf_var_ok(s->r_phi / s->dt, false) ||
-                           !att_ekf_var_ok(s->r_theta / s->dt, false))) {
-        return false;
-    }
-    return att_vec3_isfinite(e) && att_absf(e.y) <= ATT_EKF_PIO2_F && att_absf(e.x) <= 8192.0f &&
-           att_absf(e.z) <= 8192.0f;
-}
-
-att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
-{
-    if (f == NULL || settings == NULL) {
+    bool ok;
+    if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!att_ekf_settings_valid(settings)) {
-        return ATT_ERR_SETTINGS;
+    /* NaN fails every comparison below */
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_ekf_var_ok(s->q_phi, true) &&
+         att_ekf_var_ok(s->q_theta, true) && att_ekf_var_ok(s->q_psi, true) && att_ekf_var_ok(s->r_phi, false) &&
+         att_ekf_var_ok(s->r_theta, false) && att_ekf_var_ok(s->p_max, false) && s->p_max >= ATT_EKF_PMAX_MIN &&
+         s->p0 >= ATT_EKF_PMAX_MIN && s->p0 <= s->p_max && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
+         att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
+         s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
+         s->cos_min > 0.0f && s->cos_min < 1.0f && att_i_bool_ok(&s->init_from_accel) &&
+         att_i_bool_ok(&s->noise_rates) && att_i_in(s->euler_init.y, -ATT_EKF_PIO2_F, ATT_EKF_PIO2_F) &&
+         att_i_in(s->euler_init.x, -8192.0f, 8192.0f) && att_i_in(s->euler_init.z, -8192.0f, 8192.0f);
+    if (ok && s->noise_rates) {
+        ok = att_ekf_var_ok(s->q_phi * s->dt, true) && att_ekf_var_ok(s->q_theta * s->dt, true) &&
+             att_ekf_var_ok(s->q_psi * s->dt, true) && att_ekf_var_ok(s->r_phi / s->dt, false) &&
+             att_ekf_var_ok(s->r_theta / s->dt, false) && s->r_phi / s->dt >= ATT_EKF_PMAX_MIN &&
+             s->r_theta / s->dt >= ATT_EKF_PMAX_MIN;
     }
+    return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+static void att_ekf_coeffs(att_ekf_t *f, const att_ekf_settings_t *settings)
+{
     f->s = *settings;
     if (settings->noise_rates) {
         f->q_step[0] = settings->q_phi * settings->dt;
@@ -92,8 +87,34 @@ att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
         f->r_step[0] = settings->r_phi;
         f->r_step[1] = settings->r_theta;
     }
+}
+
+att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_ekf_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
+    }
+    att_ekf_coeffs(f, settings);
     att_ekf_reset(f);
     return ATT_OK;
+}
+
+att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_ekf_settings_validate(settings);
+    if (st == ATT_OK) {
+        att_ekf_coeffs(f, settings);
+    }
+    return st;
 }
 
 static void att_ekf_p_diag(float P[3][3], float v)

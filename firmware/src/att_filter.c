@@ -4,6 +4,8 @@
  */
 #include "att_fp.h"
 
+#include "att_inline.h"
+#include "att_step.h"
 #include "attica/att_filter.h"
 #include "attica/att_math.h"
 
@@ -87,40 +89,87 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
     return ATT_OK;
 }
 
-att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings)
+att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filter_settings_t *settings)
 {
-    att_filter_state_t u;
-    att_status_t st;
-    if (f == NULL || settings == NULL) {
+    if (settings == NULL) {
         return ATT_ERR_NULL;
     }
     switch (kind) {
     case ATT_FILTER_ARS:
-        st = att_ars_init(&u.ars, &settings->ars);
-        break;
+        return att_ars_settings_validate(&settings->ars);
     case ATT_FILTER_MARS:
-        st = att_mars_init(&u.mars, &settings->mars);
-        break;
+        return att_mars_settings_validate(&settings->mars);
     case ATT_FILTER_KF:
-        st = att_kf_init(&u.kf, &settings->kf);
-        break;
+        return att_kf_settings_validate(&settings->kf);
     case ATT_FILTER_EKF:
-        st = att_ekf_init(&u.ekf, &settings->ekf);
-        break;
+        return att_ekf_settings_validate(&settings->ekf);
     case ATT_FILTER_GYRO:
-        st = att_gyro_init(&u.gyro, &settings->gyro);
-        break;
+        return att_gyro_settings_validate(&settings->gyro);
     case ATT_FILTER_TILT:
-        st = att_tilt_init(&u.tilt, &settings->tilt);
-        break;
+        return att_tilt_settings_validate(&settings->tilt);
     default:
         return ATT_ERR_KIND;
     }
+}
+
+att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    /* validate first, so that f is untouched on error; the kind's init then cannot fail */
+    st = att_filter_settings_validate(kind, settings);
+    if (st != ATT_OK) {
+        return st;
+    }
+    switch (kind) {
+    case ATT_FILTER_ARS:
+        st = att_ars_init(&f->u.ars, &settings->ars);
+        break;
+    case ATT_FILTER_MARS:
+        st = att_mars_init(&f->u.mars, &settings->mars);
+        break;
+    case ATT_FILTER_KF:
+        st = att_kf_init(&f->u.kf, &settings->kf);
+        break;
+    case ATT_FILTER_EKF:
+        st = att_ekf_init(&f->u.ekf, &settings->ekf);
+        break;
+    case ATT_FILTER_GYRO:
+        st = att_gyro_init(&f->u.gyro, &settings->gyro);
+        break;
+    default:
+        st = att_tilt_init(&f->u.tilt, &settings->tilt);
+        break;
+    }
     if (st == ATT_OK) {
         f->kind = kind;
-        f->u = u;
     }
     return st;
+}
+
+att_status_t att_filter_retune(att_filter_t *f, const att_filter_settings_t *settings)
+{
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    switch (f->kind) {
+    case ATT_FILTER_ARS:
+        return att_ars_retune(&f->u.ars, &settings->ars);
+    case ATT_FILTER_MARS:
+        return att_mars_retune(&f->u.mars, &settings->mars);
+    case ATT_FILTER_KF:
+        return att_kf_retune(&f->u.kf, &settings->kf);
+    case ATT_FILTER_EKF:
+        return att_ekf_retune(&f->u.ekf, &settings->ekf);
+    case ATT_FILTER_GYRO:
+        return att_gyro_retune(&f->u.gyro, &settings->gyro);
+    case ATT_FILTER_TILT:
+        return att_tilt_retune(&f->u.tilt, &settings->tilt);
+    default:
+        return ATT_ERR_KIND;
+    }
 }
 
 void att_filter_reset(att_filter_t *f)
@@ -154,17 +203,70 @@ void att_filter_reset(att_filter_t *f)
 
 static void att_filter_clear(att_output_t *out)
 {
-    out->q = att_quat_identity();
-    out->euler.x = 0.0f;
-    out->euler.y = 0.0f;
-    out->euler.z = 0.0f;
-    out->gyro_bias = out->euler;
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    out->q = att_i_quat_identity();
+    out->euler = zero;
+    out->gyro_bias = zero;
     out->cov[0] = 0.0f;
     out->cov[1] = 0.0f;
     out->cov[2] = 0.0f;
     out->cov[3] = 0.0f;
     out->flags = 0u;
     out->steps = 0u;
+    out->valid = ATT_OUT_ALL;
+}
+
+/* The per-step fields (see att_output_t); returns false for an uninitialised filter. */
+static bool att_filter_basic(const att_filter_t *f, att_output_t *out)
+{
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    switch (f->kind) {
+    case ATT_FILTER_ARS:
+        out->q = f->u.ars.st.q;
+        out->gyro_bias = f->u.ars.st.bias;
+        out->flags = f->u.ars.st.flags;
+        out->steps = f->u.ars.st.steps;
+        return true;
+    case ATT_FILTER_MARS:
+        out->q = f->u.mars.st.q;
+        out->gyro_bias = f->u.mars.st.bias;
+        out->flags = f->u.mars.st.flags;
+        out->steps = f->u.mars.st.steps;
+        return true;
+    case ATT_FILTER_KF:
+        out->q = f->u.kf.q;
+        out->gyro_bias = zero;
+        out->flags = f->u.kf.flags;
+        out->steps = f->u.kf.steps;
+        return true;
+    case ATT_FILTER_EKF:
+        out->q = f->u.ekf.q;
+        out->euler = f->u.ekf.euler;
+        out->gyro_bias = zero;
+        out->flags = f->u.ekf.flags;
+        out->steps = f->u.ekf.steps;
+        out->valid |= ATT_OUT_EULER;
+        return true;
+    case ATT_FILTER_GYRO:
+        out->q = f->u.gyro.st.q;
+        out->euler = f->u.gyro.st.euler;
+        out->gyro_bias = zero;
+        out->flags = f->u.gyro.st.flags;
+        out->steps = f->u.gyro.st.steps;
+        out->valid |= ATT_OUT_EULER;
+        return true;
+    case ATT_FILTER_TILT:
+        out->q = f->u.tilt.st.q;
+        out->euler = f->u.tilt.st.euler;
+        out->gyro_bias = zero;
+        out->flags = f->u.tilt.st.flags;
+        out->steps = f->u.tilt.st.steps;
+        out->valid |= ATT_OUT_EULER;
+        return true;
+    default:
+        return false;
+    }
 }
 
 void att_filter_output(const att_filter_t *f, att_output_t *out)
@@ -173,60 +275,25 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         return;
     }
     att_filter_clear(out);
-    if (f == NULL) {
+    if (f == NULL || !att_filter_basic(f, out)) {
         out->flags = ATT_FLAG_BAD_ARG;
+        out->valid = ATT_OUT_ALL;
         return;
     }
-    switch (f->kind) {
-    case ATT_FILTER_ARS:
-        out->q = f->u.ars.q;
-        out->euler = att_quat_to_euler(f->u.ars.q);
-        out->gyro_bias = f->u.ars.bias;
-        out->flags = f->u.ars.flags;
-        out->steps = f->u.ars.steps;
-        break;
-    case ATT_FILTER_MARS:
-        out->q = f->u.mars.q;
-        out->euler = att_quat_to_euler(f->u.mars.q);
-        out->gyro_bias = f->u.mars.bias;
-        out->flags = f->u.mars.flags;
-        out->steps = f->u.mars.steps;
-        break;
-    case ATT_FILTER_KF:
-        out->q = f->u.kf.q;
-        out->euler = att_quat_to_euler(f->u.kf.q);
+    if ((out->valid & ATT_OUT_EULER) == 0u) {
+        out->euler = att_quat_to_euler(out->q);
+    }
+    if (f->kind == ATT_FILTER_KF) {
         out->cov[0] = f->u.kf.p[0][0];
         out->cov[1] = f->u.kf.p[1][1];
         out->cov[2] = f->u.kf.p[2][2];
         out->cov[3] = f->u.kf.p[3][3];
-        out->flags = f->u.kf.flags;
-        out->steps = f->u.kf.steps;
-        break;
-    case ATT_FILTER_EKF:
-        out->q = f->u.ekf.q;
-        out->euler = f->u.ekf.euler;
+    } else if (f->kind == ATT_FILTER_EKF) {
         out->cov[0] = f->u.ekf.p[0][0];
         out->cov[1] = f->u.ekf.p[1][1];
         out->cov[2] = f->u.ekf.p[2][2];
-        out->flags = f->u.ekf.flags;
-        out->steps = f->u.ekf.steps;
-        break;
-    case ATT_FILTER_GYRO:
-        out->q = f->u.gyro.q;
-        out->euler = f->u.gyro.euler;
-        out->flags = f->u.gyro.flags;
-        out->steps = f->u.gyro.steps;
-        break;
-    case ATT_FILTER_TILT:
-        out->q = f->u.tilt.q;
-        out->euler = f->u.tilt.euler;
-        out->flags = f->u.tilt.flags;
-        out->steps = f->u.tilt.steps;
-        break;
-    default:
-        out->flags = ATT_FLAG_BAD_ARG;
-        break;
     }
+    out->valid = ATT_OUT_ALL;
 }
 
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
@@ -241,11 +308,9 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
     }
     switch (f->kind) {
     case ATT_FILTER_ARS:
-        flags = att_ars_step(&f->u.ars, in->gyr, in->acc);
-        break;
+        return att_ars_step_out(&f->u.ars, in, out);
     case ATT_FILTER_MARS:
-        flags = att_mars_step(&f->u.mars, in->gyr, in->acc, in->mag);
-        break;
+        return att_mars_step_out(&f->u.mars, in, out);
     case ATT_FILTER_KF:
         flags = att_kf_step(&f->u.kf, in->gyr, in->acc);
         break;
@@ -259,12 +324,14 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
         flags = att_tilt_step(&f->u.tilt, in->acc);
         break;
     default:
-        flags = ATT_FLAG_BAD_ARG;
-        break;
+        if (out != NULL) {
+            att_filter_clear(out);
+            out->flags = ATT_FLAG_BAD_ARG;
+        }
+        return ATT_FLAG_BAD_ARG;
     }
     if (out != NULL) {
-        att_filter_output(f, out);
-        out->flags = flags;
+        (void)att_filter_basic(f, out);
     }
     return flags;
 }
@@ -287,4 +354,71 @@ const char *att_filter_name(att_filter_kind_t kind)
     default:
         return "?";
     }
+}
+
+static const char *const att_flag_names[16] = {
+    "GYRO_INVALID", "GYRO_RANGE", "ACCEL_INVALID", "ACCEL_RANGE", "ACCEL_REJECTED", "MAG_INVALID",
+    "MAG_ABSENT",   "MAG_REJECTED", "AT_REST",     "BIAS_UPDATED", "INITIALISED",   "GIMBAL",
+    "CLAMPED",      "NUMERIC",      "NOT_READY",   "BAD_ARG"};
+
+const char *att_flag_name(uint32_t flag)
+{
+    uint32_t i;
+    for (i = 0u; i < 16u; i++) {
+        if (flag == (1u << i)) {
+            return att_flag_names[i];
+        }
+    }
+    return NULL;
+}
+
+/* Append text at *len of buf (size bytes), keeping buf NUL-terminated; *len counts the full text. */
+static void att_flags_append(char *buf, size_t size, size_t *len, const char *text)
+{
+    size_t i;
+    for (i = 0u; text[i] != '\0'; i++) {
+        if (buf != NULL && *len + 1u < size) {
+            buf[*len] = text[i];
+            buf[*len + 1u] = '\0';
+        }
+        *len = *len + 1u;
+    }
+}
+
+size_t att_flags_format(uint32_t flags, char *buf, size_t size)
+{
+    static const char hex[] = "0123456789abcdef";
+    size_t len = 0u;
+    uint32_t i;
+    uint32_t unknown = flags & ~0xFFFFu;
+    if (buf != NULL && size > 0u) {
+        buf[0] = '\0';
+    }
+    if (flags == 0u) {
+        att_flags_append(buf, size, &len, "-");
+        return len;
+    }
+    for (i = 0u; i < 16u; i++) {
+        if ((flags & (1u << i)) != 0u) {
+            if (len > 0u) {
+                att_flags_append(buf, size, &len, "|");
+            }
+            att_flags_append(buf, size, &len, att_flag_names[i]);
+        }
+    }
+    if (unknown != 0u) {
+        char text[11];
+        int d;
+        text[0] = '0';
+        text[1] = 'x';
+        for (d = 0; d < 8; d++) {
+            text[2 + d] = hex[(unknown >> (28 - 4 * d)) & 0xFu];
+        }
+        text[10] = '\0';
+        if (len > 0u) {
+            att_flags_append(buf, size, &len, "|");
+        }
+        att_flags_append(buf, size, &len, text);
+    }
+    return len;
 }

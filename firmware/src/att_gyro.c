@@ -4,9 +4,9 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
 #include "attica/att_gyro.h"
 #include "attica/att_math.h"
-#include "attica/att_sensor.h"
 
 #define ATT_PI_F 0x1.921fb6p+1f
 #define ATT_PIO2_F 0x1.921fb6p+0f
@@ -19,25 +19,48 @@ void att_gyro_settings_default(att_gyro_settings_t *settings, float dt)
     settings->dt = dt;
     settings->gyro_range = 34.906586f;
     settings->cos_min = 0x1.0624dep-10f; /* 1e-3 */
-    settings->euler_init.x = 0.0f;
-    settings->euler_init.y = 0.0f;
-    settings->euler_init.z = 0.0f;
+    settings->euler_init = att_i_vec3(0.0f, 0.0f, 0.0f);
+}
+
+att_status_t att_gyro_settings_validate(const att_gyro_settings_t *s)
+{
+    if (s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (!att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) || !(s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX) ||
+        !(s->cos_min > 0.0f && s->cos_min < 1.0f) || !att_i_in(s->euler_init.y, -ATT_PIO2_F, ATT_PIO2_F) ||
+        !att_i_in(s->euler_init.x, -8192.0f, 8192.0f) || !att_i_in(s->euler_init.z, -8192.0f, 8192.0f)) {
+        return ATT_ERR_SETTINGS;
+    }
+    return ATT_OK;
 }
 
 att_status_t att_gyro_init(att_gyro_t *f, const att_gyro_settings_t *settings)
 {
+    att_status_t st;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!(settings->dt > 0.0f && settings->dt <= 1.0f) || !(settings->gyro_range > 0.0f) ||
-        !(settings->cos_min > 0.0f && settings->cos_min < 1.0f) || !att_vec3_isfinite(settings->euler_init) ||
-        !(att_absf(settings->euler_init.y) <= ATT_PIO2_F) || !(att_absf(settings->euler_init.x) <= 8192.0f) ||
-        !(att_absf(settings->euler_init.z) <= 8192.0f)) {
-        return ATT_ERR_SETTINGS;
+    st = att_gyro_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
     }
-    f->s = *settings;
+    f->c = *settings;
     att_gyro_reset(f);
     return ATT_OK;
+}
+
+att_status_t att_gyro_retune(att_gyro_t *f, const att_gyro_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_gyro_settings_validate(settings);
+    if (st == ATT_OK) {
+        f->c = *settings;
+    }
+    return st;
 }
 
 void att_gyro_reset(att_gyro_t *f)
@@ -45,12 +68,12 @@ void att_gyro_reset(att_gyro_t *f)
     if (f == NULL) {
         return;
     }
-    f->euler.x = att_wrap_pi(f->s.euler_init.x);
-    f->euler.y = f->s.euler_init.y;
-    f->euler.z = att_wrap_pi(f->s.euler_init.z);
-    f->q = att_quat_from_euler(f->euler.x, f->euler.y, f->euler.z);
-    f->steps = 0u;
-    f->flags = 0u;
+    f->st.euler.x = att_wrap_pi(f->c.euler_init.x);
+    f->st.euler.y = f->c.euler_init.y;
+    f->st.euler.z = att_wrap_pi(f->c.euler_init.z);
+    f->st.q = att_quat_from_euler(f->st.euler.x, f->st.euler.y, f->st.euler.z);
+    f->st.steps = 0u;
+    f->st.flags = 0u;
 }
 
 uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
@@ -61,24 +84,26 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
     float sth;
     float cth;
     float tth;
+    float dt;
     att_vec3_t e;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
-    flags = att_sensor_check_gyro(gyr, f->s.gyro_range);
+    flags = att_i_sensor_check_gyro(gyr, f->c.gyro_range);
     if (flags == 0u) {
-        sphi = att_sinf(f->euler.x);
-        cphi = att_cosf(f->euler.x);
-        sth = att_sinf(f->euler.y);
-        cth = att_cosf(f->euler.y);
-        if (att_absf(cth) < f->s.cos_min) {
-            cth = (cth < 0.0f) ? -f->s.cos_min : f->s.cos_min;
+        dt = f->c.dt;
+        att_i_sincosf(f->st.euler.x, &sphi, &cphi);
+        att_i_sincosf(f->st.euler.y, &sth, &cth);
+        if (att_i_absf(cth) < f->c.cos_min) {
+            cth = (cth < 0.0f) ? -f->c.cos_min : f->c.cos_min;
             flags |= ATT_FLAG_GIMBAL;
         }
         tth = sth / cth;
-        e.x = f->euler.x + (gyr.x + sphi * tth * gyr.y + cphi * tth * gyr.z) * f->s.dt;
-        e.y = f->euler.y + (cphi * gyr.y - sphi * gyr.z) * f->s.dt;
-        e.z = f->euler.z + (sphi / cth * gyr.y + cphi / cth * gyr.z) * f->s.dt;
+        e.x = f->st.euler.x + (gyr.x + sphi * tth * gyr.y + cphi * tth * gyr.z) * dt;
+        e.y = f->st.euler.y + (cphi * gyr.y - sphi * gyr.z) * dt;
+        e.z = f->st.euler.z + (sphi / cth * gyr.y + cphi / cth * gyr.z) * dt;
+        /* theta into (-pi, pi], then beyond +-pi/2 to the equivalent attitude */
+        e.y = att_wrap_pi(e.y);
         if (e.y > ATT_PIO2_F) {
             e.y = ATT_PI_F - e.y;
             e.x = e.x + ATT_PI_F;
@@ -90,14 +115,14 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
         }
         e.x = att_wrap_pi(e.x);
         e.z = att_wrap_pi(e.z);
-        if (att_vec3_isfinite(e)) {
-            f->euler = e;
-            f->q = att_quat_from_euler(e.x, e.y, e.z);
+        if (att_i_vec3_isfinite(e)) {
+            f->st.euler = e;
+            f->st.q = att_quat_from_euler(e.x, e.y, e.z);
         } else {
             flags |= ATT_FLAG_NUMERIC;
         }
     }
-    f->steps = f->steps + 1u;
-    f->flags = flags;
+    f->st.steps = f->st.steps + 1u;
+    f->st.flags = flags;
     return flags;
 }

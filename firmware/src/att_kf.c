@@ -7,6 +7,7 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
 #include "attica/att_kf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -38,45 +39,57 @@ static bool att_kf_noise_valid(float v)
     return v >= ATT_KF_NOISE_MIN && v <= ATT_KF_NOISE_MAX; /* false for NaN */
 }
 
-static bool att_kf_settings_valid(const att_kf_settings_t *s)
+att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
 {
-    att_quat_t qn;
-    if (!att_isfinitef(s->dt) || !att_isfinitef(s->gravity) || !att_isfinitef(s->accel_reject) ||
-        !att_quat_isfinite(s->q_init)) {
-        return false;
+    bool ok;
+    if (s == NULL) {
+        return ATT_ERR_NULL;
     }
-    /* ranges may be +Inf (no limit) but not NaN */
-    if (!(s->accel_range > 0.0f) || !(s->gyro_range > 0.0f)) {
-        return false;
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
+         att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
+         s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
+         att_kf_noise_valid(s->q_noise) && att_kf_noise_valid(s->r_noise) && att_kf_noise_valid(s->p0) &&
+         (s->yaw_mode == ATT_KF_YAW_STATE || s->yaw_mode == ATT_KF_YAW_ZERO) &&
+         att_i_bool_ok(&s->init_from_accel) && att_i_bool_ok(&s->noise_rates) && att_i_quat_init_ok(s->q_init);
+    if (ok && s->noise_rates) {
+        ok = att_kf_noise_valid(s->q_noise * s->dt) && att_kf_noise_valid(s->r_noise / s->dt);
     }
-    if (!(s->dt > 0.0f && s->dt <= 1.0f) || !(s->gravity > 0.0f) || !(s->accel_reject >= 0.0f)) {
-        return false;
-    }
-    if (!att_kf_noise_valid(s->q_noise) || !att_kf_noise_valid(s->r_noise) || !att_kf_noise_valid(s->p0)) {
-        return false;
-    }
-    if (s->yaw_mode != ATT_KF_YAW_STATE && s->yaw_mode != ATT_KF_YAW_ZERO) {
-        return false;
-    }
-    if (s->noise_rates && (!att_kf_noise_valid(s->q_noise * s->dt) || !att_kf_noise_valid(s->r_noise / s->dt))) {
-        return false;
-    }
-    return att_quat_normalize(s->q_init, &qn);
+    return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+static void att_kf_coeffs(att_kf_t *f, const att_kf_settings_t *settings)
+{
+    f->s = *settings;
+    f->q_step = settings->noise_rates ? settings->q_noise * settings->dt : settings->q_noise;
+    f->r_step = settings->noise_rates ? settings->r_noise / settings->dt : settings->r_noise;
 }
 
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings)
 {
+    att_status_t st;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!att_kf_settings_valid(settings)) {
-        return ATT_ERR_SETTINGS;
+    st = att_kf_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
     }
-    f->s = *settings;
-    f->q_step = settings->noise_rates ? settings->q_noise * settings->dt : settings->q_noise;
-    f->r_step = settings->noise_rates ? settings->r_noise / settings->dt : settings->r_noise;
+    att_kf_coeffs(f, settings);
     att_kf_reset(f);
     return ATT_OK;
+}
+
+att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_kf_settings_validate(settings);
+    if (st == ATT_OK) {
+        att_kf_coeffs(f, settings);
+    }
+    return st;
 }
 
 void att_kf_reset(att_kf_t *f)

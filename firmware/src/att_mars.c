@@ -5,11 +5,15 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
+#include "att_step.h"
 #include "attica/att_mars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
-#define ATT_MARS_BIAS_N_MAX_LIMIT 16777216u /* 2^24: n converts to float exactly */
+#define ATT_MARS_PI_F 0x1.921fb6p+1f
+#define ATT_MARS_PIO2_F 0x1.921fb6p+0f
+#define ATT_MARS_M0_MIN 0x1.0624dep-10f /* 1e-3 uT: smallest |m0_init| */
 
 void att_mars_settings_default(att_mars_settings_t *settings, float dt)
 {
@@ -17,9 +21,9 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->alpha_acc = 0.02f;
-    settings->alpha_mag = 0.01f;
-    settings->tau_acc = 0.5f;
+    settings->alpha_acc = 1.0f;
+    settings->alpha_mag = 0.0f;
+    settings->tau_acc = 0.0f;
     settings->tau_mag = 20.0f;
     settings->mag_mode = ATT_MARS_MAG_HORIZONTAL;
     settings->gravity = 9.80665f;
@@ -29,16 +33,12 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->mag_range = 1000.0f;
     settings->mag_norm_reject = 0.2f;
     settings->mag_dip_reject = 0.3f; /* about 17 deg */
-    settings->bias_init.x = 0.0f;
-    settings->bias_init.y = 0.0f;
-    settings->bias_init.z = 0.0f;
+    settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
     settings->init_from_sensors = true;
-    settings->q_init = att_quat_identity();
-    settings->m0_init.x = 0.0f;
-    settings->m0_init.y = 0.0f;
-    settings->m0_init.z = 0.0f;
+    settings->q_init = att_i_quat_identity();
+    settings->m0_init = att_i_vec3(0.0f, 0.0f, 0.0f);
     settings->integration = ATT_INTEGRATE_ROTVEC;
-    settings->tau_acc_lp = 1.0f;
+    settings->tau_acc_lp = 1.3f;
     settings->bias_mode = ATT_BIAS_AT_REST;
     settings->bias_n_max = 1000u;
     settings->rest_gyro = 0.05f;
@@ -51,165 +51,199 @@ static bool att_mars_vec3_is_zero(att_vec3_t v)
     return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
 }
 
-static bool att_mars_settings_valid(const att_mars_settings_t *s)
+att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
 {
-    att_quat_t qn;
-    att_vec3_t vn;
-    const bool finite = att_isfinitef(s->dt) && att_isfinitef(s->alpha_acc) && att_isfinitef(s->alpha_mag) &&
-                        att_isfinitef(s->tau_acc) && att_isfinitef(s->tau_mag) && att_isfinitef(s->gravity) &&
-                        att_isfinitef(s->accel_reject) && att_isfinitef(s->mag_norm_reject) &&
-                        att_isfinitef(s->mag_dip_reject) && att_vec3_isfinite(s->bias_init) &&
-                        att_quat_isfinite(s->q_init) && att_vec3_isfinite(s->m0_init) &&
-                        att_isfinitef(s->tau_acc_lp) && att_isfinitef(s->rest_gyro) &&
-                        att_isfinitef(s->rest_accel) && att_isfinitef(s->rest_time);
-    if (!finite) {
-        return false;
+    bool ok;
+    if (s == NULL) {
+        return ATT_ERR_NULL;
     }
-    /* ranges may be +Inf (no limit) but not NaN */
-    if (!(s->accel_range > 0.0f) || !(s->gyro_range > 0.0f) || !(s->mag_range > 0.0f)) {
-        return false;
-    }
-    if (!(s->dt > 0.0f && s->dt <= 1.0f) || !(s->alpha_acc >= 0.0f && s->alpha_acc <= 1.0f) ||
-        !(s->alpha_mag >= 0.0f && s->alpha_mag <= 1.0f) || !(s->tau_acc >= 0.0f) || !(s->tau_mag >= 0.0f) ||
-        !(s->gravity > 0.0f) || !(s->accel_reject >= 0.0f) || !(s->mag_norm_reject >= 0.0f) ||
-        !(s->mag_dip_reject >= 0.0f) || !(s->tau_acc_lp >= 0.0f) || !(s->rest_gyro >= 0.0f) ||
-        !(s->rest_accel >= 0.0f) || !(s->rest_time >= 0.0f)) {
-        return false;
-    }
-    if (s->integration != ATT_INTEGRATE_ROTVEC && s->integration != ATT_INTEGRATE_FIRST_ORDER) {
-        return false;
-    }
-    if (s->bias_mode != ATT_BIAS_OFF && s->bias_mode != ATT_BIAS_FROZEN && s->bias_mode != ATT_BIAS_RUNNING &&
-        s->bias_mode != ATT_BIAS_AT_REST) {
-        return false;
-    }
-    if (s->bias_n_max < 1u || s->bias_n_max > ATT_MARS_BIAS_N_MAX_LIMIT) {
-        return false;
-    }
-    if (s->mag_mode != ATT_MARS_MAG_HORIZONTAL && s->mag_mode != ATT_MARS_MAG_FULL) {
-        return false;
-    }
-    if (!att_mars_vec3_is_zero(s->m0_init) && !att_vec3_normalize(s->m0_init, &vn)) {
-        return false;
-    }
-    return att_quat_normalize(s->q_init, &qn);
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->alpha_acc, 0.0f, 1.0f) &&
+         att_i_in(s->alpha_mag, 0.0f, 1.0f) && att_i_in(s->tau_acc, 0.0f, ATT_TAU_MAX) &&
+         att_i_in(s->tau_mag, 0.0f, ATT_TAU_MAX) && !(s->tau_acc > 0.0f && s->alpha_acc != 0.0f) &&
+         !(s->tau_mag > 0.0f && s->alpha_mag != 0.0f) &&
+         (s->mag_mode == ATT_MARS_MAG_HORIZONTAL || s->mag_mode == ATT_MARS_MAG_FULL) &&
+         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
+         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
+         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->mag_range > 0.0f && s->mag_range <= ATT_MAG_RANGE_MAX &&
+         att_i_in(s->mag_norm_reject, 0.0f, ATT_REJECT_MAX) && att_i_in(s->mag_dip_reject, 0.0f, ATT_MARS_PI_F) &&
+         att_i_bias_settings_ok(s->bias_mode, s->bias_n_max, s->bias_init, s->gyro_range, s->rest_gyro,
+                                s->rest_accel, s->rest_time, s->gravity) &&
+         att_i_bool_ok(&s->init_from_sensors) && att_i_quat_init_ok(s->q_init) &&
+         att_i_vec3_within(s->m0_init, s->mag_range) &&
+         (att_mars_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MARS_M0_MIN) &&
+         (s->integration == ATT_INTEGRATE_ROTVEC || s->integration == ATT_INTEGRATE_FIRST_ORDER) &&
+         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX);
+    return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+static float att_mars_gain(float tau, float alpha, float dt)
+{
+    return (tau > 0.0f) ? dt / (tau + dt) : alpha;
+}
+
+static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
+{
+    c->dt = s->dt;
+    c->k_acc = att_mars_gain(s->tau_acc, s->alpha_acc, s->dt);
+    c->k_mag = att_mars_gain(s->tau_mag, s->alpha_mag, s->dt);
+    c->k_mag1 = 1.0f - c->k_mag;
+    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (s->tau_acc_lp + s->dt) : 0.0f;
+    c->gravity = s->gravity;
+    c->accel_reject = s->accel_reject;
+    c->accel_range2 = s->accel_range * s->accel_range;
+    c->gyro_range = s->gyro_range;
+    c->mag_range = s->mag_range;
+    c->mag_norm_reject = s->mag_norm_reject;
+    c->mag_dip_reject = s->mag_dip_reject;
+    att_i_bias_params(&c->bias, s->bias_mode, s->bias_n_max, s->rest_gyro, s->rest_accel,
+                      att_sensor_samples(s->rest_time, s->dt), s->gravity);
+    (void)att_i_quat_normalize(s->q_init, &c->q_init);
+    c->m0_init = s->init_from_sensors ? att_i_vec3(0.0f, 0.0f, 0.0f) : s->m0_init;
+    c->bias_init = (s->bias_mode == ATT_BIAS_OFF) ? att_i_vec3(0.0f, 0.0f, 0.0f) : s->bias_init;
+    c->integration = (uint8_t)s->integration;
+    c->mag_mode = (uint8_t)s->mag_mode;
+    c->init_from_sensors = s->init_from_sensors;
+    c->lp_on = c->k_lp > 0.0f;
+    c->reject_on = s->accel_reject > 0.0f;
+    c->full = (c->k_acc == 1.0f);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
 static float att_mars_dip(att_vec3_t v)
 {
-    return att_atan2f(v.z, att_sqrtf(v.x * v.x + v.y * v.y));
+    return att_atan2f(v.z, att_i_sqrtf(v.x * v.x + v.y * v.y));
 }
 
-/* Set m0 and its derived quantities; returns false (and changes nothing) when m0 has no direction. */
-static bool att_mars_set_m0(att_mars_t *f, att_vec3_t m0)
+/*
+ * Derived limits of the reference field m0 (state m0): mode-dependent unit direction and fallback
+ * axis, the accepted |m| interval (norm rejection) and the accepted interval of sin(dip) (dip
+ * rejection: dip in [dip0 - t, dip0 + t], limited to [-pi/2, pi/2] where sin is monotonic).
+ */
+static void att_mars_m0_limits(const att_mars_coeffs_t *c, att_mars_state_t *st)
+{
+    const att_vec3_t up = att_i_vec3(0.0f, 0.0f, 1.0f);
+    const float norm = att_i_vec3_norm(st->m0);
+    att_vec3_t unit;
+    att_vec3_t perp;
+    (void)att_i_vec3_normalize(st->m0, &unit);
+    if (c->mag_mode == (uint8_t)ATT_MARS_MAG_FULL) {
+        st->m0_ref = unit;
+        st->m0_ref_ok = true;
+        if (!att_i_vec3_normalize(att_i_vec3_cross(unit, up), &perp)) {
+            perp = att_i_vec3(1.0f, 0.0f, 0.0f);
+        }
+        st->m0_perp = perp;
+    } else {
+        st->m0_ref_ok = att_i_vec3_normalize(att_i_vec3(st->m0.x, st->m0.y, 0.0f), &st->m0_ref);
+        st->m0_perp = up;
+    }
+    st->m0_lo = 0.0f;
+    st->m0_hi = c->mag_range;
+    if (c->mag_norm_reject > 0.0f) {
+        st->m0_lo = norm * (1.0f - c->mag_norm_reject);
+        st->m0_hi = norm * (1.0f + c->mag_norm_reject);
+    }
+    if (!st->m0_ref_ok) {
+        st->m0_lo = INFINITY; /* no usable reference direction: every sample is rejected */
+    }
+    st->dip_lo = -2.0f;
+    st->dip_hi = 2.0f;
+    if (c->mag_dip_reject > 0.0f) {
+        const float dip = att_mars_dip(st->m0);
+        const float lo = dip - c->mag_dip_reject;
+        const float hi = dip + c->mag_dip_reject;
+        if (lo > -ATT_MARS_PIO2_F) {
+            st->dip_lo = att_sinf(lo);
+        }
+        if (hi < ATT_MARS_PIO2_F) {
+            st->dip_hi = att_sinf(hi);
+        }
+    }
+}
+
+/* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
+static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t m0)
 {
     att_vec3_t unit;
-    att_vec3_t h;
-    att_vec3_t up;
-    att_vec3_t perp;
-    if (!att_vec3_normalize(m0, &unit)) {
+    if (!att_i_vec3_normalize(m0, &unit)) {
         return false;
     }
-    f->m0 = m0;
-    f->m0_norm = att_vec3_norm(m0);
-    f->m0_dip = att_mars_dip(m0);
-    up.x = 0.0f;
-    up.y = 0.0f;
-    up.z = 1.0f;
-    if (f->s.mag_mode == ATT_MARS_MAG_FULL) {
-        f->m0_ref = unit;
-        f->m0_ref_ok = true;
-        if (!att_vec3_normalize(att_vec3_cross(unit, up), &perp)) {
-            perp.x = 1.0f;
-            perp.y = 0.0f;
-            perp.z = 0.0f;
-        }
-        f->m0_perp = perp;
-    } else {
-        h.x = m0.x;
-        h.y = m0.y;
-        h.z = 0.0f;
-        f->m0_ref_ok = att_vec3_normalize(h, &f->m0_ref);
-        f->m0_perp = up;
-    }
-    f->m0_valid = true;
+    st->m0 = m0;
+    st->m0_valid = true;
+    att_mars_m0_limits(c, st);
     return true;
 }
 
 att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings)
 {
+    att_status_t st;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!att_mars_settings_valid(settings)) {
-        return ATT_ERR_SETTINGS;
+    st = att_mars_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
     }
-    f->s = *settings;
-    f->k_acc = (settings->tau_acc > 0.0f) ? settings->dt / (settings->tau_acc + settings->dt) : settings->alpha_acc;
-    f->k_mag = (settings->tau_mag > 0.0f) ? settings->dt / (settings->tau_mag + settings->dt) : settings->alpha_mag;
-    f->k_lp = (settings->tau_acc_lp > 0.0f) ? settings->dt / (settings->tau_acc_lp + settings->dt) : 0.0f;
-    f->rest_n = att_sensor_samples(settings->rest_time, settings->dt);
+    att_mars_coeffs(&f->c, settings);
     att_mars_reset(f);
+    return ATT_OK;
+}
+
+att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_mars_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
+    }
+    att_mars_coeffs(&f->c, settings);
+    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    if (f->st.m0_valid) {
+        att_mars_m0_limits(&f->c, &f->st);
+    }
     return ATT_OK;
 }
 
 void att_mars_reset(att_mars_t *f)
 {
-    att_vec3_t zero;
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    att_mars_state_t *st;
     if (f == NULL) {
         return;
     }
-    zero.x = 0.0f;
-    zero.y = 0.0f;
-    zero.z = 0.0f;
-    (void)att_quat_normalize(f->s.q_init, &f->q);
-    f->m0 = zero;
-    f->m0_norm = 0.0f;
-    f->m0_dip = 0.0f;
-    f->m0_ref = zero;
-    f->m0_perp = zero;
-    f->m0_ref_ok = false;
-    f->m0_valid = false;
-    if (!f->s.init_from_sensors && !att_mars_vec3_is_zero(f->s.m0_init)) {
-        (void)att_mars_set_m0(f, f->s.m0_init); /* succeeds: checked by the settings validation */
+    st = &f->st;
+    st->q = f->c.q_init;
+    st->bias = f->c.bias_init;
+    st->lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
+    st->lp2 = st->lp1;
+    st->m0 = zero;
+    st->m0_ref = zero;
+    st->m0_perp = zero;
+    st->m0_lo = 0.0f;
+    st->m0_hi = 0.0f;
+    st->dip_lo = 0.0f;
+    st->dip_hi = 0.0f;
+    st->bias_n = 0u;
+    st->rest_count = 0u;
+    st->steps = 0u;
+    st->flags = 0u;
+    st->m0_ref_ok = false;
+    st->m0_valid = false;
+    st->initialised = !f->c.init_from_sensors;
+    if (!att_mars_vec3_is_zero(f->c.m0_init)) {
+        (void)att_mars_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
     }
-    f->initialised = !f->s.init_from_sensors;
-    f->bias = (f->s.bias_mode == ATT_BIAS_OFF) ? zero : f->s.bias_init;
-    f->bias_n = 0u;
-    f->rest_count = 0u;
-    f->lp1 = zero;
-    f->lp1.z = f->s.gravity;
-    f->lp2 = f->lp1;
-    f->steps = 0u;
-    f->flags = 0u;
 }
 
 /* First-order quaternion integration q + (0.5 q (x) (0, w)) dt (not normalised). */
-static att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
+static ATT_NOINLINE att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
 {
-    att_quat_t o;
-    att_quat_t p;
-    att_quat_t r;
-    o.w = 0.0f;
-    o.x = w.x;
-    o.y = w.y;
-    o.z = w.z;
-    p = att_quat_mul(q, o);
-    r.w = q.w + p.w * 0.5f * dt;
-    r.x = q.x + p.x * 0.5f * dt;
-    r.y = q.y + p.y * 0.5f * dt;
-    r.z = q.z + p.z * 0.5f * dt;
-    return r;
-}
-
-/* Gyro integration (not normalised): exponential map q * Q(w dt), or first order. */
-static att_quat_t att_mars_propagate(const att_mars_t *f, att_quat_t q, att_vec3_t w)
-{
-    if (f->s.integration == ATT_INTEGRATE_ROTVEC) {
-        return att_quat_mul(q, att_quat_from_rotvec(att_vec3_scale(w, f->s.dt)));
-    }
-    return att_mars_integrate(q, w, f->s.dt);
+    const att_quat_t p = att_i_quat_mul(q, att_i_quat(0.0f, w.x, w.y, w.z));
+    return att_i_quat(q.w + p.w * 0.5f * dt, q.x + p.x * 0.5f * dt, q.y + p.y * 0.5f * dt,
+                      q.z + p.z * 0.5f * dt);
 }
 
 /*
@@ -219,19 +253,13 @@ static att_quat_t att_mars_propagate(const att_mars_t *f, att_quat_t q, att_vec3
  */
 static att_quat_t att_mars_rotation_toward(att_vec3_t v, att_vec3_t r, att_vec3_t fallback, float gain)
 {
-    const att_vec3_t c = att_vec3_cross(v, r);
-    const float angle = att_atan2f(att_vec3_norm(c), att_vec3_dot(v, r));
+    const att_vec3_t c = att_i_vec3_cross(v, r);
+    const float angle = att_atan2f(att_i_vec3_norm(c), att_i_vec3_dot(v, r));
     att_vec3_t axis;
-    if (!att_vec3_normalize(c, &axis)) {
+    if (!att_i_vec3_normalize(c, &axis)) {
         axis = fallback;
     }
     return att_quat_from_axis_angle(axis, gain * angle);
-}
-
-static att_quat_t att_mars_rotate_toward(att_quat_t q, att_vec3_t v, att_vec3_t r, att_vec3_t fallback,
-                                         float gain)
-{
-    return att_quat_mul(att_mars_rotation_toward(v, r, fallback, gain), q);
 }
 
 /*
@@ -240,180 +268,292 @@ static att_quat_t att_mars_rotate_toward(att_quat_t q, att_vec3_t v, att_vec3_t 
  */
 static bool att_mars_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
 {
-    att_vec3_t me = att_quat_rotate(q, mag);
+    att_vec3_t me = att_i_quat_rotate(q, mag);
     att_vec3_t unit;
-    att_vec3_t up;
     att_quat_t qa;
-    if (!att_vec3_normalize(me, &unit)) {
+    if (!att_i_vec3_normalize(me, &unit)) {
         return false;
     }
-    up.x = 0.0f;
-    up.y = 0.0f;
-    up.z = 1.0f;
-    qa = att_quat_mul(att_quat_from_axis_angle(up, att_atan2f(me.x, me.y)), q);
-    if (!att_quat_normalize(qa, &qa)) {
+    qa = att_i_quat_mul(att_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
+    if (!att_i_quat_normalize_bounded(qa, &qa)) {
         return false;
     }
-    me = att_quat_rotate(qa, mag);
-    m0->x = 0.0f;
-    m0->y = att_sqrtf(me.x * me.x + me.y * me.y);
-    m0->z = me.z;
+    me = att_i_quat_rotate(qa, mag);
+    *m0 = att_i_vec3(0.0f, att_i_sqrtf(me.x * me.x + me.y * me.y), me.z);
     *q_out = qa;
     return true;
 }
 
-/* Magnetometer correction of q with a valid sample of norm mnorm; sets ATT_FLAG_MAG_REJECTED. */
-static att_quat_t att_mars_mag_correct(const att_mars_t *f, att_quat_t q, att_vec3_t mag, float mnorm,
-                                       uint32_t *flags)
+/*
+ * Magnetometer correction of q with a usable sample of norm mnorm (the reference field is known);
+ * sets ATT_FLAG_MAG_REJECTED when the sample is not used. Horizontal mode: with h the horizontal part of
+ * q mag q* and r that of m0 (unit), the rotation about z that takes h to r is the shortest-arc
+ * quaternion C = (|h| + h . r, 0, 0, (h x r)_z) / sqrt(2 |h| (|h| + h . r)) (a half turn about z when h
+ * points away from r); the correction is the normalised interpolation (1 - k_mag) I + k_mag C, applied
+ * as q := ((1 - k_mag) + k_mag C_w, 0, 0, k_mag C_z) * q (the final normalisation of the step makes it
+ * a rotation). No trigonometry; for small gains it turns by k_mag times 2 sin(angle / 2), i.e. k_mag
+ * times the angle for the small heading errors of tracking. Full mode: att_mars_rotation_toward.
+ */
+static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t *c, const att_mars_state_t *st,
+                                                         att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags)
 {
-    const att_vec3_t me = att_quat_rotate(q, mag);
-    const float e = mnorm / f->m0_norm - 1.0f;
-    const float ddip = att_mars_dip(me) - f->m0_dip;
-    att_vec3_t v;
     att_vec3_t unit;
-    bool reject = !f->m0_ref_ok;
-    if (f->s.mag_norm_reject > 0.0f && att_absf(e) > f->s.mag_norm_reject) {
-        reject = true;
-    }
-    if (f->s.mag_dip_reject > 0.0f && att_absf(ddip) > f->s.mag_dip_reject) {
-        reject = true;
-    }
-    v = me;
-    if (f->s.mag_mode == ATT_MARS_MAG_HORIZONTAL) {
-        v.z = 0.0f;
-    }
-    if (!att_vec3_normalize(v, &unit)) {
-        reject = true;
-    }
-    if (reject) {
+    float h2;
+    float hn;
+    float a;
+    float b;
+    float qw;
+    float qz;
+    if (mnorm < st->m0_lo || mnorm > st->m0_hi || me.z < st->dip_lo * mnorm || me.z > st->dip_hi * mnorm) {
         *flags |= ATT_FLAG_MAG_REJECTED;
         return q;
     }
-    return att_mars_rotate_toward(q, unit, f->m0_ref, f->m0_perp, f->k_mag);
+    if (c->mag_mode == (uint8_t)ATT_MARS_MAG_FULL) {
+        if (!att_i_vec3_normalize(me, &unit)) {
+            *flags |= ATT_FLAG_MAG_REJECTED;
+            return q;
+        }
+        return att_i_quat_mul(att_mars_rotation_toward(unit, st->m0_ref, st->m0_perp, c->k_mag), q);
+    }
+    h2 = me.x * me.x + me.y * me.y;
+    if (!(h2 >= ATT_NORM2_MIN)) {
+        *flags |= ATT_FLAG_MAG_REJECTED; /* vertical field: no heading information */
+        return q;
+    }
+    hn = att_i_sqrtf(h2);
+    a = hn + (me.x * st->m0_ref.x + me.y * st->m0_ref.y);
+    b = me.x * st->m0_ref.y - me.y * st->m0_ref.x;
+    if (a > ATT_ALIGN_A_MIN * hn) {
+        const float kn = c->k_mag / att_i_sqrtf((2.0f * hn) * a);
+        qw = c->k_mag1 + a * kn;
+        qz = b * kn;
+    } else {
+        qw = c->k_mag1; /* h opposite to r: toward the half turn about z */
+        qz = c->k_mag;
+    }
+    return att_i_quat_mul_z(qw, qz, q);
 }
 
-uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
+/* The attitude and flags after a mag sample taken before the reference field is known. */
+typedef struct {
+    att_quat_t q;
+    uint32_t flags;
+} att_mars_first_t;
+
+/* A usable mag sample before the reference field is known: yaw alignment, or m0 from it. */
+static ATT_NOINLINE att_mars_first_t att_mars_mag_first(const att_mars_coeffs_t *c, att_mars_state_t *st,
+                                                        att_quat_t q, const att_vec3_t *mag)
 {
+    att_mars_first_t r;
+    att_quat_t qa;
+    att_vec3_t m0;
+    r.q = q;
+    r.flags = 0u;
+    if (c->init_from_sensors) {
+        if (att_mars_align(q, *mag, &qa, &m0) && att_mars_set_m0(c, st, m0)) {
+            r.q = qa;
+            r.flags = ATT_FLAG_INITIALISED;
+        } else {
+            r.flags = ATT_FLAG_MAG_REJECTED;
+        }
+    } else if (!att_mars_set_m0(c, st, att_i_quat_rotate(q, *mag))) {
+        r.flags = ATT_FLAG_MAG_REJECTED;
+    }
+    return r;
+}
+
+/* First valid accel sample: roll and pitch from it, yaw from the mag sample when usable. */
+static ATT_NOINLINE uint32_t att_mars_start(const att_mars_coeffs_t *c, att_mars_state_t *st,
+                                            const att_vec3_t *acc, const att_vec3_t *mag, bool mag_ok)
+{
+    const att_vec3_t t = att_sensor_tilt(*acc);
+    uint32_t flags = ATT_FLAG_INITIALISED;
+    att_quat_t q;
+    att_quat_t qa;
+    att_vec3_t m0;
+    (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &q);
+    if (mag_ok) {
+        if (att_mars_align(q, *mag, &qa, &m0) && att_mars_set_m0(c, st, m0)) {
+            q = qa;
+        } else {
+            flags |= ATT_FLAG_MAG_REJECTED;
+        }
+    }
+    st->q = q;
+    st->lp1 = att_i_quat_rotate(q, *acc);
+    st->lp2 = st->lp1;
+    st->initialised = true;
+    return flags;
+}
+
+/* The corrected attitude and low-pass stages (the general accel correction returns them by value). */
+typedef struct {
+    att_quat_t q;
+    att_vec3_t lp1;
+    att_vec3_t lp2;
+} att_mars_corr_t;
+
+/*
+ * General accel correction (k_acc < 1) with the earth-frame specific force v: the low-pass stages of
+ * st updated with v (when on), then q rotated toward z by the fraction k_acc of the angle (the stages
+ * with it). st is not changed: the caller commits the result.
+ */
+static ATT_NOINLINE att_mars_corr_t att_mars_accel_partial(const att_mars_coeffs_t *c, const att_mars_state_t *st,
+                                                           att_quat_t q, att_vec3_t v)
+{
+    att_mars_corr_t r;
+    att_vec3_t unit;
+    r.q = q;
+    r.lp1 = st->lp1;
+    r.lp2 = st->lp2;
+    if (c->lp_on) {
+        att_i_lowpass2(v, c->k_lp, &r.lp1, &r.lp2);
+        v = r.lp2;
+    }
+    if (att_i_vec3_normalize(v, &unit)) {
+        const att_quat_t qc = att_mars_rotation_toward(unit, att_i_vec3(0.0f, 0.0f, 1.0f),
+                                                       att_i_vec3(1.0f, 0.0f, 0.0f), c->k_acc);
+        r.q = att_i_quat_mul(qc, q);
+        if (c->lp_on) {
+            /* keep the low-pass states in the corrected earth frame */
+            r.lp1 = att_i_quat_rotate(qc, r.lp1);
+            r.lp2 = att_i_quat_rotate(qc, r.lp2);
+        }
+    }
+    return r;
+}
+
+static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
+                                                  const att_vec3_t *mag_in)
+{
+    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
+    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
+    const att_vec3_t mag = att_i_vec3(mag_in->x, mag_in->y, mag_in->z);
+    const att_mars_coeffs_t *c;
+    att_mars_state_t *st;
     uint32_t flags;
     uint32_t accel_flags;
     uint32_t mag_flags;
-    float norm;
+    float n2;
     float mnorm;
-    float e;
+    att_vec3_t d;
     bool gyro_ok;
     bool accel_ok;
     bool mag_ok;
     att_quat_t q;
     att_quat_t qn;
-    att_quat_t qa;
-    att_vec3_t m0;
-    att_vec3_t up;
-    att_vec3_t xaxis;
-    att_vec3_t unit;
-    att_vec3_t ae;
-    att_quat_t qc;
-    att_bias_params_t bias_params;
+    att_vec3_t lp1;
+    att_vec3_t lp2;
+    att_vec3_t me;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
-    flags = att_sensor_check_gyro(gyr, f->s.gyro_range);
+    c = &f->c;
+    st = &f->st;
+    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
     gyro_ok = (flags == 0u);
-    accel_flags = att_sensor_check_accel(acc, f->s.accel_range, &norm);
+    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
-    e = norm / f->s.gravity - 1.0f;
-    if (accel_ok && f->s.accel_reject > 0.0f && att_absf(e) > f->s.accel_reject) {
+    if (accel_ok && c->reject_on &&
+        att_i_absf(att_i_sqrtf(n2) / c->gravity - 1.0f) > c->accel_reject) {
         flags |= ATT_FLAG_ACCEL_REJECTED;
     }
-    mag_flags = att_sensor_check_mag(mag, f->s.mag_range, &mnorm);
+    mag_flags = att_i_sensor_check_mag(mag, c->mag_range, &mnorm);
     mag_ok = (mag_flags == 0u);
     flags |= mag_flags;
 
-    /* rest detection and gyro bias (att_bias.c) */
-    bias_params.mode = f->s.bias_mode;
-    bias_params.n_max = f->s.bias_n_max;
-    bias_params.rest_n = f->rest_n;
-    bias_params.rest_gyro = f->s.rest_gyro;
-    bias_params.rest_accel = f->s.rest_accel;
-    bias_params.gravity = f->s.gravity;
-    flags |= att_bias_step(&bias_params, &f->bias, &f->bias_n, &f->rest_count, gyr, gyro_ok, accel_ok, norm);
+    /* rest detection and gyro bias */
+    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
 
-    if (!f->initialised) {
-        if (accel_ok) {
-            const att_vec3_t t = att_sensor_tilt(acc);
-            (void)att_quat_normalize(att_quat_from_euler(t.x, t.y, 0.0f), &q);
-            if (mag_ok) {
-                if (att_mars_align(q, mag, &qa, &m0) && att_mars_set_m0(f, m0)) {
-                    q = qa;
-                } else {
-                    flags |= ATT_FLAG_MAG_REJECTED;
-                }
-            }
-            f->q = q;
-            f->lp1 = att_quat_rotate(q, acc);
-            f->lp2 = f->lp1;
-            f->initialised = true;
-            flags |= ATT_FLAG_INITIALISED;
-        } else {
-            flags |= ATT_FLAG_NOT_READY;
-        }
-        f->steps = f->steps + 1u;
-        f->flags = flags;
+    if (!st->initialised) {
+        flags |= accel_ok ? att_mars_start(c, st, acc_in, mag_in, mag_ok) : ATT_FLAG_NOT_READY;
+        st->steps = st->steps + 1u;
+        st->flags = flags;
         return flags;
     }
 
-    q = f->q;
+    q = st->q;
+    lp1 = st->lp1;
+    lp2 = st->lp2;
     if (gyro_ok) {
-        if (att_quat_normalize(att_mars_propagate(f, q, att_vec3_sub(gyr, f->bias)), &qn)) {
+        if ((flags & ATT_FLAG_BIAS_UPDATED) != 0u) {
+            d = att_i_vec3_sub(gyr, st->bias);
+        }
+        if (c->integration == (uint8_t)ATT_INTEGRATE_ROTVEC) {
+            q = att_i_quat_mul(q, att_i_quat_from_rotvec_fast(att_i_vec3_scale(d, c->dt)));
+        } else if (att_i_quat_normalize_bounded(att_mars_integrate(q, d, c->dt), &qn)) {
             q = qn;
         } else {
-            flags |= ATT_FLAG_NUMERIC;
+            flags |= ATT_FLAG_NUMERIC; /* first-order step overflowed: integration skipped */
         }
     }
+    me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        ae = att_quat_rotate(q, acc);
-        if (f->k_lp > 0.0f) {
-            /* two cascaded first-order low-passes of the earth-frame specific force */
-            f->lp1 = att_vec3_add(f->lp1, att_vec3_scale(att_vec3_sub(ae, f->lp1), f->k_lp));
-            f->lp2 = att_vec3_add(f->lp2, att_vec3_scale(att_vec3_sub(f->lp1, f->lp2), f->k_lp));
-            ae = f->lp2;
-        }
-        if (att_vec3_normalize(ae, &unit)) {
-            up.x = 0.0f;
-            up.y = 0.0f;
-            up.z = 1.0f;
-            xaxis.x = 1.0f; /* fallback axis for an upside-down attitude */
-            xaxis.y = 0.0f;
-            xaxis.z = 0.0f;
-            qc = att_mars_rotation_toward(unit, up, xaxis, f->k_acc);
-            q = att_quat_mul(qc, q);
-            if (f->k_lp > 0.0f) {
-                /* keep the low-pass states in the corrected earth frame */
-                f->lp1 = att_quat_rotate(qc, f->lp1);
-                f->lp2 = att_quat_rotate(qc, f->lp2);
+        const att_vec3_t v = att_i_quat_rotate(q, acc);
+        if (c->full) {
+            att_vec3_t u = v;
+            float qw;
+            float qx;
+            float qy;
+            float n;
+            if (c->lp_on) {
+                att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
+                u = lp2;
             }
+            if (att_i_align_up(u, &qw, &qx, &qy, &n)) {
+                q = att_i_quat_mul_hz(qw, qx, qy, q);
+                if (c->lp_on) {
+                    lp1 = att_i_quat_rotate_hz(qw, qx, qy, lp1);
+                    lp2 = att_i_vec3(0.0f, 0.0f, n);
+                }
+            }
+        } else {
+            const att_mars_corr_t r = att_mars_accel_partial(c, st, q, v);
+            q = r.q;
+            lp1 = r.lp1;
+            lp2 = r.lp2;
         }
     }
     if (mag_ok) {
-        if (f->m0_valid) {
-            q = att_mars_mag_correct(f, q, mag, mnorm, &flags);
-        } else if (f->s.init_from_sensors) {
-            if (att_mars_align(q, mag, &qa, &m0) && att_mars_set_m0(f, m0)) {
-                q = qa;
-                flags |= ATT_FLAG_INITIALISED;
-            } else {
-                flags |= ATT_FLAG_MAG_REJECTED;
-            }
-        } else if (!att_mars_set_m0(f, att_quat_rotate(q, mag))) {
-            flags |= ATT_FLAG_MAG_REJECTED;
+        if (st->m0_valid) {
+            q = att_mars_mag_correct(c, st, q, me, mnorm, &flags);
+        } else {
+            const att_mars_first_t r = att_mars_mag_first(c, st, q, mag_in);
+            q = r.q;
+            flags |= r.flags;
         }
     }
-    if (att_quat_normalize(q, &qn)) {
-        f->q = qn;
+    if (att_i_quat_normalize_bounded(q, &qn)) {
+        st->q = qn;
+        st->lp1 = lp1;
+        st->lp2 = lp2;
     } else {
-        flags |= ATT_FLAG_NUMERIC; /* keep the previous attitude */
+        flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before the step */
     }
-    f->steps = f->steps + 1u;
-    f->flags = flags;
+    st->steps = st->steps + 1u;
+    st->flags = flags;
+    return flags;
+}
+
+uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
+{
+    att_sample_t in;
+    in.gyr = gyr;
+    in.acc = acc;
+    in.mag = mag;
+    return att_mars_step_out(f, &in, NULL);
+}
+
+uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_mars_update(f, &in->gyr, &in->acc, &in->mag);
+    if (out != NULL) {
+        out->q = f->st.q;
+        out->gyro_bias = f->st.bias;
+        out->flags = flags;
+        out->steps = f->st.steps;
+        out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    }
     return flags;
 }

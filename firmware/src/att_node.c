@@ -287,6 +287,7 @@ static void att_node_emit(att_node_t *n)
 static size_t att_node_step(att_node_t *n, const att_sample_t *in)
 {
     (void)att_filter_step(&n->f, in, &n->out);
+    att_filter_output(&n->f, &n->out); /* the frames carry Euler angles and covariance too */
     n->stats.samples++;
     n->stats.steps++;
     n->div_count++;
@@ -394,44 +395,35 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
  * state after reset (true for every ATT_CAN_GAIN_*); tests/test_node.py checks it against the
  * reference for every kind.
  */
-static void att_node_retune(att_filter_t *live, const att_filter_t *fresh_new, const att_filter_t *fresh_old)
-{
-    unsigned char *d = (unsigned char *)live;
-    const unsigned char *b = (const unsigned char *)fresh_new;
-    const unsigned char *c = (const unsigned char *)fresh_old;
-    size_t i;
-    for (i = 0u; i < sizeof *live; ++i) {
-        if (b[i] != c[i]) {
-            d[i] = b[i];
-        }
-    }
-}
-
+/*
+ * A new gain for the running filter, keeping its state (att_filter_retune). A time constant set here
+ * replaces the kind's per-sample gain (set to 0 for tau > 0, to 1, the full correction, for tau = 0),
+ * since a filter accepts only one of the two.
+ */
 static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
 {
     att_filter_settings_t fs = n->fs;
-    att_filter_t fresh_new;
-    att_filter_t fresh_old;
+    const float gain = (value > 0.0f) ? 0.0f : 1.0f;
     if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_ARS) {
         fs.ars.tau = value;
+        fs.ars.gain = gain;
     } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_MARS) {
         fs.mars.tau_acc = value;
+        fs.mars.alpha_acc = gain;
     } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_MAG && n->kind == ATT_FILTER_MARS) {
         fs.mars.tau_mag = value;
+        fs.mars.alpha_mag = gain;
     } else if (param == (uint8_t)ATT_CAN_GAIN_KF_R && n->kind == ATT_FILTER_KF) {
         fs.kf.r_noise = value;
     } else if (param == (uint8_t)ATT_CAN_GAIN_EKF_R && n->kind == ATT_FILTER_EKF) {
         fs.ekf.r_phi = value;
         fs.ekf.r_theta = value;
     } else {
-        /* ATT_CAN_GAIN_EKF_R: answered "bad argument" until the EKF is part of att_filter_settings_t */
-        return (uint8_t)ATT_CAN_ACK_BAD_ARG;
+        return (uint8_t)ATT_CAN_ACK_BAD_ARG; /* no such gain for the running kind */
     }
-    if (!att_isfinitef(value) || att_filter_init(&fresh_new, n->kind, &fs) != ATT_OK ||
-        att_filter_init(&fresh_old, n->kind, &n->fs) != ATT_OK) {
-        return (uint8_t)ATT_CAN_ACK_REFUSED;
+    if (att_filter_retune(&n->f, &fs) != ATT_OK) {
+        return (uint8_t)ATT_CAN_ACK_REFUSED; /* out of range (NaN included): nothing changed */
     }
-    att_node_retune(&n->f, &fresh_new, &fresh_old);
     n->fs = fs;
     return (uint8_t)ATT_CAN_ACK_OK;
 }

@@ -4,8 +4,8 @@
  */
 #include "att_fp.h"
 
+#include "att_core.h"
 #include "attica/att_math.h"
-#include "attica/att_sensor.h"
 #include "attica/att_tilt.h"
 
 void att_tilt_settings_default(att_tilt_settings_t *settings)
@@ -18,17 +18,44 @@ void att_tilt_settings_default(att_tilt_settings_t *settings)
     settings->normalise = true;
 }
 
+att_status_t att_tilt_settings_validate(const att_tilt_settings_t *s)
+{
+    if (s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (!att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) || !(s->accel_range > s->gravity) ||
+        !(s->accel_range <= ATT_ACCEL_RANGE_MAX) || !att_i_bool_ok(&s->normalise)) {
+        return ATT_ERR_SETTINGS;
+    }
+    return ATT_OK;
+}
+
 att_status_t att_tilt_init(att_tilt_t *f, const att_tilt_settings_t *settings)
 {
+    att_status_t st;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!(settings->gravity > 0.0f && settings->gravity < 1000.0f) || !(settings->accel_range > 0.0f)) {
-        return ATT_ERR_SETTINGS;
+    st = att_tilt_settings_validate(settings);
+    if (st != ATT_OK) {
+        return st;
     }
-    f->s = *settings;
+    f->c = *settings;
     att_tilt_reset(f);
     return ATT_OK;
+}
+
+att_status_t att_tilt_retune(att_tilt_t *f, const att_tilt_settings_t *settings)
+{
+    att_status_t st;
+    if (f == NULL || settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    st = att_tilt_settings_validate(settings);
+    if (st == ATT_OK) {
+        f->c = *settings;
+    }
+    return st;
 }
 
 void att_tilt_reset(att_tilt_t *f)
@@ -36,13 +63,11 @@ void att_tilt_reset(att_tilt_t *f)
     if (f == NULL) {
         return;
     }
-    f->euler.x = 0.0f;
-    f->euler.y = 0.0f;
-    f->euler.z = 0.0f;
-    f->q = att_quat_identity();
-    f->valid = false;
-    f->steps = 0u;
-    f->flags = 0u;
+    f->st.euler = att_i_vec3(0.0f, 0.0f, 0.0f);
+    f->st.q = att_i_quat_identity();
+    f->st.valid = false;
+    f->st.steps = 0u;
+    f->st.flags = 0u;
 }
 
 uint32_t att_tilt_step(att_tilt_t *f, att_vec3_t acc)
@@ -53,22 +78,22 @@ uint32_t att_tilt_step(att_tilt_t *f, att_vec3_t acc)
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
-    flags = att_sensor_check_accel(acc, f->s.accel_range, &norm);
+    flags = att_i_sensor_check_accel(acc, f->c.accel_range, &norm);
     if (flags == 0u) {
-        s = -acc.x / (f->s.normalise ? norm : f->s.gravity);
-        if (att_absf(s) > 1.0f) {
+        s = -acc.x / (f->c.normalise ? norm : f->c.gravity);
+        if (att_i_absf(s) > 1.0f) {
             s = (s < 0.0f) ? -1.0f : 1.0f;
             flags |= ATT_FLAG_CLAMPED;
         }
-        f->euler.x = att_atan2f(acc.y, acc.z);
-        f->euler.y = att_asinf(s);
-        f->euler.z = 0.0f;
-        f->q = att_quat_from_euler(f->euler.x, f->euler.y, 0.0f);
-        f->valid = true;
-    } else if (!f->valid) {
+        f->st.euler.x = att_atan2f(acc.y, acc.z);
+        f->st.euler.y = att_asinf(s);
+        f->st.euler.z = 0.0f;
+        f->st.q = att_quat_from_euler(f->st.euler.x, f->st.euler.y, 0.0f);
+        f->st.valid = true;
+    } else if (!f->st.valid) {
         flags |= ATT_FLAG_NOT_READY;
     }
-    f->steps = f->steps + 1u;
-    f->flags = flags;
+    f->st.steps = f->st.steps + 1u;
+    f->st.flags = flags;
     return flags;
 }

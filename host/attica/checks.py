@@ -55,9 +55,9 @@ GAIN_TIME_CONSTANTS: dict[FilterKind, tuple[tuple[str, str], ...]] = {
 def check_gains(kind: FilterKind, settings: Any) -> None:
     """Refuse a per-sample gain together with the time constant that would override it.
 
-    The rule of the C library (``att_filter_init``): a time constant > 0 replaces the per-sample gain,
-    so a non-zero gain beside it is an error, not something to ignore silently. A gain equal to the
-    kind's default counts as unset (the defaults leave the gain unused whenever a time constant is set).
+    The rule of the C library (``att_<kind>_settings_validate``: "must be 0 when tau > 0"): a time
+    constant > 0 replaces the per-sample gain, so a non-zero gain beside it is an error, not something
+    to ignore silently. This check says so naming both fields, before the C library's generic refusal.
 
     Raises
     ------
@@ -65,11 +65,10 @@ def check_gains(kind: FilterKind, settings: Any) -> None:
         Naming both fields and how to choose one.
 
     """
-    defaults = SETTINGS_CLASS[kind]()
     for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
         g = float(getattr(settings, gain))
         t = float(getattr(settings, tau))
-        if t > 0 and g != 0 and g != float(getattr(defaults, gain)):
+        if t > 0 and g != 0:
             raise SettingsConflictError(
                 f"{kind.label}: {gain}={g:g} (a per-sample gain) is set together with {tau}={t:g} s (a time "
                 f"constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, or "
@@ -78,21 +77,21 @@ def check_gains(kind: FilterKind, settings: Any) -> None:
 
 
 def implied_gains(kind: FilterKind, base: Any, overrides: dict[str, Any]) -> dict[str, Any]:
-    """``overrides`` with each per-sample gain set to 0 where only its time constant is given (> 0).
+    """``overrides`` with each per-sample gain set to 0 where its time constant is in use (> 0).
 
-    A per-sample gain that was not given (it still has its default value) yields to a time constant the
-    caller sets: the gain's default means "unused" once a time constant is in use. A gain given
-    explicitly together with its time constant is left for :func:`check_gains` to refuse.
+    A per-sample gain left at its default (not in ``overrides``, default value in ``base``) yields to a
+    time constant > 0, given in ``overrides`` or set in ``base`` (e.g. ``ArsSettings(tau=0.5)``): the
+    gain's default means "unused" once a time constant is in use. A gain given with a value of its own
+    together with its time constant is left for :func:`check_gains` to refuse.
     """
     out = dict(overrides)
     cls = SETTINGS_CLASS[kind]
     defaults = cls()
     current = base if base is not None else defaults
     for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
-        t = out.get(tau)
+        t = out.get(tau, getattr(current, tau))
         if (
-            t is not None
-            and float(t) > 0
+            float(t) > 0
             and gain not in out
             and float(getattr(current, gain)) == float(getattr(defaults, gain))
         ):

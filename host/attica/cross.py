@@ -275,7 +275,7 @@ MATH_ROWS = 100_000
 VARIANTS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
     "ars-euler-running": (
         FilterKind.ARS,
-        {"integration": 1, "bias_mode": 2, "accel_reject": 0.2, "tau": 0.5},
+        {"integration": 1, "bias_mode": 2, "accel_reject": 0.2, "tau": 0.5, "gain": 0.0},
     ),
     "ars-frozen-noinit": (
         FilterKind.ARS,

@@ -50,7 +50,7 @@ VERSION = 1
 HEADER_BYTES = 48
 TAG_BYTES = 24
 SETTINGS_FORMAT = "attica-settings-1"
-OUTPUT_WIDTH = 16
+OUTPUT_WIDTH = 17
 """Words per filter output row: att_output_t field by field (OUTPUT_DTYPE)."""
 
 MATH_FUNCS: dict[str, tuple[int, int]] = {

@@ -241,8 +241,12 @@ class Filter:
         lib.att_filter_output(self._f, ffi.from_buffer("att_output_t[]", out))
         return as_outputs(out)
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None) -> Outputs:
-        """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record."""
+    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True) -> Outputs:
+        """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record.
+
+        With ``full`` (default) the record is the whole att_filter_output after the step (Euler angles
+        and covariance included); otherwise only what att_filter_step fills (see the ``valid`` field).
+        """
         for name, v in (("gyr", gyr), ("acc", acc), ("mag", mag if mag is not None else (0.0, 0.0, 0.0))):
             a = _f32(v)
             if a.shape != (3,):
@@ -250,8 +254,39 @@ class Filter:
             dst = getattr(self._in, name)
             dst.x, dst.y, dst.z = float(a[0]), float(a[1]), float(a[2])
         out = np.zeros((), OUTPUT_DTYPE)
-        lib.att_filter_step(self._f, self._in, ffi.from_buffer("att_output_t[]", out))
+        buf = ffi.from_buffer("att_output_t[]", out)
+        lib.att_filter_step(self._f, self._in, buf)
+        if full:
+            lib.att_filter_output(self._f, buf)
         return as_outputs(out)
+
+    def retune(self, settings: Any = None, **changes: Any) -> None:
+        """New settings, the state kept: ``att_filter_retune`` (the attitude, bias and rest memories go on).
+
+        ``changes`` are settings fields (``f.retune(tau_acc_lp=2.0)``); the others keep their values
+        (or those of ``settings``, a settings dataclass of the kind, when given).
+        The same checks as at construction apply (a per-sample gain beside its time constant is an error;
+        setting only the time constant leaves the gain at 0). What a changed setting resets is the C
+        library's rule (``att_<kind>_retune``). On an error nothing changes.
+
+        Raises
+        ------
+        TypeError
+            Unknown settings fields.
+        ValueError
+            Conflicting gains, a bad ``dt``.
+        NativeError
+            The C library refused the new settings (the filter is left as it was).
+
+        """
+        base = settings if settings is not None else self._settings
+        _, new = filter_settings(self.kind, None, base, changes, "Filter.retune")
+        s = ffi.new("att_filter_settings_t *")
+        _check(lib.att_filter_settings_default(int(self.kind), 0.01, s), "att_filter_settings_default")
+        _fill(getattr(s, self.kind.label), to_dict(new))
+        _check(lib.att_filter_retune(self._f, s), f"att_filter_retune({self.kind.label})")
+        self._s = s
+        self._settings = new
 
     @property
     def state(self) -> Any:
@@ -259,7 +294,13 @@ class Filter:
         return self._f
 
     def run(
-        self, gyr: Any, acc: Any, mag: Any = None, snapshot_every: int = 0, check_units: bool = True
+        self,
+        gyr: Any,
+        acc: Any,
+        mag: Any = None,
+        snapshot_every: int = 0,
+        full: bool = True,
+        check_units: bool = True,
     ) -> Any:
         """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
 
@@ -270,6 +311,10 @@ class Filter:
         snapshot_every
             > 0: return ``(records, snapshots)`` where snapshots is a cffi array of ``att_filter_t``
             holding the state just before steps 0, k, 2k, ...
+        full
+            True (default): every record is the whole att_filter_output after its step (Euler angles,
+            covariance); False keeps only what att_filter_step fills (q, gyro_bias, flags, steps; see
+            the ``valid`` field), which is what a firmware loop pays for.
         check_units
             Warn (:class:`attica.UnitWarning`) when the median magnitudes look like deg/s, g, gauss or
             nT; False skips the check.
@@ -293,6 +338,7 @@ class Filter:
             _fptr(m) if m is not None else ffi.NULL,
             g.shape[0],
             ffi.from_buffer("att_output_t[]", out),
+            1 if full else 0,
             every,
             snaps,
         )

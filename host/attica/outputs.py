@@ -1,4 +1,4 @@
-"""The filter output record, laid out exactly like ``att_output_t`` (64 bytes)."""
+"""The filter output record, laid out exactly like ``att_output_t`` (68 bytes)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,21 @@ OUTPUT_DTYPE = np.dtype(
         ("cov", "<f4", (4,)),  # covariance diagonal (KF: q; EKF: phi, theta, psi)
         ("flags", "<u4"),
         ("steps", "<u4"),
+        ("valid", "<u4"),  # ATT_OUT_* bits of the fields written
     ]
 )
 """numpy dtype of one ``att_output_t``."""
 
 FLOAT_FIELDS = ("q", "euler", "gyro_bias", "cov")
 """Float fields of an output record, compared bit for bit between C and the reference."""
+
+OUT_Q = 0x1
+"""``ATT_OUT_Q``: the record's q holds a value."""
+OUT_EULER = 0x2
+"""``ATT_OUT_EULER``."""
+OUT_BIAS = 0x4
+"""``ATT_OUT_BIAS``."""
+OUT_COV = 0x8
+"""``ATT_OUT_COV``."""
+OUT_ALL = 0xF
+"""``ATT_OUT_ALL``: every field (att_filter_output)."""

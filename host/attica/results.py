@@ -31,6 +31,7 @@ _LABELS = {
     "cov": "cov (diagonal)",
     "flags": "flags",
     "steps": "steps",
+    "valid": "valid (written)",
 }
 _EDGE = 4
 """Rows shown at each end of a long output."""
@@ -76,6 +77,8 @@ def as_outputs(records: NDArray[Any]) -> Outputs:
 def _cell(name: str, value: Any) -> str:
     if name == "flags":
         return describe_flags(int(value))
+    if name == "valid":
+        return _valid_text(int(value))
     v = np.asarray(value)
     if v.dtype.kind == "f":
         if name == "euler":
@@ -86,10 +89,28 @@ def _cell(name: str, value: Any) -> str:
     return " ".join(str(int(x)) for x in v.reshape(-1))
 
 
+_VALID_BITS = {"q": 0x1, "euler": 0x2, "gyro_bias": 0x4, "cov": 0x8}
+"""``ATT_OUT_*``: which field a record's ``valid`` mask says was written."""
+_VALID_ALL = 0xF
+
+
+def _valid_text(value: int) -> str:
+    v = int(value)
+    return (
+        "all" if v & _VALID_ALL == _VALID_ALL else "|".join(n for n, b in _VALID_BITS.items() if v & b) or "-"
+    )
+
+
 def _shown_fields(rec: NDArray[Any]) -> list[str]:
     names = list(rec.dtype.names or ())
+    plain = rec.view(np.ndarray)
+    if "valid" in names and rec.size:
+        seen = int(np.bitwise_or.reduce(np.asarray(plain["valid"], np.uint32).reshape(-1)))
+        names = [n for n in names if n not in _VALID_BITS or seen & _VALID_BITS[n]]  # fields never written
+        if np.all(np.asarray(plain["valid"]) & _VALID_ALL == _VALID_ALL):
+            names.remove("valid")  # everything written everywhere: nothing to say
     # cov is filled by the Kalman filters only: hide an all-zero cov
-    if "cov" in names and rec.size and not np.any(np.asarray(rec.view(np.ndarray)["cov"])):
+    if "cov" in names and rec.size and not np.any(np.asarray(plain["cov"])):
         names.remove("cov")
     if "steps" in names:  # the step number leads each row
         names.remove("steps")

@@ -66,8 +66,8 @@ class ArsSettings:
     """Complementary ARS settings (``att_ars_settings_t``); see att_ars.h for meanings."""
 
     dt: float = 0.01
-    gain: float = 0.1
-    tau: float = 0.02
+    gain: float = 1.0
+    tau: float = 0.0
     gain_c: float = 0.0
     gravity: float = 9.80665
     accel_reject: float = 0.0
@@ -146,9 +146,9 @@ class MarsSettings:
     """9-axis complementary filter settings (``att_mars_settings_t``); see att_mars.h for meanings."""
 
     dt: float = 0.01
-    alpha_acc: float = 0.02
-    alpha_mag: float = 0.01
-    tau_acc: float = 0.5
+    alpha_acc: float = 1.0
+    alpha_mag: float = 0.0
+    tau_acc: float = 0.0
     tau_mag: float = 20.0
     mag_mode: MagMode = MagMode.HORIZONTAL
     gravity: float = 9.80665
@@ -163,7 +163,7 @@ class MarsSettings:
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     m0_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
     integration: Integration = Integration.ROTVEC
-    tau_acc_lp: float = 1.0
+    tau_acc_lp: float = 1.3
     bias_mode: BiasMode = BiasMode.AT_REST
     bias_n_max: int = 1000
     rest_gyro: float = 0.05

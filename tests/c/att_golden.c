@@ -28,8 +28,9 @@
  * q(4) ok(1) with ok 1.0f/0.0f). The scalar functions have width 1 (atan2: y x -> 1).
  *
  * filters: input row = gyr(3) acc(3) [mag(3)] (width 6, mag absent, or 9), floats. Row r belongs to
- * step r / streams of instance r % streams. Output row (16 words) = att_output_t field by field:
- * q(4) euler(3) gyro_bias(3) cov(4) as floats, flags, steps as u32.
+ * step r / streams of instance r % streams. Output row (17 words) = att_output_t field by field, as
+ * att_filter_output gives it after the step: q(4) euler(3) gyro_bias(3) cov(4) as floats, flags,
+ * steps, valid as u32.
  *
  * Settings file: text, one "key=value" per line, "#" starts a comment, blank lines ignored:
  *   format=attica-settings-1     (optional; checked when present)
@@ -54,7 +55,7 @@
 #define GV_HEADER_BYTES 48u
 #define GV_TAG_BYTES 24u
 #define GV_MAX_WIDTH 64u
-#define GV_OUT_WIDTH 16u
+#define GV_OUT_WIDTH 17u
 
 /* The word I/O copies floats bit for bit to and from uint32_t: float must be 32 bits wide (and
  * IEEE-754 binary32, which the firmware requires anyway). */
@@ -599,6 +600,7 @@ static void gv_output_words(const att_output_t *o, uint32_t *w)
     w[13] = gv_f2w(o->cov[3]);
     w[14] = o->flags;
     w[15] = o->steps;
+    w[16] = o->valid;
 }
 
 static att_vec3_t gv_words_v3(const uint32_t *w)
@@ -682,6 +684,7 @@ static int gv_run_filter(att_filter_kind_t kind, const char *set_path, const cha
             sample.mag = gv_words_v3(words + 6);
         }
         (void)att_filter_step(&filters[r % h.streams], &sample, &out);
+        att_filter_output(&filters[r % h.streams], &out); /* the whole record, Euler angles included */
         gv_output_words(&out, words);
         st = gv_write_row(fout, out_path, GV_OUT_WIDTH, words);
     }

@@ -60,7 +60,7 @@ int main(void)
     }
     while (run) {
         out_flags = att_ars_step(&state, v3(0), v3(3));
-        put_q(state.q);
+        put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_ars_reset(&state);
         }
@@ -78,7 +78,7 @@ int main(void)
     }
     while (run) {
         out_flags = att_mars_step(&state, v3(0), v3(3), v3(6));
-        put_q(state.q);
+        put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_mars_reset(&state);
         }
@@ -138,7 +138,7 @@ int main(void)
     }
     while (run) {
         out_flags = att_gyro_step(&state, v3(0));
-        put_q(state.q);
+        put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_gyro_reset(&state);
         }
@@ -156,7 +156,7 @@ int main(void)
     }
     while (run) {
         out_flags = att_tilt_step(&state, v3(3));
-        put_q(state.q);
+        put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_tilt_reset(&state);
         }

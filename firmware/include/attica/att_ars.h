@@ -19,6 +19,15 @@
  *     average out over a few seconds (translation back and forth, vibration, taps) are thus filtered
  *     before they can tilt the estimate (the idea of VQF's inclination correction). Samples rejected by
  *     accel_reject do not enter the low-pass.
+ *     With K_a = 1 (k = 1 and c = 0, the default) the correction is the full alignment of the vector
+ *     with z, computed without trigonometry: with u = v / |v| (v = lp2, or a_e without the low-pass),
+ *     w = sqrt((1 + u_z) / 2) and Q = (w, u_y / (2 w), -u_x / (2 w), 0), the half-angle form of
+ *     Q(phi_e, n); for w <= 2^-10 (upside down) Q = (0, 1, 0, 0), a half turn about x. After it lp2 is
+ *     (0, 0, |lp2|) exactly (that is what the rotation makes of it) and lp1 is rotated by Q. Otherwise
+ *     (K_a < 1) the angle is phi_e = atan2(|a_xy|, a_z) and Q = Q(K_a phi_e, n) as above.
+ *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
+ *     (the attitude and low-pass states are then kept from before the step): no state can become
+ *     NaN or Inf, since samples are bounded by the (finite) ranges.
  *
  * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
  */
@@ -40,54 +49,90 @@ typedef enum {
     ATT_INTEGRATE_FIRST_ORDER = 2 /**< q + q (0, w) dt / 2, normalised (MARS only: the article) */
 } att_integration_t;
 
-/** Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields. */
+/**
+ * Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields.
+ * Each field's valid range is given in brackets; att_ars_init (and att_ars_settings_validate) refuse
+ * anything else with ATT_ERR_SETTINGS. NaN and Inf are outside every range.
+ */
 typedef struct {
-    float dt;                      /**< sample period, s; 0 < dt <= 1 */
-    float gain;                    /**< k: per-sample accel gain at |a| = g, [0, 1]; used when tau == 0 */
-    float tau;                     /**< accel correction time constant, s (>= 0); > 0 sets k = dt/(tau+dt) */
-    float gain_c;                  /**< c in K_a = k / (1 + c (|a|/g - 1)^2); >= 0 */
-    float gravity;                 /**< g, m/s^2; > 0 */
-    float accel_reject;            /**< skip correction when ||a|/g - 1| > this; 0 = never skip */
-    float accel_range;             /**< |a| above this is saturation: correction skipped, m/s^2 */
-    float gyro_range;              /**< any |w_i| above this: integration skipped, rad/s */
+    float dt;                      /**< sample period, s; [1e-6, 1] */
+    float gain;                    /**< k: per-sample accel gain at |a| = g, [0, 1]; must be 0 when tau > 0 */
+    float tau;                     /**< accel correction time constant, s, [0, 1e4]; > 0 sets k = dt/(tau+dt) */
+    float gain_c;                  /**< c in K_a = k / (1 + c (|a|/g - 1)^2); [0, 1e6] */
+    float gravity;                 /**< g, m/s^2; [1, 100] */
+    float accel_reject;            /**< skip correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never skip */
+    float accel_range;             /**< |a| above this is saturation: correction skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;              /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
     att_bias_mode_t bias_mode;     /**< gyro bias estimation mode */
-    uint32_t bias_n_max;           /**< cap on n in the running mean; 1 .. 2^24 */
-    att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame */
-    float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro, rad/s ... */
-    float rest_accel;              /**< ... and ||a| - g| < rest_accel, m/s^2 ... */
-    float rest_time;               /**< ... for at least rest_time, s (>= 0) */
-    att_integration_t integration; /**< gyro integration method */
+    uint32_t bias_n_max;           /**< cap on n in the running mean; [1, 2^24] */
+    att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame; |component| <= gyro_range */
+    float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_accel;              /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
+    float rest_time;               /**< ... for at least rest_time, s, [0, 1e4] */
+    att_integration_t integration; /**< ROTVEC or EULER */
     bool init_from_accel;          /**< take roll/pitch from the first valid accel sample (yaw 0) */
-    att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth */
-    float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s (>= 0); 0 = off */
+    att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth;
+                                        finite, |q|^2 in [2^-20, 2^20] (normalised by init) */
+    float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
 } att_ars_settings_t;
 
-/** State of one complementary ARS instance (no heap; copy freely). */
+/** Coefficients derived from the settings by att_ars_init: what a step needs, and the reset values. */
 typedef struct {
-    att_ars_settings_t s;  /**< validated copy of the settings */
-    float k;               /**< effective per-sample accel gain at |a| = g */
-    uint32_t rest_n;       /**< samples at rest needed before the bias is updated */
-    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
+    float dt;                 /**< sample period, s */
+    float k;                  /**< per-sample accel correction gain at |a| = g, [0, 1] */
+    float k_lp;               /**< per-sample gain of each accel low-pass stage, [0, 1) (0 = off) */
+    float gain_c;             /**< c of the adaptive gain */
+    float gravity;            /**< g, m/s^2 */
+    float accel_reject;       /**< ||a|/g - 1| limit (0 = never) */
+    float accel_range2;       /**< saturation limit of |a|^2, (m/s^2)^2 */
+    float gyro_range;         /**< saturation limit of |w_i|, rad/s */
+    att_bias_params_t bias;   /**< rest detector and running-mean parameters */
+    att_quat_t q_init;        /**< attitude after reset (unit, sensor-to-earth) without init_from_accel */
+    att_vec3_t bias_init;     /**< bias after reset, rad/s, sensor frame */
+    uint8_t integration;      /**< att_integration_t */
+    bool init_from_accel;     /**< wait for the first usable accel sample */
+    bool lp_on;               /**< k_lp > 0: the accel low-pass is used */
+    bool reject_on;           /**< accel_reject > 0: the rejection test is made */
+    bool full;                /**< k == 1 and c == 0: full alignment with the low-passed gravity, no
+                                   trigonometry (and no |a| unless accel_reject is set) */
+} att_ars_coeffs_t;
+
+/** Dynamic state of an ARS instance. */
+typedef struct {
     att_quat_t q;          /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t bias;       /**< gyro bias estimate w_m, rad/s, sensor frame */
-    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
-    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
-    bool initialised;      /**< q holds a valid attitude */
     att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
     att_vec3_t lp2;        /**< second accel low-pass stage (used by the correction), m/s^2, earth */
+    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
+    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
+    bool initialised;      /**< q holds a valid attitude */
+} att_ars_state_t;
+
+/** One complementary ARS instance (no heap; copy freely): coefficients and state, no settings copy. */
+typedef struct {
+    att_ars_coeffs_t c;  /**< derived from the settings at init / retune */
+    att_ars_state_t st;  /**< changes every step */
 } att_ars_t;
 
 /**
  * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md) and rate-independent:
- * accel low-pass tau_acc_lp 1.5 s, correction time constant tau 0.02 s, c = 0, bias at rest, rotvec
- * integration. The first implementation's literal settings (k = 0.1 per sample, c = 100, no low-pass)
+ * accel low-pass tau_acc_lp 1.5 s, full correction (gain 1, tau 0: the attitude follows the low-passed
+ * gravity, so tau_acc_lp is the filter's time constant), c = 0, bias at rest, rotvec integration. The first implementation's literal settings (k = 0.1 per sample, c = 100, no low-pass)
  * are att_filter_settings_preset(ATT_FILTER_ARS, ATT_PRESET_SEED, ...).
  */
 void att_ars_settings_default(att_ars_settings_t *settings, float dt);
+/** ATT_OK when every field is within its range (above), else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
+att_status_t att_ars_settings_validate(const att_ars_settings_t *settings);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);
+/**
+ * New settings for a running instance: the coefficients are replaced and the state is kept (attitude,
+ * bias, low-pass states, counters), except that the bias becomes 0 (mode OFF) or bias_init (mode
+ * FROZEN) and the counters are limited to the new rest_n / bias_n_max. On error f is left unchanged.
+ */
+att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings);
 /** Back to the state right after att_ars_init, keeping the settings. */
 void att_ars_reset(att_ars_t *f);
 /** One update with gyro (rad/s) and accel (m/s^2), sensor frame; returns ATT_FLAG_* bits. */

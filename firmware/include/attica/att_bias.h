@@ -2,8 +2,9 @@
  * @file att_bias.h
  * @brief Gyro bias by capped running mean with a rest detector, shared by att_ars and att_mars.
  *
- * At rest when |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_n consecutive samples.
- * Running mean b := (n b + w) / (n + 1), n capped at n_max, updated for every valid gyro sample
+ * At rest when |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_n consecutive samples, tested
+ * on squares (|w - b|^2 < rest_gyro^2 and (g - rest_accel)^2 < |a|^2 < (g + rest_accel)^2, no square
+ * roots). Running mean b := (n b + w) / (n + 1), n capped at n_max, updated for every valid gyro sample
  * (ATT_BIAS_RUNNING) or only at rest (ATT_BIAS_AT_REST). Units: rad/s, m/s^2; sensor frame.
  */
 #ifndef ATT_BIAS_H
@@ -24,23 +25,30 @@ typedef enum {
     ATT_BIAS_AT_REST = 3   /**< running mean of samples taken while at rest */
 } att_bias_mode_t;
 
-/** Parameters of one bias update (taken from the owning filter's settings). */
+/** Parameters of the rest detector and bias update (att_bias_params_set derives them). */
 typedef struct {
     att_bias_mode_t mode; /**< estimation mode */
     uint32_t n_max;       /**< cap on n in the running mean, 1 .. 2^24 */
     uint32_t rest_n;      /**< consecutive samples at rest needed */
-    float rest_gyro;      /**< rest threshold on |w - b|, rad/s */
-    float rest_accel;     /**< rest threshold on ||a| - g|, m/s^2 */
-    float gravity;        /**< g, m/s^2 */
+    float rest_gyro2;     /**< rest_gyro^2, (rad/s)^2: at rest needs |w - b|^2 below it ... */
+    float acc2_lo;        /**< ... and |a|^2 above (g - rest_accel)^2, (m/s^2)^2 ... */
+    float acc2_hi;        /**< ... and below (g + rest_accel)^2, (m/s^2)^2 */
 } att_bias_params_t;
 
 /**
+ * Parameters from settings: rest thresholds rest_gyro (rad/s), rest_accel (m/s^2, <= gravity) and
+ * rest_time (s), gravity g (m/s^2), sample period dt (s); rest_n = ceil(rest_time / dt).
+ */
+void att_bias_params_set(att_bias_params_t *p, att_bias_mode_t mode, uint32_t n_max, float rest_gyro,
+                         float rest_accel, float rest_time, float gravity, float dt);
+
+/**
  * One rest-detector and bias update. bias (rad/s, sensor frame), n and rest_count are the owner's
- * state; gyr is the raw gyro sample, gyro_ok/accel_ok its validity, norm = |a| (m/s^2).
+ * state; gyr is the raw gyro sample, gyro_ok/accel_ok its validity, acc_norm2 = |a|^2 ((m/s^2)^2).
  * Returns ATT_FLAG_AT_REST and/or ATT_FLAG_BIAS_UPDATED.
  */
 uint32_t att_bias_step(const att_bias_params_t *p, att_vec3_t *bias, uint32_t *n, uint32_t *rest_count,
-                       att_vec3_t gyr, bool gyro_ok, bool accel_ok, float norm);
+                       att_vec3_t gyr, bool gyro_ok, bool accel_ok, float acc_norm2);
 /* ATT_CDEF_END */
 
 #ifdef __cplusplus

@@ -91,8 +91,12 @@ typedef struct {
 
 /** Default settings for sample period dt (s): rate noises (above), P0 = I, accel_reject 0.1. */
 void att_ekf_settings_default(att_ekf_settings_t *settings, float dt);
+/** ATT_OK when every field is within its range, else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
+att_status_t att_ekf_settings_validate(const att_ekf_settings_t *settings);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings);
+/** New settings (noises, limits), the angles and covariance kept; on error f is unchanged. */
+att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings);
 /** Back to the state right after att_ekf_init, keeping the settings. */
 void att_ekf_reset(att_ekf_t *f);
 /** One update with gyro (rad/s) and accel (m/s^2), sensor frame; returns ATT_FLAG_* bits. */

@@ -47,7 +47,28 @@ typedef struct {
     att_vec3_t mag; /**< magnetic field, uT; zero vector or NaN = absent */
 } att_sample_t;
 
-/** What every filter reports after a step. */
+/** Output fields (att_output_t.valid bits): which fields of a record hold values. */
+enum {
+    ATT_OUT_Q = 0x1u,     /**< q */
+    ATT_OUT_EULER = 0x2u, /**< euler */
+    ATT_OUT_BIAS = 0x4u,  /**< gyro_bias */
+    ATT_OUT_COV = 0x8u,   /**< cov */
+    ATT_OUT_ALL = 0xFu    /**< every field (att_filter_output) */
+};
+
+/**
+ * Flags that mean "the output is not an attitude estimate": no valid sample has initialised the
+ * filter yet (q is the initial attitude), or the call itself was invalid. With every other flag q is
+ * a finite unit quaternion estimating the attitude (ATT_FLAG_NUMERIC: the one of the step before).
+ */
+enum { ATT_FLAGS_OUTPUT_INVALID = 0xC000 /**< ATT_FLAG_NOT_READY | ATT_FLAG_BAD_ARG */ };
+
+/**
+ * What a filter reports. att_filter_step fills q, gyro_bias, flags and steps (and euler for the kinds
+ * whose state is Euler angles: ekf, gyro, tilt) and says so in valid; it leaves the other fields as
+ * they were. att_filter_output fills every field (valid = ATT_OUT_ALL): the Euler angles of the other
+ * kinds and the covariance diagonal are computed there, on request, not in every step.
+ */
 typedef struct {
     att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t euler;     /**< ZYX (roll phi, pitch theta, yaw psi), rad */
@@ -55,6 +76,7 @@ typedef struct {
     float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi, 0) rad^2; else 0 */
     uint32_t flags;       /**< ATT_FLAG_* of the step */
     uint32_t steps;       /**< steps since init/reset (wraps) */
+    uint32_t valid;       /**< ATT_OUT_* bits of the fields written by the call that filled the record */
 } att_output_t;
 
 /** Named settings presets (att_filter_settings_preset). */
@@ -100,16 +122,39 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
  */
 att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
                                         att_filter_settings_t *settings);
+/**
+ * ATT_OK when the kind's member of settings satisfies its settings contract (every field within the
+ * range its header states), ATT_ERR_SETTINGS otherwise, ATT_ERR_KIND / ATT_ERR_NULL for a bad call.
+ * att_filter_init and att_filter_retune accept exactly the settings this accepts.
+ */
+att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filter_settings_t *settings);
 /** Initialise f as the given kind; on error f is unchanged. */
 att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings);
+/**
+ * New settings for a running filter of the same kind, keeping its state (attitude, bias, filter
+ * memories and counters; see att_<kind>_retune for what a setting resets). ATT_ERR_KIND when f is not
+ * initialised; on any error f is unchanged.
+ */
+att_status_t att_filter_retune(att_filter_t *f, const att_filter_settings_t *settings);
 /** Reset to the state right after init. */
 void att_filter_reset(att_filter_t *f);
-/** One step; fills out (may be NULL) and returns the flags (ATT_FLAG_BAD_ARG for NULL/uninitialised). */
+/**
+ * One step; fills the per-step fields of out (may be NULL; see att_output_t) and returns the flags
+ * (ATT_FLAG_BAD_ARG for NULL/uninitialised).
+ */
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out);
-/** The current output without stepping (flags and steps of the last step). */
+/** The whole output record of the current state (flags and steps of the last step), valid = ATT_OUT_ALL. */
 void att_filter_output(const att_filter_t *f, att_output_t *out);
 /** Short lower-case name of a kind ("ars", "mars", "kf", "ekf", "gyro", "tilt"; "?" if unknown). */
 const char *att_filter_name(att_filter_kind_t kind);
+/** Upper-case name of one ATT_FLAG_* bit ("GYRO_INVALID", ...); NULL when flag is not exactly one known bit. */
+const char *att_flag_name(uint32_t flag);
+/**
+ * The names of the bits of flags joined by '|' ("-" for none, "0x...." for unknown bits) into buf,
+ * always NUL-terminated when size > 0 (truncated if it does not fit). Returns the length the full text
+ * needs (without the NUL), like snprintf.
+ */
+size_t att_flags_format(uint32_t flags, char *buf, size_t size);
 /* ATT_CDEF_END */
 
 #ifdef __cplusplus

@@ -61,14 +61,14 @@ typedef enum {
 
 /** Settings of the linear quaternion KF. Fill with att_kf_settings_default, then change fields. */
 typedef struct {
-    float dt;                   /**< sample period, s; 0 < dt <= 1 */
+    float dt;                   /**< sample period, s; [1e-6, 1] */
     float q_noise;              /**< process noise Q = q_noise * I per step, (unit quaternion)^2; 1e-12..1e12 */
     float r_noise;              /**< measurement noise R = r_noise * I, (unit quaternion)^2; 1e-12..1e12 */
     float p0;                   /**< initial covariance P0 = p0 * I, (unit quaternion)^2; 1e-12..1e12 */
-    float gravity;              /**< g, m/s^2; > 0 */
-    float accel_reject;         /**< skip the update when ||a|/g - 1| > this (>= 0); 0 = never skip */
-    float accel_range;          /**< |a| above this is saturation: update skipped, m/s^2 (> 0, may be +Inf) */
-    float gyro_range;           /**< any |w_i| above this: propagation skipped, rad/s (> 0, may be +Inf) */
+    float gravity;              /**< g, m/s^2; [1, 100] */
+    float accel_reject;         /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
+    float accel_range;          /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;           /**< any |w_i| above this: propagation skipped, rad/s; (0, 1e3] */
     att_kf_yaw_mode_t yaw_mode; /**< yaw of the measurement quaternion */
     bool init_from_accel;       /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_quat_t q_init;          /**< initial attitude when init_from_accel is false, sensor-to-earth */
@@ -93,8 +93,12 @@ typedef struct {
  * literal Q = 1e-4 I, R = 10 I per step are the seed preset (att_filter_settings_preset).
  */
 void att_kf_settings_default(att_kf_settings_t *settings, float dt);
+/** ATT_OK when every field is within its range, else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
+att_status_t att_kf_settings_validate(const att_kf_settings_t *settings);
 /** Validate settings and initialise f. ATT_ERR_NULL / ATT_ERR_SETTINGS leave f unchanged. */
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings);
+/** New settings (noises, limits), the attitude and covariance kept; on error f is unchanged. */
+att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings);
 /** Back to the state right after att_kf_init, keeping the settings. */
 void att_kf_reset(att_kf_t *f);
 /** One update with gyro (rad/s) and accel (m/s^2), sensor frame; returns ATT_FLAG_* bits. */

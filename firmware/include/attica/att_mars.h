@@ -7,26 +7,35 @@
  *     default: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time), of every sample (RUNNING),
  *     fixed at bias_init (FROZEN, the article) or zero (OFF);
  *  1. gyro integration of w - b: exponential map q := q * Q((w - b) dt) (ATT_INTEGRATE_ROTVEC,
- *     default, exact for a constant rate) or the article's first-order quaternion derivative
- *     q := q + (0.5 q (x) (0, w - b)) dt (ATT_INTEGRATE_FIRST_ORDER); then normalise;
- *  2. accel correction: a' = q a q* / |a| (earth frame); the rotation taking a' to z = (0, 0, 1) has
- *     the axis a' x z / |a' x z| and the angle atan2(|a' x z|, a' . z) (equal to the article's
- *     acos(a' . z) for unit vectors, but accurate for small angles where acos loses ~3e-4 rad);
- *     q := Q(k_acc * angle, axis) * q (left multiplication: a rotation in the earth frame);
- *     with tau_acc_lp > 0 (default) a' is taken from two cascaded first-order low-passes of the
- *     earth-frame specific force q a q* (gain dt / (tau_acc_lp + dt) each; both stages rotated by the
- *     correction, see att_ars.h), so translational accelerations average out before they tilt q;
- *  3. magnetometer correction the same way against the earth-frame reference field m0:
- *     ATT_MARS_MAG_HORIZONTAL (default) projects m' = q m q* and m0 onto the horizontal plane first,
- *     so the axis is vertical and the magnetometer can only change yaw, never roll/pitch;
- *     ATT_MARS_MAG_FULL uses the full vectors (the article), axis m' x m0.
- *     A sample is rejected (ATT_FLAG_MAG_REJECTED, no correction) when ||m|/|m0| - 1| > mag_norm_reject,
- *     when the dip atan2(m'_z, |m'_xy|) differs from that of m0 by more than mag_dip_reject, or when
- *     the direction is degenerate (horizontal mode: |m'_xy| == 0).
+ *     default, exact for a constant rate; small angles by its series, see att_ars.h) or the article's
+ *     first-order quaternion derivative q := q + (0.5 q (x) (0, w - b)) dt, normalised
+ *     (ATT_INTEGRATE_FIRST_ORDER). The magnetometer sample is rotated into the earth frame of this
+ *     predicted attitude, m' = q m q*, for step 3 (both corrections are computed from the prediction);
+ *  2. accel correction, toward z = (0, 0, 1) of the earth-frame specific force a' = q a q*, or with
+ *     tau_acc_lp > 0 (default) of the output of two cascaded first-order low-passes of it (gain
+ *     dt / (tau_acc_lp + dt) each), so translational accelerations average out before they tilt q:
+ *     with k_acc = 1 (default: alpha_acc 1, tau_acc 0) the full alignment without trigonometry as in
+ *     att_ars.h (lp2 becomes (0, 0, |lp2|), lp1 is rotated with it); otherwise the rotation by the
+ *     fraction k_acc of the angle atan2(|a' x z|, a' . z) about a' x z / |a' x z| (the article's
+ *     acos(a' . z), accurate for small angles), both stages rotated with it; q := Q * q (left
+ *     multiplication: a rotation in the earth frame);
+ *  3. magnetometer correction against the earth-frame reference field m0:
+ *     ATT_MARS_MAG_HORIZONTAL (default) uses the horizontal parts h of m' and r of m0 only, so the
+ *     magnetometer can only change yaw, never roll/pitch: with C = (|h| + h . r, 0, 0, (h x r)_z) /
+ *     sqrt(2 |h| (|h| + h . r)), the shortest-arc rotation about z from h to r, q := ((1 - k_mag) +
+ *     k_mag C_w, 0, 0, k_mag C_z) * q (the normalised interpolation from the identity toward C, no
+ *     trigonometry: for the small heading errors of tracking the fraction k_mag of the angle; a half turn
+ *     toward C when h points away from r). ATT_MARS_MAG_FULL uses the full vectors (the article):
+ *     rotation toward m0 by the fraction k_mag of the angle about m' x m0.
+ *     A sample is rejected (ATT_FLAG_MAG_REJECTED, no correction) when ||m|/|m0| - 1| > mag_norm_reject
+ *     (tested as |m| outside |m0| (1 -+ mag_norm_reject)), when the dip of m' differs from that of m0
+ *     by more than mag_dip_reject (tested as m'_z outside |m| sin(dip0 -+ mag_dip_reject), the interval
+ *     limited to +-pi/2 where sin is monotonic), or when the direction is degenerate (horizontal mode:
+ *     |h| == 0 or no horizontal m0).
+ *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
  *  When the direction to correct is exactly opposite to the reference (cross product too small to
- *  normalise), a fixed axis perpendicular to the reference is used with the same atan2 angle (~pi):
- *  accel: x = (1, 0, 0); horizontal mag: z = (0, 0, 1); full mag: the horizontal unit vector
- *  perpendicular to m0 (x when m0 is vertical). When the vectors are already aligned the angle is ~0.
+ *  normalise), a fixed axis perpendicular to the reference is used: accel: x = (1, 0, 0); full mag:
+ *  the horizontal unit vector perpendicular to m0 (x when m0 is vertical).
  *
  * Initialisation (init_from_sensors, default): at the first step with a valid accel sample, roll and
  * pitch come from att_sensor_tilt(acc). If that step also has a valid mag sample, yaw is chosen so
@@ -41,11 +50,9 @@
  * Flags: the sensor checks of att_sensor.h (mag: zero or NaN vector = ATT_FLAG_MAG_ABSENT, Inf or
  * |m| > mag_range = ATT_FLAG_MAG_INVALID); ATT_FLAG_ACCEL_REJECTED when ||a|/g - 1| > accel_reject;
  * ATT_FLAG_MAG_REJECTED when a valid mag sample was not used (norm/dip rejection, degenerate
- * direction, or a failed alignment); ATT_FLAG_NUMERIC when the first-order integration overflowed
- * (the integration is then skipped, like an unusable gyro sample) or the final normalisation failed
- * (the attitude is kept from before the step). A corrected vector that cannot be normalised (only
- * possible with +Inf ranges and huge samples) skips that correction silently. The state stays
- * finite and unit in every case.
+ * direction, or a failed alignment); ATT_FLAG_NUMERIC when the first-order integration or the final
+ * normalisation failed (the state is kept from before); with the finite ranges of the settings
+ * contract neither can happen. The state stays finite and unit in every case.
  *
  * Units: rad/s, m/s^2, uT, s. Frames: samples in the sensor frame; q sensor-to-earth (ENU, z up).
  */
@@ -66,71 +73,117 @@ typedef enum {
     ATT_MARS_MAG_FULL = 1        /**< full vectors, axis m' x m0 (the article): may also tilt */
 } att_mars_mag_mode_t;
 
-/** Settings of the 9-axis complementary filter. Fill with att_mars_settings_default, then change. */
+/**
+ * Settings of the 9-axis complementary filter. Fill with att_mars_settings_default, then change.
+ * Each field's valid range is given in brackets; att_mars_init (and att_mars_settings_validate) refuse
+ * anything else with ATT_ERR_SETTINGS. NaN and Inf are outside every range.
+ */
 typedef struct {
-    float dt;                     /**< sample period, s; 0 < dt <= 1 */
-    float alpha_acc;              /**< per-sample accel correction gain, [0, 1]; used when tau_acc == 0 */
-    float alpha_mag;              /**< per-sample mag correction gain, [0, 1]; used when tau_mag == 0 */
-    float tau_acc;                /**< accel time constant, s (>= 0); > 0 sets alpha = dt/(tau+dt) */
-    float tau_mag;                /**< mag time constant, s (>= 0); > 0 sets alpha = dt/(tau+dt) */
+    float dt;                     /**< sample period, s; [1e-6, 1] */
+    float alpha_acc;              /**< per-sample accel correction gain, [0, 1]; must be 0 when tau_acc > 0 */
+    float alpha_mag;              /**< per-sample mag correction gain, [0, 1]; must be 0 when tau_mag > 0 */
+    float tau_acc;                /**< accel time constant, s, [0, 1e4]; > 0 sets alpha = dt/(tau+dt) */
+    float tau_mag;                /**< mag time constant, s, [0, 1e4]; > 0 sets alpha = dt/(tau+dt) */
     att_mars_mag_mode_t mag_mode; /**< horizontal (yaw only) or full-vector mag correction */
-    float gravity;                /**< g, m/s^2; > 0 */
-    float accel_reject;           /**< skip accel correction when ||a|/g - 1| > this; 0 = never skip */
-    float accel_range;            /**< |a| above this is saturation: correction skipped, m/s^2 (> 0) */
-    float gyro_range;             /**< any |w_i| above this: integration skipped, rad/s (> 0) */
-    float mag_range;              /**< |m| above this: sample invalid, uT (> 0) */
-    float mag_norm_reject;        /**< skip mag when ||m|/|m0| - 1| > this; 0 = never skip */
-    float mag_dip_reject;         /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad; 0 = never */
-    att_vec3_t bias_init;         /**< fixed gyro bias b subtracted from every sample, rad/s, sensor frame */
+    float gravity;                /**< g, m/s^2; [1, 100] */
+    float accel_reject;           /**< skip accel correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never */
+    float accel_range;            /**< |a| above this is saturation: correction skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;             /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
+    float mag_range;              /**< |m| above this: sample invalid, uT; (0, 1e5] */
+    float mag_norm_reject;        /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
+    float mag_dip_reject;         /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
+    att_vec3_t bias_init;         /**< initial gyro bias b, rad/s, sensor frame; |component| <= gyro_range */
     bool init_from_sensors;       /**< attitude and m0 from the first valid accel (+ mag) samples */
-    att_quat_t q_init;            /**< initial attitude when init_from_sensors is false, sensor-to-earth */
+    att_quat_t q_init;            /**< initial attitude when init_from_sensors is false, sensor-to-earth;
+                                       finite, |q|^2 in [2^-20, 2^20] (normalised by init) */
     att_vec3_t m0_init;           /**< reference field when init_from_sensors is false, uT, earth (ENU);
-                                       zero = take it from the first valid mag sample */
+                                       zero = take it from the first valid mag sample; else
+                                       |m0_init| in [1e-3, mag_range] */
     att_integration_t integration; /**< ROTVEC (exponential map, default) or FIRST_ORDER (the article) */
-    float tau_acc_lp;             /**< low-pass time constant of the earth-frame accel, s (>= 0); 0 = off */
+    float tau_acc_lp;             /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     att_bias_mode_t bias_mode;    /**< gyro bias: AT_REST (default), FROZEN (= bias_init), RUNNING, OFF */
-    uint32_t bias_n_max;          /**< cap on n in the running mean of the bias; 1 .. 2^24 */
-    float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s ... */
-    float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2 ... */
-    float rest_time;              /**< ... for at least rest_time, s (>= 0) */
+    uint32_t bias_n_max;          /**< cap on n in the running mean of the bias; [1, 2^24] */
+    float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
+    float rest_time;              /**< ... for at least rest_time, s, [0, 1e4] */
 } att_mars_settings_t;
 
-/** State of one 9-axis complementary filter instance (no heap; copy freely). */
+/** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
 typedef struct {
-    att_mars_settings_t s; /**< validated copy of the settings */
-    float k_acc;           /**< effective per-sample accel gain */
-    float k_mag;           /**< effective per-sample mag gain */
-    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
-    uint32_t rest_n;       /**< samples at rest needed before the bias is updated */
+    float dt;                /**< sample period, s */
+    float k_acc;             /**< per-sample accel correction gain, [0, 1] */
+    float k_mag;             /**< per-sample mag correction gain, [0, 1] */
+    float k_mag1;            /**< 1 - k_mag */
+    float k_lp;              /**< per-sample gain of each accel low-pass stage, [0, 1) (0 = off) */
+    float gravity;           /**< g, m/s^2 */
+    float accel_reject;      /**< ||a|/g - 1| limit (0 = never) */
+    float accel_range2;      /**< saturation limit of |a|^2, (m/s^2)^2 */
+    float gyro_range;        /**< saturation limit of |w_i|, rad/s */
+    float mag_range;         /**< validity limit of |m|, uT */
+    float mag_norm_reject;   /**< ||m|/|m0| - 1| limit (0 = never) */
+    float mag_dip_reject;    /**< dip deviation limit, rad (0 = never) */
+    att_bias_params_t bias;  /**< rest detector and running-mean parameters */
+    att_quat_t q_init;       /**< attitude after reset (unit, sensor-to-earth) without init_from_sensors */
+    att_vec3_t m0_init;      /**< reference field after reset, uT, earth frame (zero: none) */
+    att_vec3_t bias_init;    /**< bias after reset, rad/s, sensor frame */
+    uint8_t integration;     /**< att_integration_t */
+    uint8_t mag_mode;        /**< att_mars_mag_mode_t */
+    bool init_from_sensors;  /**< wait for the first usable accel sample, align yaw with the first mag */
+    bool lp_on;               /**< k_lp > 0: the accel low-pass is used */
+    bool reject_on;           /**< accel_reject > 0: the rejection test is made */
+    bool full;               /**< k_acc == 1: full alignment with the low-passed gravity, no trig */
+} att_mars_coeffs_t;
+
+/** Dynamic state of a 9-axis filter instance. */
+typedef struct {
     att_quat_t q;          /**< attitude, unit, sensor-to-earth (ENU) */
-    att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
-    float m0_norm;         /**< |m0|, uT */
-    float m0_dip;          /**< dip of m0: atan2(m0.z, |m0_xy|), rad (negative = pointing down) */
-    att_vec3_t m0_ref;     /**< unit reference direction of the mag correction (mode dependent), earth */
-    att_vec3_t m0_perp;    /**< unit fallback axis for a field opposite to m0_ref, earth */
-    bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
-    bool m0_valid;         /**< m0 holds a reference field */
-    bool initialised;      /**< q holds a valid attitude */
     att_vec3_t bias;       /**< gyro bias estimate b, rad/s, sensor frame */
-    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
-    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
     att_vec3_t lp2;        /**< second accel low-pass stage (used by the correction), m/s^2, earth */
+    att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
+    att_vec3_t m0_ref;     /**< unit reference direction of the mag correction (mode dependent), earth */
+    att_vec3_t m0_perp;    /**< unit fallback axis for a field opposite to m0_ref, earth */
+    float m0_lo;           /**< smallest accepted |m|, uT (norm rejection; 0 = none) */
+    float m0_hi;           /**< largest accepted |m|, uT (norm rejection; mag_range = none) */
+    float dip_lo;          /**< smallest accepted sin(dip) of q m q* (dip rejection; -1 = none) */
+    float dip_hi;          /**< largest accepted sin(dip) (dip rejection; 1 = none) */
+    uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
+    uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
+    bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
+    bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
+    bool initialised;      /**< q holds a valid attitude */
+} att_mars_state_t;
+
+/** One 9-axis complementary filter instance (no heap; copy freely): coefficients and state. */
+typedef struct {
+    att_mars_coeffs_t c;  /**< derived from the settings at init / retune */
+    att_mars_state_t st;  /**< changes every step */
 } att_mars_t;
 
 /**
  * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md), rate-independent:
- * rotvec integration, gyro bias learnt at rest, accel low-pass tau_acc_lp 1 s, tau_acc 0.5 s,
- * tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2, mag_dip_reject 0.3 rad,
- * initialisation from the sensors. The article's literal settings (alpha_acc 0.02, alpha_mag 0.01 per
+ * rotvec integration, gyro bias learnt at rest, accel low-pass tau_acc_lp 1.3 s with the full
+ * alignment (alpha_acc 1, tau_acc 0: the same lag as the earlier 1 s low-pass followed by a 0.5 s
+ * correction), tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2,
+ * mag_dip_reject 0.3 rad, initialisation from the sensors. The article's literal settings (alpha_acc 0.02, alpha_mag 0.01 per
  * sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass) are the seed preset
  * (att_filter_settings_preset).
  */
 void att_mars_settings_default(att_mars_settings_t *settings, float dt);
+/** ATT_OK when every field is within its range (above), else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
+att_status_t att_mars_settings_validate(const att_mars_settings_t *settings);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
+/**
+ * New settings for a running instance: coefficients replaced, state kept (attitude, bias, low-pass
+ * states, reference field, counters), except that the bias becomes 0 (mode OFF) or bias_init
+ * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
+ * derived limits (direction for the mag mode, norm and dip bounds) are recomputed. On error f is
+ * left unchanged.
+ */
+att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings);
 /** Back to the state right after att_mars_init, keeping the settings. */
 void att_mars_reset(att_mars_t *f);
 /**

@@ -33,7 +33,7 @@ float att_sqrtf(float x);
 bool att_isfinitef(float x);
 /** x limited to [lo, hi]; NaN stays NaN. */
 float att_clampf(float x, float lo, float hi);
-/** |x| without libm. */
+/** |x| without libm: the sign bit cleared (IEEE abs: |-0| = +0, NaN stays NaN). */
 float att_absf(float x);
 
 /** sin(x), x in rad, |x| <= ATT_TRIG_MAX_ARG. */

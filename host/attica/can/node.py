@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.can.layout import FRAME_DTYPE, frames
-from attica.checks import check_gains
+from attica.checks import check_gains, implied_gains
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, make_settings, to_dict
 
@@ -79,7 +79,9 @@ class Node:
         dt = float(np.float32(1.0) / np.float32(sample_rate))
         overrides.setdefault("dt", dt)
         dt_over = overrides.pop("dt")
-        self.settings = make_settings(self.kind, settings, dt_over, **overrides)
+        self.settings = make_settings(
+            self.kind, settings, dt_over, **implied_gains(self.kind, settings, overrides)
+        )
         check_gains(self.kind, self.settings)
         s = ffi.new("att_node_settings_t *")
         native._check(

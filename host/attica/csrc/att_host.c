@@ -144,7 +144,7 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
 }
 
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out, size_t every, att_filter_t *snaps)
+                           att_output_t *out, int full, size_t every, att_filter_t *snaps)
 {
     size_t i;
     att_sample_t in;
@@ -164,6 +164,9 @@ size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, 
             in.mag = att_host_v3(mag + 3u * i);
         }
         (void)att_filter_step(f, &in, out + i);
+        if (full != 0) {
+            att_filter_output(f, out + i);
+        }
     }
     return n;
 }

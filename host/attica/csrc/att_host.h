@@ -41,12 +41,13 @@ void att_host_atan2(const float *a, const float *b, float *y, size_t n);
 /** Row-wise kernel: in rows of in_width floats, out rows of out_width; -1 for bad fn/widths. */
 int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t out_width, size_t n);
 /**
- * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records.
- * With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before step
- * j * every (ceil(n / every) snapshots). Returns n, or 0 when f or an input is NULL.
+ * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records: the
+ * per-step fields of att_filter_step, or with full != 0 the whole record of att_filter_output after
+ * each step. With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before
+ * step j * every (ceil(n / every) snapshots). Returns n, or 0 when f or an input is NULL.
  */
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out, size_t every, att_filter_t *snaps);
+                           att_output_t *out, int full, size_t every, att_filter_t *snaps);
 /* ATT_CDEF_END */
 
 #endif /* ATT_HOST_H */

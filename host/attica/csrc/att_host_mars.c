@@ -35,14 +35,14 @@ size_t att_host_mars_run(att_mars_t *f, const float *gyr, const float *acc, cons
             m = att_host_mars_v3(mag + 3u * i);
         }
         flags[i] = att_mars_step(f, att_host_mars_v3(gyr + 3u * i), att_host_mars_v3(acc + 3u * i), m);
-        quat[4u * i] = f->q.w;
-        quat[4u * i + 1u] = f->q.x;
-        quat[4u * i + 2u] = f->q.y;
-        quat[4u * i + 3u] = f->q.z;
+        quat[4u * i] = f->st.q.w;
+        quat[4u * i + 1u] = f->st.q.x;
+        quat[4u * i + 2u] = f->st.q.y;
+        quat[4u * i + 3u] = f->st.q.z;
         if (m0 != NULL) {
-            m0[3u * i] = f->m0.x;
-            m0[3u * i + 1u] = f->m0.y;
-            m0[3u * i + 2u] = f->m0.z;
+            m0[3u * i] = f->st.m0.x;
+            m0[3u * i + 1u] = f->st.m0.y;
+            m0[3u * i + 2u] = f->st.m0.z;
         }
     }
     return n;

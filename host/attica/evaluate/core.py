@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.checks import implied_gains
 from attica.data import Recording, load_recording
 from attica.metrics import Errors, error_angles, evaluate
 from attica.settings import FilterKind, Preset, make_settings, preset_settings
@@ -141,8 +142,8 @@ def attica_method(
         from attica import native
 
         settings = preset_settings(kind, p, dt=1.0 / rec.rate)
-        if extra:
-            settings = make_settings(kind, settings, **extra)
+        if extra:  # a time constant set here takes over from the preset's per-sample gain
+            settings = make_settings(kind, settings, **implied_gains(kind, settings, extra))
         out = native.Filter(kind, settings=settings).run(rec.gyr, rec.acc, rec.mag, check_units=False)
         return np.asarray(out["q"], dtype=np.float64)
 

@@ -61,9 +61,11 @@ def run_steps(obj: Any, *inputs: Any) -> tuple[NDArray[np.float32], NDArray[np.u
 
 
 StateSpec = dict[str, str]
-"""Reference attribute name -> layout of the C state field of the same name.
+"""C state field path -> layout; the reference attribute is the last part of the path.
 
-Layouts: ``quat`` (w,x,y,z tuple of (n,) float32), ``vec3`` (x,y,z tuple), ``f32``, ``u32``, ``bool``,
+A path is a member name of the kind's C struct, dotted for nested members (``"st.q"`` is ``f.st.q``
+in C and ``self.q`` in the reference). Layouts: ``quat`` (w,x,y,z tuple of (n,) float32), ``vec3``
+(x,y,z tuple), ``f32``, ``u32``, ``bool``,
 ``f32xN`` (tuple of N (n,) float32 arrays from a C ``float[N]`` or ``float[a][b]`` field).
 """
 
@@ -104,11 +106,21 @@ def _arrays(value: Any) -> list[Any]:
     return [value]
 
 
+def _c_field(c_state: Any, path: str) -> Any:
+    for part in path.split("."):
+        c_state = getattr(c_state, part)
+    return c_state
+
+
+def _ref_name(path: str) -> str:
+    return path.rsplit(".", 1)[-1]
+
+
 def load_c_state(obj: Any, spec: StateSpec, i: int, c_state: Any) -> None:
     """Set instance ``i`` of reference object ``obj`` from a cffi C state struct."""
     for name, layout in spec.items():
-        vals = _c_values(layout, getattr(c_state, name))
-        arrays = _arrays(getattr(obj, name))
+        vals = _c_values(layout, _c_field(c_state, name))
+        arrays = _arrays(getattr(obj, _ref_name(name)))
         if len(arrays) != len(vals):
             raise ValueError(f"state field {name}: {len(arrays)} reference arrays, {len(vals)} C values")
         for arr, v in zip(arrays, vals):
@@ -119,7 +131,7 @@ def state_values(obj: Any, spec: StateSpec, i: int) -> list[Any]:
     """Instance ``i``'s state as a flat list (numpy scalars), in spec order."""
     out: list[Any] = []
     for name in spec:
-        out.extend(a[i] for a in _arrays(getattr(obj, name)))
+        out.extend(a[i] for a in _arrays(getattr(obj, _ref_name(name))))
     return out
 
 
@@ -127,5 +139,20 @@ def c_state_values(spec: StateSpec, c_state: Any) -> list[Any]:
     """A C state struct as a flat list in the same order as :func:`state_values`."""
     out: list[Any] = []
     for name, layout in spec.items():
-        out.extend(_c_values(layout, getattr(c_state, name)))
+        out.extend(_c_values(layout, _c_field(c_state, name)))
     return out
+
+
+def _deep_copy(value: Any) -> Any:
+    if isinstance(value, tuple):
+        return tuple(_deep_copy(v) for v in value)
+    if isinstance(value, list):
+        return [_deep_copy(v) for v in value]
+    return np.copy(value)
+
+
+def carry_state(old: Any, new: Any) -> None:
+    """Copy the state attributes (``old.STATE``) of reference filter ``old`` into ``new`` (a retune)."""
+    for path in old.STATE:
+        name = _ref_name(path)
+        setattr(new, name, _deep_copy(getattr(old, name)))

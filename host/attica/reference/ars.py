@@ -9,15 +9,32 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, run_steps, setting, split3, stack
-from attica.reference.bias import bias_step
+from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import ArsSettings, BiasMode, Flag, Integration
 
 _U0 = np.uint32(0)
+A_MIN = dm.c("0x1p-19")
+"""Below this (|v| + v_z) / |v| the aligned vector points down: half turn about x (ATT_ALIGN_A_MIN)."""
 
 
 def _u(flag: Flag) -> np.uint32:
     return np.uint32(flag.value)
+
+
+def align_up(v: dm.Vec3) -> tuple[Any, tuple[Any, Any, Any], Any]:
+    """att_i_align_up: (ok, (w, x, y) of the full alignment of v with z, |v|)."""
+    with np.errstate(all="ignore"):
+        n2 = dm.vec3_dot(v, v)
+        ok = n2 >= dm.NORM2_MIN
+        n = dm.sqrtf(n2)
+        a = n + v[2]
+        up = a > A_MIN * n
+        inv = dm.ONE / dm.sqrtf((dm.TWO * n) * a)
+        qw = np.where(up, a * inv, dm.ZERO)
+        qx = np.where(up, v[1] * inv, dm.ONE)
+        qy = np.where(up, -(v[0] * inv), dm.ZERO)
+    return ok, (qw, qx, qy), n
 
 
 class Ars:
@@ -27,17 +44,26 @@ class Ars:
     """
 
     STATE: StateSpec = {
-        "q": "quat",
-        "bias": "vec3",
-        "bias_n": "u32",
-        "rest_count": "u32",
-        "initialised": "bool",
-        "lp1": "vec3",
-        "lp2": "vec3",
-        "steps": "u32",
-        "flags": "u32",
+        "st.q": "quat",
+        "st.bias": "vec3",
+        "st.lp1": "vec3",
+        "st.lp2": "vec3",
+        "st.bias_n": "u32",
+        "st.rest_count": "u32",
+        "st.steps": "u32",
+        "st.flags": "u32",
+        "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+
+    COEFFS: StateSpec = {
+        "c.dt": "f32",
+        "c.k": "f32",
+        "c.k_lp": "f32",
+        "c.bias.rest_n": "u32",
+        "c.full": "bool",
+    }
+    """C coefficients computed by att_ars_init that this class derives itself (compared by the tests)."""
 
     def __init__(self, settings: ArsSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else ArsSettings()
@@ -50,12 +76,16 @@ class Ars:
         self.gravity = setting(s.gravity, n)
         self.accel_reject = setting(s.accel_reject, n)
         self.accel_range = setting(s.accel_range, n)
+        self.accel_range2 = self.accel_range * self.accel_range
         self.gyro_range = setting(s.gyro_range, n)
         self.bias_mode = setting(int(s.bias_mode), n, np.int32)
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.bias_init = split3(s.bias_init, n)
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
+        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.rest_gyro, self.rest_accel, self.gravity
+        )
         self.rest_time = setting(s.rest_time, n)
         self.integration = setting(int(s.integration), n, np.int32)
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
@@ -71,6 +101,7 @@ class Ars:
         tau_lp = setting(s.tau_acc_lp, n)
         with np.errstate(all="ignore"):
             self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
+        self.full = (self.k == dm.ONE) & (self.gain_c == dm.ZERO)
         self.reset()
 
     def reset(self) -> None:
@@ -91,17 +122,14 @@ class Ars:
     def _increment(self, rate: dm.Vec3) -> dm.Quat:
         rv = dm.vec3_scale(rate, self.dt)
         q_euler = dm.quat_from_euler(rv[0], rv[1], rv[2])
-        q_rotvec = dm.quat_from_rotvec(rv)
+        q_rotvec = dm.quat_from_rotvec_fast(rv)
         return dm.quat_where(self.integration == Integration.EULER, q_euler, q_rotvec)
 
-    def _correct(self, q: dm.Quat, acc: dm.Vec3, norm: Any) -> tuple[dm.Quat, dm.Vec3, dm.Vec3]:
-        """att_ars_correct: (corrected q, new lp1, new lp2); the low-pass parts apply where k_lp > 0."""
-        lp_on = self.k_lp > dm.ZERO
+    def _correct_partial(
+        self, q: dm.Quat, v: dm.Vec3, norm: Any, lp1: dm.Vec3, lp2: dm.Vec3
+    ) -> tuple[dm.Quat, dm.Vec3, dm.Vec3]:
+        """att_ars_correct_partial: (q, lp1, lp2) after a correction by the fraction K_a of the angle."""
         with np.errstate(all="ignore"):
-            ae = dm.quat_rotate(q, acc)
-            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(ae, self.lp1), self.k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
-            v = dm.vec3_where(lp_on, lp2, ae)
             axy = dm.sqrtf(v[0] * v[0] + v[1] * v[1])
             angle = dm.atan2f(axy, v[2])
             e = norm / self.gravity - dm.ONE
@@ -113,9 +141,22 @@ class Ars:
                 np.zeros(self.n, np.float32),
             )
             qc = dm.quat_from_axis_angle(axis, ka * angle)
-            lp1 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp1), self.lp1)
-            lp2 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp2), self.lp2)
+            lp_on = self.k_lp > dm.ZERO
+            lp1 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp1), lp1)
+            lp2 = dm.vec3_where(lp_on, dm.quat_rotate(qc, lp2), lp2)
         return dm.quat_mul(qc, q), lp1, lp2
+
+    def _correct_full(
+        self, q: dm.Quat, v: dm.Vec3, lp1: dm.Vec3, lp2: dm.Vec3
+    ) -> tuple[Any, dm.Quat, dm.Vec3, dm.Vec3]:
+        """att_ars_correct_full: (ok, q, lp1, lp2) after the full alignment of v with z."""
+        ok, (qw, qx, qy), n = align_up(v)
+        qf = dm.quat_mul_hz(qw, qx, qy, q)
+        lp_on = ok & (self.k_lp > dm.ZERO)
+        zero = np.zeros(self.n, np.float32)
+        lp1 = dm.vec3_where(lp_on, dm.quat_rotate_hz(qw, qx, qy, lp1), lp1)
+        lp2 = dm.vec3_where(lp_on, (zero, zero, n), lp2)
+        return ok, dm.quat_where(ok, qf, q), lp1, lp2
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -123,28 +164,29 @@ class Ars:
         a = split3(acc, self.n)
         flags = sensor.check_gyro(g, self.gyro_range)
         gyro_ok = flags == _U0
-        accel_flags, norm = sensor.check_accel(a, self.accel_range)
+        accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
         accel_ok = accel_flags == _U0
         flags = flags | accel_flags
         with np.errstate(all="ignore"):
+            norm = dm.sqrtf(n2)
             e = norm / self.gravity - dm.ONE
             rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
 
-            self.bias, self.bias_n, self.rest_count, bias_flags = bias_step(
+            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
                 self.bias_mode,
                 self.bias_n_max,
                 self.rest_n,
-                self.rest_gyro,
-                self.rest_accel,
-                self.gravity,
+                self.rest_gyro2,
+                self.acc2_lo,
+                self.acc2_hi,
                 self.bias,
                 self.bias_n,
                 self.rest_count,
                 g,
                 gyro_ok,
                 accel_ok,
-                norm,
+                n2,
             )
             flags = flags | bias_flags
 
@@ -152,29 +194,50 @@ class Ars:
             waiting = ~self.initialised
             init_now = waiting & accel_ok
             t = sensor.tilt(a)
-            _, q_tilt = dm.quat_normalize(dm.quat_from_euler(t[0], t[1], np.zeros(self.n, np.float32)))
+            _, q_tilt = dm.quat_normalize_bounded(
+                dm.quat_from_euler(t[0], t[1], np.zeros(self.n, np.float32))
+            )
             flags = flags | np.where(
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
 
             q = self.q
             q1 = dm.quat_where(gyro_ok, dm.quat_mul(q, self._increment(dm.vec3_sub(g, self.bias))), q)
-            correct = accel_ok & ~rejected
-            q_corr, lp1c, lp2c = self._correct(q1, a, norm)
-            q2 = dm.quat_where(correct, q_corr, q1)
-            ok, qn = dm.quat_normalize(q2)
-            flags = flags | np.where(~waiting & ~ok, _u(Flag.NUMERIC), _U0)
-            q_run = dm.quat_where(ok, qn, q)
-            self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_tilt, q), q_run)
+            correct = ~waiting & accel_ok & ~rejected
+            v = dm.quat_rotate(q1, a)
+            lp_on = self.k_lp > dm.ZERO
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), self.k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
+            lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
+            v = dm.vec3_where(lp_on, lp2, v)
+            q_p, lp1_p, lp2_p = self._correct_partial(q1, v, norm, lp1, lp2)
+            ok_f, q_f, lp1_f, lp2_f = self._correct_full(q1, v, lp1, lp2)
+            full = self.full
+            q2 = dm.quat_where(correct, dm.quat_where(full, q_f, q_p), q1)
+            numeric = correct & full & ~ok_f
+            ok, qn = dm.quat_normalize_bounded(q2)
+            numeric = ~waiting & (numeric | ~ok)
+            flags = flags | np.where(numeric, _u(Flag.NUMERIC), _U0)
+            self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_tilt, q), dm.quat_where(numeric, q, qn))
             # the low-pass states: from the first sample at initialisation, else after a correction
             lp_init = dm.quat_rotate(q_tilt, a)
-            upd = ~waiting & correct
-            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp1c, self.lp1))
-            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp2c, self.lp2))
+            keep = ~correct | numeric
+            lp1_c = dm.vec3_where(full, lp1_f, lp1_p)
+            lp2_c = dm.vec3_where(full, lp2_f, lp2_p)
+            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp1, lp1_c))
+            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp2, lp2_c))
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def retune(self, settings: ArsSettings) -> None:
+        """att_ars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
+        new = Ars(settings, self.n)
+        carry_state(self, new)
+        bias_retune(new)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

@@ -104,9 +104,8 @@ def clampf(x: F32, lo: F32, hi: F32) -> Any:
 
 
 def absf(x: F32) -> Any:
-    """att_absf: ``x < 0 ? -x : x``."""
-    x = f32(x)
-    return np.where(x < ZERO, -x, x)
+    """att_absf: IEEE abs, the sign bit cleared (``|-0| = +0``; NaN stays NaN)."""
+    return np.abs(f32(x))
 
 
 def _sin_poly(r: Any) -> Any:
@@ -312,6 +311,23 @@ def quat_mul(a: Quat, b: Quat) -> Quat:
     )
 
 
+def quat_mul_hz(aw: Any, ax: Any, ay: Any, b: Quat) -> Quat:
+    """att_i_quat_mul_hz: (aw, ax, ay, 0) * b, the terms of quat_mul with a.z dropped."""
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by,
+        aw * bx + ax * bw + ay * bz,
+        aw * by - ax * bz + ay * bw,
+        aw * bz + ax * by - ay * bx,
+    )
+
+
+def quat_mul_z(aw: Any, az: Any, b: Quat) -> Quat:
+    """att_i_quat_mul_z: (aw, 0, 0, az) * b, the terms of quat_mul with a.x and a.y dropped."""
+    bw, bx, by, bz = b
+    return (aw * bw - az * bz, aw * bx - az * by, aw * by + az * bx, aw * bz + az * bw)
+
+
 def quat_conj(q: Quat) -> Quat:
     """att_quat_conj."""
     return (q[0], -q[1], -q[2], -q[3])
@@ -337,11 +353,35 @@ def quat_normalize(q: Quat) -> tuple[Any, Quat]:
         )
 
 
+def quat_normalize_bounded(q: Quat) -> tuple[Any, Quat]:
+    """att_i_quat_normalize_bounded: (ok, unit quaternion or identity), one test |q|^2 >= 2^-100."""
+    w, x, y, z = q
+    with _quiet():
+        n2 = w * w + x * x + y * y + z * z
+        ok = n2 >= NORM2_MIN
+        inv = ONE / sqrtf(n2)
+        return ok, (
+            np.where(ok, w * inv, ONE),
+            np.where(ok, x * inv, ZERO),
+            np.where(ok, y * inv, ZERO),
+            np.where(ok, z * inv, ZERO),
+        )
+
+
 def quat_rotate(q: Quat, v: Vec3) -> Vec3:
     """att_quat_rotate: q * (0, v) * conj(q) for unit q."""
     u = (q[1], q[2], q[3])
     t = vec3_scale(vec3_cross(u, v), TWO)
     return vec3_add(vec3_add(v, vec3_scale(t, q[0])), vec3_cross(u, t))
+
+
+def quat_rotate_hz(w: Any, x: Any, y: Any, v: Vec3) -> Vec3:
+    """att_i_quat_rotate_hz: quat_rotate for (w, x, y, 0), the products by the zero z part dropped."""
+    vx, vy, vz = v
+    tx = (y * vz) * TWO
+    ty = (-(x * vz)) * TWO
+    tz = (x * vy - y * vx) * TWO
+    return ((vx + tx * w) + y * tz, (vy + ty * w) - x * tz, (vz + tz * w) + (x * ty - y * tx))
 
 
 def quat_rotate_inv(q: Quat, v: Vec3) -> Vec3:
@@ -365,6 +405,23 @@ def quat_from_rotvec(rv: Vec3) -> Quat:
         k = sinf(h) / angle
         q = (cosf(h), rv[0] * k, rv[1] * k, rv[2] * k)
         return quat_where(ok, q, quat_identity(np.shape(angle)))
+
+
+ROTVEC_Z_SMALL = c("0x1p-4")
+ROTVEC_C1 = c("-0x1p-3")
+ROTVEC_C2 = c("0x1.555556p-9")
+ROTVEC_S0 = c("0x1p-1")
+ROTVEC_S1 = c("-0x1.555556p-6")
+ROTVEC_S2 = c("0x1.111112p-12")
+
+
+def quat_from_rotvec_fast(rv: Vec3) -> Quat:
+    """att_i_quat_from_rotvec_fast: the z^2 series of the exponential map for |rv|^2 <= 1/16, else exact."""
+    with _quiet():
+        z = vec3_dot(rv, rv)
+        k = ROTVEC_S0 + z * (ROTVEC_S1 + z * ROTVEC_S2)
+        small = (ONE + z * (ROTVEC_C1 + z * ROTVEC_C2), rv[0] * k, rv[1] * k, rv[2] * k)
+        return quat_where(z <= ROTVEC_Z_SMALL, small, quat_from_rotvec(rv))
 
 
 def quat_from_euler(phi: Any, theta: Any, psi: Any) -> Quat:

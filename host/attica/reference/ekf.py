@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, run_steps, setting, split3, stack
+from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
 from attica.settings import EkfSettings, Flag
 
 _U0 = np.uint32(0)
@@ -284,6 +284,12 @@ class Ekf:
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def retune(self, settings: EkfSettings) -> None:
+        """att_ekf_retune: new settings (coefficients), the state kept."""
+        new = Ekf(settings, self.n)
+        carry_state(self, new)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.checks import filter_settings, warn_units
-from attica.outputs import OUTPUT_DTYPE
+from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
@@ -78,6 +78,17 @@ class Filter:
         """att_filter_reset."""
         self.impl.reset()
 
+    def retune(self, settings: Any = None, **overrides: Any) -> None:
+        """att_filter_retune: new settings for every instance, the state kept (see each kind's retune).
+
+        ``settings`` (a settings dataclass, default: the current ones) with field ``overrides``; the
+        checks of the constructor apply (conflicting gains are an error).
+        """
+        base = settings if settings is not None else self._settings
+        _, new = filter_settings(self.kind, None, base, overrides, "reference.Filter.retune")
+        self.impl.retune(new)
+        self._settings = new
+
     def load_c_states(self, states: Any) -> None:
         """Set instance i from ``states[i]``, a C ``att_filter_t`` of the same kind (cffi)."""
         for i in range(self.n):
@@ -90,7 +101,9 @@ class Filter:
         """True when instance i's state equals the C ``att_filter_t`` bit for bit (NaN == NaN)."""
         ours = state_values(self.impl, self.impl.STATE, i)
         theirs = c_state_values(self.impl.STATE, getattr(c_state.u, self.kind.label))
-        for a, b in zip(ours, theirs):
+        if len(ours) != len(theirs):
+            return False
+        for a, b in zip(ours, theirs, strict=True):
             if isinstance(a, np.floating):
                 fb = np.float32(b)
                 if not ((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32)):
@@ -127,6 +140,7 @@ class Filter:
             out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))
         out["flags"] = f.flags
         out["steps"] = f.steps
+        out["valid"] = np.uint32(OUT_ALL)
         return as_outputs(out)
 
     def step(self, gyr: Any, acc: Any, mag: Any = None) -> Outputs:

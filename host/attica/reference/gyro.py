@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, setting, split3, stack
+from attica.reference._common import StateSpec, carry_state, setting, split3, stack
 from attica.settings import Flag, GyroSettings
 
 _U0 = np.uint32(0)
@@ -20,7 +20,7 @@ _PIO2 = dm.c("0x1.921fb6p+0")
 class Gyro:
     """Gyro-only baseline reference; ``n`` instances sharing one settings object."""
 
-    STATE: StateSpec = {"euler": "vec3", "q": "quat", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {"st.euler": "vec3", "st.q": "quat", "st.steps": "u32", "st.flags": "u32"}
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: GyroSettings | None = None, n: int = 1) -> None:
@@ -60,6 +60,7 @@ class Gyro:
             ex = phi + (p + sphi * tth * q + cphi * tth * r) * dt
             ey = theta + (cphi * q - sphi * r) * dt
             ez = psi + (sphi / cth * q + cphi / cth * r) * dt
+            ey = dm.wrap_pi(ey)
             over = ey > _PIO2
             under = ey < -_PIO2
             flip = over | under
@@ -77,6 +78,12 @@ class Gyro:
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def retune(self, settings: GyroSettings) -> None:
+        """att_gyro_retune: new settings (coefficients), the state kept."""
+        new = Gyro(settings, self.n)
+        carry_state(self, new)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, run_steps, setting, split3, stack
+from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
 from attica.settings import Flag, KfSettings, KfYawMode
 
 _U0 = np.uint32(0)
@@ -257,6 +257,12 @@ class Kf:
         self.steps = self.steps + np.uint32(1)
         self.flags = np.asarray(flags, np.uint32)
         return self.flags
+
+    def retune(self, settings: KfSettings) -> None:
+        """att_kf_retune: new settings (coefficients), the state kept."""
+        new = Kf(settings, self.n)
+        carry_state(self, new)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

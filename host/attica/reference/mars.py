@@ -9,14 +9,17 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, run_steps, setting, split3, stack
-from attica.reference.bias import bias_step
+from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference.ars import A_MIN, align_up
+from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import BiasMode, Flag, Integration, MagMode, MarsSettings
 
 _U0 = np.uint32(0)
 
-_M0Parts = tuple[Any, Any, Any, dm.Vec3, dm.Vec3, Any]
-"""(m0, |m0|, dip, m0_ref, m0_perp, m0_ref_ok) as computed by att_mars_set_m0."""
+_M0Parts = tuple[dm.Vec3, dm.Vec3, dm.Vec3, Any, Any, Any, Any, Any]
+"""(m0, m0_ref, m0_perp, m0_ref_ok, m0_lo, m0_hi, dip_lo, dip_hi) as att_mars_set_m0 stores them."""
+
+PIO2 = dm.c("0x1.921fb6p+0")
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -56,12 +59,6 @@ def _rotation_toward(v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm
         return dm.quat_from_axis_angle(axis, gain * angle)
 
 
-def _rotate_toward(q: dm.Quat, v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm.Quat:
-    """att_mars_rotate_toward."""
-    with np.errstate(all="ignore"):
-        return dm.quat_mul(_rotation_toward(v, r, fallback, gain), q)
-
-
 class Mars:
     """9-axis complementary filter reference: ``n`` independent instances sharing one settings object.
 
@@ -70,24 +67,36 @@ class Mars:
     """
 
     STATE: StateSpec = {
-        "q": "quat",
-        "m0": "vec3",
-        "m0_norm": "f32",
-        "m0_dip": "f32",
-        "m0_ref": "vec3",
-        "m0_perp": "vec3",
-        "m0_ref_ok": "bool",
-        "m0_valid": "bool",
-        "initialised": "bool",
-        "bias": "vec3",
-        "bias_n": "u32",
-        "rest_count": "u32",
-        "lp1": "vec3",
-        "lp2": "vec3",
-        "steps": "u32",
-        "flags": "u32",
+        "st.q": "quat",
+        "st.bias": "vec3",
+        "st.lp1": "vec3",
+        "st.lp2": "vec3",
+        "st.m0": "vec3",
+        "st.m0_ref": "vec3",
+        "st.m0_perp": "vec3",
+        "st.m0_lo": "f32",
+        "st.m0_hi": "f32",
+        "st.dip_lo": "f32",
+        "st.dip_hi": "f32",
+        "st.bias_n": "u32",
+        "st.rest_count": "u32",
+        "st.steps": "u32",
+        "st.flags": "u32",
+        "st.m0_ref_ok": "bool",
+        "st.m0_valid": "bool",
+        "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+
+    COEFFS: StateSpec = {
+        "c.dt": "f32",
+        "c.k_acc": "f32",
+        "c.k_mag": "f32",
+        "c.k_lp": "f32",
+        "c.bias.rest_n": "u32",
+        "c.full": "bool",
+    }
+    """C coefficients computed by att_mars_init that this class derives itself (compared by the tests)."""
 
     def __init__(self, settings: MarsSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else MarsSettings()
@@ -102,6 +111,7 @@ class Mars:
         self.gravity = setting(s.gravity, n)
         self.accel_reject = setting(s.accel_reject, n)
         self.accel_range = setting(s.accel_range, n)
+        self.accel_range2 = self.accel_range * self.accel_range
         self.gyro_range = setting(s.gyro_range, n)
         self.mag_range = setting(s.mag_range, n)
         self.mag_norm_reject = setting(s.mag_norm_reject, n)
@@ -109,12 +119,15 @@ class Mars:
         self.bias_init = split3(s.bias_init, n)
         self.init_from_sensors = setting(s.init_from_sensors, n, np.bool_)
         self.q_init = _split4(s.q_init, n)
-        self.m0_init = split3(s.m0_init, n)
+        zeros = np.zeros(n, np.float32)
+        self.m0_init = dm.vec3_where(self.init_from_sensors, (zeros, zeros, zeros), split3(s.m0_init, n))
         with np.errstate(all="ignore"):
             k_acc = np.where(tau_acc > dm.ZERO, self.dt / (tau_acc + self.dt), alpha_acc)
             k_mag = np.where(tau_mag > dm.ZERO, self.dt / (tau_mag + self.dt), alpha_mag)
         self.k_acc = k_acc.astype(np.float32)
         self.k_mag = k_mag.astype(np.float32)
+        self.k_mag1 = (dm.ONE - self.k_mag).astype(np.float32)
+        self.full = self.k_acc == dm.ONE
         self.integration = setting(np.asarray(s.integration, np.int32), n, np.int32)
         tau_lp = setting(s.tau_acc_lp, n)
         with np.errstate(all="ignore"):
@@ -123,9 +136,12 @@ class Mars:
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
+        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.rest_gyro, self.rest_accel, self.gravity
+        )
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
-        self._zeros = np.zeros(n, np.float32)
+        self._zeros = zeros
         self._ones = np.full(n, dm.ONE, np.float32)
         self._up = (self._zeros, self._zeros, self._ones)
         self._xaxis = (self._ones, self._zeros, self._zeros)
@@ -137,16 +153,18 @@ class Mars:
         _, self.q = dm.quat_normalize(self.q_init)
         z = self._zeros
         self.m0: dm.Vec3 = (z.copy(), z.copy(), z.copy())
-        self.m0_norm: Any = z.copy()
-        self.m0_dip: Any = z.copy()
         self.m0_ref: dm.Vec3 = (z.copy(), z.copy(), z.copy())
         self.m0_perp: dm.Vec3 = (z.copy(), z.copy(), z.copy())
+        self.m0_lo: Any = z.copy()
+        self.m0_hi: Any = z.copy()
+        self.dip_lo: Any = z.copy()
+        self.dip_hi: Any = z.copy()
         self.m0_ref_ok: Any = np.zeros(n, np.bool_)
         self.m0_valid: Any = np.zeros(n, np.bool_)
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = self._derive_m0(mi)
-        self._commit_m0(~self.init_from_sensors & nonzero & ok, parts)
+        self._commit_m0(nonzero & ok, parts)
         self.initialised: Any = ~self.init_from_sensors
         off = self.bias_mode == BiasMode.OFF
         self.bias: dm.Vec3 = dm.vec3_where(off, (z.copy(), z.copy(), z.copy()), self.bias_init)
@@ -158,11 +176,10 @@ class Mars:
         self.flags = np.zeros(n, np.uint32)
 
     def _derive_m0(self, m0: dm.Vec3) -> tuple[Any, _M0Parts]:
-        """The quantities att_mars_set_m0 stores, and whether it succeeds."""
+        """att_mars_set_m0 / att_mars_m0_limits: whether it succeeds and what it stores."""
         with np.errstate(all="ignore"):
             ok, unit = dm.vec3_normalize(m0)
             norm = dm.vec3_norm(m0)
-            dip = _dip(m0)
             ok_p, perp_full = dm.vec3_normalize(dm.vec3_cross(unit, self._up))
             perp_full = dm.vec3_where(ok_p, perp_full, self._xaxis)
             ok_h, ref_h = dm.vec3_normalize((m0[0], m0[1], self._zeros))
@@ -170,16 +187,31 @@ class Mars:
             ref = dm.vec3_where(full, unit, ref_h)
             perp = dm.vec3_where(full, perp_full, self._up)
             ref_ok = full | ok_h
-        return ok, (m0, norm, dip, ref, perp, ref_ok)
+            nr = self.mag_norm_reject
+            on = nr > dm.ZERO
+            lo = np.where(on, norm * (dm.ONE - nr), dm.ZERO)
+            ref_ok = full | ok_h
+            lo = np.where(ref_ok, lo, dm.INF)  # no usable direction: every sample rejected
+            hi = np.where(on, norm * (dm.ONE + nr), self.mag_range)
+            t = self.mag_dip_reject
+            dip = _dip(m0)
+            d_lo = dip - t
+            d_hi = dip + t
+            two = dm.TWO
+            dip_lo = np.where((t > dm.ZERO) & (d_lo > -PIO2), dm.sinf(d_lo), -two)
+            dip_hi = np.where((t > dm.ZERO) & (d_hi < PIO2), dm.sinf(d_hi), two)
+        return ok, (m0, ref, perp, ref_ok, lo, hi, dip_lo, dip_hi)
 
     def _commit_m0(self, cond: Any, parts: _M0Parts) -> None:
-        m0, norm, dip, ref, perp, ref_ok = parts
+        m0, ref, perp, ref_ok, lo, hi, dip_lo, dip_hi = parts
         self.m0 = dm.vec3_where(cond, m0, self.m0)
-        self.m0_norm = np.where(cond, norm, self.m0_norm)
-        self.m0_dip = np.where(cond, dip, self.m0_dip)
         self.m0_ref = dm.vec3_where(cond, ref, self.m0_ref)
         self.m0_perp = dm.vec3_where(cond, perp, self.m0_perp)
         self.m0_ref_ok = np.where(cond, ref_ok, self.m0_ref_ok)
+        self.m0_lo = np.where(cond, lo, self.m0_lo).astype(np.float32)
+        self.m0_hi = np.where(cond, hi, self.m0_hi).astype(np.float32)
+        self.dip_lo = np.where(cond, dip_lo, self.dip_lo).astype(np.float32)
+        self.dip_hi = np.where(cond, dip_hi, self.dip_hi).astype(np.float32)
         self.m0_valid = self.m0_valid | cond
 
     def _align(self, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
@@ -188,26 +220,38 @@ class Mars:
             me = dm.quat_rotate(q, mag)
             ok1, _ = dm.vec3_normalize(me)
             qa = dm.quat_mul(dm.quat_from_axis_angle(self._up, dm.atan2f(me[0], me[1])), q)
-            ok2, qa = dm.quat_normalize(qa)
+            ok2, qa = dm.quat_normalize_bounded(qa)
             me = dm.quat_rotate(qa, mag)
             m0 = (self._zeros, dm.sqrtf(me[0] * me[0] + me[1] * me[1]), me[2])
         return ok1 & ok2, qa, m0
 
-    def _mag_correct(self, q: dm.Quat, mag: dm.Vec3, mnorm: Any) -> tuple[Any, dm.Quat]:
-        """att_mars_mag_correct: (rejected, corrected q)."""
+    def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, dm.Quat]:
+        """att_mars_mag_correct: (rejected, corrected q) for the earth-frame mag me."""
         with np.errstate(all="ignore"):
-            me = dm.quat_rotate(q, mag)
-            e = mnorm / self.m0_norm - dm.ONE
-            ddip = _dip(me) - self.m0_dip
             reject = (
-                ~self.m0_ref_ok
-                | ((self.mag_norm_reject > dm.ZERO) & (dm.absf(e) > self.mag_norm_reject))
-                | ((self.mag_dip_reject > dm.ZERO) & (dm.absf(ddip) > self.mag_dip_reject))
+                (mnorm < self.m0_lo)
+                | (mnorm > self.m0_hi)
+                | (me[2] < self.dip_lo * mnorm)
+                | (me[2] > self.dip_hi * mnorm)
             )
-            vz = np.where(self.mag_mode == MagMode.HORIZONTAL, dm.ZERO, me[2])
-            ok, unit = dm.vec3_normalize((me[0], me[1], vz))
-            reject = reject | ~ok
-            qc = _rotate_toward(q, unit, self.m0_ref, self.m0_perp, self.k_mag)
+            # full mode: the 3-D rotation toward m0
+            ok_u, unit = dm.vec3_normalize(me)
+            q_full = dm.quat_mul(_rotation_toward(unit, self.m0_ref, self.m0_perp, self.k_mag), q)
+            # horizontal mode: the interpolation toward the shortest arc from h to r about z
+            h2 = me[0] * me[0] + me[1] * me[1]
+            ok_h = h2 >= dm.NORM2_MIN
+            hn = dm.sqrtf(h2)
+            rx, ry, _ = self.m0_ref
+            a = hn + (me[0] * rx + me[1] * ry)
+            b = me[0] * ry - me[1] * rx
+            kn = self.k_mag / dm.sqrtf((dm.TWO * hn) * a)
+            arc = a > A_MIN * hn
+            qw = np.where(arc, self.k_mag1 + a * kn, self.k_mag1)
+            qz = np.where(arc, b * kn, self.k_mag)
+            q_hor = dm.quat_mul_z(qw, qz, q)
+            full = self.mag_mode == MagMode.FULL
+            reject = reject | np.where(full, ~ok_u, ~ok_h)
+            qc = dm.quat_where(full, q_full, q_hor)
         return reject, dm.quat_where(reject, q, qc)
 
     def step(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
@@ -217,11 +261,11 @@ class Mars:
         m = split3(mag, self.n)
         flags = sensor.check_gyro(g, self.gyro_range)
         gyro_ok = flags == _U0
-        accel_flags, norm = sensor.check_accel(a, self.accel_range)
+        accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
         accel_ok = accel_flags == _U0
         flags = flags | accel_flags
         with np.errstate(all="ignore"):
-            e = norm / self.gravity - dm.ONE
+            e = dm.sqrtf(n2) / self.gravity - dm.ONE
             rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
             mag_flags, mnorm = sensor.check_mag(m, self.mag_range)
@@ -229,20 +273,20 @@ class Mars:
             flags = flags | mag_flags
 
             # rest detection and gyro bias (att_bias.c)
-            self.bias, self.bias_n, self.rest_count, bias_flags = bias_step(
+            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
                 self.bias_mode,
                 self.bias_n_max,
                 self.rest_n,
-                self.rest_gyro,
-                self.rest_accel,
-                self.gravity,
+                self.rest_gyro2,
+                self.acc2_lo,
+                self.acc2_hi,
                 self.bias,
                 self.bias_n,
                 self.rest_count,
                 g,
                 gyro_ok,
                 accel_ok,
-                norm,
+                n2,
             )
             flags = flags | bias_flags
 
@@ -250,7 +294,7 @@ class Mars:
             waiting = ~self.initialised
             init_now = waiting & accel_ok
             t = sensor.tilt(a)
-            _, q_tilt = dm.quat_normalize(dm.quat_from_euler(t[0], t[1], self._zeros))
+            _, q_tilt = dm.quat_normalize_bounded(dm.quat_from_euler(t[0], t[1], self._zeros))
             ok_a0, q_a0, m0_a0 = self._align(q_tilt, m)
             ok_d0, parts0 = self._derive_m0(m0_a0)
             good0 = ok_a0 & ok_d0
@@ -265,26 +309,37 @@ class Mars:
             run = ~waiting
             q = self.q
             w = dm.vec3_sub(g, self.bias)
-            q_rv = dm.quat_mul(q, dm.quat_from_rotvec(dm.vec3_scale(w, self.dt)))
-            q_fo = _integrate(q, w, self.dt)
+            q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))
+            ok_fo, q_fo = dm.quat_normalize_bounded(_integrate(q, w, self.dt))
             rotvec = self.integration == Integration.ROTVEC
-            ok_i, q_int = dm.quat_normalize(dm.quat_where(rotvec, q_rv, q_fo))
-            q1 = dm.quat_where(gyro_ok & ok_i, q_int, q)
-            numeric = gyro_ok & ~ok_i
+            q1 = dm.quat_where(gyro_ok, dm.quat_where(rotvec, q_rv, dm.quat_where(ok_fo, q_fo, q)), q)
+            numeric = gyro_ok & ~rotvec & ~ok_fo
             lp_on = self.k_lp > dm.ZERO
-            ae = dm.quat_rotate(q1, a)
-            lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(ae, self.lp1), self.k_lp))
-            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), self.k_lp))
-            ok_u, unit = dm.vec3_normalize(dm.vec3_where(lp_on, lp2n, ae))
-            qc = _rotation_toward(unit, self._up, self._xaxis, self.k_acc)
-            q_acc = dm.quat_mul(qc, q1)
             use_acc = run & accel_ok & ~rejected
-            q2 = dm.quat_where(use_acc & ok_u, q_acc, q1)
+            me = dm.quat_rotate(q1, m)  # the mag in the earth frame of the predicted attitude
+            v = dm.quat_rotate(q1, a)
+            lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), self.k_lp))
+            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), self.k_lp))
+            v = dm.vec3_where(lp_on, lp2n, v)
+            # full alignment (k_acc == 1)
+            ok_f, (fw, fx, fy), n_f = align_up(v)
+            q_af = dm.quat_mul_hz(fw, fx, fy, q1)
+            lp1_f = dm.quat_rotate_hz(fw, fx, fy, lp1n)
+            lp2_f = (self._zeros, self._zeros, n_f)
+            # partial correction (k_acc < 1)
+            ok_u, unit = dm.vec3_normalize(v)
+            qc = _rotation_toward(unit, self._up, self._xaxis, self.k_acc)
+            q_ap = dm.quat_mul(qc, q1)
+            lp1_p = dm.quat_rotate(qc, lp1n)
+            lp2_p = dm.quat_rotate(qc, lp2n)
+            full = self.full
+            ok_c = np.where(full, ok_f, ok_u)
+            q2 = dm.quat_where(use_acc & ok_c, dm.quat_where(full, q_af, q_ap), q1)
+            lp1c = dm.vec3_where(ok_c, dm.vec3_where(full, lp1_f, lp1_p), lp1n)
+            lp2c = dm.vec3_where(ok_c, dm.vec3_where(full, lp2_f, lp2_p), lp2n)
             lp_upd = use_acc & lp_on
-            lp1n = dm.vec3_where(ok_u, dm.quat_rotate(qc, lp1n), lp1n)
-            lp2n = dm.vec3_where(ok_u, dm.quat_rotate(qc, lp2n), lp2n)
 
-            rej_c, q_corr = self._mag_correct(q2, m, mnorm)
+            rej_c, q_corr = self._mag_correct(q2, me, mnorm)
             ok_al, q_al, m0_al = self._align(q2, m)
             ok_dl, parts_l = self._derive_m0(m0_al)
             good_l = ok_al & ok_dl
@@ -296,13 +351,14 @@ class Mars:
             bad_mag = (use_corr & rej_c) | (use_align & ~good_l) | (use_set & ~ok_ds)
             flags = flags | np.where(bad_mag, _u(Flag.MAG_REJECTED), _U0)
             flags = flags | np.where(use_align & good_l, _u(Flag.INITIALISED), _U0)
-            ok_f, q_fin = dm.quat_normalize(q3)
-            flags = flags | np.where(run & (numeric | ~ok_f), _u(Flag.NUMERIC), _U0)
-            q_run = dm.quat_where(ok_f, q_fin, q)
+            ok_n, q_fin = dm.quat_normalize_bounded(q3)
+            flags = flags | np.where(run & (numeric | ~ok_n), _u(Flag.NUMERIC), _U0)
+            q_run = dm.quat_where(ok_n, q_fin, q)
             self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_start, q), q_run)
             lp_init = dm.quat_rotate(q_start, a)
-            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp1n, self.lp1))
-            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp2n, self.lp2))
+            upd = lp_upd & ok_n
+            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp1c, self.lp1))
+            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(upd, lp2c, self.lp2))
         self._commit_m0(init_mag, parts0)
         self._commit_m0(use_align & good_l, parts_l)
         self._commit_m0(use_set & ok_ds, parts_s)
@@ -310,6 +366,15 @@ class Mars:
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def retune(self, settings: MarsSettings) -> None:
+        """att_mars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
+        new = Mars(settings, self.n)
+        carry_state(self, new)
+        bias_retune(new)
+        ok, parts = new._derive_m0(new.m0)
+        new._commit_m0(new.m0_valid & ok, parts)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

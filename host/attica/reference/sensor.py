@@ -35,6 +35,19 @@ def check_accel(acc: dm.Vec3, rng: Any) -> tuple[Any, Any]:
         return flags, np.where(invalid, dm.ZERO, n).astype(np.float32)
 
 
+def check_accel2(acc: dm.Vec3, rng2: Any) -> tuple[Any, Any]:
+    """att_i_sensor_check_accel2: (flags, |a|^2) against the squared range (0 when invalid)."""
+    rng2 = dm.f32(rng2)
+    with np.errstate(all="ignore"):
+        finite = dm.vec3_isfinite(acc)
+        n2 = dm.vec3_dot(acc, acc)
+        invalid = ~finite | ~(n2 >= dm.NORM2_MIN)
+        flags = np.where(
+            invalid, np.uint32(Flag.ACCEL_INVALID), np.where(n2 > rng2, np.uint32(Flag.ACCEL_RANGE), _U0)
+        )
+        return flags, np.where(invalid, dm.ZERO, n2).astype(np.float32)
+
+
 def tilt(acc: dm.Vec3) -> dm.Vec3:
     """att_sensor_tilt: (phi, theta, 0) from specific force."""
     ax, ay, az = acc

@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, setting, split3, stack
+from attica.reference._common import StateSpec, carry_state, setting, split3, stack
 from attica.settings import Flag, TiltSettings
 
 _U0 = np.uint32(0)
@@ -18,7 +18,13 @@ _U0 = np.uint32(0)
 class Tilt:
     """Accel-only tilt reference; ``n`` instances sharing one settings object."""
 
-    STATE: StateSpec = {"euler": "vec3", "q": "quat", "valid": "bool", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {
+        "st.euler": "vec3",
+        "st.q": "quat",
+        "st.valid": "bool",
+        "st.steps": "u32",
+        "st.flags": "u32",
+    }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     def __init__(self, settings: TiltSettings | None = None, n: int = 1) -> None:
@@ -59,6 +65,12 @@ class Tilt:
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def retune(self, settings: TiltSettings) -> None:
+        """att_tilt_retune: new settings (coefficients), the state kept."""
+        new = Tilt(settings, self.n)
+        carry_state(self, new)
+        self.__dict__.update(new.__dict__)
 
     @property
     def quat(self) -> NDArray[np.float32]:

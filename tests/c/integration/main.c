@@ -47,8 +47,9 @@ int main(void)
     }
     for (i = 0ul; i < 1000ul; i++) { /* in firmware: once per sample, in the IMU interrupt or main loop */
         read_imu(i, &in);
-        (void)att_filter_step(&filter, &in, &out);
+        (void)att_filter_step(&filter, &in, &out); /* fills q, gyro_bias, flags, steps */
     }
+    att_filter_output(&filter, &out); /* on request: the whole record, Euler angles included */
     printf("steps %lu flags 0x%04lx q %08lx %08lx %08lx %08lx yaw %.6f\n", (unsigned long)out.steps,
            (unsigned long)out.flags, bits(out.q.w), bits(out.q.x), bits(out.q.y), bits(out.q.z),
            (double)out.euler.z);

@@ -1,0 +1,293 @@
+/**
+ * @file att_core.h
+ * @brief Private: filter building blocks shared by several filters, as static inline functions.
+ *
+ * The sample checks of att_sensor.h and the rest detector / running-mean bias of att_bias.h, in the
+ * form the filters inline into their step functions. att_sensor.c and att_bias.c implement the public
+ * functions with these, so both give the same results. Compiled only with firmware/cflags.txt.
+ */
+#ifndef ATT_CORE_H
+#define ATT_CORE_H
+
+#include "att_inline.h"
+
+#include "attica/att_bias.h"
+#include "attica/att_math.h"
+#include "attica/att_types.h"
+
+/**
+ * att_sensor_check_gyro for a finite range (every filter's settings contract guarantees one; the
+ * public att_sensor_check_gyro also accepts +Inf). The common case costs three comparisons: NaN and
+ * Inf fail |w_i| <= range and take the slow path.
+ */
+static inline uint32_t att_i_sensor_check_gyro(att_vec3_t gyr, float range)
+{
+    if (att_i_absf(gyr.x) <= range && att_i_absf(gyr.y) <= range && att_i_absf(gyr.z) <= range) {
+        return 0u;
+    }
+    if (!att_i_vec3_isfinite(gyr)) {
+        return ATT_FLAG_GYRO_INVALID;
+    }
+    if (att_i_absf(gyr.x) > range || att_i_absf(gyr.y) > range || att_i_absf(gyr.z) > range) {
+        return ATT_FLAG_GYRO_RANGE;
+    }
+    return 0u;
+}
+
+/**
+ * att_sensor_check_accel with *norm = |a| (0 when invalid), for a finite range. The usable case needs
+ * no finiteness test: a NaN or Inf component makes |a|^2 NaN or Inf, which fails the range test.
+ */
+static inline uint32_t att_i_sensor_check_accel(att_vec3_t acc, float range, float *norm)
+{
+    const float n2 = att_i_vec3_dot(acc, acc);
+    const float n = att_i_sqrtf(n2);
+    if (n2 >= ATT_NORM2_MIN && n <= range) {
+        *norm = n;
+        return 0u;
+    }
+    if (!att_i_vec3_isfinite(acc) || !(n2 >= ATT_NORM2_MIN)) {
+        *norm = 0.0f;
+        return ATT_FLAG_ACCEL_INVALID;
+    }
+    *norm = n; /* n2 may be +Inf for huge input: then n = Inf > range */
+    return (n > range) ? ATT_FLAG_ACCEL_RANGE : 0u;
+}
+
+/**
+ * att_sensor_check_mag with *norm = |m| (0 when not usable), for a finite range: ATT_FLAG_MAG_ABSENT
+ * for a NaN component or the zero vector, ATT_FLAG_MAG_INVALID for +-Inf, |m| > range or
+ * |m|^2 < 2^-100.
+ */
+static inline uint32_t att_i_sensor_check_mag(att_vec3_t mag, float range, float *norm)
+{
+    const float n2 = att_i_vec3_dot(mag, mag);
+    const float n = att_i_sqrtf(n2);
+    *norm = 0.0f;
+    if (n2 >= ATT_NORM2_MIN && n <= range) {
+        *norm = n;
+        return 0u;
+    }
+    if (mag.x != mag.x || mag.y != mag.y || mag.z != mag.z ||
+        (mag.x == 0.0f && mag.y == 0.0f && mag.z == 0.0f)) {
+        return ATT_FLAG_MAG_ABSENT;
+    }
+    return ATT_FLAG_MAG_INVALID; /* +-Inf, |m| > range or |m|^2 < 2^-100 */
+}
+
+/** Settings checks: lo <= v <= hi (false for NaN). */
+static inline bool att_i_in(float v, float lo, float hi)
+{
+    return v >= lo && v <= hi;
+}
+
+/** A bool field holds 0 or 1 (read as bytes: another value would make reading it undefined). */
+static inline bool att_i_bool_ok(const bool *b)
+{
+    const unsigned char *p = (const unsigned char *)b;
+    size_t i;
+    for (i = 1u; i < sizeof *b; i++) {
+        if (p[i] != 0u) {
+            return false;
+        }
+    }
+    return p[0] <= 1u;
+}
+
+/** Every component within [-lim, lim] (false for NaN). */
+static inline bool att_i_vec3_within(att_vec3_t v, float lim)
+{
+    return att_i_in(v.x, -lim, lim) && att_i_in(v.y, -lim, lim) && att_i_in(v.z, -lim, lim);
+}
+
+/** An initial quaternion: finite with |q|^2 in [2^-20, 2^20] (it is normalised by the filter). */
+static inline bool att_i_quat_init_ok(att_quat_t q)
+{
+    const float n2 = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
+    return att_i_quat_isfinite(q) && att_i_in(n2, 0x1p-20f, 0x1p+20f);
+}
+
+/** The shared limits of the settings contracts. */
+#define ATT_DT_MIN 0x1.0c6f7ap-20f  /* 1e-6 s */
+#define ATT_DT_MAX 1.0f             /* s */
+#define ATT_TAU_MAX 10000.0f        /* s */
+#define ATT_GRAVITY_MIN 1.0f        /* m/s^2 */
+#define ATT_GRAVITY_MAX 100.0f      /* m/s^2 */
+#define ATT_ACCEL_RANGE_MAX 10000.0f /* m/s^2 (about 1000 g) */
+#define ATT_GYRO_RANGE_MAX 1000.0f  /* rad/s (about 57 000 deg/s) */
+#define ATT_MAG_RANGE_MAX 100000.0f /* uT */
+#define ATT_REJECT_MAX 1000.0f      /* relative deviations (dimensionless) */
+#define ATT_GAIN_C_MAX 1000000.0f
+#define ATT_BIAS_N_MAX_LIMIT 16777216u /* 2^24: n converts to float exactly */
+
+/** Bias mode and rest-detector settings shared by the ARS, the 9-axis filter and the KF. */
+static inline bool att_i_bias_settings_ok(att_bias_mode_t mode, uint32_t n_max, att_vec3_t bias_init,
+                                          float gyro_range, float rest_gyro, float rest_accel, float rest_time,
+                                          float gravity)
+{
+    return (mode == ATT_BIAS_OFF || mode == ATT_BIAS_FROZEN || mode == ATT_BIAS_RUNNING ||
+            mode == ATT_BIAS_AT_REST) &&
+           n_max >= 1u && n_max <= ATT_BIAS_N_MAX_LIMIT && att_i_vec3_within(bias_init, gyro_range) &&
+           att_i_in(rest_gyro, 0.0f, gyro_range) && att_i_in(rest_accel, 0.0f, gravity) &&
+           att_i_in(rest_time, 0.0f, ATT_TAU_MAX);
+}
+
+#define ATT_ALIGN_A_MIN 0x1p-19f /* full alignment: below this (|v| + v_z) / |v| the vector points down */
+
+/**
+ * The full alignment of v (earth frame) with z = (0, 0, 1) as the quaternion (w, x, y, 0) of a rotation
+ * about a horizontal axis, without trigonometry: with n = |v| and a = n + v_z, the shortest-arc
+ * quaternion (a, v_y, -v_x, 0) / sqrt(2 n a) (the half-angle form of the rotation by the angle between
+ * v and z about v x z); when a <= 2^-19 n (v points down) a half turn about x, (0, 1, 0, 0). *n = |v|.
+ * Returns false (outputs unset) when |v|^2 < 2^-100 or NaN (v is a low-passed specific force, bounded
+ * by the accel range: it cannot overflow). Mirrored by reference/ars.align_up.
+ */
+static inline bool att_i_align_up(att_vec3_t v, float *qw, float *qx, float *qy, float *n)
+{
+    const float n2 = att_i_vec3_dot(v, v);
+    float a;
+    float inv;
+    if (!(n2 >= ATT_NORM2_MIN)) {
+        return false;
+    }
+    *n = att_i_sqrtf(n2);
+    a = *n + v.z;
+    if (a > ATT_ALIGN_A_MIN * *n) {
+        inv = 1.0f / att_i_sqrtf((2.0f * *n) * a);
+        *qw = a * inv;
+        *qx = v.y * inv;
+        *qy = -(v.x * inv);
+    } else {
+        *qw = 0.0f;
+        *qx = 1.0f;
+        *qy = 0.0f;
+    }
+    return true;
+}
+
+/**
+ * One update of the two cascaded first-order low-passes of the earth-frame specific force v (gain k
+ * each): lp1 += (v - lp1) k, lp2 += (lp1 - lp2) k.
+ */
+static inline void att_i_lowpass2(att_vec3_t v, float k, att_vec3_t *lp1, att_vec3_t *lp2)
+{
+    *lp1 = att_i_vec3_add(*lp1, att_i_vec3_scale(att_i_vec3_sub(v, *lp1), k));
+    *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k));
+}
+
+/**
+ * The bias state after new parameters (a retune): the fixed value for OFF / FROZEN (init: 0 or
+ * bias_init), the counters limited to the new rest_n and n_max.
+ */
+static inline void att_i_bias_retune(const att_bias_params_t *p, att_vec3_t init, att_vec3_t *bias, uint32_t *n,
+                                     uint32_t *rest_count)
+{
+    if (p->mode == ATT_BIAS_OFF || p->mode == ATT_BIAS_FROZEN) {
+        *bias = init;
+    }
+    if (*rest_count > p->rest_n) {
+        *rest_count = p->rest_n;
+    }
+    if (*n > p->n_max) {
+        *n = p->n_max;
+    }
+}
+
+/** att_bias_params_set with rest_n already in samples. */
+static inline void att_i_bias_params(att_bias_params_t *p, att_bias_mode_t mode, uint32_t n_max, float rest_gyro,
+                                     float rest_accel, uint32_t rest_n, float gravity)
+{
+    const float lo = gravity - rest_accel;
+    const float hi = gravity + rest_accel;
+    p->mode = mode;
+    p->n_max = n_max;
+    p->rest_n = rest_n;
+    p->rest_gyro2 = rest_gyro * rest_gyro;
+    p->acc2_lo = lo * lo;
+    p->acc2_hi = hi * hi;
+}
+
+/**
+ * att_bias_step (see att_bias.h); the pointers are never NULL here. *d = gyr - b with the bias from
+ * before the step (the caller reuses it when the bias did not change).
+ */
+static inline uint32_t att_i_bias_step(const att_bias_params_t *p, att_vec3_t *bias, uint32_t *n,
+                                       uint32_t *rest_count, att_vec3_t gyr, bool gyro_ok, bool accel_ok,
+                                       float acc_norm2, att_vec3_t *d)
+{
+    uint32_t flags = 0u;
+    bool rest;
+    float nf;
+    float den;
+    *d = att_i_vec3_sub(gyr, *bias);
+    rest = gyro_ok && accel_ok && att_i_vec3_dot(*d, *d) < p->rest_gyro2 && acc_norm2 > p->acc2_lo &&
+           acc_norm2 < p->acc2_hi;
+    if (!rest) {
+        *rest_count = 0u;
+    } else if (*rest_count < p->rest_n) {
+        *rest_count = *rest_count + 1u;
+    }
+    if (rest && *rest_count >= p->rest_n) {
+        flags |= ATT_FLAG_AT_REST;
+    }
+    if (gyro_ok && (p->mode == ATT_BIAS_RUNNING || (p->mode == ATT_BIAS_AT_REST && (flags & ATT_FLAG_AT_REST) != 0u))) {
+        nf = (float)*n; /* exact: n <= 2^24 */
+        den = nf + 1.0f;
+        bias->x = (nf * bias->x + gyr.x) / den;
+        bias->y = (nf * bias->y + gyr.y) / den;
+        bias->z = (nf * bias->z + gyr.z) / den;
+        if (*n < p->n_max) {
+            *n = *n + 1u;
+        }
+        flags |= ATT_FLAG_BIAS_UPDATED;
+    }
+    return flags;
+}
+
+/**
+ * att_sensor_check_accel on |a|^2 for a finite range: *n2 = |a|^2 ((m/s^2)^2; 0 when invalid).
+ * ATT_FLAG_ACCEL_INVALID when non-finite or |a|^2 < 2^-100, ATT_FLAG_ACCEL_RANGE when |a|^2 >
+ * range2 (range^2), else 0. NaN/Inf components make |a|^2 NaN/Inf and take the slow path.
+ */
+static inline uint32_t att_i_sensor_check_accel2(att_vec3_t acc, float range2, float *n2)
+{
+    const float m2 = att_i_vec3_dot(acc, acc);
+    if (m2 >= ATT_NORM2_MIN && m2 <= range2) {
+        *n2 = m2;
+        return 0u;
+    }
+    if (!att_i_vec3_isfinite(acc) || !(m2 >= ATT_NORM2_MIN)) {
+        *n2 = 0.0f;
+        return ATT_FLAG_ACCEL_INVALID;
+    }
+    *n2 = m2;
+    return ATT_FLAG_ACCEL_RANGE;
+}
+
+#define ATT_ROTVEC_Z_SMALL 0x1p-4f /* |rv|^2 up to which the series of att_i_quat_from_rotvec_fast hold */
+#define ATT_ROTVEC_C1 (-0x1p-3f)         /* -1/8 */
+#define ATT_ROTVEC_C2 0x1.555556p-9f     /* 1/384 */
+#define ATT_ROTVEC_S0 0x1p-1f            /* 1/2 */
+#define ATT_ROTVEC_S1 (-0x1.555556p-6f)  /* -1/48 */
+#define ATT_ROTVEC_S2 0x1.111112p-12f    /* 1/3840 */
+
+/**
+ * The exponential map of a rotation vector rv (rad), att_quat_from_rotvec, with the small angles of
+ * a sensor loop done without square root, division or trigonometry: for z = |rv|^2 <= 1/16
+ * (|rv| <= 0.25 rad per sample) q = (1 + z (-1/8 + z / 384), rv (1/2 + z (-1/48 + z / 3840))), the
+ * series of cos(|rv|/2) and sin(|rv|/2)/|rv| to the z^2 term (the next terms are below 6e-9 there,
+ * under half an ulp of 1); larger angles take att_quat_from_rotvec. Mirrored by
+ * reference/detmath.quat_from_rotvec_fast.
+ */
+static inline att_quat_t att_i_quat_from_rotvec_fast(att_vec3_t rv)
+{
+    const float z = att_i_vec3_dot(rv, rv);
+    float k;
+    if (z <= ATT_ROTVEC_Z_SMALL) {
+        k = ATT_ROTVEC_S0 + z * (ATT_ROTVEC_S1 + z * ATT_ROTVEC_S2);
+        return att_i_quat(1.0f + z * (ATT_ROTVEC_C1 + z * ATT_ROTVEC_C2), rv.x * k, rv.y * k, rv.z * k);
+    }
+    return att_quat_from_rotvec(rv);
+}
+
+#endif /* ATT_CORE_H */
