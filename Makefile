@@ -5,6 +5,8 @@ VENV := .venv
 PY := $(VENV)/bin/python
 ATTICA := $(VENV)/bin/attica
 STAMP := $(VENV)/.installed
+# development tooling (tools/attica_dev: golden, cross, footprint, bench) is not installed by pip
+DEV := PYTHONPATH=tools$${PYTHONPATH:+:$$PYTHONPATH} $(PY)
 
 .PHONY: all setup deps build node run test lint pytest bench clean
 
@@ -46,8 +48,8 @@ run: build
 	$(ATTICA) verify --with-node --duration 10 --show 7 -q
 
 lint: setup
-	$(VENV)/bin/ruff check host tests docs
-	$(VENV)/bin/ruff format --check host tests docs
+	$(VENV)/bin/ruff check host tools tests docs
+	$(VENV)/bin/ruff format --check host tools tests docs
 	$(VENV)/bin/mypy
 
 pytest: build
@@ -56,22 +58,25 @@ pytest: build
 test: deps build lint pytest
 
 bench: deps build
-	$(PY) -m attica.bench
+	$(DEV) -m attica_dev.bench
 
-# Cortex-M4F (firmware/ports/cortex_m, QEMU mps2-an386) and the figures of docs/performance.md.
+# Cortex-M (firmware/ports/cortex_m: M4F, M7, M33, M0+ under QEMU), attica beside Fusion and VQF (built
+# from their sdists into build/peers), the figures of docs/performance.md. `make cycles PROFILE=ars,mars`
+# adds the per-function instruction profile of those filters; CYCLES_ARGS passes more options
+# (python -m attica_dev.cycles --help).
 .PHONY: firmware footprint cycles cross
 firmware: deps setup
-	$(PY) -m attica.cross firmware
+	$(DEV) -m attica_dev.cross firmware
 
 footprint: deps setup
-	$(PY) -m attica.footprint footprint
+	$(DEV) -m attica_dev.footprint
 
 cycles: deps setup
-	$(PY) -m attica.footprint cycles
+	$(DEV) -m attica_dev.cycles $(if $(PROFILE),--profile $(PROFILE)) $(CYCLES_ARGS)
 
 # The golden comparison on every CPU as one table (the same checks as tests/test_cross.py).
 cross: deps setup
-	$(PY) -m attica.cross golden
+	$(DEV) -m attica_dev.cross golden
 
 clean:
 	rm -rf build dist host/attica/_native*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \

@@ -4,9 +4,17 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
+
+# The development tooling (golden, cross, footprint, bench) lives in tools/attica_dev, outside the
+# installed package; the tests import it from the checkout.
+_TOOLS = str(Path(__file__).resolve().parent.parent / "tools")
+if _TOOLS not in sys.path:
+    sys.path.insert(0, _TOOLS)
 
 
 def require_tool(name: str) -> str:

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from conftest import require_tool
 
-from attica import _build, golden
+from attica import _build
 from attica.settings import (
     ArsSettings,
     BiasMode,
@@ -35,6 +35,7 @@ from attica.settings import (
     implemented_kinds,
     make_settings,
 )
+from attica_dev import golden
 
 COMPILERS = ["gcc", "clang"]
 OPTS = ["-O0", "-O2", "-O3", "-Os"]

@@ -71,8 +71,12 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
     case ATT_FILTER_KF:
         settings->kf.q_noise = 1e-4f;
         settings->kf.r_noise = 10.0f;
+        settings->kf.r_accel = 0.0f;
+        settings->kf.gate = 0.0f;
         settings->kf.accel_reject = 0.1f;
         settings->kf.noise_rates = false;
+        settings->kf.tau_acc_lp = 0.0f;
+        settings->kf.bias_mode = ATT_BIAS_OFF;
         break;
     case ATT_FILTER_EKF:
         settings->ekf.q_phi = 0.0001f;
@@ -235,10 +239,10 @@ static bool att_filter_basic(const att_filter_t *f, att_output_t *out)
         out->steps = f->u.mars.st.steps;
         return true;
     case ATT_FILTER_KF:
-        out->q = f->u.kf.q;
-        out->gyro_bias = zero;
-        out->flags = f->u.kf.flags;
-        out->steps = f->u.kf.steps;
+        out->q = f->u.kf.st.q;
+        out->gyro_bias = f->u.kf.st.bias;
+        out->flags = f->u.kf.st.flags;
+        out->steps = f->u.kf.st.steps;
         return true;
     case ATT_FILTER_EKF:
         out->q = f->u.ekf.q;
@@ -284,10 +288,10 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         out->euler = att_quat_to_euler(out->q);
     }
     if (f->kind == ATT_FILTER_KF) {
-        out->cov[0] = f->u.kf.p[0][0];
-        out->cov[1] = f->u.kf.p[1][1];
-        out->cov[2] = f->u.kf.p[2][2];
-        out->cov[3] = f->u.kf.p[3][3];
+        out->cov[0] = f->u.kf.st.p; /* P = p I */
+        out->cov[1] = f->u.kf.st.p;
+        out->cov[2] = f->u.kf.st.p;
+        out->cov[3] = f->u.kf.st.p;
     } else if (f->kind == ATT_FILTER_EKF) {
         out->cov[0] = f->u.ekf.p[0][0];
         out->cov[1] = f->u.ekf.p[1][1];
@@ -312,8 +316,7 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
     case ATT_FILTER_MARS:
         return att_mars_step_out(&f->u.mars, in, out);
     case ATT_FILTER_KF:
-        flags = att_kf_step(&f->u.kf, in->gyr, in->acc);
-        break;
+        return att_kf_step_out(&f->u.kf, in, out);
     case ATT_FILTER_EKF:
         flags = att_ekf_step(&f->u.ekf, in->gyr, in->acc);
         break;

@@ -1,19 +1,18 @@
 /**
  * @file att_kf.c
  * @brief Linear quaternion Kalman filter (see att_kf.h). Mirrored by host/attica/reference/kf.py.
- *
- * Every matrix product is written as one fixed-order loop: s = a[i][0] * b[0][j], then
- * s = s + a[i][k] * b[k][j] for k = 1, 2, 3 (the sum starts from the first product, not from 0).
  */
 #include "att_fp.h"
 
 #include "att_core.h"
+#include "att_step.h"
 #include "attica/att_kf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
 #define ATT_KF_NOISE_MIN 0x1.19799800p-40f /* 1e-12 */
-#define ATT_KF_NOISE_MAX 0x1.d1a94a00p+39f /* 1e12 */
+#define ATT_KF_NOISE_MAX 1000000.0f
+#define ATT_KF_P_MAX_F 1000000.0f
 
 void att_kf_settings_default(att_kf_settings_t *settings, float dt)
 {
@@ -21,22 +20,30 @@ void att_kf_settings_default(att_kf_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->q_noise = 1e-3f;
-    settings->r_noise = 0.1f;
+    settings->q_noise = 1e-3f; /* with r_noise: a 0.1 s time constant after the 1.5 s low-pass */
+    settings->r_noise = 1e-5f;
+    settings->r_accel = 0.0f;
+    settings->gate = 0.0f;
     settings->p0 = 1.0f;
     settings->gravity = 9.80665f;
-    settings->accel_reject = 0.1f;
+    settings->accel_reject = 0.0f;
     settings->accel_range = 156.9064f; /* 16 g */
     settings->gyro_range = 34.906586f; /* 2000 deg/s */
-    settings->yaw_mode = ATT_KF_YAW_STATE;
+    settings->bias_mode = ATT_BIAS_AT_REST;
+    settings->bias_n_max = 1000u;
+    settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
+    settings->rest_gyro = 0.05f;
+    settings->rest_accel = 0.5f;
+    settings->rest_time = 0.5f;
+    settings->tau_acc_lp = 1.5f;
     settings->init_from_accel = true;
-    settings->q_init = att_quat_identity();
+    settings->q_init = att_i_quat_identity();
     settings->noise_rates = true;
 }
 
 static bool att_kf_noise_valid(float v)
 {
-    return v >= ATT_KF_NOISE_MIN && v <= ATT_KF_NOISE_MAX; /* false for NaN */
+    return att_i_in(v, ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX);
 }
 
 att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
@@ -45,23 +52,43 @@ att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_kf_noise_valid(s->q_noise) && att_kf_noise_valid(s->r_noise) &&
+         att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) &&
+         att_kf_noise_valid(s->p0) && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
          att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
          s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
-         att_kf_noise_valid(s->q_noise) && att_kf_noise_valid(s->r_noise) && att_kf_noise_valid(s->p0) &&
-         (s->yaw_mode == ATT_KF_YAW_STATE || s->yaw_mode == ATT_KF_YAW_ZERO) &&
-         att_i_bool_ok(&s->init_from_accel) && att_i_bool_ok(&s->noise_rates) && att_i_quat_init_ok(s->q_init);
+         att_i_bias_settings_ok(s->bias_mode, s->bias_n_max, s->bias_init, s->gyro_range, s->rest_gyro,
+                                s->rest_accel, s->rest_time, s->gravity) &&
+         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->init_from_accel) &&
+         att_i_bool_ok(&s->noise_rates) && att_i_quat_init_ok(s->q_init);
     if (ok && s->noise_rates) {
         ok = att_kf_noise_valid(s->q_noise * s->dt) && att_kf_noise_valid(s->r_noise / s->dt);
     }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 
-static void att_kf_coeffs(att_kf_t *f, const att_kf_settings_t *settings)
+static void att_kf_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
 {
-    f->s = *settings;
-    f->q_step = settings->noise_rates ? settings->q_noise * settings->dt : settings->q_noise;
-    f->r_step = settings->noise_rates ? settings->r_noise / settings->dt : settings->r_noise;
+    c->dt = s->dt;
+    c->half_dt = s->dt * 0.5f;
+    c->q_step = s->noise_rates ? s->q_noise * s->dt : s->q_noise;
+    c->r_step = s->noise_rates ? s->r_noise / s->dt : s->r_noise;
+    c->r_accel = s->r_accel;
+    c->gate = s->gate;
+    c->soft = s->gate * 0.25f;
+    c->p0 = s->p0;
+    c->gravity = s->gravity;
+    c->accel_reject = s->accel_reject;
+    c->accel_range2 = s->accel_range * s->accel_range;
+    c->gyro_range = s->gyro_range;
+    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (s->tau_acc_lp + s->dt) : 0.0f;
+    att_i_bias_params(&c->bias, s->bias_mode, s->bias_n_max, s->rest_gyro, s->rest_accel,
+                      att_sensor_samples(s->rest_time, s->dt), s->gravity);
+    (void)att_i_quat_normalize(s->q_init, &c->q_init);
+    c->bias_init = (s->bias_mode == ATT_BIAS_OFF) ? att_i_vec3(0.0f, 0.0f, 0.0f) : s->bias_init;
+    c->init_from_accel = s->init_from_accel;
+    c->lp_on = c->k_lp > 0.0f;
+    c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
 }
 
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings)
@@ -74,7 +101,7 @@ att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings)
     if (st != ATT_OK) {
         return st;
     }
-    att_kf_coeffs(f, settings);
+    att_kf_coeffs(&f->c, settings);
     att_kf_reset(f);
     return ATT_OK;
 }
@@ -86,371 +113,182 @@ att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings)
         return ATT_ERR_NULL;
     }
     st = att_kf_settings_validate(settings);
-    if (st == ATT_OK) {
-        att_kf_coeffs(f, settings);
+    if (st != ATT_OK) {
+        return st;
     }
-    return st;
+    att_kf_coeffs(&f->c, settings);
+    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    return ATT_OK;
 }
 
 void att_kf_reset(att_kf_t *f)
 {
-    int i;
-    int j;
     if (f == NULL) {
         return;
     }
-    (void)att_quat_normalize(f->s.q_init, &f->q);
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            f->p[i][j] = (i == j) ? f->s.p0 : 0.0f;
-        }
-    }
-    f->initialised = !f->s.init_from_accel;
-    f->steps = 0u;
-    f->flags = 0u;
+    f->st.q = f->c.q_init;
+    f->st.p = f->c.p0;
+    f->st.bias = f->c.bias_init;
+    f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
+    f->st.lp2 = f->st.lp1;
+    f->st.bias_n = 0u;
+    f->st.rest_count = 0u;
+    f->st.steps = 0u;
+    f->st.flags = 0u;
+    f->st.initialised = !f->c.init_from_accel;
 }
 
-/* out = a * b */
-static void att_kf_mul(float a[4][4], float b[4][4], float out[4][4])
+/* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
+static ATT_NOINLINE void att_kf_start(att_kf_state_t *st, const att_vec3_t *acc)
 {
-    int i;
-    int j;
-    int k;
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            float s = a[i][0] * b[0][j];
-            for (k = 1; k < 4; ++k) {
-                s = s + a[i][k] * b[k][j];
-            }
-            out[i][j] = s;
-        }
-    }
+    const att_vec3_t t = att_sensor_tilt(*acc);
+    (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &st->q);
+    st->lp1 = att_i_quat_rotate(st->q, *acc);
+    st->lp2 = st->lp1;
+    st->initialised = true;
 }
 
-/* out = a * b^T */
-static void att_kf_mul_bt(float a[4][4], float b[4][4], float out[4][4])
+static ATT_ALWAYS_INLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in)
 {
-    int i;
-    int j;
-    int k;
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            float s = a[i][0] * b[j][0];
-            for (k = 1; k < 4; ++k) {
-                s = s + a[i][k] * b[j][k];
-            }
-            out[i][j] = s;
-        }
-    }
-}
-
-/* out = (m + m^T) / 2, elementwise; bitwise symmetric because + commutes. */
-static void att_kf_symmetrise(float m[4][4], float out[4][4])
-{
-    int i;
-    int j;
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            out[i][j] = (m[i][j] + m[j][i]) * 0.5f;
-        }
-    }
-}
-
-static bool att_kf_all_finite(const float x[4], float p[4][4])
-{
-    int i;
-    int j;
-    bool ok = true;
-    for (i = 0; i < 4; ++i) {
-        ok = ok && att_isfinitef(x[i]);
-        for (j = 0; j < 4; ++j) {
-            ok = ok && att_isfinitef(p[i][j]);
-        }
-    }
-    return ok;
-}
-
-/* x := A x, P := sym(A P A^T + Q) with A = I + dt/2 Omega(w). */
-static void att_kf_predict(const att_kf_t *f, att_vec3_t gyr, float x[4], float p[4][4])
-{
-    const float h = f->s.dt * 0.5f;
-    const float hp = h * gyr.x;
-    const float hq = h * gyr.y;
-    const float hr = h * gyr.z;
-    float a[4][4];
-    float t[4][4];
-    float u[4][4];
-    float xn[4];
-    int i;
-    int k;
-    a[0][0] = 1.0f;
-    a[0][1] = -hp;
-    a[0][2] = -hq;
-    a[0][3] = -hr;
-    a[1][0] = hp;
-    a[1][1] = 1.0f;
-    a[1][2] = hr;
-    a[1][3] = -hq;
-    a[2][0] = hq;
-    a[2][1] = -hr;
-    a[2][2] = 1.0f;
-    a[2][3] = hp;
-    a[3][0] = hr;
-    a[3][1] = hq;
-    a[3][2] = -hp;
-    a[3][3] = 1.0f;
-    for (i = 0; i < 4; ++i) {
-        float s = a[i][0] * x[0];
-        for (k = 1; k < 4; ++k) {
-            s = s + a[i][k] * x[k];
-        }
-        xn[i] = s;
-    }
-    for (i = 0; i < 4; ++i) {
-        x[i] = xn[i];
-    }
-    att_kf_mul(a, p, t);
-    att_kf_mul_bt(t, a, u);
-    for (i = 0; i < 4; ++i) {
-        u[i][i] = u[i][i] + f->q_step;
-    }
-    att_kf_symmetrise(u, p);
-}
-
-/*
- * Measurement update with H = I. Returns false (x, p untouched) when the Cholesky factorisation of
- * S = P + R fails or the result is not finite.
- */
-static bool att_kf_update(const att_kf_t *f, const float z[4], float x[4], float p[4][4])
-{
-    const float r = f->r_step;
-    float l[4][4];
-    float k[4][4];
-    float m[4][4];
-    float t[4][4];
-    float u[4][4];
-    float kk[4][4];
-    float y[4];
-    float w[4];
-    float e[4];
-    float xn[4];
-    float pn[4][4];
-    int i;
-    int j;
-    int c;
-    int n;
-
-    /* Cholesky S = L L^T, S = P + r I (lower triangle of L only) */
-    for (j = 0; j < 4; ++j) {
-        float d = p[j][j] + r;
-        for (n = 0; n < j; ++n) {
-            d = d - l[j][n] * l[j][n];
-        }
-        if (!(d > 0.0f) || !att_isfinitef(d)) {
-            return false;
-        }
-        l[j][j] = att_sqrtf(d);
-        for (i = j + 1; i < 4; ++i) {
-            float v = p[i][j];
-            for (n = 0; n < j; ++n) {
-                v = v - l[i][n] * l[j][n];
-            }
-            l[i][j] = v / l[j][j];
-        }
-    }
-
-    /* K = P S^-1: row c of K is S^-1 (column c of P), as S and P are symmetric */
-    for (c = 0; c < 4; ++c) {
-        for (i = 0; i < 4; ++i) {
-            float v = p[i][c];
-            for (n = 0; n < i; ++n) {
-                v = v - l[i][n] * y[n];
-            }
-            y[i] = v / l[i][i];
-        }
-        for (i = 3; i >= 0; --i) {
-            float v = y[i];
-            for (n = i + 1; n < 4; ++n) {
-                v = v - l[n][i] * w[n];
-            }
-            w[i] = v / l[i][i];
-        }
-        for (i = 0; i < 4; ++i) {
-            k[c][i] = w[i];
-        }
-    }
-
-    /* x := x + K (z - x) */
-    for (i = 0; i < 4; ++i) {
-        e[i] = z[i] - x[i];
-    }
-    for (i = 0; i < 4; ++i) {
-        float s = k[i][0] * e[0];
-        for (n = 1; n < 4; ++n) {
-            s = s + k[i][n] * e[n];
-        }
-        xn[i] = x[i] + s;
-    }
-
-    /* Joseph form P := (I - K) P (I - K)^T + r K K^T, symmetrised */
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            m[i][j] = (i == j) ? 1.0f - k[i][j] : -k[i][j];
-        }
-    }
-    att_kf_mul(m, p, t);
-    att_kf_mul_bt(t, m, u);
-    att_kf_mul_bt(k, k, kk);
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            u[i][j] = u[i][j] + r * kk[i][j];
-        }
-    }
-    att_kf_symmetrise(u, pn);
-
-    if (!att_kf_all_finite(xn, pn)) {
-        return false;
-    }
-    for (i = 0; i < 4; ++i) {
-        x[i] = xn[i];
-        for (j = 0; j < 4; ++j) {
-            p[i][j] = pn[i][j];
-        }
-    }
-    return true;
-}
-
-/* Measurement quaternion from the accelerometer tilt and the yaw of the predicted state x. */
-static void att_kf_measurement(const att_kf_t *f, att_vec3_t acc, const float x[4], float z[4])
-{
-    att_quat_t xq;
-    att_quat_t xu;
-    att_quat_t zq;
-    att_vec3_t t;
-    float psi = 0.0f;
-    float dot;
-    xq.w = x[0];
-    xq.x = x[1];
-    xq.y = x[2];
-    xq.z = x[3];
-    if (f->s.yaw_mode == ATT_KF_YAW_STATE) {
-        (void)att_quat_normalize(xq, &xu); /* identity (yaw 0) if it fails */
-        psi = att_quat_to_euler(xu).z;
-    }
-    t = att_sensor_tilt(acc);
-    zq = att_quat_from_euler(t.x, t.y, psi);
-    dot = zq.w * x[0] + zq.x * x[1] + zq.y * x[2] + zq.z * x[3];
-    if (dot < 0.0f) {
-        zq.w = -zq.w;
-        zq.x = -zq.x;
-        zq.y = -zq.y;
-        zq.z = -zq.z;
-    }
-    z[0] = zq.w;
-    z[1] = zq.x;
-    z[2] = zq.y;
-    z[3] = zq.z;
-}
-
-uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
-{
+    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
+    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
+    const att_kf_coeffs_t *c;
+    att_kf_state_t *st;
     uint32_t flags;
     uint32_t accel_flags;
-    float norm;
-    float e;
     float n2;
+    float e2 = 0.0f;
+    float p;
     bool gyro_ok;
     bool accel_ok;
-    bool ok;
-    float x[4];
-    float z[4];
-    float p[4][4];
-    att_quat_t xq;
-    att_quat_t qn;
-    int i;
-    int j;
+    att_quat_t x;
+    att_quat_t xn;
+    att_vec3_t d;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
-    flags = att_sensor_check_gyro(gyr, f->s.gyro_range);
+    c = &f->c;
+    st = &f->st;
+    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
     gyro_ok = (flags == 0u);
-    accel_flags = att_sensor_check_accel(acc, f->s.accel_range, &norm);
+    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
-    e = norm / f->s.gravity - 1.0f;
-    if (accel_ok && f->s.accel_reject > 0.0f && att_absf(e) > f->s.accel_reject) {
-        flags |= ATT_FLAG_ACCEL_REJECTED;
+    if (accel_ok && c->need_norm) {
+        const float e = att_i_sqrtf(n2) / c->gravity - 1.0f;
+        e2 = e * e;
+        if (c->accel_reject > 0.0f && att_i_absf(e) > c->accel_reject) {
+            flags |= ATT_FLAG_ACCEL_REJECTED;
+        }
     }
+    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
 
-    if (!f->initialised) {
+    if (!st->initialised) {
         if (accel_ok) {
-            const att_vec3_t t = att_sensor_tilt(acc);
-            f->q = att_quat_from_euler(t.x, t.y, 0.0f);
-            (void)att_quat_normalize(f->q, &f->q);
-            f->initialised = true;
+            att_kf_start(st, acc_in);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
         }
-        f->steps = f->steps + 1u;
-        f->flags = flags;
+        st->steps = st->steps + 1u;
+        st->flags = flags;
         return flags;
     }
 
-    x[0] = f->q.w;
-    x[1] = f->q.x;
-    x[2] = f->q.y;
-    x[3] = f->q.z;
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            p[i][j] = f->p[i][j];
-        }
-    }
-
-    /* prediction; an unusable gyro sample leaves x as it is but still adds Q */
+    /* prediction x := A x, p := p |A|^2 + q with A = I + dt/2 Omega(w - b) */
+    x = st->q;
+    p = st->p + c->q_step;
     if (gyro_ok) {
-        att_kf_predict(f, gyr, x, p);
-    } else {
-        for (i = 0; i < 4; ++i) {
-            p[i][i] = p[i][i] + f->q_step;
+        att_vec3_t h;
+        att_quat_t dx;
+        if ((flags & ATT_FLAG_BIAS_UPDATED) != 0u) {
+            d = att_i_vec3_sub(gyr, st->bias);
         }
+        h = att_i_vec3_scale(d, c->half_dt);
+        dx = att_i_quat_mul(x, att_i_quat(0.0f, h.x, h.y, h.z));
+        x = att_i_quat(x.w + dx.w, x.x + dx.x, x.y + dx.y, x.z + dx.z);
+        p = st->p * (1.0f + att_i_vec3_dot(h, h)) + c->q_step;
     }
 
-    /* measurement update */
+    /* measurement: the prediction with its tilt aligned to the low-passed gravity */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_kf_measurement(f, acc, x, z);
-        if (!att_kf_update(f, z, x, p)) {
-            flags |= ATT_FLAG_NUMERIC; /* predicted x and P kept */
+        att_vec3_t lp1 = st->lp1;
+        att_vec3_t lp2 = st->lp2;
+        att_vec3_t u = att_i_quat_rotate(x, acc);
+        float cw;
+        float cx;
+        float cy;
+        float n;
+        if (c->lp_on) {
+            att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
+            u = lp2;
         }
-    }
-
-    /* normalisation x := x / |x|, P := P / |x|^2 */
-    xq.w = x[0];
-    xq.x = x[1];
-    xq.y = x[2];
-    xq.z = x[3];
-    n2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3];
-    ok = att_quat_normalize(xq, &qn);
-    for (i = 0; i < 4; ++i) {
-        for (j = 0; j < 4; ++j) {
-            p[i][j] = p[i][j] / n2;
-        }
-    }
-    x[0] = qn.w;
-    x[1] = qn.x;
-    x[2] = qn.y;
-    x[3] = qn.z;
-    if (ok && att_kf_all_finite(x, p)) {
-        f->q = qn;
-        for (i = 0; i < 4; ++i) {
-            for (j = 0; j < 4; ++j) {
-                f->p[i][j] = p[i][j];
+        if (att_i_align_up(u, &cw, &cx, &cy, &n)) {
+            const float x2 = x.w * x.w + x.x * x.x + x.y * x.y + x.z * x.z;
+            const float y2 = (2.0f * (1.0f - cw)) * x2; /* |z - x|^2 */
+            float r = c->r_step * (1.0f + c->r_accel * e2);
+            float s = p + r;
+            if (c->gate > 0.0f && y2 > c->gate * s) {
+                flags |= ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
+            } else {
+                float k;
+                float kw;
+                float kx;
+                float ky;
+                att_quat_t qk;
+                if (c->gate > 0.0f && y2 > c->soft * s) {
+                    r = y2 / c->soft - p; /* the soft limit: d^2 = gate / 4 */
+                    s = p + r;
+                }
+                k = p / s;
+                kw = (1.0f - k) + k * cw;
+                kx = k * cx;
+                ky = k * cy;
+                x = att_i_quat_mul_hz(kw, kx, ky, x);
+                p = r * k;
+                if (c->lp_on && att_i_quat_normalize_bounded(att_i_quat(kw, kx, ky, 0.0f), &qk)) {
+                    st->lp1 = att_i_quat_rotate_hz(qk.w, qk.x, qk.y, lp1);
+                    st->lp2 = att_i_quat_rotate_hz(qk.w, qk.x, qk.y, lp2);
+                }
             }
         }
+    }
+
+    /* normalisation x := x / |x|, p := p / |x|^2 */
+    if (att_i_quat_normalize_bounded(x, &xn)) {
+        p = p / (x.w * x.w + x.x * x.x + x.y * x.y + x.z * x.z);
+        if (p > ATT_KF_P_MAX_F) {
+            p = ATT_KF_P_MAX_F;
+            flags |= ATT_FLAG_CLAMPED;
+        }
+        st->q = xn;
+        st->p = p;
     } else {
         flags |= ATT_FLAG_NUMERIC; /* keep the state from before the step */
     }
-    f->steps = f->steps + 1u;
-    f->flags = flags;
+    st->steps = st->steps + 1u;
+    st->flags = flags;
     return flags;
+}
+
+uint32_t att_kf_step_out(att_kf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_kf_update(f, &in->gyr, &in->acc);
+    if (out != NULL) {
+        out->q = f->st.q;
+        out->gyro_bias = f->st.bias;
+        out->flags = flags;
+        out->steps = f->st.steps;
+        out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    }
+    return flags;
+}
+
+uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
+{
+    att_sample_t in;
+    in.gyr = gyr;
+    in.acc = acc;
+    in.mag = att_i_vec3(0.0f, 0.0f, 0.0f);
+    return att_kf_step_out(f, &in, NULL);
 }

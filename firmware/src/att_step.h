@@ -17,4 +17,7 @@ uint32_t att_ars_step_out(att_ars_t *restrict f, const att_sample_t *restrict in
 /** att_mars_step on in->gyr, in->acc, in->mag; fills out (may be NULL) like att_ars_step_out. */
 uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out);
 
+/** att_kf_step on in->gyr, in->acc; fills out (may be NULL) like att_ars_step_out. */
+uint32_t att_kf_step_out(att_kf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out);
+
 #endif /* ATT_STEP_H */

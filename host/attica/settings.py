@@ -109,26 +109,27 @@ def to_dict(settings: Any) -> dict[str, Any]:
     return {f.name: getattr(settings, f.name) for f in fields(settings)}
 
 
-class KfYawMode(enum.IntEnum):
-    """``att_kf_yaw_mode_t``: yaw of the accelerometer measurement quaternion."""
-
-    STATE = 0
-    ZERO = 1
-
-
 @dataclass(frozen=True)
 class KfSettings:
     """Linear quaternion KF settings (``att_kf_settings_t``); see att_kf.h for meanings."""
 
     dt: float = 0.01
     q_noise: float = 1e-3
-    r_noise: float = 0.1
+    r_noise: float = 1e-5
+    r_accel: float = 0.0
+    gate: float = 0.0
     p0: float = 1.0
     gravity: float = 9.80665
-    accel_reject: float = 0.1
+    accel_reject: float = 0.0
     accel_range: float = 156.9064
     gyro_range: float = 34.906586
-    yaw_mode: KfYawMode = KfYawMode.STATE
+    bias_mode: BiasMode = BiasMode.AT_REST
+    bias_n_max: int = 1000
+    bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rest_gyro: float = 0.05
+    rest_accel: float = 0.5
+    rest_time: float = 0.5
+    tau_acc_lp: float = 1.5
     init_from_accel: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     noise_rates: bool = True
@@ -277,7 +278,16 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "tau_acc_lp": 0.0,
         "bias_mode": BiasMode.FROZEN,
     },
-    FilterKind.KF: {"q_noise": 1e-4, "r_noise": 10.0, "accel_reject": 0.1, "noise_rates": False},
+    FilterKind.KF: {
+        "q_noise": 1e-4,
+        "r_noise": 10.0,
+        "r_accel": 0.0,
+        "gate": 0.0,
+        "accel_reject": 0.1,
+        "noise_rates": False,
+        "tau_acc_lp": 0.0,
+        "bias_mode": BiasMode.OFF,
+    },
     FilterKind.EKF: {
         "q_phi": 0.0001,
         "q_theta": 0.0001,

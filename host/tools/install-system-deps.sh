@@ -7,10 +7,14 @@ command -v cc >/dev/null 2>&1 || want+=(gcc)
 command -v clang >/dev/null 2>&1 || want+=(clang)
 command -v valgrind >/dev/null 2>&1 || want+=(valgrind)
 command -v objdump >/dev/null 2>&1 || want+=(binutils)
-# Cross targets of tests/test_cross.py, make firmware / footprint / cycles: Cortex-M4F (newlib with
-# semihosting, QEMU MPS2 AN386), aarch64 and riscv64 (static glibc, qemu-user), CMake.
+# Cross targets of tests/test_cross.py, make firmware / footprint / cycles: Cortex-M4F, M7, M33, M0+
+# (newlib with semihosting, QEMU MPS2 AN386/AN500/AN505 and micro:bit), aarch64 and riscv64 (static
+# glibc, qemu-user), CMake. The peers' C++ (VQF) in make cycles / footprint / bench: g++ and the
+# Arm C++ library.
 command -v arm-none-eabi-gcc >/dev/null 2>&1 || want+=(gcc-arm-none-eabi)
 [ -f /usr/lib/arm-none-eabi/lib/rdimon.specs ] || want+=(libnewlib-arm-none-eabi)
+[ -d /usr/lib/arm-none-eabi/include/c++ ] || want+=(libstdc++-arm-none-eabi-newlib)
+command -v g++ >/dev/null 2>&1 || want+=(g++)
 command -v qemu-system-arm >/dev/null 2>&1 || want+=(qemu-system-arm)
 { command -v qemu-aarch64-static && command -v qemu-riscv64-static; } >/dev/null 2>&1 || want+=(qemu-user-static)
 command -v aarch64-linux-gnu-gcc >/dev/null 2>&1 || want+=(gcc-aarch64-linux-gnu)

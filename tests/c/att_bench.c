@@ -1,55 +1,54 @@
 /**
  * @file att_bench.c
- * @brief Step a filter N times on synthetic deterministic inputs (for instruction counts).
+ * @brief Step a filter N times on synthetic deterministic inputs (for instruction counts and stack).
  *
- * Usage: att_bench KIND N     KIND: a filter name of att_filter_name (ars, gyro, tilt, ...)
+ * Usage: att_bench KIND N [stack]     KIND: a filter name of att_filter_name (ars, gyro, tilt, ...)
  *
  * Runs att_filter_step N times with default settings (dt = 0.01 s) through the unified interface and
- * prints a checksum of the outputs. host/attica/bench.py runs it under valgrind --tool=callgrind
+ * prints a checksum of the outputs. tools/attica_dev/bench.py runs it under valgrind --tool=callgrind
  * with --toggle-collect=att_filter_step for two values of N and divides the difference in
- * instructions by the difference in N, which removes start-up and initialisation costs.
+ * instructions by the difference in N, which removes start-up and initialisation costs;
+ * tools/attica_dev/cycles.py counts every instruction of every att_filter_step call in a QEMU trace.
+ * With "stack" (Arm targets), every call is probed instead and the deepest is printed as
+ * "stack KIND BYTES" (bytes below the caller's stack pointer, att_bench_common.h).
  *
- * Inputs: a 32-bit LCG drives gyro rates in +-0.5 rad/s and a specific force near +g on z (level
- * within a few degrees, |a| close to g so corrections are applied), mag near a 50 uT field with a
- * 60 degree dip; every 1000 steps, 300 steps are at rest (tiny rates) so rest detection and bias
- * estimation paths are taken too. Test harness: plain C99 + stdio.
+ * Inputs: the stream of att_bench_common.h, which the peers' drivers (att_peer_fusion.c,
+ * att_peer_vqf.cpp) get too. Test harness: plain C99 + stdio.
  */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "att_bench_common.h"
 #include "attica/att_filter.h"
 
-static uint32_t bench_state = 12345u;
-
-/* Uniform in [-1, 1) from a 32-bit LCG (Numerical Recipes constants); exact float arithmetic. */
-static float bench_uniform(void)
+static void bench_att_sample(unsigned long i, att_sample_t *s)
 {
-    bench_state = bench_state * 1664525u + 1013904223u;
-    return (float)(bench_state >> 8) * 0x1p-23f - 1.0f;
+    float g[3];
+    float a[3];
+    float m[3];
+    bench_sample(i, g, a, m);
+    s->gyr.x = g[0];
+    s->gyr.y = g[1];
+    s->gyr.z = g[2];
+    s->acc.x = a[0];
+    s->acc.y = a[1];
+    s->acc.z = a[2];
+    s->mag.x = m[0];
+    s->mag.y = m[1];
+    s->mag.z = m[2];
 }
 
-static void bench_sample(unsigned long i, att_sample_t *s)
+#if BENCH_HAVE_STACK
+/* noinline: top is this function's own stack pointer, the step's depth is measured below it */
+__attribute__((noinline)) static uint32_t bench_probe(att_filter_t *f, const att_sample_t *s, att_output_t *o,
+                                                      uint32_t *flags)
 {
-    const int rest = (i % 1000ul) >= 700ul;
-    const float rate = rest ? 0.002f : 0.5f;
-    s->gyr.x = rate * bench_uniform();
-    s->gyr.y = rate * bench_uniform();
-    s->gyr.z = rate * bench_uniform();
-    s->acc.x = 0.3f * bench_uniform();
-    s->acc.y = 0.3f * bench_uniform();
-    s->acc.z = 9.75f + 0.1f * bench_uniform();
-    s->mag.x = 0.5f * bench_uniform();
-    s->mag.y = 25.0f + 0.5f * bench_uniform();
-    s->mag.z = -43.3f + 0.5f * bench_uniform();
+    volatile uint32_t *top = bench_stack_paint();
+    *flags = att_filter_step(f, s, o);
+    return bench_stack_used(top);
 }
-
-static uint32_t bench_bits(float f)
-{
-    uint32_t w;
-    memcpy(&w, &f, sizeof w);
-    return w;
-}
+#endif
 
 int main(int argc, char **argv)
 {
@@ -60,11 +59,15 @@ int main(int argc, char **argv)
     unsigned long n;
     unsigned long i;
     uint32_t sum = 0u;
+    uint32_t deepest = 0u;
     int k;
+    int stack = 0;
     att_filter_kind_t kind = ATT_FILTER_NONE;
     char *end = NULL;
-    if (argc != 3) {
-        fprintf(stderr, "usage: att_bench KIND N\n");
+    if (argc == 4 && strcmp(argv[3], "stack") == 0) {
+        stack = 1;
+    } else if (argc != 3) {
+        fprintf(stderr, "usage: att_bench KIND N [stack]\n");
         return 1;
     }
     for (k = 1; k < 64; k++) {
@@ -77,15 +80,33 @@ int main(int argc, char **argv)
         fprintf(stderr, "att_bench: bad N '%s'\n", argv[2]);
         return 1;
     }
+    if (stack && !BENCH_HAVE_STACK) {
+        fprintf(stderr, "att_bench: the stack probe is for Arm targets only\n");
+        return 1;
+    }
     if (att_filter_settings_default(kind, 0.01f, &settings) != ATT_OK ||
         att_filter_init(&f, kind, &settings) != ATT_OK) {
         fprintf(stderr, "att_bench: filter '%s' is not available\n", argv[1]);
         return 1;
     }
     for (i = 0ul; i < n; i++) {
-        bench_sample(i, &s);
-        sum ^= att_filter_step(&f, &s, &out);
+        uint32_t flags;
+        bench_att_sample(i, &s);
+#if BENCH_HAVE_STACK
+        if (stack) {
+            uint32_t used = bench_probe(&f, &s, &out, &flags);
+            deepest = used > deepest ? used : deepest;
+        } else {
+            flags = att_filter_step(&f, &s, &out);
+        }
+#else
+        flags = att_filter_step(&f, &s, &out);
+#endif
+        sum ^= flags;
         sum = (sum << 1) ^ bench_bits(out.q.w) ^ bench_bits(out.q.z);
+    }
+    if (stack) {
+        printf("stack %s %lu\n", argv[1], (unsigned long)deepest);
     }
     printf("%s %lu %08lx\n", argv[1], n, (unsigned long)sum);
     return 0;

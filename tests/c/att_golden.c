@@ -5,7 +5,7 @@
  * Test harness, not firmware: plain C99 with stdio/stdlib only (no POSIX), so the same program runs
  * natively, under qemu-user (aarch64, riscv64) and on a Cortex-M4F with semihosting. All file data
  * is explicitly little-endian, so one set of files serves every target. Python side:
- * host/attica/golden.py (writes inputs, runs this program, compares with the numpy reference).
+ * tools/attica_dev/golden.py (writes inputs, runs this program, compares with the numpy reference).
  *
  * Usage
  *   att_golden math FN in.bin out.bin          FN: sin cos atan2 asin acos sqrt wrap_pi quat_mul ...
@@ -407,7 +407,7 @@ typedef struct {
 
 static const gv_field_t gv_fields[] = {
 /* Generated from the settings dataclasses (host/attica/settings.py, whose field names are the C
- * member names) by host/attica/golden.py write_fields_header(): one GV_FIELD line per field. */
+ * member names) by tools/attica_dev/golden.py write_fields_header(): one GV_FIELD line per field. */
 #include "att_golden_fields.h"
 };
 
@@ -684,7 +684,8 @@ static int gv_run_filter(att_filter_kind_t kind, const char *set_path, const cha
             sample.mag = gv_words_v3(words + 6);
         }
         (void)att_filter_step(&filters[r % h.streams], &sample, &out);
-        att_filter_output(&filters[r % h.streams], &out); /* the whole record, Euler angles included */
+        /* the full record (derived outputs too: Euler angles, covariance) after every step */
+        att_filter_output(&filters[r % h.streams], &out);
         gv_output_words(&out, words);
         st = gv_write_row(fout, out_path, GV_OUT_WIDTH, words);
     }

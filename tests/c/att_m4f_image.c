@@ -2,7 +2,7 @@
  * @file att_m4f_image.c
  * @brief Minimal firmware images for the footprint figures: one part of attica, used as an application would.
  *
- * Built by host/attica/footprint.py once per image with -DATT_IMAGE=<n>, linked against libattica.a with
+ * Built by tools/attica_dev/footprint.py once per image with -DATT_IMAGE=<n>, linked against libattica.a with
  * startup.c, newlib-nano and --gc-sections, never run. Inputs come from volatile globals and results go
  * to volatile globals, so nothing is optimised away; the state lives in this file's .bss (so the
  * library's own .data/.bss stay what the library itself needs: nothing).

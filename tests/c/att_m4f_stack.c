@@ -3,7 +3,7 @@
  * @brief Measured stack depth (high-water mark) and state sizes on the target, printed as text.
  *
  * Test harness for a Cortex-M4F image (startup.c + semihost.c, newlib stdio over semihosting), run by
- * host/attica/footprint.py. For every filter kind with default settings: att_filter_init, then
+ * tools/attica_dev/footprint.py. For every filter kind with default settings: att_filter_init, then
  * ATT_STACK_STEPS steps of att_filter_step on synthetic samples (motion, rest periods and, every few
  * steps, an invalid or out-of-range sample so the error paths run too). For the CAN node: init, then
  * samples as IMU frames through att_node_rx / att_node_poll / att_node_tx, with a command now and then.

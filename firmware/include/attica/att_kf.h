@@ -1,51 +1,47 @@
 /**
  * @file att_kf.h
- * @brief Linear quaternion Kalman filter (6-axis), after the Hanyang University lecture notes.
+ * @brief Linear quaternion Kalman filter (6-axis), after the Hanyang University lecture notes, made
+ * robust: gyro bias from the rest detector, the measurement from the low-passed gravity direction,
+ * measurement noise that grows with the accel magnitude error and with the innovation, and a
+ * chi-square gate.
  *
- * State x = q = (w, x, y, z), sensor-to-earth (ENU), with covariance P (4x4). Per step:
- *  1. prediction with the gyro rate w = (p, q, r) (rad/s, sensor frame):
- *     A = I + dt/2 * Omega(w),  Omega = [[0,-p,-q,-r],[p,0,r,-q],[q,-r,0,p],[r,q,-p,0]]
- *     (q_dot = q * (0, w) / 2; the notes print the (4,3) entry as -q, it is -p),
- *     x := A x,  P := A P A^T + Q,  Q = q_step * I, then P symmetrised. With noise_rates (default)
- *     q_step = q_noise * dt and r_step = r_noise / dt (a white-noise rate and a noise density), so the
- *     steady-state gain per second, hence the filter's time constant, does not depend on dt; without,
- *     q_step = q_noise and r_step = r_noise per step (the notes).
- *     When the gyro sample is unusable (ATT_FLAG_GYRO_INVALID / ATT_FLAG_GYRO_RANGE) the state is
- *     not propagated (A = I: x unchanged) but time still passes: P := P + Q.
- *  2. measurement z = att_quat_from_euler(phi, theta, psi) with roll phi and pitch theta from the
- *     accelerometer (att_sensor_tilt) and yaw psi = yaw of the predicted state (ATT_KF_YAW_STATE,
- *     default) or 0 (ATT_KF_YAW_ZERO, the notes' literal choice). z is negated when z . x < 0 (the
- *     sign nearest x). H = I.
- *     S = P + R (R = r_step * I), Cholesky S = L L^T in a fixed order; K = P S^-1 by forward and
- *     back substitution (fixed order); x := x + K (z - x);
- *     P := (I - K) P (I - K)^T + r_noise * K K^T (Joseph form), then symmetrised:
- *     P_ij := (P_ij + P_ji) * 0.5, which makes P bitwise symmetric.
- *     The update is skipped when the accel sample is unusable (ATT_FLAG_ACCEL_INVALID /
- *     ATT_FLAG_ACCEL_RANGE), when ||a|/g - 1| > accel_reject (ATT_FLAG_ACCEL_REJECTED), or with
- *     ATT_FLAG_NUMERIC (predicted x and P kept) when a Cholesky pivot is not > 0 / not finite or
- *     the updated x or P is not finite.
- *  3. normalisation x := x / |x| and, as the same linear scaling, P := P / |x|^2. (Not in the notes:
- *     A is not orthogonal, |A x| = sqrt(1 + (dt/2)^2 |w|^2) |x|, so without this P would grow
- *     geometrically whenever the update is skipped during fast rotation and overflow within seconds;
- *     with it the prediction of P is a pure rotation. Effect on normal operation: below 1e-3
- *     relative per step.) If x cannot be normalised or P is not finite, the whole state from before
- *     the step is kept and ATT_FLAG_NUMERIC is set.
- *
+ * State x = q = (w, x, y, z), sensor-to-earth (ENU), with covariance P (4x4). Model: x' = A x with
+ * A = I + dt/2 Omega(w - b) (q_dot = q (x) (0, w - b) / 2; Omega skew-symmetric, so A A^T =
+ * (1 + (dt/2)^2 |w - b|^2) I), process noise Q = q_step I, measurement z = x + v with H = I and
+ * R = r I. With P0 = p0 I the covariance stays isotropic for ever: if P = p I, then A P A^T + Q =
+ * (p (1 + (dt/2)^2 |w - b|^2) + q_step) I, and the update K = P (P + R)^-1 = p / (p + r) I,
+ * P := (I - K) P = p r / (p + r) I; the normalisation x := x / |x| scales P by 1 / |x|^2. The filter
+ * therefore carries P as the scalar p (P = p I exactly; docs/filters.md), which is the same Kalman
+ * filter without the rounding noise a 4x4 matrix would add to its zeros. Per step:
+ *  1. gyro bias b (bias_mode, as att_ars.h) from the rest detector, subtracted from the rate;
+ *  2. prediction x := x + x (x) (0, (w - b) dt / 2), p := p (1 + |(w - b) dt / 2|^2) + q_step;
+ *     an unusable gyro sample leaves x and adds q_step;
+ *  3. measurement: the specific force in the earth frame of the prediction, low-passed by two cascaded
+ *     first-order stages (tau_acc_lp, as att_ars.h), gives the measured attitude z = C (x) x, C the
+ *     trig-free full alignment of the low-passed vector with z (att_ars.h): the prediction with its
+ *     tilt corrected, its yaw kept (the accelerometer cannot observe yaw);
+ *     noise r = r_step (1 + r_accel (|a|/g - 1)^2) (a sample far from |a| = g is trusted less);
+ *     innovation y = z - x with |y|^2 = 2 (1 - C_w) |x|^2 and d^2 = |y|^2 / (p + r) (chi-square with the
+ *     filter's own variance): d^2 > gate rejects the update (ATT_FLAG_ACCEL_REJECTED, nothing applied,
+ *     the low-pass stages kept); above gate / 4 the noise grows to r = |y|^2 / (gate / 4) - p, so that
+ *     d^2 never exceeds gate / 4 in an applied update (a Huber-like soft limit: large innovations
+ *     pull less);
+ *     update k = p / (p + r): x := x + k y = ((1 - k) I + k C) (x) x, p := r k, and the low-pass stages
+ *     are rotated by the same rotation (1 - k) I + k C (normalised), so they stay in the estimate's
+ *     earth frame;
+ *  4. normalisation x := x / |x|, p := p / |x|^2; p is limited to ATT_KF_P_MAX (ATT_FLAG_CLAMPED), which
+ *     only long runs without usable accel samples reach (p then grows by q_step a step).
+ * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.
  * Before a valid attitude exists (init_from_accel) the filter waits for the first usable accel
- * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED), and
- * starts predicting on the next step. P starts as p0 * I.
+ * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED).
  *
- * Note: yaw is unobservable; with ATT_KF_YAW_STATE the yaw of z equals the state's yaw, so the
- * accelerometer never moves the yaw (apart from the Euler coupling near pitch +-90 deg, where roll
- * from the accelerometer is ill-defined and the notes' Euler construction of z is unreliable),
- * but P still shrinks in the yaw direction as if it were measured.
- *
- * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
- * Mirrored bit for bit by host/attica/reference/kf.py.
+ * Units: rad/s, m/s^2, s; variances in (unit quaternion)^2. Frames: gyro/accel in the sensor frame;
+ * q sensor-to-earth (ENU, z up). Mirrored bit for bit by host/attica/reference/kf.py.
  */
 #ifndef ATT_KF_H
 #define ATT_KF_H
 
+#include "attica/att_bias.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus
@@ -53,51 +49,93 @@ extern "C" {
 #endif
 
 /* ATT_CDEF_BEGIN */
-/** Yaw of the accelerometer measurement quaternion z. */
-typedef enum {
-    ATT_KF_YAW_STATE = 0, /**< psi = yaw of the predicted state (yaw does not jump; default) */
-    ATT_KF_YAW_ZERO = 1   /**< psi = 0, as in the lecture notes (pulls the yaw toward 0) */
-} att_kf_yaw_mode_t;
+/** Largest variance p (the cap of step 4), (unit quaternion)^2. */
+#define ATT_KF_P_MAX 1000000
 
-/** Settings of the linear quaternion KF. Fill with att_kf_settings_default, then change fields. */
+/**
+ * Settings of the linear quaternion KF. Fill with att_kf_settings_default, then change fields. Each
+ * field's valid range is given in brackets; init refuses anything else (NaN and Inf included).
+ */
 typedef struct {
-    float dt;                   /**< sample period, s; [1e-6, 1] */
-    float q_noise;              /**< process noise Q = q_noise * I per step, (unit quaternion)^2; 1e-12..1e12 */
-    float r_noise;              /**< measurement noise R = r_noise * I, (unit quaternion)^2; 1e-12..1e12 */
-    float p0;                   /**< initial covariance P0 = p0 * I, (unit quaternion)^2; 1e-12..1e12 */
-    float gravity;              /**< g, m/s^2; [1, 100] */
-    float accel_reject;         /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
-    float accel_range;          /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
-    float gyro_range;           /**< any |w_i| above this: propagation skipped, rad/s; (0, 1e3] */
-    att_kf_yaw_mode_t yaw_mode; /**< yaw of the measurement quaternion */
-    bool init_from_accel;       /**< take roll/pitch from the first usable accel sample (yaw 0) */
-    att_quat_t q_init;          /**< initial attitude when init_from_accel is false, sensor-to-earth */
-    bool noise_rates;           /**< true: q_noise per s (Q = q_noise dt), r_noise in unit^2 s (R = r_noise / dt) */
+    float dt;                  /**< sample period, s; [1e-6, 1] */
+    float q_noise;             /**< process noise: rate (noise_rates) or per step, (unit quaternion)^2; [1e-12, 1e6] */
+    float r_noise;             /**< measurement noise: density (noise_rates) or per sample; [1e-12, 1e6] */
+    float r_accel;             /**< growth of r with (|a|/g - 1)^2; [0, 1e6] */
+    float gate;                /**< chi-square gate on the normalised innovation d^2; [0, 1e6]; 0 = off */
+    float p0;                  /**< initial variance (P0 = p0 I), (unit quaternion)^2; [1e-12, 1e6] */
+    float gravity;             /**< g, m/s^2; [1, 100] */
+    float accel_reject;        /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
+    float accel_range;         /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;          /**< any |w_i| above this: propagation skipped, rad/s; (0, 1e3] */
+    att_bias_mode_t bias_mode; /**< gyro bias from the rest detector (as att_ars.h) */
+    uint32_t bias_n_max;       /**< cap on n in the running mean of the bias; [1, 2^24] */
+    att_vec3_t bias_init;      /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+    float rest_gyro;           /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_accel;          /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
+    float rest_time;           /**< ... for at least rest_time, s, [0, 1e4] */
+    float tau_acc_lp;          /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    bool init_from_accel;      /**< take roll/pitch from the first usable accel sample (yaw 0) */
+    att_quat_t q_init;         /**< initial attitude when init_from_accel is false; finite, |q|^2 in [2^-20, 2^20] */
+    bool noise_rates;          /**< true: Q = q_noise dt, R = r_noise / dt (rate-independent); false: per step */
 } att_kf_settings_t;
 
-/** State of one linear quaternion KF instance (no heap; copy freely). */
+/** Coefficients derived from the settings by att_kf_init: what a step needs, and the reset values. */
 typedef struct {
-    att_kf_settings_t s; /**< validated copy of the settings */
-    float q_step;        /**< process noise added per step (Q = q_step I) */
-    float r_step;        /**< measurement noise of one sample (R = r_step I) */
-    att_quat_t q;        /**< state x: attitude, unit, sensor-to-earth (ENU) */
-    float p[4][4];       /**< covariance P of (w, x, y, z), (unit quaternion)^2; bitwise symmetric */
-    bool initialised;    /**< q holds a valid attitude */
-    uint32_t steps;      /**< steps taken since init/reset (wraps) */
-    uint32_t flags;      /**< flags of the last step */
+    float dt;               /**< sample period, s */
+    float half_dt;          /**< dt / 2, s */
+    float q_step;           /**< process noise added per step */
+    float r_step;           /**< measurement noise of one sample (before the adaptive factors) */
+    float r_accel;          /**< growth of r with (|a|/g - 1)^2 */
+    float gate;             /**< chi-square gate (0 = off) */
+    float soft;             /**< gate / 4: above it r grows with d^2 */
+    float p0;               /**< variance after reset */
+    float gravity;          /**< g, m/s^2 */
+    float accel_reject;     /**< ||a|/g - 1| limit (0 = never) */
+    float accel_range2;     /**< saturation limit of |a|^2, (m/s^2)^2 */
+    float gyro_range;       /**< saturation limit of |w_i|, rad/s */
+    float k_lp;             /**< per-sample gain of each accel low-pass stage (0 = off) */
+    att_bias_params_t bias; /**< rest detector and running-mean parameters */
+    att_quat_t q_init;      /**< attitude after reset without init_from_accel */
+    att_vec3_t bias_init;   /**< bias after reset, rad/s */
+    bool init_from_accel;   /**< wait for the first usable accel sample */
+    bool lp_on;             /**< k_lp > 0 */
+    bool need_norm;         /**< |a| is needed (r_accel or accel_reject set) */
+} att_kf_coeffs_t;
+
+/** Dynamic state of a KF instance. */
+typedef struct {
+    att_quat_t q;         /**< state x: attitude, unit, sensor-to-earth (ENU) */
+    float p;              /**< covariance P = p I of x, (unit quaternion)^2 */
+    att_vec3_t bias;      /**< gyro bias estimate, rad/s, sensor frame */
+    att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
+    att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
+    uint32_t bias_n;      /**< n of the running mean of the bias */
+    uint32_t rest_count;  /**< consecutive samples at rest */
+    uint32_t steps;       /**< steps taken since init/reset (wraps) */
+    uint32_t flags;       /**< flags of the last step */
+    bool initialised;     /**< q holds a valid attitude */
+} att_kf_state_t;
+
+/** One linear quaternion KF instance (no heap; copy freely). */
+typedef struct {
+    att_kf_coeffs_t c; /**< derived from the settings at init / retune */
+    att_kf_state_t st; /**< changes every step */
 } att_kf_t;
 
 /**
- * Default settings for sample period dt (s), tuned on BROAD and rate-independent (noise_rates):
- * q_noise 1e-3 /s (Q = 1e-3 dt I), r_noise 0.1 s (R = 0.1 / dt I), P0 = I, accel_reject 0.1. The notes'
- * literal Q = 1e-4 I, R = 10 I per step are the seed preset (att_filter_settings_preset).
+ * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md), rate-independent
+ * (noise_rates): see att_kf.c for the values. The notes' literal Q = 1e-4 I and R = 10 I per step are
+ * the seed preset (att_filter_settings_preset).
  */
 void att_kf_settings_default(att_kf_settings_t *settings, float dt);
 /** ATT_OK when every field is within its range, else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
 att_status_t att_kf_settings_validate(const att_kf_settings_t *settings);
 /** Validate settings and initialise f. ATT_ERR_NULL / ATT_ERR_SETTINGS leave f unchanged. */
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings);
-/** New settings (noises, limits), the attitude and covariance kept; on error f is unchanged. */
+/**
+ * New settings, the state kept (attitude, variance, bias, low-pass stages; the bias to bias_init for
+ * OFF / FROZEN, counters limited); on error f is unchanged.
+ */
 att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings);
 /** Back to the state right after att_kf_init, keeping the settings. */
 void att_kf_reset(att_kf_t *f);

@@ -29,7 +29,10 @@ void initialise_monitor_handles(void); /* librdimon: opens stdin/stdout/stderr (
 #define ATT_SH_ADP_STOPPED_APPLICATION_EXIT 0x20026u
 #define ATT_SH_ADP_STOPPED_RUNTIME_ERROR 0x20023u
 
+/* Command-line buffer; small-RAM boards (microbit.ld: 16 KiB) build with a smaller one. */
+#ifndef ATT_SH_CMDLINE_BYTES
 #define ATT_SH_CMDLINE_BYTES 4096u
+#endif
 #define ATT_SH_MAX_ARGS 32u
 
 void _exit(int status) __attribute__((noreturn));

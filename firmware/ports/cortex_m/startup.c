@@ -1,15 +1,21 @@
 /**
  * @file startup.c
- * @brief Bare-metal start-up for a Cortex-M4F (ARMv7E-M + FPv4-SP): vector table, reset handler.
+ * @brief Bare-metal start-up for Cortex-M cores: vector table, reset handler.
  *
- * Reset_Handler: enable the FPU (CPACR CP10/CP11 full access), copy .data from its load address,
- * clear .bss, set FPSCR and FPDSCR to the IEEE mode attica needs (round to nearest even, no
- * flush-to-zero, no default NaN) and check them (att_port_fatal(ATT_PORT_EXIT_FPSCR) if the FPU
- * does not take them), run static constructors when newlib is linked, call main(argc, argv) with
- * the arguments of att_port_args() and hand its status to att_port_exit().
+ * One start-up for every Cortex-M target of attica: ARMv7E-M with FPv4-SP (Cortex-M4F) or FPv5
+ * (Cortex-M7), ARMv8-M Mainline with its FPU (Cortex-M33, secure state) and ARMv6-M without FPU
+ * (Cortex-M0/M0+, soft float). Compiled for a core with an FPU (__ARM_FP defined), Reset_Handler
+ * enables it (CPACR CP10/CP11 full access), sets FPSCR and FPDSCR to the IEEE mode attica needs
+ * (round to nearest even, no flush-to-zero, no default NaN) and checks them
+ * (att_port_fatal(ATT_PORT_EXIT_FPSCR) if the FPU does not take them); without an FPU the compiler's
+ * soft-float routines are IEEE round-to-nearest with subnormals and there is nothing to set. Then it
+ * copies .data from its load address, clears .bss, runs static constructors when newlib is linked,
+ * calls main(argc, argv) with the arguments of att_port_args() and hands its status to
+ * att_port_exit().
  *
- * Symbols expected from the linker script (mps2_an386.ld defines them): __stack_top__,
- * __data_load__, __data_start__, __data_end__, __bss_start__, __bss_end__.
+ * Symbols expected from the linker script (mps2_an386.ld, mps2_an500.ld, mps2_an505.ld and
+ * microbit.ld define them): __stack_top__, __data_load__, __data_start__, __data_end__,
+ * __bss_start__, __bss_end__.
  *
  * The exception and interrupt handlers are weak aliases of one default handler that reports a
  * fault; define a function of the same name (e.g. SysTick_Handler, att_irq5_handler) to override.
@@ -51,6 +57,7 @@ void SVC_Handler(void);
 void DebugMon_Handler(void);
 void PendSV_Handler(void);
 void SysTick_Handler(void);
+void SecureFault_Handler(void);
 void _init(void);
 void _fini(void);
 
@@ -64,15 +71,18 @@ ATT_WEAK_HANDLER(SVC_Handler);
 ATT_WEAK_HANDLER(DebugMon_Handler);
 ATT_WEAK_HANDLER(PendSV_Handler);
 ATT_WEAK_HANDLER(SysTick_Handler);
+ATT_WEAK_HANDLER(SecureFault_Handler);
 
-/* The 32 external interrupts of the MPS2 AN385/AN386 images (UARTs, timers, ethernet...). */
+/* The first 32 external interrupts (MPS2 AN385/AN386/AN500/AN505: UARTs, timers, ethernet...; nRF51: the
+ * peripherals). Boards with more leave the rest unused: these images enable none. */
 #define ATT_IRQ(n) void att_irq##n##_handler(void); ATT_WEAK_HANDLER(att_irq##n##_handler)
 ATT_IRQ(0); ATT_IRQ(1); ATT_IRQ(2); ATT_IRQ(3); ATT_IRQ(4); ATT_IRQ(5); ATT_IRQ(6); ATT_IRQ(7);
 ATT_IRQ(8); ATT_IRQ(9); ATT_IRQ(10); ATT_IRQ(11); ATT_IRQ(12); ATT_IRQ(13); ATT_IRQ(14); ATT_IRQ(15);
 ATT_IRQ(16); ATT_IRQ(17); ATT_IRQ(18); ATT_IRQ(19); ATT_IRQ(20); ATT_IRQ(21); ATT_IRQ(22); ATT_IRQ(23);
 ATT_IRQ(24); ATT_IRQ(25); ATT_IRQ(26); ATT_IRQ(27); ATT_IRQ(28); ATT_IRQ(29); ATT_IRQ(30); ATT_IRQ(31);
 
-/** ARMv7-M vector table: initial main stack pointer, then 15 system and 32 external handlers. */
+/** Vector table: initial main stack pointer, then 15 system and 32 external handlers (slot 7 is
+ * SecureFault on ARMv8-M Mainline and reserved on ARMv7-M and ARMv6-M). */
 typedef struct {
     uint32_t *stack_top;
     att_handler_t handler[15 + 32];
@@ -82,7 +92,13 @@ __attribute__((section(".vectors"), used)) const att_vectors_t att_vectors = {
     &__stack_top__,
     {
         Reset_Handler, NMI_Handler, HardFault_Handler, MemManage_Handler, BusFault_Handler,
-        UsageFault_Handler, NULL, NULL, NULL, NULL, SVC_Handler, DebugMon_Handler, NULL, PendSV_Handler,
+        UsageFault_Handler,
+#if defined(__ARM_FEATURE_CMSE)
+        SecureFault_Handler,
+#else
+        NULL,
+#endif
+        NULL, NULL, NULL, SVC_Handler, DebugMon_Handler, NULL, PendSV_Handler,
         SysTick_Handler,
         att_irq0_handler, att_irq1_handler, att_irq2_handler, att_irq3_handler, att_irq4_handler,
         att_irq5_handler, att_irq6_handler, att_irq7_handler, att_irq8_handler, att_irq9_handler,
@@ -96,6 +112,7 @@ __attribute__((section(".vectors"), used)) const att_vectors_t att_vectors = {
 
 /* ---- floating-point environment ---------------------------------------------------------------- */
 
+#if defined(__ARM_FP)
 uint32_t att_port_fpscr(void)
 {
     uint32_t v;
@@ -122,6 +139,14 @@ bool att_port_fp_ok(void)
            (att_port_fpscr() & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED &&
            (ATT_FPDSCR & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED;
 }
+#else
+/* No FPU (soft float): no floating-point environment to set; the library routines are IEEE. */
+uint32_t att_port_fpscr(void) { return ATT_FPSCR_REQUIRED; }
+
+void att_port_fp_init(void) {}
+
+bool att_port_fp_ok(void) { return true; }
+#endif
 
 /* ---- default hooks (semihost.c replaces them) ------------------------------------------------------ */
 

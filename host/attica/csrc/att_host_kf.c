@@ -29,18 +29,12 @@ size_t att_host_kf_run(att_kf_t *f, size_t m, const float *gyr, const float *acc
             a.y = acc[3u * k + 1u];
             a.z = acc[3u * k + 2u];
             flags[k] = att_kf_step(fj, g, a);
-            quat[4u * k] = fj->q.w;
-            quat[4u * k + 1u] = fj->q.x;
-            quat[4u * k + 2u] = fj->q.y;
-            quat[4u * k + 3u] = fj->q.z;
+            quat[4u * k] = fj->st.q.w;
+            quat[4u * k + 1u] = fj->st.q.x;
+            quat[4u * k + 2u] = fj->st.q.y;
+            quat[4u * k + 3u] = fj->st.q.z;
             if (p != NULL) {
-                size_t r;
-                size_t c;
-                for (r = 0; r < 4u; r++) {
-                    for (c = 0; c < 4u; c++) {
-                        p[16u * k + 4u * r + c] = fj->p[r][c];
-                    }
-                }
+                p[k] = fj->st.p;
             }
         }
     }

@@ -78,7 +78,7 @@ class Ars:
         self.accel_range = setting(s.accel_range, n)
         self.accel_range2 = self.accel_range * self.accel_range
         self.gyro_range = setting(s.gyro_range, n)
-        self.bias_mode = setting(int(s.bias_mode), n, np.int32)
+        self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.bias_init = split3(s.bias_init, n)
         self.rest_gyro = setting(s.rest_gyro, n)

@@ -131,10 +131,10 @@ class Filter:
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS):
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
             out["gyro_bias"] = stack(f.bias)
-        elif self.kind == FilterKind.KF:
-            out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], f.p[3][3]))
+        if self.kind == FilterKind.KF:
+            out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
         elif self.kind == FilterKind.EKF:
             zero = np.zeros(self.n, np.float32)
             out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))

@@ -1,7 +1,6 @@
 """Mirror of firmware/src/att_kf.c: the linear quaternion Kalman filter, many instances in lockstep.
 
-Matrices are 4x4 nested lists of per-instance float32 arrays of shape (n,); every product is the
-same fixed-order scalar sequence as in C (the sum starts from the first product).
+The covariance is isotropic (P = p I, see att_kf.h), so the filter carries the scalar p.
 """
 
 from __future__ import annotations
@@ -14,65 +13,18 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
-from attica.settings import Flag, KfSettings, KfYawMode
+from attica.reference.ars import align_up
+from attica.reference.bias import bias_params, bias_retune, bias_step
+from attica.settings import BiasMode, Flag, KfSettings
 
 _U0 = np.uint32(0)
-Mat = list[list[Any]]
-"""A 4x4 matrix: rows of per-instance float32 arrays."""
-Vec4 = list[Any]
-"""A 4-vector of per-instance float32 arrays."""
+P_MAX = dm.c("0x1.e848p+19")
+"""ATT_KF_P_MAX = 1e6: the cap on the variance."""
+QUARTER = dm.c("0x1p-2")
 
 
 def _u(flag: Flag) -> np.uint32:
     return np.uint32(flag.value)
-
-
-def _mul(a: Mat, b: Mat) -> Mat:
-    """att_kf_mul: a * b."""
-    out: Mat = [[None] * 4 for _ in range(4)]
-    for i in range(4):
-        for j in range(4):
-            s = a[i][0] * b[0][j]
-            for k in range(1, 4):
-                s = s + a[i][k] * b[k][j]
-            out[i][j] = s
-    return out
-
-
-def _mul_bt(a: Mat, b: Mat) -> Mat:
-    """att_kf_mul_bt: a * b^T."""
-    out: Mat = [[None] * 4 for _ in range(4)]
-    for i in range(4):
-        for j in range(4):
-            s = a[i][0] * b[j][0]
-            for k in range(1, 4):
-                s = s + a[i][k] * b[j][k]
-            out[i][j] = s
-    return out
-
-
-def _symmetrise(m: Mat) -> Mat:
-    """att_kf_symmetrise: (m + m^T) / 2 elementwise."""
-    return [[(m[i][j] + m[j][i]) * dm.HALF for j in range(4)] for i in range(4)]
-
-
-def _all_finite(x: Vec4, p: Mat) -> Any:
-    """att_kf_all_finite."""
-    ok = dm.isfinitef(x[0])
-    for i in range(4):
-        if i > 0:
-            ok = ok & dm.isfinitef(x[i])
-        for j in range(4):
-            ok = ok & dm.isfinitef(p[i][j])
-    return ok
-
-
-def _where4(cond: Any, a: Vec4, b: Vec4) -> Vec4:
-    return [np.where(cond, a[i], b[i]) for i in range(4)]
-
-
-def _where44(cond: Any, a: Mat, b: Mat) -> Mat:
-    return [[np.where(cond, a[i][j], b[i][j]) for j in range(4)] for i in range(4)]
 
 
 class Kf:
@@ -82,186 +34,192 @@ class Kf:
     not validated here (``att_kf_init`` does that in C).
     """
 
-    STATE: StateSpec = {"q": "quat", "p": "f32x16", "initialised": "bool", "steps": "u32", "flags": "u32"}
+    STATE: StateSpec = {
+        "st.q": "quat",
+        "st.p": "f32",
+        "st.bias": "vec3",
+        "st.lp1": "vec3",
+        "st.lp2": "vec3",
+        "st.bias_n": "u32",
+        "st.rest_count": "u32",
+        "st.steps": "u32",
+        "st.flags": "u32",
+        "st.initialised": "bool",
+    }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+
+    COEFFS: StateSpec = {
+        "c.half_dt": "f32",
+        "c.q_step": "f32",
+        "c.r_step": "f32",
+        "c.soft": "f32",
+        "c.k_lp": "f32",
+        "c.bias.rest_n": "u32",
+    }
+    """C coefficients computed by att_kf_init that this class derives itself (compared by the tests)."""
 
     def __init__(self, settings: KfSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else KfSettings()
         self.settings = s
         self.n = n
         self.dt = setting(s.dt, n)
-        # att_kf_init: per-step Q and R (q_step, r_step); with noise_rates the settings are rates
+        self.half_dt = self.dt * dm.HALF
         rates = setting(s.noise_rates, n, np.bool_)
         q_noise = setting(s.q_noise, n)
         r_noise = setting(s.r_noise, n)
         with np.errstate(all="ignore"):
-            self.q_noise = np.where(rates, q_noise * self.dt, q_noise).astype(np.float32)
-            self.r_noise = np.where(rates, r_noise / self.dt, r_noise).astype(np.float32)
+            self.q_step = np.where(rates, q_noise * self.dt, q_noise).astype(np.float32)
+            self.r_step = np.where(rates, r_noise / self.dt, r_noise).astype(np.float32)
+        self.r_accel = setting(s.r_accel, n)
+        self.gate = setting(s.gate, n)
+        self.soft = self.gate * QUARTER
         self.p0 = setting(s.p0, n)
         self.gravity = setting(s.gravity, n)
         self.accel_reject = setting(s.accel_reject, n)
         self.accel_range = setting(s.accel_range, n)
+        self.accel_range2 = self.accel_range * self.accel_range
         self.gyro_range = setting(s.gyro_range, n)
-        self.yaw_mode = setting(s.yaw_mode, n, np.int32)
+        self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
+        self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
+        self.bias_init = split3(s.bias_init, n)
+        self.rest_gyro = setting(s.rest_gyro, n)
+        self.rest_accel = setting(s.rest_accel, n)
+        self.rest_time = setting(s.rest_time, n)
+        self.rest_n = sensor.samples(self.rest_time, self.dt)
+        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.rest_gyro, self.rest_accel, self.gravity
+        )
+        tau_lp = setting(s.tau_acc_lp, n)
+        with np.errstate(all="ignore"):
+            self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
         qi = np.broadcast_to(np.asarray(s.q_init, np.float32), (n, 4))  # (4,) or one per instance (n, 4)
-        self.q_init = (qi[:, 0].copy(), qi[:, 1].copy(), qi[:, 2].copy(), qi[:, 3].copy())
+        self.q_init: dm.Quat = (qi[:, 0].copy(), qi[:, 1].copy(), qi[:, 2].copy(), qi[:, 3].copy())
+        self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
         self.reset()
 
     def reset(self) -> None:
         """Back to the state after construction (att_kf_reset)."""
         n = self.n
         _, self.q = dm.quat_normalize(self.q_init)
+        self.p = self.p0.copy()
         zero = np.zeros(n, np.float32)
-        self.p: Mat = [[self.p0.copy() if i == j else zero.copy() for j in range(4)] for i in range(4)]
+        off = self.bias_mode == BiasMode.OFF
+        self.bias: dm.Vec3 = dm.vec3_where(off, (zero, zero, zero), self.bias_init)
+        self.lp1: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
+        self.lp2: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
+        self.bias_n = np.zeros(n, np.uint32)
+        self.rest_count = np.zeros(n, np.uint32)
         self.initialised = ~self.init_from_accel
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
 
-    def _predict(self, g: dm.Vec3, x: Vec4, p: Mat) -> tuple[Vec4, Mat]:
-        h = self.dt * dm.HALF
-        hp = h * g[0]
-        hq = h * g[1]
-        hr = h * g[2]
-        one = dm.ONE
-        a: Mat = [
-            [one, -hp, -hq, -hr],
-            [hp, one, hr, -hq],
-            [hq, -hr, one, hp],
-            [hr, hq, -hp, one],
-        ]
-        xn: Vec4 = []
-        for i in range(4):
-            s = a[i][0] * x[0]
-            for k in range(1, 4):
-                s = s + a[i][k] * x[k]
-            xn.append(s)
-        u = _mul_bt(_mul(a, p), a)
-        for i in range(4):
-            u[i][i] = u[i][i] + self.q_noise
-        return xn, _symmetrise(u)
-
-    def _measurement(self, a: dm.Vec3, x: Vec4) -> Vec4:
-        _, xu = dm.quat_normalize((x[0], x[1], x[2], x[3]))
-        psi_state = dm.quat_to_euler(xu)[2]
-        psi = np.where(self.yaw_mode == KfYawMode.STATE, psi_state, dm.ZERO).astype(np.float32)
-        t = sensor.tilt(a)
-        zq = dm.quat_from_euler(t[0], t[1], psi)
-        dot = zq[0] * x[0] + zq[1] * x[1] + zq[2] * x[2] + zq[3] * x[3]
-        neg = dot < dm.ZERO
-        return [np.where(neg, -zq[i], zq[i]) for i in range(4)]
-
-    def _update(self, z: Vec4, x: Vec4, p: Mat) -> tuple[Any, Vec4, Mat]:
-        r = self.r_noise
-        ok = np.ones(self.n, np.bool_)
-        lt: Mat = [[None] * 4 for _ in range(4)]
-        for j in range(4):
-            d = p[j][j] + r
-            for m in range(j):
-                d = d - lt[j][m] * lt[j][m]
-            ok = ok & (d > dm.ZERO) & dm.isfinitef(d)
-            lt[j][j] = dm.sqrtf(d)
-            for i in range(j + 1, 4):
-                v = p[i][j]
-                for m in range(j):
-                    v = v - lt[i][m] * lt[j][m]
-                lt[i][j] = v / lt[j][j]
-
-        k: Mat = [[None] * 4 for _ in range(4)]
-        for c in range(4):
-            y: Vec4 = [None] * 4
-            w: Vec4 = [None] * 4
-            for i in range(4):
-                v = p[i][c]
-                for m in range(i):
-                    v = v - lt[i][m] * y[m]
-                y[i] = v / lt[i][i]
-            for i in range(3, -1, -1):
-                v = y[i]
-                for m in range(i + 1, 4):
-                    v = v - lt[m][i] * w[m]
-                w[i] = v / lt[i][i]
-            for i in range(4):
-                k[c][i] = w[i]
-
-        e = [z[i] - x[i] for i in range(4)]
-        xn: Vec4 = []
-        for i in range(4):
-            s = k[i][0] * e[0]
-            for m in range(1, 4):
-                s = s + k[i][m] * e[m]
-            xn.append(x[i] + s)
-
-        mm: Mat = [[dm.ONE - k[i][j] if i == j else -k[i][j] for j in range(4)] for i in range(4)]
-        u = _mul_bt(_mul(mm, p), mm)
-        kk = _mul_bt(k, k)
-        u = [[u[i][j] + r * kk[i][j] for j in range(4)] for i in range(4)]
-        pn = _symmetrise(u)
-        ok = ok & _all_finite(xn, pn)
-        return ok, xn, pn
-
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
-        n = self.n
-        g = split3(gyr, n)
-        a = split3(acc, n)
+        g = split3(gyr, self.n)
+        a = split3(acc, self.n)
+        flags = sensor.check_gyro(g, self.gyro_range)
+        gyro_ok = flags == _U0
+        accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
+        accel_ok = accel_flags == _U0
+        flags = flags | accel_flags
+        zero = np.zeros(self.n, np.float32)
         with np.errstate(all="ignore"):
-            flags = sensor.check_gyro(g, self.gyro_range)
-            gyro_ok = flags == _U0
-            accel_flags, norm = sensor.check_accel(a, self.accel_range)
-            accel_ok = accel_flags == _U0
-            flags = flags | accel_flags
-            e = norm / self.gravity - dm.ONE
-            rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
+            e = dm.sqrtf(n2) / self.gravity - dm.ONE
+            use_e = accel_ok & self.need_norm
+            e2 = np.where(use_e, e * e, dm.ZERO)
+            rejected = use_e & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
+            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
+                self.bias_mode,
+                self.bias_n_max,
+                self.rest_n,
+                self.rest_gyro2,
+                self.acc2_lo,
+                self.acc2_hi,
+                self.bias,
+                self.bias_n,
+                self.rest_count,
+                g,
+                gyro_ok,
+                accel_ok,
+                n2,
+            )
+            flags = flags | bias_flags
 
-            # not yet initialised: attitude from the first usable accel sample
+            # not yet initialised: attitude from the first valid accel sample
             waiting = ~self.initialised
             init_now = waiting & accel_ok
             t = sensor.tilt(a)
-            _, q_tilt = dm.quat_normalize(dm.quat_from_euler(t[0], t[1], np.zeros(n, np.float32)))
+            _, q_tilt = dm.quat_normalize_bounded(dm.quat_from_euler(t[0], t[1], zero))
             flags = flags | np.where(
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
 
-            # prediction; an unusable gyro sample leaves x as it is but still adds Q
-            x0: Vec4 = list(self.q)
-            p0 = self.p
-            xp, pp = self._predict(g, x0, p0)
-            p_hold = [[p0[i][j] + self.q_noise if i == j else p0[i][j] for j in range(4)] for i in range(4)]
-            x1 = _where4(gyro_ok, xp, x0)
-            p1 = _where44(gyro_ok, pp, p_hold)
+            # prediction
+            x0 = self.q
+            h = dm.vec3_scale(dm.vec3_sub(g, self.bias), self.half_dt)
+            dx = dm.quat_mul(x0, (zero, h[0], h[1], h[2]))
+            x_pred = (x0[0] + dx[0], x0[1] + dx[1], x0[2] + dx[2], x0[3] + dx[3])
+            x = dm.quat_where(gyro_ok, x_pred, x0)
+            p = np.where(
+                gyro_ok, self.p * (dm.ONE + dm.vec3_dot(h, h)) + self.q_step, self.p + self.q_step
+            ).astype(np.float32)
 
-            # measurement update
-            do_update = accel_ok & ~rejected
-            z = self._measurement(a, x1)
-            upd_ok, xu, pu = self._update(z, x1, p1)
-            flags = flags | np.where(~waiting & do_update & ~upd_ok, _u(Flag.NUMERIC), _U0)
-            use = do_update & upd_ok
-            x2 = _where4(use, xu, x1)
-            p2 = _where44(use, pu, p1)
+            # measurement and update
+            u = dm.quat_rotate(x, a)
+            lp_on = self.k_lp > dm.ZERO
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), self.k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            u = dm.vec3_where(lp_on, lp2, u)
+            ok_a, (cw, cx, cy), _ = align_up(u)
+            x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]
+            y2 = (dm.TWO * (dm.ONE - cw)) * x2
+            r = self.r_step * (dm.ONE + self.r_accel * e2)
+            s = p + r
+            gate_on = self.gate > dm.ZERO
+            measure = ~waiting & accel_ok & ~rejected & ok_a
+            gated = measure & gate_on & (y2 > self.gate * s)
+            flags = flags | np.where(gated, _u(Flag.ACCEL_REJECTED), _U0)
+            soft = gate_on & (y2 > self.soft * s)
+            r = np.where(soft, y2 / self.soft - p, r)
+            s = np.where(soft, p + r, s)
+            k = p / s
+            kw = (dm.ONE - k) + k * cw
+            kx = k * cx
+            ky = k * cy
+            apply = measure & ~gated
+            x = dm.quat_where(apply, dm.quat_mul_hz(kw, kx, ky, x), x)
+            p = np.where(apply, r * k, p).astype(np.float32)
+            ok_k, qk = dm.quat_normalize_bounded((kw, kx, ky, zero))
+            lp_upd = apply & lp_on & ok_k
+            lp1n = dm.quat_rotate_hz(qk[0], qk[1], qk[2], lp1)
+            lp2n = dm.quat_rotate_hz(qk[0], qk[1], qk[2], lp2)
 
-            # normalisation x := x / |x|, P := P / |x|^2
-            n2 = x2[0] * x2[0] + x2[1] * x2[1] + x2[2] * x2[2] + x2[3] * x2[3]
-            ok, qn = dm.quat_normalize((x2[0], x2[1], x2[2], x2[3]))
-            p3 = [[p2[i][j] / n2 for j in range(4)] for i in range(4)]
-            ok = ok & _all_finite(list(qn), p3)
-            flags = flags | np.where(~waiting & ~ok, _u(Flag.NUMERIC), _U0)
-            q_run = dm.quat_where(ok, qn, self.q)
-            p_run = _where44(ok, p3, p0)
-            self.q = dm.quat_where(waiting, dm.quat_where(init_now, q_tilt, self.q), q_run)
-            self.p = _where44(waiting, p0, p_run)
-        self.q = tuple(np.asarray(c, np.float32) for c in self.q)  # type: ignore[assignment]
-        self.p = [[np.asarray(v, np.float32) for v in row] for row in self.p]
+            # normalisation
+            ok_n, xn = dm.quat_normalize_bounded(x)
+            pn = p / (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+            capped = pn > P_MAX
+            pn = np.where(capped, P_MAX, pn)
+            run = ~waiting
+            flags = flags | np.where(run & ok_n & capped, _u(Flag.CLAMPED), _U0)
+            flags = flags | np.where(run & ~ok_n, _u(Flag.NUMERIC), _U0)
+            take = run & ok_n
+            self.q = dm.quat_where(init_now, q_tilt, dm.quat_where(take, xn, self.q))
+            self.p = np.where(take, pn, self.p).astype(np.float32)
+            lp_init = dm.quat_rotate(q_tilt, a)
+            self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp1n, self.lp1))
+            self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp2n, self.lp2))
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
-        self.flags = np.asarray(flags, np.uint32)
+        self.flags = flags.astype(np.uint32)
         return self.flags
 
     def retune(self, settings: KfSettings) -> None:
-        """att_kf_retune: new settings (coefficients), the state kept."""
+        """att_kf_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
         new = Kf(settings, self.n)
         carry_state(self, new)
+        bias_retune(new)
         self.__dict__.update(new.__dict__)
 
     @property
@@ -270,14 +228,14 @@ class Kf:
         return stack(self.q)
 
     @property
-    def covariance(self) -> NDArray[np.float32]:
-        """Covariance matrices P (n, 4, 4) of (w, x, y, z)."""
-        return np.stack([stack(tuple(row)) for row in self.p], axis=-2)
+    def gyro_bias(self) -> NDArray[np.float32]:
+        """Gyro bias estimates (n, 3), rad/s, sensor frame."""
+        return stack(self.bias)
 
     @property
-    def cov_diag(self) -> NDArray[np.float32]:
-        """Covariance diagonals (n, 4): P_ww, P_xx, P_yy, P_zz."""
-        return stack(tuple(self.p[i][i] for i in range(4)))
+    def variance(self) -> NDArray[np.float32]:
+        """The variance p of each instance (P = p I), (unit quaternion)^2."""
+        return np.asarray(self.p, np.float32)
 
     def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3).

@@ -1,7 +1,7 @@
 """The firmware on other CPUs: Cortex-M4F under QEMU, aarch64 and riscv64 under qemu-user, x86-64.
 
 Every target builds the same C programs from the firmware sources with the strict flags of
-firmware/cflags.txt (through :func:`attica.golden.build_program`) plus its own target flags, and
+firmware/cflags.txt (through :func:`attica_dev.golden.build_program`) plus its own target flags, and
 runs them through a command prefix (an emulator, or nothing natively):
 
 - ``m4f``: arm-none-eabi-gcc for Cortex-M4F (``-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16
@@ -16,7 +16,7 @@ runs them through a command prefix (an emulator, or nothing natively):
 :func:`golden_cases` builds the inputs of the cross-CPU golden comparison (synthetic adversarial
 streams and, when present, real BROAD recordings), :func:`reference_outputs` computes the numpy
 reference once, and :func:`compare_target` runs the golden runner of one target over all of it.
-``python -m attica.cross`` does all of that and prints the table; ``python -m attica.cross firmware``
+``python -m attica_dev.cross`` does all of that and prints the table; ``python -m attica_dev.cross firmware``
 builds the Cortex-M4F library and images (``make firmware``).
 """
 
@@ -40,27 +40,29 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from attica import _build, golden
+from attica import _build
 from attica.settings import FilterKind, implemented_kinds, make_settings
+from attica_dev import golden
+from attica_dev.boards import BOARDS, SECTIONS, CortexM
+from attica_dev.boards import PORT as PORT  # re-exported: the tests and footprint use cross.PORT
+from attica_dev.boards import PORT_SOURCES as PORT_SOURCES
 
 ROOT = _build.ROOT
-PORT = _build.FIRMWARE / "ports" / "cortex_m"
-LINKER_SCRIPT = PORT / "mps2_an386.ld"
+LINKER_SCRIPT = BOARDS["m4f"].script
 QEMU_M4F = PORT / "qemu-m4f.sh"
-PORT_SOURCES = (PORT / "startup.c", PORT / "semihost.c")
 TESTS_C = ROOT / "tests" / "c"
 BUILD = ROOT / "build" / "cross"
 BROAD = ROOT.parent / "shared" / "data" / "broad"
 BROAD_RATE = 285.714
 """Sample rate of the BROAD recordings (Hz)."""
 
-M4F_CPU = ("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard")
+M4F_CPU = BOARDS["m4f"].cpu
 """Cortex-M4F code generation: Thumb-2, FPv4-SP single-precision FPU, hard-float ABI."""
 M4F_STACK_LIMIT = 1024
 """-Wstack-usage limit (bytes per function) of the library objects on the Cortex-M4F."""
-M4F_LINK = ("--specs=rdimon.specs", "-nostartfiles", "-T", str(LINKER_SCRIPT), "-Wl,--gc-sections")
+M4F_LINK = BOARDS["m4f"].link
 """Link flags of Cortex-M4F test images: our start-up, our linker script, newlib + semihosting."""
-M4F_SECTIONS = ("-ffunction-sections", "-fdata-sections")
+M4F_SECTIONS = SECTIONS
 
 # Fused multiply-add mnemonics: x86 (vfmadd231ss, vfnmsub..., vfmaddsub...), AArch64 (fmadd, fmsub,
 # fnmadd, fnmsub, fmla, fmls), ARMv7 VFPv4 (vfma, vfms, vfnma, vfnms), RISC-V (fmadd.s, fnmsub.s ...).
@@ -98,11 +100,15 @@ class Target:
     objdump: str = "objdump"
     opts: tuple[str, ...] = ("-O2",)
     """Optimisation levels of the golden comparison."""
+    max_streams: int = 0
+    """Filters a run of the golden runner may hold at once (0: no limit): larger cases run in slices."""
+    runs_with: tuple[str, ...] = ()
+    """Programs the prefix needs besides itself (the emulator behind a script)."""
 
     @property
     def tools(self) -> tuple[str, ...]:
         """Programs the target needs."""
-        return (self.cc, self.objdump, *self.prefix[:1])
+        return (self.cc, self.objdump, *self.prefix[:1], *self.runs_with)
 
     def missing(self) -> list[str]:
         """The tools of :attr:`tools` that are not installed."""
@@ -137,19 +143,30 @@ class Target:
         return self.build([golden.RUNNER_SOURCE], opt, "att_golden", out_dir)
 
 
-TARGETS: dict[str, Target] = {
-    "m4f": Target(
-        "m4f",
-        "Cortex-M4F, arm-none-eabi-gcc, qemu-system-arm -M mps2-an386 (semihosting)",
+def cortex_m_target(board: CortexM, opts: tuple[str, ...] = ("-O2",)) -> Target:
+    """The Target of a Cortex-M board: arm-none-eabi-gcc, our start-up, semihosting, QEMU."""
+    return Target(
+        board.name,
+        f"{board.core}, arm-none-eabi-gcc {' '.join(board.cpu)}, qemu-system-arm -M {board.machine} "
+        "(semihosting)",
         "arm-none-eabi-gcc",
-        M4F_CPU,
-        ("-I", str(PORT), "-DATT_SEMIHOST_NEWLIB", *M4F_SECTIONS, *M4F_LINK),
-        (),
+        board.cpu,
+        board.image_flags,
+        board.ldflags,
         PORT_SOURCES,
-        (str(QEMU_M4F),),
+        board.prefix,
         "arm-none-eabi-objdump",
-        ("-O2", "-Os"),
-    ),
+        opts,
+        board.max_streams,
+        ("qemu-system-arm",),
+    )
+
+
+TARGETS: dict[str, Target] = {
+    "m4f": cortex_m_target(BOARDS["m4f"], ("-O2", "-Os")),
+    "m7": cortex_m_target(BOARDS["m7"]),
+    "m33": cortex_m_target(BOARDS["m33"]),
+    "m0plus": cortex_m_target(BOARDS["m0plus"]),
     "aarch64": Target(
         "aarch64",
         "AArch64, aarch64-linux-gnu-gcc -static, qemu-aarch64-static",
@@ -179,7 +196,7 @@ TARGETS: dict[str, Target] = {
 }
 """Every target, by name."""
 
-CROSS_TARGETS = ("m4f", "aarch64", "riscv64")
+CROSS_TARGETS = ("m4f", "m7", "m33", "m0plus", "aarch64", "riscv64")
 NATIVE_TARGETS = ("x86_64-gcc", "x86_64-clang") if _X86 else ()
 
 SYSTEM_PACKAGES = {
@@ -287,7 +304,7 @@ VARIANTS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
         },
     ),
     "mars-full": (FilterKind.MARS, {"mag_mode": 1}),
-    "kf-yaw-zero": (FilterKind.KF, {"yaw_mode": 1}),
+    "kf-gate-adaptive": (FilterKind.KF, {"gate": 20.0, "r_accel": 50.0, "accel_reject": 0.5, "bias_mode": 2}),
     "tilt-no-normalise": (FilterKind.TILT, {"normalise": False}),
 }
 """Non-default settings compared besides the defaults of every kind (synthetic inputs)."""
@@ -442,6 +459,37 @@ def write_case_inputs(cases: Sequence[FilterCase], workdir: Path) -> dict[str, P
     return files
 
 
+def run_case(
+    runner: Path,
+    prefix: Sequence[str],
+    case: FilterCase,
+    in_file: Path | None,
+    workdir: Path,
+    max_streams: int = 0,
+) -> NDArray[np.void]:
+    """The runner's outputs of one case, (steps, streams) records; in slices of ``max_streams`` streams.
+
+    ``in_file``: the case's inputs already written (None: written here).
+    """
+    streams = case.imu[0].shape[1]
+    if not max_streams or streams <= max_streams:
+        return golden.run_filter(
+            runner, case.kind, case.settings, *case.imu, prefix=prefix, workdir=workdir, in_file=in_file
+        )
+    parts = []
+    for s0 in range(0, streams, max_streams):
+        g, a, m = (np.ascontiguousarray(v[:, s0 : s0 + max_streams]) for v in case.imu)
+        part_file = workdir / f"{case.name}.streams{s0}.in.bin"
+        golden.write_filter_input(part_file, case.kind, g, a, m)
+        parts.append(
+            golden.run_filter(
+                runner, case.kind, case.settings, g, a, m, prefix=prefix, workdir=workdir, in_file=part_file
+            )
+        )
+        part_file.unlink()
+    return np.concatenate(parts, axis=1)
+
+
 def compare_filters(
     runner: Path,
     prefix: Sequence[str],
@@ -450,20 +498,30 @@ def compare_filters(
     files: dict[str, Path],
     workdir: Path,
     jobs: int = 0,
+    max_streams: int = 0,
+    streams: int = 0,
 ) -> list[Result]:
     """Every case through the runner against its reference output (every field of every step).
 
-    Cases run ``jobs`` at a time (0: one per CPU), each in its own sub-directory of ``workdir``.
+    Cases run ``jobs`` at a time (0: one per CPU), each in its own sub-directory of ``workdir``. With
+    ``max_streams``, a case with more streams runs in slices of at most that many (one runner call
+    each, for targets whose RAM holds few filters) and the outputs are put back together. With
+    ``streams``, only the first ``streams`` streams of every case are compared (a bounded slice for
+    slow emulated targets; ``make cross`` compares all).
     """
 
     def one(c: FilterCase) -> Result:
         t0 = time.perf_counter()
         wd = workdir / c.name
         wd.mkdir(parents=True, exist_ok=True)
-        got = golden.run_filter(
-            runner, c.kind, c.settings, *c.imu, prefix=prefix, workdir=wd, in_file=files[c.name]
-        )
         ref = want[c.name]
+        in_file: Path | None = files[c.name]
+        if streams and streams < c.imu[0].shape[1]:
+            g, a, m = (np.ascontiguousarray(v[:, :streams]) for v in c.imu)
+            c = FilterCase(c.name, c.kind, c.settings, (g, a, m), c.source)
+            ref = ref[:, :streams]
+            in_file = None
+        got = run_case(runner, prefix, c, in_file, wd, max_streams)
         ok = golden.same_outputs(got, ref) if got.shape == ref.shape else np.zeros(ref.shape, bool)
         detail = ""
         if not ok.all():
@@ -500,15 +558,15 @@ class M4fBuild:
 M4F_LIB_OPTS = ("-Os", "-O2")
 
 
-def library_objects(opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc") -> list[Path]:
-    """Compile the firmware sources for the Cortex-M4F as a library would be (stack gate on).
+def library_objects(opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc", board: str = "m4f") -> list[Path]:
+    """Compile the firmware sources for a Cortex-M board as a library would be (stack gate on).
 
-    Flags: the firmware flags, ``opt``, the M4F CPU flags, ``-ffunction-sections -fdata-sections``
+    Flags: the firmware flags, ``opt``, the board's CPU flags, ``-ffunction-sections -fdata-sections``
     (so images keep only what they use), ``-Wstack-usage=M4F_STACK_LIMIT`` (an error with -Werror)
     and ``-fstack-usage -fcallgraph-info=su`` (.su and .ci files for the stack analysis).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    target = Target("m4f", "", cc, M4F_CPU)
+    target = Target(board, "", cc, BOARDS[board].cpu)
     extra = [*M4F_SECTIONS, f"-Wstack-usage={M4F_STACK_LIMIT}", "-fstack-usage", "-fcallgraph-info=su"]
     objs = [out_dir / (src.stem + ".o") for src in _build.firmware_sources()]
     with ThreadPoolExecutor(max(2, os.cpu_count() or 2)) as pool:
@@ -632,7 +690,7 @@ def compare_all(
             sub = wd / f"run-{t.name}{opt}"
             sub.mkdir()
             res = compare_math(runners[cfg], t.prefix, mdata, sub)
-            res += compare_filters(runners[cfg], t.prefix, cases, want, files, sub)
+            res += compare_filters(runners[cfg], t.prefix, cases, want, files, sub, max_streams=t.max_streams)
             return f"{t.name} {opt}", res
 
         with ThreadPoolExecutor(jobs) as tp:
@@ -665,9 +723,9 @@ def compare_all(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m attica.cross [golden|firmware]``."""
+    """``python -m attica_dev.cross [golden|firmware]``."""
     p = argparse.ArgumentParser(
-        prog="python -m attica.cross", description=__doc__.split("\n")[0] if __doc__ else ""
+        prog="python -m attica_dev.cross", description=__doc__.split("\n")[0] if __doc__ else ""
     )
     p.add_argument("what", nargs="?", default="golden", choices=["golden", "firmware"])
     p.add_argument("--targets", default=",".join((*CROSS_TARGETS, *NATIVE_TARGETS)), help="comma-separated")

@@ -1,6 +1,6 @@
 """Footprint, stack and instructions per update of the firmware on a Cortex-M4F (make footprint, cycles).
 
-Footprint (``python -m attica.footprint footprint``):
+Footprint (``python -m attica_dev.footprint footprint``):
 
 - .text (code + constants), .data and .bss the library contributes to minimal firmware images
   (tests/c/att_m4f_image.c: one filter through its own API, all filters through att_filter_*, the
@@ -14,30 +14,30 @@ Footprint (``python -m attica.footprint footprint``):
   path of -fcallgraph-info (.ci) from each entry point; library leaf functions (memcpy, memset) from
   their prologues in the linked image.
 
-Instructions (``python -m attica.footprint cycles``):
+Instructions (``python -m attica_dev.footprint cycles``):
 
 - Cortex-M4F: tests/c/att_bench.c (the same synthetic inputs as the x86 callgrind figures) runs under
   ``qemu-system-arm -M mps2-an386 -d exec,nochain -singlestep`` which logs every executed
   instruction; the instructions from the entry of att_filter_step until control is back in main are
   counted for every step (mean and maximum per update). An estimate of cycles is derived from the
   same trace with the Cortex-M4 TRM instruction timings (zero wait states; see :func:`m4_cycles`);
-- x86-64: callgrind instructions per att_filter_step via :mod:`attica.bench`.
+- x86-64: callgrind instructions per att_filter_step via :mod:`attica_dev.bench`.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import shutil
 import subprocess
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from attica import _build, cross, golden
+from attica import _build
+from attica_dev import cross, cycles
+from attica_dev.boards import BOARDS
 
 ROOT = _build.ROOT
 OUT = ROOT / "build" / "firmware" / "m4f"
@@ -94,18 +94,18 @@ def _tool(name: str) -> str:
 # --- library and images --------------------------------------------------------------------------------
 
 
-def library(opt: str, out: Path = OUT) -> tuple[Path, list[Path]]:
-    """libattica<opt>.a for the Cortex-M4F (stack gate on) and its objects (.su/.ci beside them)."""
-    objs = cross.library_objects(opt, out / f"obj{opt}")
+def library(opt: str, out: Path = OUT, board: str = "m4f") -> tuple[Path, list[Path]]:
+    """libattica<opt>.a for a Cortex-M board (stack gate on) and its objects (.su/.ci beside them)."""
+    objs = cross.library_objects(opt, out / f"obj{opt}", board=board)
     return cross.archive(objs, out / f"libattica{opt}.a"), objs
 
 
-def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = ()) -> None:
+def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = (), board: str = "m4f") -> None:
     cmd = [
         _tool("arm-none-eabi-gcc"),
         *_build.cflags(),
         opt,
-        *cross.M4F_CPU,
+        *BOARDS[board].cpu,
         *cross.M4F_SECTIONS,
         *defines,
         "-I",
@@ -122,26 +122,28 @@ def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = ()) -> Non
         raise FootprintError(f"{' '.join(cmd)}\n{proc.stderr}")
 
 
-def link_image(name: str, image: int, lib: Path, opt: str, out: Path) -> tuple[Path, Path]:
-    """Link footprint image ``image`` against ``lib``; return (elf, map)."""
+def link_image(
+    name: str, image: int, lib: Path, opt: str, out: Path, board: str = "m4f"
+) -> tuple[Path, Path]:
+    """Link footprint image ``image`` for ``board`` against ``lib``; return (elf, map)."""
     out.mkdir(parents=True, exist_ok=True)
     slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
     main_o = out / f"image_{slug}.o"
     start_o = out / "startup.o"
-    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}"])
-    _compile(cross.PORT / "startup.c", start_o, opt)
+    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}"], board)
+    _compile(cross.PORT / "startup.c", start_o, opt, (), board)
     elf = out / f"image_{slug}.elf"
     map_file = out / f"image_{slug}.map"
     cmd = [
         _tool("arm-none-eabi-gcc"),
-        *cross.M4F_CPU,
+        *BOARDS[board].cpu,
         str(main_o),
         str(start_o),
         str(lib),
         "--specs=nano.specs",
         "-nostartfiles",
         "-T",
-        str(cross.LINKER_SCRIPT),
+        str(BOARDS[board].script),
         "-Wl,--gc-sections",
         f"-Wl,-Map={map_file}",
         "-o",
@@ -190,9 +192,17 @@ _IN_SECTION = re.compile(r"^ (\.\S+|COMMON)\s*(?:(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s
 _CONT = re.compile(r"^\s+(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+(\S.*)$")
 
 
-def map_sizes(map_file: Path) -> ImageSizes:
-    """Attribute the input sections of a GNU ld map file to attica objects, the C library and the rest."""
-    stems = {s.stem for s in _build.firmware_sources()}
+def map_sizes(map_file: Path, archive: str = "libattica", members: set[str] | None = None) -> ImageSizes:
+    """Attribute the input sections of a GNU ld map file to attica objects, the C library and the rest.
+
+    ``archive`` and ``members``: the library whose objects count as "attica" (the firmware objects of
+    libattica by default; a peer's lib<name>.a with every member for the peers' images).
+    """
+    stems = (
+        {s.stem for s in _build.firmware_sources()} if members is None and archive == "libattica" else None
+    )
+    if members is not None:
+        stems = members
     out = ImageSizes()
     lines = map_file.read_text().splitlines()
     try:
@@ -220,10 +230,10 @@ def map_sizes(map_file: Path) -> ImageSizes:
         if sec is None or size == 0:
             continue
         member = re.search(r"\(([^()]+)\.o\)$", origin)
-        if "libattica" in origin and member and member.group(1) in stems:
+        if archive in origin and member and (stems is None or member.group(1) in stems):
             out.attica.add(sec, size)
             out.attica_objects.setdefault(member.group(1), Sizes()).add(sec, size)
-        elif re.search(r"lib(c|c_nano|g|g_nano|gcc|m|nosys|rdimon\w*)\.a", origin):
+        elif re.search(r"lib(c|c_nano|g|g_nano|gcc|m|nosys|rdimon\w*|stdc\+\+\w*|supc\+\+\w*)\.a", origin):
             out.libc.add(sec, size)
             name = sec.split(".")[-1]
             if sec.startswith(".text") and member:
@@ -311,23 +321,13 @@ def leaf_stack(elf: Path, func: str) -> int | None:
         if mnem.startswith("bl") and not mnem.startswith("bls") and not mnem.startswith("blt"):
             return None  # not a leaf
         if mnem.startswith("push") or (mnem.startswith("stmdb") and ops.startswith("sp!")):
-            total += 4 * _reg_count(ops)
+            total += 4 * cycles.reg_count(ops)
         elif mnem.startswith("vpush"):
-            total += (8 if "d" in ops.split("{")[-1][:2] else 4) * _reg_count(ops)
+            total += (8 if "d" in ops.split("{")[-1][:2] else 4) * cycles.reg_count(ops)
         elif mnem.startswith("sub") and ops.startswith("sp, sp, #") or ops.startswith("sp, #"):
             if mnem.startswith("sub"):
                 total += int(ops.split("#")[-1].split()[0], 0)
     return total if found else None
-
-
-def _reg_count(ops: str) -> int:
-    inner = ops[ops.find("{") + 1 : ops.find("}")]
-    n = 0
-    for part in inner.split(","):
-        part = part.strip()
-        m = re.match(r"^([rsd])(\d+)-[rsd](\d+)$", part)
-        n += int(m.group(3)) - int(m.group(2)) + 1 if m else (1 if part else 0)
-    return n
 
 
 @dataclass
@@ -405,266 +405,6 @@ def measure(opt: str, out: Path = OUT) -> Measured:
         elif len(parts) == 3 and parts[0] == "sizeof":
             m.sizeof[parts[1]] = int(parts[2])
     return m
-
-
-# --- instruction counts -----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Insn:
-    """One instruction of the image: size in bytes, mnemonic, operands."""
-
-    size: int
-    mnemonic: str
-    operands: str
-
-
-def disassemble(elf: Path) -> dict[int, Insn]:
-    """Address -> instruction for the whole image."""
-    dis = subprocess.run(
-        [_tool("arm-none-eabi-objdump"), "-d", str(elf)], capture_output=True, text=True, check=True
-    ).stdout
-    out: dict[int, Insn] = {}
-    for line in dis.splitlines():
-        m = re.match(r"^\s+([0-9a-f]+):\t([0-9a-f ]+?)\s*\t(\S+)\s*(.*)$", line)
-        if m:
-            size = sum(len(w) // 2 for w in m.group(2).split())
-            out[int(m.group(1), 16)] = Insn(size, m.group(3), m.group(4))
-    return out
-
-
-def symbols(elf: Path) -> dict[str, tuple[int, int]]:
-    """Function name -> (address, size) (``nm -S``)."""
-    out = subprocess.run(
-        [_tool("arm-none-eabi-nm"), "-S", "--defined-only", str(elf)],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
-    syms: dict[str, tuple[int, int]] = {}
-    for line in out.splitlines():
-        p = line.split()
-        if len(p) == 4 and p[2] in "tTwW":
-            syms[p[3]] = (int(p[0], 16) & ~1, int(p[1], 16))
-    return syms
-
-
-_BRANCH_P = 2
-"""Pipeline refill cycles P of a taken branch in the cycle estimate (the TRM gives 1 to 3)."""
-
-
-def m4_cycles(insn: Insn, taken: bool) -> int:
-    """Cycles of one executed instruction after the Cortex-M4 TRM (r0p1, tables 3-1 and 7-1).
-
-    Zero-wait-state memory; loads 2 cycles (no pipelining of neighbouring loads counted), stores 1;
-    LDM/STM/PUSH/POP/VLDM/VSTM/VPUSH/VPOP 1 + registers; taken branches 1 + P with P = 2, plus P when
-    PC is loaded; VDIV and VSQRT 14, VMLA/VMLS/VNMLA/VFMA 3, other FPU data processing 1; MLA/MLS 2;
-    SDIV/UDIV 12 (worst case). An estimate for budgeting, not a measurement.
-    """
-    m = insn.mnemonic.split(".")[0].lower()
-    ops = insn.operands
-    base = m.rstrip("s") if m not in ("vabs", "bls", "mls", "vmls", "vnmls") else m
-    if m.startswith("v"):
-        if m in ("vdiv", "vsqrt"):
-            return 14
-        if m in ("vmla", "vmls", "vnmla", "vnmls", "vfma", "vfms", "vfnma", "vfnms"):
-            return 3
-        if m in ("vldr",):
-            return 2
-        if m in ("vstr",):
-            return 2
-        if m in ("vpush", "vpop", "vldmia", "vldmdb", "vstmia", "vstmdb", "vldm", "vstm"):
-            return 1 + _reg_count(ops)
-        if m == "vmov" and ops.count(",") >= 3:
-            return 2
-        return 1
-    if m in ("push", "stmdb", "stmia", "stm", "stmea"):
-        return 1 + _reg_count(ops)
-    if m in ("pop", "ldmia", "ldm", "ldmdb", "ldmfd"):
-        return 1 + _reg_count(ops) + (_BRANCH_P if "pc" in ops else 0)
-    if m.startswith("ldr"):
-        if m in ("ldrd",):
-            return 3
-        return 2 + (_BRANCH_P if ops.startswith("pc") else 0)
-    if m.startswith("str"):
-        return 2 if m == "strd" else 1
-    if m in ("sdiv", "udiv"):
-        return 12
-    if m in ("mla", "mls"):
-        return 2
-    if m in ("tbb", "tbh"):
-        return 2 + _BRANCH_P
-    if m.startswith(("b", "cb")) and base not in ("bic", "bfc", "bfi"):
-        return 1 + (_BRANCH_P if taken else 0)
-    if "pc" in ops.split(",")[0]:
-        return 1 + _BRANCH_P
-    return 1
-
-
-@dataclass
-class StepCounts:
-    """Instructions (and estimated cycles) per att_filter_step call."""
-
-    instructions: list[int]
-    cycles: list[int]
-    by_function: dict[str, int] = field(default_factory=dict)
-    """Instructions executed in each function over all calls (the profile)."""
-
-    @property
-    def mean(self) -> float:
-        """Mean instructions per update."""
-        return sum(self.instructions) / max(1, len(self.instructions))
-
-    @property
-    def mean_cycles(self) -> float:
-        """Mean estimated cycles per update."""
-        return sum(self.cycles) / max(1, len(self.cycles))
-
-
-def trace_steps(
-    elf: Path, kind: str, steps: int = BENCH_STEPS, function: str = "att_filter_step"
-) -> StepCounts:
-    """Instructions executed inside ``function`` (and callees) per call, from a QEMU exec trace.
-
-    att_bench runs ``kind`` for ``steps`` steps under ``qemu-system-arm -d exec,nochain -singlestep``
-    (one log line per executed instruction), streamed through a FIFO. A call starts at the first
-    instruction of ``function`` and ends at the next instruction inside main.
-    """
-    _tool("qemu-system-arm")
-    insns = disassemble(elf)
-    syms = symbols(elf)
-    if function not in syms or "main" not in syms:
-        raise FootprintError(f"{elf}: no {function} or main")
-    entry = syms[function][0]
-    main_lo, main_size = syms["main"]
-    main_hi = main_lo + main_size
-    counts: list[int] = []
-    cycles: list[int] = []
-    owner: dict[int, str] = {}
-    for name, (addr, size) in syms.items():
-        for a in range(addr, addr + size, 2):
-            if a in insns:
-                owner.setdefault(a, name)
-    prof: dict[str, int] = {}
-    with tempfile.TemporaryDirectory(prefix="att_trace_") as tmp:
-        fifo = Path(tmp) / "trace"
-        os.mkfifo(fifo)
-        cmd = _qemu_trace_cmd(elf, f"{kind} {steps}", fifo)
-        proc = subprocess.Popen(
-            cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-        )
-        inside = False
-        n = 0
-        cyc = 0
-        prev: Insn | None = None
-        prev_pc = 0
-        try:
-            with open(fifo) as fp:
-                for line in fp:
-                    i = line.find("[")
-                    if i < 0:
-                        continue
-                    pc = int(line[i + 10 : i + 18], 16)
-                    if not inside:
-                        if pc == entry:
-                            inside, n, cyc, prev = True, 1, 0, insns.get(pc)
-                            prev_pc = pc
-                            prof[function] = prof.get(function, 0) + 1
-                        continue
-                    if prev is not None:
-                        cyc += m4_cycles(prev, pc != prev_pc + prev.size)
-                    if main_lo <= pc < main_hi:
-                        counts.append(n)
-                        cycles.append(cyc)
-                        inside = False
-                        continue
-                    n += 1
-                    prev = insns.get(pc)
-                    prev_pc = pc
-                    fn = owner.get(pc, "?")
-                    prof[fn] = prof.get(fn, 0) + 1
-        finally:
-            out, err = proc.communicate(timeout=600)
-        if proc.returncode != 0:
-            raise FootprintError(f"{' '.join(cmd)} exited with {proc.returncode}:\n{err}")
-    if len(counts) != steps:
-        raise FootprintError(f"{kind}: traced {len(counts)} calls of {function}, expected {steps}")
-    return StepCounts(counts, cycles, prof)
-
-
-def _qemu_trace_cmd(elf: Path, args: str, log: Path) -> list[str]:
-    return [
-        "qemu-system-arm",
-        "-M",
-        "mps2-an386",
-        "-cpu",
-        "cortex-m4",
-        "-nographic",
-        "-monitor",
-        "none",
-        "-serial",
-        "null",
-        "-semihosting-config",
-        "enable=on,target=native",
-        "-kernel",
-        str(elf),
-        "-append",
-        args,
-        "-d",
-        "exec,nochain",
-        "-singlestep",
-        "-D",
-        str(log),
-    ]
-
-
-def check_trace(elf: Path, kind: str, steps: int = 5) -> tuple[int, list[str]]:
-    """Check that the QEMU exec trace logs every executed instruction.
-
-    Each change of PC between two logged instructions must be a sequential step or come from a
-    branch-type instruction. Returns the number of instructions logged and the transitions that are
-    neither (empty when the trace is complete).
-    """
-    _tool("qemu-system-arm")
-    insns = disassemble(elf)
-    with tempfile.TemporaryDirectory(prefix="att_trace_") as tmp:
-        log = Path(tmp) / "trace.log"
-        cross.run_checked(_qemu_trace_cmd(elf, f"{kind} {steps}", log), timeout=120)
-        pcs = [
-            int(line[i + 10 : i + 18], 16)
-            for line in log.read_text().splitlines()
-            if (i := line.find("[")) >= 0
-        ]
-    bad = []
-    for a, b in zip(pcs, pcs[1:]):
-        ins = insns.get(a)
-        if ins is None:
-            bad.append(f"{a:08x}: not an instruction of the image")
-            continue
-        if b == a + ins.size:
-            continue
-        m = ins.mnemonic.lower()
-        branch = m.startswith(("b", "cb", "tb", "pop", "ldm", "bkpt", "svc")) or "pc" in ins.operands
-        if not branch:
-            bad.append(f"{a:08x} {ins.mnemonic} {ins.operands} -> {b:08x}")
-    return len(pcs), bad
-
-
-def x86_instructions(kinds: Sequence[str]) -> dict[tuple[str, str], float]:
-    """Callgrind instructions per att_filter_step, (cc, kind) -> count, with attica.bench's method."""
-    from attica import bench
-
-    out: dict[tuple[str, str], float] = {}
-    if shutil.which("valgrind") is None:
-        return out
-    with tempfile.TemporaryDirectory(prefix="att_cg_") as tmp:
-        for cc, opt in bench.CALLGRIND_CONFIGS:
-            if shutil.which(cc) is None:
-                continue
-            prog = golden.build_program([BENCH_SOURCE], cc, opt, name="att_bench", out_dir=Path(tmp) / cc)
-            for kind in kinds:
-                out[(f"{cc} {opt}", kind)] = bench.instructions_per_step(prog, kind)
-    return out
 
 
 # --- reports -----------------------------------------------------------------------------------------------
@@ -782,79 +522,27 @@ def footprint_report(opts: Sequence[str] = cross.M4F_LIB_OPTS, out: Path = OUT) 
     return "\n".join(lines), ok
 
 
-def cycles_report(
-    steps: int = BENCH_STEPS, opts: Sequence[str] = ("-O2", "-Os"), out: Path = OUT, profile: bool = False
-) -> str:
-    """Instructions (and estimated cycles) per update on the Cortex-M4F, and x86-64 callgrind counts."""
-    from attica.settings import implemented_kinds
-
-    kinds = [k.label for k in implemented_kinds()]
-    m4: dict[tuple[str, str], StepCounts] = {}
-    for opt in opts:
-        elf = cross.TARGETS["m4f"].build([BENCH_SOURCE], opt, "att_bench.elf", out / f"bench{opt}")
-        for kind in kinds:
-            m4[(opt, kind)] = trace_steps(elf, kind, steps)
-    x86 = x86_instructions(kinds)
-    headers = ["filter"]
-    for opt in opts:
-        headers += [f"M4F instr {opt}", f"max {opt}", f"~cycles {opt}"]
-    x86_cfgs = sorted({c for c, _ in x86})
-    headers += [f"x86-64 {c}" for c in x86_cfgs]
-    rows = []
-    for kind in kinds:
-        row = [kind]
-        for opt in opts:
-            c = m4[(opt, kind)]
-            row += [f"{c.mean:.0f}", str(max(c.instructions)), f"{c.mean_cycles:.0f}"]
-        row += [f"{x86[(c, kind)]:.0f}" for c in x86_cfgs]
-        rows.append(row)
-    text = [
-        f"Instructions per update (att_filter_step and callees; tests/c/att_bench.c inputs, default "
-        f"settings, dt = 0.01 s). Cortex-M4F: QEMU exec trace, mean and max over {steps} steps (700 moving, "
-        "300 at rest); ~cycles: Cortex-M4 TRM timings, zero wait states (estimate). x86-64: callgrind "
-        "(I(12000) - I(2000)) / 10000.",
-        _table(headers, rows),
-    ]
-    goals = []
-    for kind, goal in (("ars", GOALS["ars_instr"]), ("kf", GOALS["kf_instr"])):
-        if ("-O2", kind) in m4:
-            v = m4[("-O2", kind)].mean
-            verdict = "met" if v <= goal else "missed"
-            goals.append(f"{kind}: {v:.0f} instructions per update at -O2, goal <= {goal}: {verdict}")
-    text += goals
-    if profile:
-        text.append("")
-        text.append(
-            f"Where the instructions go ({opts[0]}; share of the instructions of a step, top functions):"
-        )
-        for kind in kinds:
-            c = m4[(opts[0], kind)]
-            total = sum(c.by_function.values())
-            top = sorted(c.by_function.items(), key=lambda kv: -kv[1])[:8]
-            text.append(f"  {kind}: " + ", ".join(f"{fn} {100 * v / total:.0f}%" for fn, v in top))
-    if not x86:
-        text.append("note: valgrind not installed: no x86-64 column")
-    return "\n".join(text)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m attica.footprint [footprint|cycles]``."""
+    """``python -m attica_dev.footprint``."""
     p = argparse.ArgumentParser(
-        prog="python -m attica.footprint", description=__doc__.split("\n")[0] if __doc__ else ""
+        prog="python -m attica_dev.footprint", description=__doc__.split("\n")[0] if __doc__ else ""
     )
-    p.add_argument("what", nargs="?", default="footprint", choices=["footprint", "cycles"])
-    p.add_argument("--steps", type=int, default=BENCH_STEPS, help="steps per kind in the instruction trace")
-    p.add_argument("--profile", action="store_true", help="cycles: also the share of each function")
+    p.add_argument("--no-peers", action="store_true", help="attica's tables only")
+    p.add_argument(
+        "--boards", default="m4f,m7,m33", help="boards of the comparison with the peers (m4f,m7,m33)"
+    )
     args = p.parse_args(argv)
     try:
-        if args.what == "footprint":
-            text, ok = footprint_report()
-            print(text)
-            return 0 if ok else 1
-        print(cycles_report(args.steps, profile=args.profile))
-        return 0
+        text, ok = footprint_report()
+        print(text, flush=True)
+        if not args.no_peers:
+            from attica_dev import peer_footprint
+
+            print()
+            print(peer_footprint.report([b for b in args.boards.split(",") if b]))
+        return 0 if ok else 1
     except (FootprintError, cross.CrossError) as e:
-        print(f"{args.what}: {e}", file=sys.stderr)
+        print(f"footprint: {e}", file=sys.stderr)
         return 1
 
 

@@ -1,0 +1,377 @@
+"""Host benchmarks of the filters beside the peers: ``python -m attica_dev.bench`` (``make bench``).
+
+Prints, per filter of :data:`FILTERS` and per peer configuration (Fusion 6/9-axis, VQF 6D/9D):
+
+- ns/step through Python, in one run: attica's native batch run (:meth:`attica.native.Filter.run`,
+  firmware built with the strict flags at -O2), VQF's ``updateBatch`` (the vqf package from PyPI:
+  its C++ in double precision, a batch loop in C++) and imufusion (PyPI: Fusion's C, one
+  ``update`` call per sample from Python, since it has no batch call), all over the same simulated
+  samples, best of several repeats;
+- instructions/step counted by valgrind's callgrind in ``att_filter_step`` (and everything it calls)
+  of tests/c/att_bench.c, and in ``att_peer_step`` of the peers' drivers built from their sdists
+  (:mod:`attica_dev.peer_sources`, VQF in single precision), as (I(N2) - I(N1)) / (N2 - N1) so
+  start-up and initialisation cancel;
+- the ratios attica / peer of both, for the filters with the same inputs;
+
+and the .text size of every firmware object at -O2 and -Os. Numbers only, no pass/fail.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica import _build
+from attica_dev import golden
+
+BENCH_SOURCE = golden.ROOT / "tests" / "c" / "att_bench.c"
+
+
+@dataclass(frozen=True)
+class BenchCase:
+    """One row of the benchmark table: a filter kind with settings overrides."""
+
+    label: str
+    kind: str
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+
+FILTERS: list[BenchCase] = [
+    BenchCase("ars", "ars"),
+    BenchCase("mars", "mars"),
+    BenchCase("kf", "kf"),
+    BenchCase("ekf", "ekf"),
+    BenchCase("gyro", "gyro"),
+    BenchCase("tilt", "tilt"),
+]
+"""Filters to benchmark, one line each. att_bench runs a kind with its default settings, so cases
+with ``overrides`` get only the native timing (the callgrind columns say n/a)."""
+
+CALLGRIND_CONFIGS: list[tuple[str, str]] = [("gcc", "-O2"), ("clang", "-O2")]
+"""(compiler, optimisation) builds of att_bench measured with callgrind."""
+
+SIZE_OPTS = ["-O2", "-Os"]
+
+
+def simulated_inputs(
+    samples: int, rate: float = 100.0
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """Gyro, accel and mag (samples, 3) from :mod:`attica.sim` (golden.imu_inputs as a fallback)."""
+    try:
+        from attica.sim import SimConfig, simulate
+
+        rec = simulate(SimConfig(duration=samples / rate, rate=rate, seed=1))
+        gyr = np.ascontiguousarray(rec.gyr[:samples], np.float32)
+        acc = np.ascontiguousarray(rec.acc[:samples], np.float32)
+        mag = np.ascontiguousarray(rec.mag[:samples], np.float32)
+        if gyr.shape == acc.shape == mag.shape == (samples, 3):
+            return gyr, acc, mag
+    except Exception as e:  # noqa: BLE001 - the simulator is optional for the benchmark
+        print(f"note: attica.sim unavailable ({e}); using golden.imu_inputs", file=sys.stderr)
+    g, a, m = golden.imu_inputs(samples, 1, seed=1, dt=1.0 / rate)
+    return np.ascontiguousarray(g[:, 0]), np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(m[:, 0])
+
+
+Imu = tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
+
+
+def native_ns_per_step(case: BenchCase, imu: Imu, repeat: int, dt: float = 0.01) -> float:
+    """Best-of-``repeat`` wall time per step of the native batch run, in ns."""
+    from attica import native
+
+    best = float("inf")
+    for _ in range(repeat):
+        f = native.Filter(case.kind, dt=dt, **case.overrides)
+        t0 = time.perf_counter()
+        f.run(*imu)
+        best = min(best, time.perf_counter() - t0)
+    return float(best / imu[0].shape[0] * 1e9)
+
+
+PEER_HOST: dict[str, str] = {
+    "vqf6": "vqf VQF.updateBatch(gyr, acc), double",
+    "vqf9": "vqf VQF.updateBatch(gyr, acc, mag), double",
+    "fusion6": "imufusion Ahrs.update_no_magnetometer per sample",
+    "fusion9": "imufusion Ahrs.update per sample",
+}
+"""How each peer configuration is timed through its PyPI binding."""
+
+FUSION_SAMPLES = 20_000
+"""Samples of the imufusion timing (a Python call per sample: the first ones of the same inputs)."""
+
+
+def peer_ns_per_step(name: str, imu: Imu, repeat: int, dt: float = 0.01) -> float:
+    """Best-of-``repeat`` ns per step of a peer through its Python binding (ImportError if missing)."""
+    g, a, m = (np.ascontiguousarray(v, np.float64) for v in imu)
+    best = float("inf")
+    if name.startswith("vqf"):
+        import vqf
+
+        for _ in range(repeat):
+            est = vqf.VQF(dt)
+            t0 = time.perf_counter()
+            est.updateBatch(g, a, m) if name == "vqf9" else est.updateBatch(g, a)
+            best = min(best, time.perf_counter() - t0)
+        return float(best / g.shape[0] * 1e9)
+    import imufusion
+
+    n = min(FUSION_SAMPLES, g.shape[0])
+    gd = np.ascontiguousarray(np.degrees(g[:n]))
+    ag = np.ascontiguousarray(a[:n] / 9.80665)
+    mu = np.ascontiguousarray(m[:n])
+    for _ in range(repeat):
+        settings = imufusion.AhrsSettings()
+        settings.convention = imufusion.CONVENTION_ENU
+        settings.sample_rate = 1.0 / dt
+        ahrs = imufusion.Ahrs()
+        ahrs.set_settings(settings)
+        t0 = time.perf_counter()
+        if name == "fusion9":
+            for i in range(n):
+                ahrs.update(gd[i], ag[i], mu[i])
+                ahrs.get_quaternion()
+        else:
+            for i in range(n):
+                ahrs.update_no_magnetometer(gd[i], ag[i])
+                ahrs.get_quaternion()
+        best = min(best, time.perf_counter() - t0)
+    return float(best / n * 1e9)
+
+
+def callgrind_instructions(program: Path, kind: str, steps: int, function: str = "att_filter_step") -> int:
+    """Instructions executed inside ``function`` (and its callees) for ``steps`` steps (callgrind)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "callgrind.out"
+        proc = subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                f"--callgrind-out-file={out}",
+                f"--toggle-collect={function}",
+                str(program),
+                kind,
+                str(steps),
+            ],
+            capture_output=True,
+            text=True,
+        )
+    if proc.returncode != 0:
+        raise RuntimeError(f"callgrind failed for {kind}: {proc.stderr.strip()[-500:]}")
+    m = re.search(r"Collected\s*:\s*(\d+)", proc.stderr)
+    if m is None:
+        raise RuntimeError(f"no 'Collected' line in callgrind output:\n{proc.stderr[-500:]}")
+    return int(m.group(1))
+
+
+def instructions_per_step(
+    program: Path, kind: str, n1: int = 2_000, n2: int = 12_000, function: str = "att_filter_step"
+) -> float:
+    """(I(n2) - I(n1)) / (n2 - n1) for ``function`` (att_filter_step; att_peer_step of a peer's driver)."""
+    i1 = callgrind_instructions(program, kind, n1, function)
+    i2 = callgrind_instructions(program, kind, n2, function)
+    return (i2 - i1) / (n2 - n1)
+
+
+def text_size(obj: Path) -> int:
+    """Bytes in the .text sections of an object (``size -A``)."""
+    out = subprocess.run(["size", "-A", str(obj)], capture_output=True, text=True, check=True).stdout
+    total = 0
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and (parts[0] == ".text" or parts[0].startswith(".text.")) and parts[1].isdigit():
+            total += int(parts[1])
+    return total
+
+
+def object_sizes(cc: str, opts: Sequence[str], workdir: Path) -> dict[str, dict[str, int]]:
+    """.text bytes per firmware source (stem) per optimisation level."""
+    sizes: dict[str, dict[str, int]] = {}
+    for opt in opts:
+        for src in _build.firmware_sources():
+            obj = workdir / f"{cc}{opt}-{src.stem}.o"
+            cmd = [cc, *_build.cflags(), opt, "-I", str(_build.INCLUDE), "-c", str(src), "-o", str(obj)]
+            subprocess.run(cmd, check=True, capture_output=True)
+            sizes.setdefault(src.stem, {})[opt] = text_size(obj)
+    return sizes
+
+
+def peer_rows(
+    imu: Imu,
+    repeat: int,
+    configs: Sequence[tuple[str, str]],
+    out: Path,
+    ns: dict[str, float | None],
+    instr: dict[tuple[str, str], float | None],
+    notes: list[str],
+) -> list[list[str]]:
+    """The peers' rows (ns/step through their bindings, callgrind of their C); fills ``ns`` and ``instr``."""
+    from attica_dev import peer_sources
+
+    rows = []
+    progs: dict[tuple[str, str], Path | str] = {}
+    for name, (lib, kind) in peer_sources.KINDS.items():
+        try:
+            ns[name] = peer_ns_per_step(name, imu, repeat)
+            cell = f"{ns[name]:.1f}"
+        except ImportError as e:
+            ns[name] = None
+            cell = "n/a"
+            notes.append(
+                f"{name}: the Python package {lib.package} is not installed ({e}): pip install '.[peers]'"
+            )
+        row = [f"{name} ({lib.label} {kind.call})", cell]
+        for cc, opt in configs:
+            key = (cc, lib.name)
+            if key not in progs:
+                try:
+                    progs[key] = peer_sources.build(lib, peer_sources.host_toolchain(cc), opt, out).program
+                except peer_sources.PeerUnavailableError as e:
+                    progs[key] = str(e)
+                    notes.append(f"{lib.name} with {cc}: {e}")
+            prog = progs[key]
+            if isinstance(prog, str):
+                instr[(f"{cc} {opt}", name)] = None
+                row.append("n/a")
+                continue
+            v = instructions_per_step(prog, name, function="att_peer_step")
+            instr[(f"{cc} {opt}", name)] = v
+            row.append(f"{v:.0f}")
+        rows.append(row)
+    return rows
+
+
+def ratio_table(
+    configs: Sequence[tuple[str, str]],
+    ns: dict[str, float | None],
+    instr: dict[tuple[str, str], float | None],
+) -> str:
+    """Ratios attica / peer for the filters with the same inputs: ns/step and callgrind instructions."""
+    from attica_dev import cycles
+
+    def r(a: float | None, b: float | None) -> str:
+        return "n/a" if a is None or b is None or b == 0 else f"{a / b:.2f}"
+
+    headers = ["attica / peer", "ns/step (Python)"] + [f"instr ({cc} {opt})" for cc, opt in configs]
+    rows = []
+    for a, p in cycles.pairs([*cycles.attica_rows(), *cycles.peer_rows()]):
+        row = [f"{a.label} / {p.label}", r(ns.get(a.label), ns.get(p.label))]
+        row += [
+            r(instr.get((f"{cc} {opt}", a.label)), instr.get((f"{cc} {opt}", p.label))) for cc, opt in configs
+        ]
+        rows.append(row)
+    return _table(headers, rows)
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+    line = "  ".join(
+        h.ljust(w) if i == 0 else h.rjust(w) for i, (h, w) in enumerate(zip(headers, widths, strict=True))
+    )
+    out = [line, "  ".join("-" * w for w in widths)]
+    for r in rows:
+        out.append(
+            "  ".join(
+                c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True))
+            )
+        )
+    return "\n".join(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmarks and print the tables."""
+    p = argparse.ArgumentParser(
+        prog="python -m attica_dev.bench", description=__doc__.split("\n")[0] if __doc__ else ""
+    )
+    p.add_argument("--samples", type=int, default=200_000, help="samples for the native timing (200000)")
+    p.add_argument("--repeat", type=int, default=3, help="repeats of the native timing, best taken (3)")
+    p.add_argument("--no-peers", action="store_true", help="attica only")
+    args = p.parse_args(argv)
+
+    imu = simulated_inputs(args.samples)
+    have_valgrind = shutil.which("valgrind") is not None
+    configs = [(cc, opt) for cc, opt in CALLGRIND_CONFIGS if shutil.which(cc)]
+    programs: dict[tuple[str, str], Path] = {}
+    with tempfile.TemporaryDirectory(prefix="att_bench_") as tmp:
+        if have_valgrind:
+            for cc, opt in configs:
+                programs[(cc, opt)] = golden.build_program(
+                    [BENCH_SOURCE], cc, opt, name="att_bench", out_dir=Path(tmp) / f"{cc}{opt}"
+                )
+        headers = ["filter", "ns/step (Python)"]
+        if have_valgrind:
+            headers += [f"instr/step ({cc} {opt})" for cc, opt in programs]
+        rows = []
+        ns: dict[str, float | None] = {}
+        instr: dict[tuple[str, str], float | None] = {}
+        for case in FILTERS:
+            ns[case.label] = native_ns_per_step(case, imu, args.repeat)
+            row = [case.label, f"{ns[case.label]:.1f}"]
+            for (cc, opt), prog in programs.items():
+                if case.overrides:
+                    row.append("n/a")
+                    continue
+                try:
+                    instr[(f"{cc} {opt}", case.label)] = instructions_per_step(prog, case.kind)
+                    row.append(f"{instr[(f'{cc} {opt}', case.label)]:.0f}")
+                except RuntimeError as e:
+                    row.append("error")
+                    print(f"note: {e}", file=sys.stderr)
+            rows.append(row)
+        notes: list[str] = []
+        if not args.no_peers:
+            rows += peer_rows(imu, args.repeat, list(programs), Path(tmp), ns, instr, notes)
+        print(
+            f"Filters ({args.samples} simulated samples at 100 Hz, best of {args.repeat}; ns/step: attica "
+            "native.Filter.run (batch in C, -O2), peers through their PyPI bindings: "
+            + "; ".join(f"{k}: {v}" for k, v in PEER_HOST.items())
+            + f" (imufusion over the first {FUSION_SAMPLES} samples); callgrind: att_filter_step / "
+            "att_peer_step and callees, default settings, (I(12000) - I(2000)) / 10000, peers from their "
+            "sdists, VQF single precision)"
+        )
+        print(_table(headers, rows))
+        if not args.no_peers:
+            print()
+            print("attica / peer, same run (< 1: attica faster or fewer instructions):")
+            print(ratio_table(list(programs), ns, instr))
+        for n in notes:
+            print(f"note: {n}")
+        if not have_valgrind:
+            print(
+                "note: valgrind is not installed, so there is no instructions/step column "
+                "(host/tools/install-system-deps.sh installs it)"
+            )
+
+        print()
+        print("Firmware objects, .text bytes")
+        size_rows: list[list[str]] = []
+        size_headers = ["object"]
+        per_cc: list[dict[str, dict[str, int]]] = []
+        for cc in ("gcc", "clang"):
+            if shutil.which(cc) is None:
+                continue
+            size_headers += [f"{cc} {opt}" for opt in SIZE_OPTS]
+            per_cc.append(object_sizes(cc, SIZE_OPTS, Path(tmp)))
+        stems = [s.stem for s in _build.firmware_sources()]
+        for stem in stems:
+            size_rows.append([stem + ".o", *[str(sz[stem][opt]) for sz in per_cc for opt in SIZE_OPTS]])
+        size_rows.append(
+            ["total", *[str(sum(sz[s][opt] for s in stems)) for sz in per_cc for opt in SIZE_OPTS]]
+        )
+        print(_table(size_headers, size_rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
