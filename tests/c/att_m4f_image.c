@@ -96,7 +96,7 @@ int main(void)
     }
     while (run) {
         out_flags = att_kf_step(&state, v3(0), v3(3));
-        put_q(state.q);
+        put_q(state.st.q);
         if (out_flags == 0xffffffffu) {
             att_kf_reset(&state);
         }
