@@ -55,7 +55,7 @@ lint: setup
 pytest: build
 	$(VENV)/bin/pytest -q -n 2 --dist loadfile
 
-test: deps build lint pytest
+test: deps build fuzz-deps lint pytest
 
 bench: deps build
 	$(DEV) -m attica_dev.bench
@@ -81,3 +81,57 @@ cross: deps setup
 clean:
 	rm -rf build dist host/attica/_native*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \
 		.pytest_cache .mypy_cache .ruff_cache
+
+# --- robustness: fuzzing, sanitizers, soak (docs/robustness.md) ---------------------------------
+# libFuzzer targets (clang): ASan+UBSan builds and a MemorySanitizer build of each C target; atheris
+# for the host-side parsers. `make fuzz` runs every target FUZZ_TIME seconds (default 600) from the
+# seed corpora (build/fuzz/seeds, made from the test streams) into build/fuzz/corpus; the bounded CI
+# slice is tests/test_fuzz.py.
+FUZZ_CC ?= clang
+FUZZ_TIME ?= 600
+FUZZ_DIR := build/fuzz
+FUZZ_TARGETS := fuzz_can fuzz_node fuzz_filter
+FUZZ_FW_FLAGS := $(filter-out -fvisibility=hidden -Werror,$(shell cat firmware/cflags.txt)) -Wno-unknown-pragmas
+FUZZ_ASAN := -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+FUZZ_MSAN := -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,memory -fsanitize-memory-track-origins=2
+FUZZ_HDR := $(wildcard tests/fuzz/*.h)
+
+.PHONY: fuzz-build fuzz fuzz-deps soak soak-build
+# atheris (the host parsers' fuzzer) is a test tool only: installed into the venv here, not a dependency
+fuzz-deps: setup
+	@$(PY) -c 'import atheris' 2>/dev/null || $(PY) -m pip install -q atheris
+fuzz-build: $(FUZZ_TARGETS:%=$(FUZZ_DIR)/%) $(FUZZ_TARGETS:%=$(FUZZ_DIR)/%-msan)
+
+FUZZ_HARNESS_FLAGS := -std=c11 -Wall -Wextra -Werror -Wno-unknown-pragmas -Ifirmware/include
+
+# the firmware sources with the firmware's own flags, the harness with test flags; one link per target
+$(FUZZ_DIR)/fw-asan.stamp $(FUZZ_DIR)/fw-msan.stamp: $(NODE_SRC) $(NODE_HDR) firmware/cflags.txt Makefile
+	@mkdir -p $(FUZZ_DIR)/$(if $(findstring msan,$@),fw-msan,fw-asan)
+	cd $(FUZZ_DIR)/$(if $(findstring msan,$@),fw-msan,fw-asan) && $(FUZZ_CC) $(FUZZ_FW_FLAGS) -Werror \
+	  $(if $(findstring msan,$@),$(FUZZ_MSAN),$(FUZZ_ASAN)) -I$(CURDIR)/firmware/include \
+	  $(addprefix $(CURDIR)/,$(NODE_SRC)) -c
+	@touch $@
+
+$(FUZZ_DIR)/%-msan: tests/fuzz/%.c $(FUZZ_HDR) $(FUZZ_DIR)/fw-msan.stamp
+	$(FUZZ_CC) $(FUZZ_HARNESS_FLAGS) $(FUZZ_MSAN) $< $(FUZZ_DIR)/fw-msan/*.o -lm -o $@
+
+$(FUZZ_DIR)/%: tests/fuzz/%.c $(FUZZ_HDR) $(FUZZ_DIR)/fw-asan.stamp
+	$(FUZZ_CC) $(FUZZ_HARNESS_FLAGS) $(FUZZ_ASAN) $< $(FUZZ_DIR)/fw-asan/*.o -lm -o $@
+
+fuzz: deps build fuzz-deps fuzz-build
+	$(PY) tests/fuzz/campaign.py --time $(FUZZ_TIME)
+
+# Soak (tests/soak/att_soak.c): SOAK_STEPS steps per filter kind (default 1e8; CI runs 1e7 through
+# tests/test_soak.py), firmware built with its own flags at -O2.
+SOAK_STEPS ?= 100000000
+SOAK_DIR := build/soak
+$(SOAK_DIR)/att_soak: tests/soak/att_soak.c $(NODE_SRC) $(NODE_HDR) firmware/cflags.txt
+	@mkdir -p $(SOAK_DIR)/obj
+	cd $(SOAK_DIR)/obj && $(CC) $(shell cat firmware/cflags.txt) -O2 -I$(CURDIR)/firmware/include \
+	  $(addprefix $(CURDIR)/,$(NODE_SRC)) -c
+	$(CC) -std=c99 -O2 -Wall -Wextra -Werror -Ifirmware/include $< $(SOAK_DIR)/obj/*.o -lm -o $@
+
+soak-build: $(SOAK_DIR)/att_soak
+
+soak: soak-build
+	$(SOAK_DIR)/att_soak --steps $(SOAK_STEPS)

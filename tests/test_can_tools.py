@@ -124,6 +124,13 @@ def test_log_reader_errors_name_the_line(tmp_path: Path) -> None:
         "(2.0) can0 100#001122334455667788\n": "9 data bytes is too long for a classic frame",
         "(2.0) can0 110##1" + "00" * 9 + "\n": "9 bytes is not a valid CAN FD length",
         "(2.0) can0 100#0G\n": "bad log line",
+        # python-can's reader takes these; candump never writes them (found by tests/fuzz/fuzz_host.py)
+        "(2.0) can0 100#001122334455667\n": "two hex digits per data byte",  # 7.5 bytes
+        "2000 can0 100#00\n": "not in the candump -L format",  # no parentheses
+        "(2.0) can0 100#+1+1\n": "not in the candump -L format",
+        "(2.0) can0 100##500\n": None,  # CAN FD, flags FDF|BRS, one byte
+        "(2.0) can0 100#R\n": None,  # remote frame
+        "(2.0) can0 100#0011 T\n": None,  # transmitted
     }
     for line, message in cases.items():
         path = tmp_path / "x.log"
@@ -210,3 +217,4 @@ def test_replay_writes_both_directions(tmp_path: Path) -> None:
     for m in read_log(log):
         mon.account(m)
     assert not mon.lost_anything and mon.stats.last_step == round(3 * RATE)
+

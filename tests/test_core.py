@@ -48,18 +48,25 @@ def _sim(duration: float = 20.0, seed: int = 5) -> Any:
 
 @pytest.mark.parametrize("kind", [k.label for k in implemented_kinds()])
 def test_step_fills_the_per_step_fields_output_the_rest(kind: str) -> None:
-    """att_filter_step writes q, gyro_bias, flags, steps (and euler for Euler-state kinds), says so in
-    valid and leaves the rest; att_filter_output writes everything, the same values where both write."""
+    """att_filter_step writes q, gyro_bias, flags, steps (euler for Euler-state kinds; the EKF, whose
+    state is the angles, derives q only on request), says so in valid and leaves the rest;
+    att_filter_output writes everything, the same values where both write."""
     rec = _sim(5.0)
     f = native.Filter(kind, dt=1 / RATE)
     cheap = f.run(rec.gyr, rec.acc, rec.mag, full=False)
     g = native.Filter(kind, dt=1 / RATE)
     full = g.run(rec.gyr, rec.acc, rec.mag)
     euler_state = kind in ("ekf", "gyro", "tilt")
-    want_valid = OUT_Q | OUT_BIAS | (OUT_EULER if euler_state else 0)
+    want_valid = (0 if kind == "ekf" else OUT_Q) | OUT_BIAS | (OUT_EULER if euler_state else 0)
     assert (cheap["valid"] == want_valid).all()
     assert (full["valid"] == OUT_ALL).all()
-    for name in ("q", "gyro_bias", "flags", "steps") + (("euler",) if euler_state else ()):
+    if kind == "ekf":
+        assert (cheap["q"] == 0).all()  # not written
+    for name in (
+        (("q",) if kind != "ekf" else ())
+        + ("gyro_bias", "flags", "steps")
+        + (("euler",) if euler_state else ())
+    ):
         assert_same_bits(cheap[name], full[name], name) if name in ("q", "gyro_bias", "euler") else None
         if name in ("flags", "steps"):
             assert (cheap[name] == full[name]).all()
@@ -187,7 +194,7 @@ def test_flag_names() -> None:
     assert lib.ATT_FLAGS_OUTPUT_INVALID == int(Flag.NOT_READY | Flag.BAD_ARG)
 
 
-@pytest.mark.parametrize("kind", ["ars", "mars"])
+@pytest.mark.parametrize("kind", ["ars", "mars", "kf", "ekf", "gyro", "tilt"])
 @pytest.mark.parametrize(
     "changes",
     [{}, {"tau_acc_lp": 0.0}, {"rest_time": 0.123, "rest_gyro": 0.2}],
@@ -195,17 +202,19 @@ def test_flag_names() -> None:
 def test_coefficients_derived_alike(kind: str, changes: dict[str, Any]) -> None:
     """Every coefficient the reference derives itself equals the C one bit for bit."""
     k = FilterKind.parse(kind)
-    s = make_settings(k, dt=1 / RATE, **changes)
+    base = make_settings(k, dt=1 / RATE)
+    s = make_settings(k, base, **{n: v for n, v in changes.items() if hasattr(base, n)})
     c = native.Filter(k, s)
     ref = RefFilter(k, s)
-    ours = state_values(ref.impl, ref.impl.COEFFS, 0)
-    theirs = c_state_values(ref.impl.COEFFS, getattr(c.state.u, kind))
-    assert len(ours) == len(theirs)
-    for name, a, b in zip(list(ref.impl.COEFFS), ours, theirs, strict=True):
-        if isinstance(a, np.floating):
-            assert np.float32(a).view(np.uint32) == np.float32(b).view(np.uint32), name
-        else:
-            assert int(a) == int(b), name
+    for name, layout in ref.impl.COEFFS.items():
+        ours = state_values(ref.impl, {name: layout}, 0)
+        theirs = c_state_values({name: layout}, getattr(c.state.u, kind))
+        assert len(ours) == len(theirs), name
+        for a, b in zip(ours, theirs, strict=True):
+            if isinstance(a, np.floating):
+                assert np.float32(a).view(np.uint32) == np.float32(b).view(np.uint32), name
+            else:
+                assert int(a) == int(b), name
 
 
 def test_settings_read_back_unchanged_by_init() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Callable
 from typing import Any
 
@@ -21,23 +22,26 @@ def _uniform(lo: float, hi: float, n: int = N) -> np.ndarray:
     return RNG.uniform(lo, hi, n).astype(np.float32)
 
 
-ACCURACY_CASES: list[tuple[str, Callable[..., Any], Callable[..., Any], np.ndarray]] = [
-    ("sin", dm.sinf, np.sin, _uniform(-8192, 8192)),
-    ("sin small", dm.sinf, np.sin, _uniform(-7, 7)),
-    ("cos", dm.cosf, np.cos, _uniform(-8192, 8192)),
-    ("cos small", dm.cosf, np.cos, _uniform(-7, 7)),
-    ("asin", dm.asinf, np.arcsin, _uniform(-1, 1)),
-    ("acos", dm.acosf, np.arccos, _uniform(-1, 1)),
+# (name, ours, float64 reference, inputs, bound): each bound sits just above the measured maximum
+# absolute error over these 1e6 inputs (measured: sin 9.04e-8, sin small 8.27e-8, cos 9.12e-8,
+# cos small 9.15e-8, asin 1.81e-7, acos 3.20e-7; the float32 ulp is 6e-8 at 1 and 2.4e-7 at pi)
+ACCURACY_CASES: list[tuple[str, Callable[..., Any], Callable[..., Any], np.ndarray, float]] = [
+    ("sin", dm.sinf, np.sin, _uniform(-8192, 8192), 1.0e-7),
+    ("sin small", dm.sinf, np.sin, _uniform(-7, 7), 9.0e-8),
+    ("cos", dm.cosf, np.cos, _uniform(-8192, 8192), 1.0e-7),
+    ("cos small", dm.cosf, np.cos, _uniform(-7, 7), 1.0e-7),
+    ("asin", dm.asinf, np.arcsin, _uniform(-1, 1), 2.0e-7),
+    ("acos", dm.acosf, np.arccos, _uniform(-1, 1), 3.5e-7),
 ]
 
 
-@pytest.mark.parametrize("name,ours,ref,x", ACCURACY_CASES, ids=[c[0] for c in ACCURACY_CASES])
-def test_accuracy_below_1e6(
-    name: str, ours: Callable[..., Any], ref: Callable[..., Any], x: np.ndarray
+@pytest.mark.parametrize("name,ours,ref,x,bound", ACCURACY_CASES, ids=[c[0] for c in ACCURACY_CASES])
+def test_accuracy(
+    name: str, ours: Callable[..., Any], ref: Callable[..., Any], x: np.ndarray, bound: float
 ) -> None:
     err = np.abs(ours(x).astype(np.float64) - ref(x.astype(np.float64)))
-    print(f"\n{name}: max abs error {err.max():.3e} over {x.size} inputs")
-    assert err.max() < 1e-6
+    print(f"\n{name}: max abs error {err.max():.3e} over {x.size} inputs (bound {bound:.2e})")
+    assert err.max() < bound
 
 
 def test_accuracy_edges() -> None:
@@ -49,9 +53,10 @@ def test_accuracy_edges() -> None:
         ]
     )
     x = np.concatenate([x, -x])
-    for ours, ref in ((dm.asinf, np.arcsin), (dm.acosf, np.arccos)):
+    # measured: asin 1.08e-7, acos 2.11e-7
+    for ours, ref, bound in ((dm.asinf, np.arcsin, 1.2e-7), (dm.acosf, np.arccos, 2.3e-7)):
         err = np.abs(ours(x).astype(np.float64) - ref(x.astype(np.float64)))
-        assert err.max() < 1e-6
+        assert err.max() < bound
     assert dm.asinf(np.float32(1)) == np.float32(np.pi / 2)
     assert dm.acosf(np.float32(-1)) == np.float32(np.pi)
     assert dm.sinf(np.float32(0)) == 0 and dm.cosf(np.float32(0)) == 1
@@ -60,15 +65,16 @@ def test_accuracy_edges() -> None:
 
 
 def test_atan2_accuracy() -> None:
-    y = np.concatenate(
-        [_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1e5, 100_000).astype(np.float32)]
-    )
-    x = np.concatenate(
-        [_uniform(-10, 10), _uniform(-1e-3, 1e-3, 100_000), RNG.normal(0, 1, 100_000).astype(np.float32)]
-    )
+    rng = np.random.default_rng(7)  # its own generator: the inputs do not depend on which tests ran
+
+    def u(lo: float, hi: float, n: int = N) -> np.ndarray:
+        return rng.uniform(lo, hi, n).astype(np.float32)
+
+    y = np.concatenate([u(-10, 10), u(-1e-3, 1e-3, 100_000), rng.normal(0, 1e5, 100_000).astype(np.float32)])
+    x = np.concatenate([u(-10, 10), u(-1e-3, 1e-3, 100_000), rng.normal(0, 1, 100_000).astype(np.float32)])
     err = np.abs(dm.atan2f(y, x).astype(np.float64) - np.arctan2(y.astype(np.float64), x.astype(np.float64)))
     print(f"\natan2: max abs error {err.max():.3e} over {y.size} inputs")
-    assert err.max() < 1e-6
+    assert err.max() < 3.3e-7  # measured 2.96e-7 (results up to pi: ulp 2.4e-7)
     # quadrants and special cases
     f = np.float32
     assert dm.atan2f(f(0), f(0)) == 0
@@ -81,12 +87,13 @@ def test_atan2_accuracy() -> None:
 
 
 def test_wrap_pi() -> None:
-    a = _uniform(-8000, 8000)
+    a = np.random.default_rng(8).uniform(-8000, 8000, N).astype(np.float32)
     w = dm.wrap_pi(a)
     pi32 = np.float32(np.pi)  # 3.14159274, slightly above the true pi
     assert (w >= -pi32).all() and (w <= pi32).all()
     # the same angle up to the float32 rounding of the reduction
-    assert np.abs(np.sin(w.astype(np.float64)) - np.sin(a.astype(np.float64))).max() < 1e-5
+    # measured 1.7e-7 over these inputs: the reduction keeps the angle to about one float32 ulp of pi
+    assert np.abs(np.sin(w.astype(np.float64)) - np.sin(a.astype(np.float64))).max() < 2.5e-7
     assert dm.wrap_pi(pi32) == pi32
     # -pi32 lies just below -pi, so it wraps to just below +pi
     assert dm.wrap_pi(-pi32) == np.nextafter(pi32, np.float32(0))
@@ -105,7 +112,9 @@ SCALAR = [
 @pytest.mark.parametrize("name,c_fn,ref_fn", SCALAR, ids=[s[0] for s in SCALAR])
 def test_scalar_bit_exact(name: str, c_fn: Callable[..., Any], ref_fn: Callable[..., Any]) -> None:
     domain = {"asin": (-1.0, 1.0), "acos": (-1.0, 1.0), "sqrt": (0.0, 1e6)}.get(name, (-50.0, 50.0))
-    x = np.concatenate([_uniform(*domain, 600_000), adversarial_floats(600_000, seed=hash(name) & 0xFFFF)])
+    x = np.concatenate(
+        [_uniform(*domain, 600_000), adversarial_floats(600_000, seed=zlib.crc32(name.encode()) & 0xFFFF)]
+    )
     assert_same_bits(c_fn(x), ref_fn(x), name)
 
 

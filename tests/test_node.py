@@ -459,14 +459,23 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
     s = _settings()
     s.filter.ars.gain = 2.0
     bad.append(s)
-    for s in bad:
-        assert lib.att_node_init(node.state, s) == lib.ATT_ERR_SETTINGS
-    with pytest.raises(c.NodeError, match="does not match sample_rate"):
-        c.Node("ars", sample_rate=RATE, dt=0.01)
-    c.Node("tilt", sample_rate=RATE)  # no dt to match
     s = _settings(rate=200.0)
     s.filter.ars.dt = 0.01  # the filter's period does not match the sample rate
     bad.append(s)
+    for kind in ("mars", "kf", "ekf", "gyro"):  # every kind with a dt (the EKF was once forgotten)
+        s = _settings(rate=200.0)
+        s.kind = getattr(lib, f"ATT_FILTER_{kind.upper()}")
+        assert lib.att_filter_settings_default(s.kind, 0.01, ffi.addressof(s[0], "filter")) == lib.ATT_OK
+        bad.append(s)
+    for i, s in enumerate(bad):
+        assert lib.att_node_init(node.state, s) == lib.ATT_ERR_SETTINGS, i
+    assert bytes(ffi.buffer(node.state)) == before
+    with pytest.raises(c.NodeError, match="does not match sample_rate"):
+        c.Node("ars", sample_rate=RATE, dt=0.01)
+    with pytest.raises(c.NodeError, match="does not match sample_rate"):
+        c.Node("ekf", sample_rate=RATE, dt=0.01)
+    c.Node("ekf", sample_rate=RATE)
+    c.Node("tilt", sample_rate=RATE)  # no dt to match
     s = _settings()
     s.kind = 9
     assert lib.att_node_init(node.state, s) == lib.ATT_ERR_KIND

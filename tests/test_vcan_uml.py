@@ -7,7 +7,14 @@ its root (hostfs), loads can, can-raw, can-dev and vcan from /usr/lib/uml/module
 1. classic CAN: ``candump -L vcan0`` logs the bus, ``attica-node --filter ars`` serves it, and
    ``attica verify --interface socketcan --channel vcan0`` replays a simulated stream and checks every
    output set bit for bit against the numpy reference;
-2. the same over CAN FD (``--fd``, the 9-axis filter).
+2. the same over CAN FD (``--fd``, the 9-axis filter);
+3. faults: while verify streams FAULT_SAMPLES valid samples, tests/uml/flood.py floods FLOOD_RATE
+   malformed attica frames/s (unknown IDs, wrong lengths, bad CRCs, remote frames) and cangen adds
+   CANGEN_FRAMES random extended-ID frames: the node counts every one of them in the right counter,
+   loses no sample, and every output set is still bit-exact;
+4. the interface is deleted under a running node: it stops with a message naming the interface;
+5. a plug qdisc holds vcan2's tx queue (writes fail with ENOBUFS): the node waits instead of dying,
+   and once the queue is released it has stepped every sample and sent every output.
 
 Outside, after the guest powered off: the candump logs verify offline (inputs rebuilt from the log),
 and ``cantools decode`` of each log agrees with ``attica monitor``'s decoding of it.
@@ -35,6 +42,11 @@ NODE = ROOT / "build" / "attica-node"
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host") + os.pathsep + os.environ.get("PYTHONPATH", "")}
 SAMPLES = {"classic": 1200, "fd": 1200}
 RATE = 285.714
+FAULT_SAMPLES = 600
+FLOOD_RATE = 500.0  # malformed attica frames/s from tests/uml/flood.py during the faults case
+CANGEN_FRAMES = 1000  # random extended-ID frames from cangen, one every CANGEN_GAP_MS
+CANGEN_GAP_MS = 5
+NOBUFS_SAMPLES = 300
 
 
 def _modules_present() -> str:
@@ -92,6 +104,10 @@ def _job(tmp: Path, py: str) -> Path:
         f"NODE={NODE}",
         f"OUT={tmp}",
         "rc=0",
+        "wait_ready() {  # a node's output file",
+        "  i=0; while ! grep -q ready $1 2>/dev/null; do",
+        "    i=$((i+1)); [ $i -gt 100 ] && break; sleep 0.05; done",
+        "}",
         "run_case() {  # name, node args, verify args",
         "  name=$1; nargs=$2; vargs=$3",
         "  candump -r 16777216 -L vcan0 > $OUT/$name.log 2> $OUT/$name.candump.err &",
@@ -118,6 +134,51 @@ def _job(tmp: Path, py: str) -> Path:
         f"    '--filter ars --count {SAMPLES['classic']} --seed 4' || rc=1",
         f"run_case fd '--filter mars --rate {RATE} --fd --count {SAMPLES['fd']}' \\",
         f"    '--filter mars --fd --count {SAMPLES['fd']} --seed 5' || rc=1",
+        # 3. faults: a second and a third writer flood the bus while verify streams valid samples; every
+        # socket gets a 16 MB receive buffer (the verifier, Python in the guest, reads slower than the node)
+        "echo 16777216 > /proc/sys/net/core/rmem_default",
+        f"$NODE --channel vcan0 --filter ars --rate {RATE} > $OUT/faults.node.out 2>&1 &",
+        "node_pid=$!",
+        "wait_ready $OUT/faults.node.out",
+        f"$PY {ROOT}/tests/uml/flood.py --channel vcan0 --rate {FLOOD_RATE} --stop $OUT/faults.stop "
+        "--report $OUT/faults.flood.json > /dev/null 2> $OUT/faults.flood.err &",
+        "fl_pid=$!",
+        f"cangen vcan0 -e -I r -L r -D r -g {CANGEN_GAP_MS} -n {CANGEN_FRAMES} &",
+        "cg_pid=$!",
+        "sleep 0.3",
+        "$PY -m attica.cli verify --interface socketcan --channel vcan0 -q "
+        f"--filter ars --count {FAULT_SAMPLES} --seed 6 > $OUT/faults.verify.out 2>&1",
+        'echo "faults: verify exit $?"',
+        "wait $cg_pid; touch $OUT/faults.stop; wait $fl_pid",
+        'sleep 0.3; kill -INT $node_pid; wait $node_pid; echo "faults: node exit $?"',
+        "cat $OUT/faults.verify.out $OUT/faults.node.out $OUT/faults.flood.json",
+        "echo 212992 > /proc/sys/net/core/rmem_default",
+        # 4. the interface vanishes under a running node
+        "ip link add dev vcan1 type vcan && ip link set up vcan1",
+        "$NODE --channel vcan1 --filter ars > $OUT/gone.node.out 2>&1 &",
+        "node_pid=$!",
+        "wait_ready $OUT/gone.node.out",
+        "ip link del vcan1",
+        "i=0; while kill -0 $node_pid 2>/dev/null; do i=$((i+1)); [ $i -gt 100 ] && kill -9 $node_pid; "
+        "sleep 0.05; done",
+        'wait $node_pid; echo "gone: node exit $?"; cat $OUT/gone.node.out',
+        # 5. a full tx queue: a plug qdisc holds the node's output until released (ENOBUFS meanwhile);
+        # a prio qdisc lets the input writer's frames (socket priority 6 -> band 0) pass the plug (band 1)
+        "mods=/usr/lib/uml/modules/$(uname -r)/kernel/net/sched",
+        "for m in sch_prio sch_plug; do insmod $mods/$m.ko; done",
+        "ip link add dev vcan2 type vcan && ip link set up vcan2 "
+        "&& tc qdisc add dev vcan2 root handle 1: prio "
+        "&& tc qdisc add dev vcan2 parent 1:2 handle 20: plug limit 32 "
+        '|| echo "nobufs: cannot set up the plug qdisc"',
+        f"$NODE --channel vcan2 --filter ars --rate {RATE} > $OUT/nobufs.node.out 2>&1 &",
+        "node_pid=$!",
+        "wait_ready $OUT/nobufs.node.out",
+        f"$PY {ROOT}/tests/uml/flood.py --channel vcan2 --valid {NOBUFS_SAMPLES} --rate 1000 --priority 6",
+        "sleep 2",
+        'kill -0 $node_pid && echo "nobufs: node alive while the queue is held"',
+        "tc qdisc change dev vcan2 parent 1:2 handle 20: plug release_indefinite",
+        'sleep 1.5; kill -INT $node_pid; wait $node_pid; echo "nobufs: node exit $?"',
+        "cat $OUT/nobufs.node.out",
         "exit $rc",
     ]
     job = tmp / "job.sh"
@@ -125,7 +186,7 @@ def _job(tmp: Path, py: str) -> Path:
     return job
 
 
-def _boot(job: Path, timeout: float = 150.0) -> tuple[int | None, str, str]:
+def _boot(job: Path, timeout: float = 300.0) -> tuple[int | None, str, str]:
     """Boot the guest on ``job``; (job exit status or None if the guest died, job log, console)."""
     assert UML is not None
     cmd = [
@@ -238,4 +299,45 @@ def test_vcan_in_uml_node_bit_exact(node_binary: Path, tmp_path: Path) -> None:
         assert r.returncode == 0 and re.search(r"verdict: BIT-EXACT$", r.stdout, re.M), r.stdout + r.stderr
         frames = _cantools_vs_monitor(logf)
         assert frames > n
+    _check_faults(tmp_path, log)
     assert not IN_CI or status == 0
+
+
+def _node_stats(text: str) -> dict[str, int]:
+    line = next(ln for ln in text.splitlines() if "attica-node: stats:" in ln)
+    return {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", line.split("| node:")[1])} | {
+        f"port_{k}": int(v) for k, v in re.findall(r"(\w+)=(\d+)", line.split("| node:")[0])
+    }
+
+
+def _check_faults(tmp: Path, log: str) -> None:
+    """Cases 3-5 of the guest job (see the module docstring)."""
+    import json
+
+    out = (tmp / "faults.verify.out").read_text()
+    assert re.search(r"verdict: BIT-EXACT$", out, re.M), out + log
+    assert f"{FAULT_SAMPLES} bit-exact, 0 mismatched, 0 missing" in out, out
+    flood = json.loads((tmp / "faults.flood.json").read_text())
+    st = _node_stats((tmp / "faults.node.out").read_text())
+    c = flood["counts"]
+    print(
+        f"faults: {flood['frames']} malformed frames at {flood['rate']:.0f} frames/s ({c}) + {CANGEN_FRAMES} "
+        f"cangen extended frames during {FAULT_SAMPLES} valid samples; node: {st}"
+    )
+    assert flood["rate"] > 0.5 * FLOOD_RATE, flood  # the stated rate was (nearly) reached
+    assert st["unknown_ids"] == c["unknown"], (st, c)
+    assert st["dlc_errors"] == c["dlc"], (st, c)
+    assert st["crc_errors"] == c["crc"], (st, c)
+    assert st["port_ignored"] == c["rtr"] + CANGEN_FRAMES, (st, c)
+    assert st["steps"] == FAULT_SAMPLES and st["rx_overflows"] == 0 and st["port_rx_rejected"] == 0, st
+    assert st["duplicates"] == 0 and st["stale_partials"] == 0 and st["counter_gaps"] == 0, st
+    gone = (tmp / "gone.node.out").read_text()
+    assert "gone: node exit 1" in log, log
+    assert "CAN interface 'vcan1' was removed" in gone or "CAN interface 'vcan1' went down" in gone, gone
+    nob = (tmp / "nobufs.node.out").read_text()
+    assert "nobufs: node alive while the queue is held" in log, log
+    assert "nobufs: node exit 0" in log, log
+    assert "tx queue of 'vcan2' is full" in nob and "has room again" in nob, nob
+    st = _node_stats(nob)
+    assert st["steps"] == NOBUFS_SAMPLES and st["port_tx_full"] >= 1 and st["port_tx_retries"] > 0, st
+    assert st["port_tx_frames"] == NOBUFS_SAMPLES * 6 + NOBUFS_SAMPLES // 16, st  # sets + DIAG every 16th

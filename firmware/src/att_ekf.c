@@ -1,20 +1,41 @@
 /**
  * @file att_ekf.c
- * @brief Euler-angle extended Kalman filter (see att_ekf.h). Mirrored by host/attica/reference/ekf.py.
+ * @brief Euler-angle EKF with gyro bias states (see att_ekf.h). Mirrored by host/attica/reference/ekf.py.
+ *
+ * P is the upper triangle of the symmetric 6x6 covariance, row by row: element (i, j), i <= j, at
+ * att_ekf_ix[i][j] (the table is symmetric, so (j, i) finds the same element). Every sum below is
+ * written out in a fixed order (the reference follows it term by term).
  */
 #include "att_fp.h"
 
 #include "att_core.h"
+#include "att_step.h"
 #include "attica/att_ekf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
 #define ATT_EKF_PI_F 0x1.921fb6p+1f
 #define ATT_EKF_PIO2_F 0x1.921fb6p+0f
-#define ATT_EKF_VAR_MAX 1000000.0f  /* upper limit of every variance setting, rad^2 */
-#define ATT_EKF_PMAX_MIN 0.000001f  /* lower limit of p_max, rad^2 */
-#define ATT_EKF_PIVOT_MIN 0x1p-12f  /* relative pivot margin of the positive definiteness test */
-#define ATT_EKF_SHRINK 0x1.ff8p-1f  /* 1 - 2^-10: correlation shrink factor of the repair */
+#define ATT_EKF_NOISE_MIN 0x1.79ca10p-67f /* 1e-20 */
+#define ATT_EKF_VAR_MAX 1000000.0f           /* upper limit of every variance setting */
+#define ATT_EKF_PMAX_MIN 0.000001f           /* lower limit of p_max and p0 */
+#define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
+#define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
+#define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
+
+static const uint8_t att_ekf_ix[6][6] = {
+    {0u, 1u, 2u, 3u, 4u, 5u},     {1u, 6u, 7u, 8u, 9u, 10u},    {2u, 7u, 11u, 12u, 13u, 14u},
+    {3u, 8u, 12u, 15u, 16u, 17u}, {4u, 9u, 13u, 16u, 18u, 19u}, {5u, 10u, 14u, 17u, 19u, 20u}};
+
+#define P_(p, i, j) ((p)[att_ekf_ix[(i)][(j)]])
+
+/* The small loops over the covariance unrolled, so that the index table folds into constants. */
+#if defined(__GNUC__)
+#define ATT_EKF_PRAGMA(x) _Pragma(#x)
+#define ATT_EKF_UNROLL ATT_EKF_PRAGMA(GCC unroll 8)
+#else
+#define ATT_EKF_UNROLL
+#endif
 
 void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
 {
@@ -22,28 +43,32 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
         return;
     }
     settings->dt = dt;
-    settings->q_phi = 0.03f;
-    settings->q_theta = 0.03f;
-    settings->q_psi = 1.0f;
-    settings->r_phi = 3.0f;
-    settings->r_theta = 3.0f;
+    settings->q_phi = 1e-3f;
+    settings->q_theta = 1e-3f;
+    settings->q_psi = 1e-3f;
+    settings->q_bias = 1e-8f; /* a bias random walk of 1e-4 rad/s per sqrt(s) */
+    settings->r_phi = 1e-4f;
+    settings->r_theta = 1e-4f;
+    settings->r_accel = 0.0f;
+    settings->gate = 0.0f;
     settings->p0 = 1.0f;
+    settings->p0_bias = 1e-4f;
     settings->p_max = 1000000.0f;
     settings->gravity = 9.80665f;
-    settings->accel_reject = 0.1f;
+    settings->accel_reject = 0.0f;
     settings->accel_range = 156.9064f; /* 16 g */
     settings->gyro_range = 34.906586f; /* 2000 deg/s */
     settings->cos_min = 0.001f;
+    settings->tau_acc_lp = 1.5f;
     settings->init_from_accel = true;
-    settings->euler_init.x = 0.0f;
-    settings->euler_init.y = 0.0f;
-    settings->euler_init.z = 0.0f;
+    settings->euler_init = att_i_vec3(0.0f, 0.0f, 0.0f);
+    settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
     settings->noise_rates = true;
 }
 
-static bool att_ekf_var_ok(float v, bool zero_ok)
+static bool att_ekf_noise_ok(float v)
 {
-    return (zero_ok ? (v >= 0.0f) : (v > 0.0f)) && v <= ATT_EKF_VAR_MAX;
+    return att_i_in(v, ATT_EKF_NOISE_MIN, ATT_EKF_VAR_MAX);
 }
 
 att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
@@ -52,41 +77,54 @@ att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    /* NaN fails every comparison below */
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_ekf_var_ok(s->q_phi, true) &&
-         att_ekf_var_ok(s->q_theta, true) && att_ekf_var_ok(s->q_psi, true) && att_ekf_var_ok(s->r_phi, false) &&
-         att_ekf_var_ok(s->r_theta, false) && att_ekf_var_ok(s->p_max, false) && s->p_max >= ATT_EKF_PMAX_MIN &&
-         s->p0 >= ATT_EKF_PMAX_MIN && s->p0 <= s->p_max && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
-         att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
-         s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
-         s->cos_min > 0.0f && s->cos_min < 1.0f && att_i_bool_ok(&s->init_from_accel) &&
+    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_ekf_noise_ok(s->q_phi) && att_ekf_noise_ok(s->q_theta) &&
+         att_ekf_noise_ok(s->q_psi) && att_ekf_noise_ok(s->q_bias) && att_ekf_noise_ok(s->r_phi) &&
+         att_ekf_noise_ok(s->r_theta) && att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) &&
+         att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->p_max, ATT_EKF_PMAX_MIN, ATT_EKF_VAR_MAX) &&
+         att_i_in(s->p0, ATT_EKF_PMAX_MIN, s->p_max) && att_i_in(s->p0_bias, ATT_EKF_NOISE_MIN, s->p_max) &&
+         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
+         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
+         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->cos_min > 0.0f && s->cos_min < 1.0f &&
+         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->init_from_accel) &&
          att_i_bool_ok(&s->noise_rates) && att_i_in(s->euler_init.y, -ATT_EKF_PIO2_F, ATT_EKF_PIO2_F) &&
-         att_i_in(s->euler_init.x, -8192.0f, 8192.0f) && att_i_in(s->euler_init.z, -8192.0f, 8192.0f);
+         att_i_in(s->euler_init.x, -8192.0f, 8192.0f) && att_i_in(s->euler_init.z, -8192.0f, 8192.0f) &&
+         att_i_vec3_within(s->bias_init, s->gyro_range);
     if (ok && s->noise_rates) {
-        ok = att_ekf_var_ok(s->q_phi * s->dt, true) && att_ekf_var_ok(s->q_theta * s->dt, true) &&
-             att_ekf_var_ok(s->q_psi * s->dt, true) && att_ekf_var_ok(s->r_phi / s->dt, false) &&
-             att_ekf_var_ok(s->r_theta / s->dt, false) && s->r_phi / s->dt >= ATT_EKF_PMAX_MIN &&
-             s->r_theta / s->dt >= ATT_EKF_PMAX_MIN;
+        ok = att_ekf_noise_ok(s->q_phi * s->dt) && att_ekf_noise_ok(s->q_theta * s->dt) &&
+             att_ekf_noise_ok(s->q_psi * s->dt) && att_ekf_noise_ok(s->q_bias * s->dt) &&
+             att_ekf_noise_ok(s->r_phi / s->dt) && att_ekf_noise_ok(s->r_theta / s->dt);
     }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 
-static void att_ekf_coeffs(att_ekf_t *f, const att_ekf_settings_t *settings)
+static void att_ekf_coeffs(att_ekf_coeffs_t *c, const att_ekf_settings_t *s)
 {
-    f->s = *settings;
-    if (settings->noise_rates) {
-        f->q_step[0] = settings->q_phi * settings->dt;
-        f->q_step[1] = settings->q_theta * settings->dt;
-        f->q_step[2] = settings->q_psi * settings->dt;
-        f->r_step[0] = settings->r_phi / settings->dt;
-        f->r_step[1] = settings->r_theta / settings->dt;
-    } else {
-        f->q_step[0] = settings->q_phi;
-        f->q_step[1] = settings->q_theta;
-        f->q_step[2] = settings->q_psi;
-        f->r_step[0] = settings->r_phi;
-        f->r_step[1] = settings->r_theta;
-    }
+    const float dq = s->noise_rates ? s->dt : 1.0f;
+    const float dr = s->noise_rates ? s->dt : 1.0f;
+    c->dt = s->dt;
+    c->q_step[0] = s->q_phi * dq;
+    c->q_step[1] = s->q_theta * dq;
+    c->q_step[2] = s->q_psi * dq;
+    c->q_step[3] = s->q_bias * dq;
+    c->r_step[0] = s->r_phi / dr;
+    c->r_step[1] = s->r_theta / dr;
+    c->r_accel = s->r_accel;
+    c->gate = s->gate;
+    c->soft = s->gate * 0.25f;
+    c->p0 = s->p0;
+    c->p0_bias = s->p0_bias;
+    c->p_max = s->p_max;
+    c->gravity = s->gravity;
+    c->accel_reject = s->accel_reject;
+    c->accel_range2 = s->accel_range * s->accel_range;
+    c->gyro_range = s->gyro_range;
+    c->cos_min = s->cos_min;
+    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (s->tau_acc_lp + s->dt) : 0.0f;
+    c->euler_init = att_i_vec3(att_wrap_pi(s->euler_init.x), s->euler_init.y, att_wrap_pi(s->euler_init.z));
+    c->bias_init = s->bias_init;
+    c->init_from_accel = s->init_from_accel;
+    c->lp_on = c->k_lp > 0.0f;
+    c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
 }
 
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
@@ -99,7 +137,7 @@ att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
     if (st != ATT_OK) {
         return st;
     }
-    att_ekf_coeffs(f, settings);
+    att_ekf_coeffs(&f->c, settings);
     att_ekf_reset(f);
     return ATT_OK;
 }
@@ -112,45 +150,23 @@ att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings)
     }
     st = att_ekf_settings_validate(settings);
     if (st == ATT_OK) {
-        att_ekf_coeffs(f, settings);
+        att_ekf_coeffs(&f->c, settings);
     }
     return st;
 }
 
-static void att_ekf_p_diag(float P[3][3], float v)
+static void att_ekf_p_diag(float *p, float angles, float bias)
 {
     int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            P[i][j] = (i == j) ? v : 0.0f;
-        }
+    for (i = 0; i < 21; i++) {
+        p[i] = 0.0f;
     }
-}
-
-static void att_ekf_p_copy(float dst[3][3], float src[3][3])
-{
-    int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            dst[i][j] = src[i][j];
-        }
-    }
-}
-
-static bool att_ekf_p_finite(float P[3][3])
-{
-    int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            if (!att_isfinitef(P[i][j])) {
-                return false;
-            }
-        }
-    }
-    return true;
+    p[0] = angles;
+    p[6] = angles;
+    p[11] = angles;
+    p[15] = bias;
+    p[18] = bias;
+    p[20] = bias;
 }
 
 void att_ekf_reset(att_ekf_t *f)
@@ -158,313 +174,547 @@ void att_ekf_reset(att_ekf_t *f)
     if (f == NULL) {
         return;
     }
-    f->euler.x = att_wrap_pi(f->s.euler_init.x);
-    f->euler.y = f->s.euler_init.y;
-    f->euler.z = att_wrap_pi(f->s.euler_init.z);
-    f->q = att_quat_from_euler(f->euler.x, f->euler.y, f->euler.z);
-    att_ekf_p_diag(f->p, f->s.p0);
-    f->initialised = !f->s.init_from_accel;
-    f->steps = 0u;
-    f->flags = 0u;
+    f->st.euler = f->c.euler_init;
+    f->st.bias = f->c.bias_init;
+    att_ekf_p_diag(f->st.p, f->c.p0, f->c.p0_bias);
+    f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
+    f->st.lp2 = f->st.lp1;
+    f->st.steps = 0u;
+    f->st.flags = 0u;
+    f->st.initialised = !f->c.init_from_accel;
+}
+
+/* a outside (-pi, pi] wrapped: one step of 2 pi (exact split as att_wrap_pi), att_wrap_pi beyond. */
+static ATT_NOINLINE float att_ekf_wrap_slow(float a)
+{
+    if (a > ATT_EKF_PI_F) {
+        a = (a - 0x1.921fb6p+2f) - (-0x1.777a5cp-23f);
+    } else {
+        a = (a + 0x1.921fb6p+2f) + (-0x1.777a5cp-23f);
+    }
+    if (a > ATT_EKF_PI_F || a <= -ATT_EKF_PI_F) {
+        a = att_wrap_pi(a);
+    }
+    return a;
+}
+
+/* Wrap a to (-pi, pi] (angles of a step: within it but for the small excursions of a step). */
+static ATT_ALWAYS_INLINE float att_ekf_wrap(float a)
+{
+    return (a > ATT_EKF_PI_F || a <= -ATT_EKF_PI_F) ? att_ekf_wrap_slow(a) : a;
+}
+
+/* theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi, psi wrapped. */
+static ATT_ALWAYS_INLINE void att_ekf_canon(att_vec3_t *e, float *p)
+{
+    e->y = att_ekf_wrap(e->y);
+    if (e->y > ATT_EKF_PIO2_F || e->y < -ATT_EKF_PIO2_F) {
+        e->y = ((e->y > 0.0f) ? ATT_EKF_PI_F : -ATT_EKF_PI_F) - e->y;
+        e->x = e->x + ATT_EKF_PI_F;
+        e->z = e->z + ATT_EKF_PI_F;
+        p[1] = -p[1]; /* P(0,1) */
+        p[7] = -p[7]; /* P(1,2) */
+        p[8] = -p[8]; /* P(1,3) */
+        p[9] = -p[9]; /* P(1,4) */
+        p[10] = -p[10]; /* P(1,5) */
+    }
+    e->x = att_ekf_wrap(e->x);
+    e->z = att_ekf_wrap(e->z);
+}
+
+/* The sum of the 21 elements is finite (then every element is) and every variance is > 0. */
+static ATT_ALWAYS_INLINE bool att_ekf_p_usable(const float *p)
+{
+    const float sum = ((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) + p[8]) +
+                                    p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
+                         p[18]) + p[19]) + p[20]);
+    return att_i_isfinitef(sum) && p[0] > 0.0f && p[6] > 0.0f && p[11] > 0.0f && p[15] > 0.0f && p[18] > 0.0f &&
+           p[20] > 0.0f;
+}
+
+/* Positive definite with margin: the L D L^T pivots satisfy d_0 > 0, d_i > 2^-12 P_ii. */
+static bool att_ekf_pd_ok(const float *p)
+{
+    float l[6][6];
+    float d[6];
+    int i;
+    int j;
+    int k;
+    for (j = 0; j < 6; j++) {
+        float dj = P_(p, j, j);
+        for (k = 0; k < j; k++) {
+            dj = dj - (l[j][k] * l[j][k]) * d[k];
+        }
+        if (!(dj > ((j == 0) ? 0.0f : ATT_EKF_PIVOT_MIN * P_(p, j, j)))) {
+            return false;
+        }
+        d[j] = dj;
+        for (i = j + 1; i < 6; i++) {
+            float v = P_(p, i, j);
+            for (k = 0; k < j; k++) {
+                v = v - (l[i][k] * l[j][k]) * d[k];
+            }
+            l[i][j] = v / dj;
+        }
+    }
+    return true;
 }
 
 /*
- * Canonical Euler angles: theta wrapped to (-pi, pi] and, when beyond +-pi/2, mapped to the same
- * attitude (phi + pi, +-pi - theta, psi + pi); d(theta_new)/d(theta) = -1 flips the sign of P's
- * theta row and column. Then phi and psi are wrapped to (-pi, pi].
+ * Conditioning (every 16 steps, and at every step flagged GIMBAL): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
+ * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
+ * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
-static void att_ekf_canon(att_vec3_t *e, float P[3][3])
+static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
 {
-    bool flip = false;
-    e->y = att_wrap_pi(e->y);
-    if (e->y > ATT_EKF_PIO2_F) {
-        e->y = ATT_EKF_PI_F - e->y;
-        flip = true;
-    } else if (e->y < -ATT_EKF_PIO2_F) {
-        e->y = -ATT_EKF_PI_F - e->y;
-        flip = true;
-    }
-    if (flip) {
-        e->x = e->x + ATT_EKF_PI_F;
-        e->z = e->z + ATT_EKF_PI_F;
-        P[0][1] = -P[0][1];
-        P[1][0] = -P[1][0];
-        P[1][2] = -P[1][2];
-        P[2][1] = -P[2][1];
-    }
-    e->x = att_wrap_pi(e->x);
-    e->z = att_wrap_pi(e->z);
-}
-
-/* T = a b (3x3), each element ((a_i0 b_0j + a_i1 b_1j) + a_i2 b_2j). */
-static void att_ekf_mul(float a[3][3], float b[3][3], float t[3][3])
-{
-    int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            t[i][j] = (a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j];
-        }
-    }
-}
-
-/* Upper triangle of t m^T (j >= i), ((t_i0 m_j0 + t_i1 m_j1) + t_i2 m_j2), mirrored to the lower. */
-static void att_ekf_mul_t_sym(float t[3][3], float m[3][3], float out[3][3])
-{
-    int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = i; j < 3; j++) {
-            out[i][j] = (t[i][0] * m[j][0] + t[i][1] * m[j][1]) + t[i][2] * m[j][2];
-            out[j][i] = out[i][j];
-        }
-    }
-}
-
-/* Cap each variance at p_max by the congruence D P D, d_i = sqrt(p_max / P_ii) where P_ii > p_max. */
-static bool att_ekf_cap(float P[3][3], float p_max)
-{
-    float d[3];
+    float dd[6];
     bool capped = false;
     int i;
     int j;
-    for (i = 0; i < 3; i++) {
-        d[i] = 1.0f;
-        if (P[i][i] > p_max) {
-            d[i] = att_sqrtf(p_max / P[i][i]);
+    for (i = 0; i < 6; i++) {
+        dd[i] = 1.0f;
+        if (P_(p, i, i) > p_max) {
+            dd[i] = att_i_sqrtf(p_max / P_(p, i, i));
             capped = true;
         }
     }
     if (capped) {
-        for (i = 0; i < 3; i++) {
-            for (j = i; j < 3; j++) {
-                P[i][j] = (P[i][j] * d[i]) * d[j];
-                P[j][i] = P[i][j];
+        for (i = 0; i < 6; i++) {
+            for (j = i; j < 6; j++) {
+                P_(p, i, j) = (P_(p, i, j) * dd[i]) * dd[j];
             }
         }
     }
-    return capped;
-}
-
-/*
- * Positive definite with margin: the pivots of P = L D L^T satisfy d_0 > 0 and d_i > ATT_EKF_PIVOT_MIN
- * P_ii (i = 1, 2), i.e. no angle is almost a linear function of the angles before it.
- */
-static bool att_ekf_pd_ok(float P[3][3])
-{
-    const float d0 = P[0][0];
-    const float l10 = P[1][0] / d0;
-    const float d1 = P[1][1] - l10 * P[1][0];
-    const float l20 = P[2][0] / d0;
-    const float e21 = P[2][1] - l20 * P[1][0];
-    const float l21 = e21 / d1;
-    const float d2 = (P[2][2] - l20 * P[2][0]) - l21 * e21;
-    return d0 > 0.0f && d1 > ATT_EKF_PIVOT_MIN * P[1][1] && d2 > ATT_EKF_PIVOT_MIN * P[2][2];
-}
-
-/* Off-diagonal elements times s. */
-static void att_ekf_shrink(float P[3][3], float s)
-{
-    P[0][1] = P[0][1] * s;
-    P[1][0] = P[0][1];
-    P[0][2] = P[0][2] * s;
-    P[2][0] = P[0][2];
-    P[1][2] = P[1][2] * s;
-    P[2][1] = P[1][2];
-}
-
-/*
- * Keep P usable: not finite or a variance not > 0 gives ATT_FLAG_NUMERIC (the caller discards the
- * stage). Otherwise variances above p_max are capped, and when P is not positive definite with
- * margin the correlations are shrunk by the factor ATT_EKF_SHRINK, or dropped when that is not
- * enough (ATT_FLAG_CLAMPED).
- */
-static uint32_t att_ekf_condition(float P[3][3], float p_max)
-{
-    uint32_t flags = 0u;
-    if (!att_ekf_p_finite(P) || !(P[0][0] > 0.0f) || !(P[1][1] > 0.0f) || !(P[2][2] > 0.0f)) {
-        return ATT_FLAG_NUMERIC;
+    if (att_ekf_pd_ok(p)) {
+        return capped ? ATT_FLAG_CLAMPED : 0u;
     }
-    if (att_ekf_cap(P, p_max)) {
-        flags |= ATT_FLAG_CLAMPED;
-    }
-    if (!att_ekf_pd_ok(P)) {
-        flags |= ATT_FLAG_CLAMPED;
-        att_ekf_shrink(P, ATT_EKF_SHRINK);
-        if (!att_ekf_pd_ok(P)) {
-            att_ekf_shrink(P, 0.0f);
+    for (i = 0; i < 6; i++) {
+        for (j = i + 1; j < 6; j++) {
+            P_(p, i, j) = P_(p, i, j) * ATT_EKF_SHRINK;
         }
     }
-    return flags;
+    if (!att_ekf_pd_ok(p)) {
+        for (i = 0; i < 6; i++) {
+            for (j = i + 1; j < 6; j++) {
+                P_(p, i, j) = 0.0f;
+            }
+        }
+    }
+    return ATT_FLAG_CLAMPED;
 }
 
-/* Prediction x := x + dt E w, P := A P A^T + Q (A at the state before). Returns flags. */
-static uint32_t att_ekf_predict(att_ekf_t *f, att_vec3_t w, bool gyro_ok)
+/* Copy of the 21 elements of P. */
+static void att_ekf_p_copy(float *dst, const float *src)
 {
-    const float dt = f->s.dt;
-    const float sphi = att_sinf(f->euler.x);
-    const float cphi = att_cosf(f->euler.x);
-    const float sth = att_sinf(f->euler.y);
-    float cth = att_cosf(f->euler.y);
+    int i;
+    for (i = 0; i < 21; i++) {
+        dst[i] = src[i];
+    }
+}
+
+/*
+ * Prediction of the angles (into st) and of P (into pn); returns its flags (ATT_FLAG_NUMERIC:
+ * discarded, the angles kept and pn = P).
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
+                                                  bool gyro_ok, float *pn)
+{
+    const float dt = c->dt;
+    float sphi;
+    float cphi;
+    float sth;
+    float cth;
     float tth;
     float sec;
     float u;
     float v;
-    float a[3][3];
-    float t[3][3];
-    float pp[3][3];
+    float a00;
+    float a01;
+    float a10;
+    float a20;
+    float a21;
+    float b00;
+    float b01;
+    float b02;
+    float b11;
+    float b12;
+    float b21;
+    float b22;
+    float uu[3][3];
+    float vv[3][3];
+    float ww[3][3];
+    float nn[3][3];
+    float x[3][3];
+    float y[3][3];
+    const float *p = st->p;
     att_vec3_t e;
-    uint32_t cond;
     uint32_t flags = 0u;
-    if (att_absf(cth) < f->s.cos_min) {
-        cth = (cth < 0.0f) ? -f->s.cos_min : f->s.cos_min;
+    int i;
+    int j;
+    att_i_sincosf(st->euler.x, &sphi, &cphi);
+    att_i_sincosf(st->euler.y, &sth, &cth);
+    if (att_i_absf(cth) < c->cos_min) {
+        cth = (cth < 0.0f) ? -c->cos_min : c->cos_min;
         if (gyro_ok) {
             flags |= ATT_FLAG_GIMBAL;
         }
     }
     tth = sth / cth;
     sec = 1.0f / cth;
-    e.x = f->euler.x + (w.x + sphi * tth * w.y + cphi * tth * w.z) * dt;
-    e.y = f->euler.y + (cphi * w.y - sphi * w.z) * dt;
-    e.z = f->euler.z + (sphi / cth * w.y + cphi / cth * w.z) * dt;
+    /* the kinematics by the midpoint rule: rates at the start give the midpoint angles, the rates
+     * there the step (second order: first-order Euler steps drift at the rates of fast rotation) */
+    {
+        float sm;
+        float cm;
+        float stm;
+        float ctm;
+        float ttm;
+        float secm;
+        const float hdt = dt * 0.5f;
+        att_i_sincosf(st->euler.x + (w.x + sphi * tth * w.y + cphi * tth * w.z) * hdt, &sm, &cm);
+        att_i_sincosf(st->euler.y + (cphi * w.y - sphi * w.z) * hdt, &stm, &ctm);
+        if (att_i_absf(ctm) < c->cos_min) {
+            ctm = (ctm < 0.0f) ? -c->cos_min : c->cos_min;
+        }
+        ttm = stm / ctm;
+        secm = 1.0f / ctm;
+        e.x = st->euler.x + (w.x + sm * ttm * w.y + cm * ttm * w.z) * dt;
+        e.y = st->euler.y + (cm * w.y - sm * w.z) * dt;
+        e.z = st->euler.z + (sm * secm * w.y + cm * secm * w.z) * dt;
+    }
     u = sphi * w.y + cphi * w.z;
     v = cphi * w.y - sphi * w.z;
-    a[0][0] = 1.0f + dt * (v * tth);
-    a[0][1] = dt * (u * sec * sec);
-    a[0][2] = 0.0f;
-    a[1][0] = -(dt * u);
-    a[1][1] = 1.0f;
-    a[1][2] = 0.0f;
-    a[2][0] = dt * (v * sec);
-    a[2][1] = dt * (u * sec * tth);
-    a[2][2] = 1.0f;
-    att_ekf_mul(a, f->p, t);
-    att_ekf_mul_t_sym(t, a, pp);
-    pp[0][0] = pp[0][0] + f->q_step[0];
-    pp[1][1] = pp[1][1] + f->q_step[1];
-    pp[2][2] = pp[2][2] + f->q_step[2];
-    att_ekf_canon(&e, pp);
-    cond = att_ekf_condition(pp, f->s.p_max);
-    if (!att_vec3_isfinite(e) || (cond & ATT_FLAG_NUMERIC) != 0u) {
+    /* A = I + dt J (A00 = 1 + a00, A11 = A22 = 1, A02 = A12 = 0) */
+    a00 = 1.0f + dt * (v * tth);
+    a01 = dt * (u * sec * sec);
+    a10 = -(dt * u);
+    a20 = dt * (v * sec);
+    a21 = dt * (u * sec * tth);
+    /* B = -dt E */
+    b00 = -dt;
+    b01 = -(dt * (sphi * tth));
+    b02 = -(dt * (cphi * tth));
+    b11 = -(dt * cphi);
+    b12 = dt * sphi;
+    b21 = -(dt * (sphi * sec));
+    b22 = -(dt * (cphi * sec));
+    ATT_EKF_UNROLL
+    for (j = 0; j < 3; j++) {
+        const float p0j = P_(p, 0, 3 + j);
+        const float p1j = P_(p, 1, 3 + j);
+        const float p2j = P_(p, 2, 3 + j);
+        const float q0j = P_(p, 3, 3 + j);
+        const float q1j = P_(p, 4, 3 + j);
+        const float q2j = P_(p, 5, 3 + j);
+        const float r0j = P_(p, 0, j);
+        const float r1j = P_(p, 1, j);
+        const float r2j = P_(p, 2, j);
+        /* U = A Pab, V = B Pbb, W = A Paa */
+        uu[0][j] = a00 * p0j + a01 * p1j;
+        uu[1][j] = a10 * p0j + p1j;
+        uu[2][j] = (a20 * p0j + a21 * p1j) + p2j;
+        vv[0][j] = (b00 * q0j + b01 * q1j) + b02 * q2j;
+        vv[1][j] = b11 * q1j + b12 * q2j;
+        vv[2][j] = b21 * q1j + b22 * q2j;
+        ww[0][j] = a00 * r0j + a01 * r1j;
+        ww[1][j] = a10 * r0j + r1j;
+        ww[2][j] = (a20 * r0j + a21 * r1j) + r2j;
+    }
+    ATT_EKF_UNROLL
+    for (i = 0; i < 3; i++) {
+        ATT_EKF_UNROLL
+        for (j = 0; j < 3; j++) {
+            nn[i][j] = uu[i][j] + vv[i][j];
+        }
+        /* X = N B^T, Y = U B^T (row i) */
+        x[i][0] = (nn[i][0] * b00 + nn[i][1] * b01) + nn[i][2] * b02;
+        x[i][1] = nn[i][1] * b11 + nn[i][2] * b12;
+        x[i][2] = nn[i][1] * b21 + nn[i][2] * b22;
+        y[i][0] = (uu[i][0] * b00 + uu[i][1] * b01) + uu[i][2] * b02;
+        y[i][1] = uu[i][1] * b11 + uu[i][2] * b12;
+        y[i][2] = uu[i][1] * b21 + uu[i][2] * b22;
+    }
+    ATT_EKF_UNROLL
+    for (i = 0; i < 3; i++) {
+        /* A Paa A^T (row i, columns j >= i) + N B^T + (U B^T)^T */
+        const float w0 = ww[i][0];
+        const float w1 = ww[i][1];
+        const float w2 = ww[i][2];
+        float t[3];
+        t[0] = w0 * a00 + w1 * a01;
+        t[1] = w0 * a10 + w1;
+        t[2] = (w0 * a20 + w1 * a21) + w2;
+        ATT_EKF_UNROLL
+        for (j = i; j < 3; j++) {
+            P_(pn, i, j) = (t[j] + x[i][j]) + y[j][i];
+        }
+        ATT_EKF_UNROLL
+        for (j = 0; j < 3; j++) {
+            P_(pn, i, 3 + j) = nn[i][j];
+        }
+    }
+    ATT_EKF_UNROLL
+    for (i = 3; i < 6; i++) {
+        ATT_EKF_UNROLL
+        for (j = i; j < 6; j++) {
+            P_(pn, i, j) = P_(p, i, j);
+        }
+    }
+    P_(pn, 0, 0) = P_(pn, 0, 0) + c->q_step[0];
+    P_(pn, 1, 1) = P_(pn, 1, 1) + c->q_step[1];
+    P_(pn, 2, 2) = P_(pn, 2, 2) + c->q_step[2];
+    P_(pn, 3, 3) = P_(pn, 3, 3) + c->q_step[3];
+    P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
+    P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
+    att_ekf_canon(&e, pn);
+    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+        att_ekf_p_copy(pn, p);
         return flags | ATT_FLAG_NUMERIC; /* prediction discarded */
     }
-    flags |= cond;
-    f->euler = e;
-    att_ekf_p_copy(f->p, pp);
+    st->euler = e;
     return flags;
 }
 
-/* Update with z = accel tilt, H = [I2 0]; Joseph form. Returns flags. */
-static uint32_t att_ekf_update(att_ekf_t *f, att_vec3_t acc)
+/*
+ * Update with the roll and pitch of the low-passed gravity, from the predicted covariance p into
+ * st->p; returns its flags. Whenever it is not applied, st->p = p (the prediction).
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
+                                                 float e2, const float *p)
 {
-    const att_vec3_t z = att_sensor_tilt(acc);
-    const float y0 = att_wrap_pi(z.x - f->euler.x);
-    const float y1 = att_wrap_pi(z.y - f->euler.y);
-    const float s00 = f->p[0][0] + f->r_step[0];
-    const float s01 = f->p[0][1];
-    const float s11 = f->p[1][1] + f->r_step[1];
-    const float det = s00 * s11 - s01 * s01;
+    float sphi;
+    float cphi;
+    float sth;
+    float cth;
+    float spsi;
+    float cpsi;
+    float cg;
+    float cw;
+    float cx;
+    float cy;
+    float n;
+    float ex;
+    float ey;
+    float y0;
+    float y1;
+    float s00;
+    float s01;
+    float s11;
+    float det;
     float i00;
     float i01;
     float i11;
-    float k[3][2];
-    float m[3][3];
-    float t[3][3];
-    float pn[3][3];
+    float d2;
+    float fk = 1.0f;
+    float k0[6];
+    float k1[6];
+    float *pn = st->p;
+    att_vec3_t lp1 = st->lp1;
+    att_vec3_t lp2 = st->lp2;
+    att_vec3_t vv;
     att_vec3_t e;
-    uint32_t cond;
-    int i;
-    int j;
-    if (!(det > 0.0f) || !att_isfinitef(det)) {
+    att_vec3_t eps;
+    att_i_sincosf(st->euler.x, &sphi, &cphi);
+    att_i_sincosf(st->euler.y, &sth, &cth);
+    att_i_sincosf(st->euler.z, &spsi, &cpsi);
+    /* the specific force in the earth frame of the prediction: R(phi, theta, psi) a */
+    vv.x = (cpsi * cth) * acc.x + ((cpsi * sth) * sphi - spsi * cphi) * acc.y +
+           ((cpsi * sth) * cphi + spsi * sphi) * acc.z;
+    vv.y = (spsi * cth) * acc.x + ((spsi * sth) * sphi + cpsi * cphi) * acc.y +
+           ((spsi * sth) * cphi - cpsi * sphi) * acc.z;
+    vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
+    if (c->lp_on) {
+        att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
+        vv = lp2;
+    }
+    if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
+        att_ekf_p_copy(st->p, p);
+        return 0u; /* no direction: no update */
+    }
+    (void)cw;
+    (void)n;
+    /* the tilt error e (earth frame) and the roll and pitch that remove it */
+    ex = 2.0f * cx;
+    ey = 2.0f * cy;
+    cg = cth;
+    if (att_i_absf(cg) < c->cos_min) {
+        cg = (cg < 0.0f) ? -c->cos_min : c->cos_min;
+    }
+    y0 = (cpsi * ex + spsi * ey) / cg;
+    y1 = cpsi * ey - spsi * ex;
+    s00 = P_(p, 0, 0) + c->r_step[0] * (1.0f + c->r_accel * e2);
+    s01 = P_(p, 0, 1);
+    s11 = P_(p, 1, 1) + c->r_step[1] * (1.0f + c->r_accel * e2);
+    det = s00 * s11 - s01 * s01;
+    if (!(det > 0.0f) || !att_i_isfinitef(det)) {
+        att_ekf_p_copy(st->p, p);
         return ATT_FLAG_NUMERIC;
     }
     i00 = s11 / det;
     i01 = -s01 / det;
     i11 = s00 / det;
-    for (i = 0; i < 3; i++) {
-        k[i][0] = f->p[i][0] * i00 + f->p[i][1] * i01;
-        k[i][1] = f->p[i][0] * i01 + f->p[i][1] * i11;
-    }
-    e.x = f->euler.x + (k[0][0] * y0 + k[0][1] * y1);
-    e.y = f->euler.y + (k[1][0] * y0 + k[1][1] * y1);
-    e.z = f->euler.z + (k[2][0] * y0 + k[2][1] * y1);
-    /* M = I - K H */
-    for (i = 0; i < 3; i++) {
-        m[i][0] = ((i == 0) ? 1.0f : 0.0f) - k[i][0];
-        m[i][1] = ((i == 1) ? 1.0f : 0.0f) - k[i][1];
-        m[i][2] = (i == 2) ? 1.0f : 0.0f;
-    }
-    att_ekf_mul(m, f->p, t);
-    att_ekf_mul_t_sym(t, m, pn);
-    /* + K R K^T */
-    for (i = 0; i < 3; i++) {
-        for (j = i; j < 3; j++) {
-            pn[i][j] = pn[i][j] + ((k[i][0] * f->r_step[0]) * k[j][0] + (k[i][1] * f->r_step[1]) * k[j][1]);
-            pn[j][i] = pn[i][j];
+    d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1);
+    if (c->gate > 0.0f) {
+        if (d2 > c->gate) {
+            att_ekf_p_copy(st->p, p);
+            return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
+        }
+        if (d2 > c->soft) {
+            fk = c->soft / d2; /* the innovation covariance inflated so that d^2 = gate / 4 */
         }
     }
+    /* K = f P H^T S^-1 */
+    k0[0] = (p[0] * i00 + p[1] * i01) * fk;
+    k1[0] = (p[0] * i01 + p[1] * i11) * fk;
+    k0[1] = (p[1] * i00 + p[6] * i01) * fk;
+    k1[1] = (p[1] * i01 + p[6] * i11) * fk;
+    k0[2] = (p[2] * i00 + p[7] * i01) * fk;
+    k1[2] = (p[2] * i01 + p[7] * i11) * fk;
+    k0[3] = (p[3] * i00 + p[8] * i01) * fk;
+    k1[3] = (p[3] * i01 + p[8] * i11) * fk;
+    k0[4] = (p[4] * i00 + p[9] * i01) * fk;
+    k1[4] = (p[4] * i01 + p[9] * i11) * fk;
+    k0[5] = (p[5] * i00 + p[10] * i01) * fk;
+    k1[5] = (p[5] * i01 + p[10] * i11) * fk;
+    e.x = st->euler.x + (k0[0] * y0 + k1[0] * y1);
+    e.y = st->euler.y + (k0[1] * y0 + k1[1] * y1);
+    e.z = st->euler.z + (k0[2] * y0 + k1[2] * y1);
+    /* P := P - K S K^T = P - K (P H^T)^T, the upper triangle */
+    pn[0] = p[0] - (k0[0] * p[0] + k1[0] * p[1]);
+    pn[1] = p[1] - (k0[0] * p[1] + k1[0] * p[6]);
+    pn[2] = p[2] - (k0[0] * p[2] + k1[0] * p[7]);
+    pn[3] = p[3] - (k0[0] * p[3] + k1[0] * p[8]);
+    pn[4] = p[4] - (k0[0] * p[4] + k1[0] * p[9]);
+    pn[5] = p[5] - (k0[0] * p[5] + k1[0] * p[10]);
+    pn[6] = p[6] - (k0[1] * p[1] + k1[1] * p[6]);
+    pn[7] = p[7] - (k0[1] * p[2] + k1[1] * p[7]);
+    pn[8] = p[8] - (k0[1] * p[3] + k1[1] * p[8]);
+    pn[9] = p[9] - (k0[1] * p[4] + k1[1] * p[9]);
+    pn[10] = p[10] - (k0[1] * p[5] + k1[1] * p[10]);
+    pn[11] = p[11] - (k0[2] * p[2] + k1[2] * p[7]);
+    pn[12] = p[12] - (k0[2] * p[3] + k1[2] * p[8]);
+    pn[13] = p[13] - (k0[2] * p[4] + k1[2] * p[9]);
+    pn[14] = p[14] - (k0[2] * p[5] + k1[2] * p[10]);
+    pn[15] = p[15] - (k0[3] * p[3] + k1[3] * p[8]);
+    pn[16] = p[16] - (k0[3] * p[4] + k1[3] * p[9]);
+    pn[17] = p[17] - (k0[3] * p[5] + k1[3] * p[10]);
+    pn[18] = p[18] - (k0[4] * p[4] + k1[4] * p[9]);
+    pn[19] = p[19] - (k0[4] * p[5] + k1[4] * p[10]);
+    pn[20] = p[20] - (k0[5] * p[5] + k1[5] * p[10]);
+    /* the earth-frame rotation of the correction, for the low-pass stages */
+    {
+        const float dphi = e.x - st->euler.x;
+        const float dth = e.y - st->euler.y;
+        const float dpsi = e.z - st->euler.z;
+        eps.x = (dphi * cth) * cpsi - dth * spsi;
+        eps.y = (dphi * cth) * spsi + dth * cpsi;
+        eps.z = dpsi - dphi * sth;
+    }
     att_ekf_canon(&e, pn);
-    cond = att_ekf_condition(pn, f->s.p_max);
-    if (!att_vec3_isfinite(e) || (cond & ATT_FLAG_NUMERIC) != 0u) {
+    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+        att_ekf_p_copy(st->p, p);
         return ATT_FLAG_NUMERIC; /* update discarded */
     }
-    f->euler = e;
-    att_ekf_p_copy(f->p, pn);
-    return cond;
+    st->euler = e;
+    st->bias.x = st->bias.x + (k0[3] * y0 + k1[3] * y1);
+    st->bias.y = st->bias.y + (k0[4] * y0 + k1[4] * y1);
+    st->bias.z = st->bias.z + (k0[5] * y0 + k1[5] * y1);
+    if (c->lp_on) {
+        st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
+        st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
+    }
+    return 0u;
 }
 
-uint32_t att_ekf_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
+/* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
+static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, const att_vec3_t *acc)
 {
+    const att_vec3_t t = att_sensor_tilt(*acc);
+    att_quat_t q;
+    st->euler = att_i_vec3(att_wrap_pi(t.x), t.y, 0.0f); /* atan2 may give -pi */
+    (void)att_i_quat_normalize_bounded(att_quat_from_euler(st->euler.x, st->euler.y, 0.0f), &q);
+    st->lp1 = att_i_quat_rotate(q, *acc);
+    st->lp2 = st->lp1;
+    st->initialised = true;
+}
+
+static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_vec3_t *gyr_in,
+                                                      const att_vec3_t *acc_in)
+{
+    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
+    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
+    const att_ekf_coeffs_t *c;
+    att_ekf_state_t *st;
     uint32_t flags;
     uint32_t accel_flags;
-    float norm;
-    float e;
+    float n2;
+    float e2 = 0.0f;
     bool gyro_ok;
     bool accel_ok;
     att_vec3_t w;
+    float pa[21];
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
-    flags = att_sensor_check_gyro(gyr, f->s.gyro_range);
+    c = &f->c;
+    st = &f->st;
+    flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
     gyro_ok = (flags == 0u);
-    accel_flags = att_sensor_check_accel(acc, f->s.accel_range, &norm);
+    accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
-    e = norm / f->s.gravity - 1.0f;
-    if (accel_ok && f->s.accel_reject > 0.0f && att_absf(e) > f->s.accel_reject) {
-        flags |= ATT_FLAG_ACCEL_REJECTED;
+    if (accel_ok && c->need_norm) {
+        const float er = att_i_sqrtf(n2) / c->gravity - 1.0f;
+        e2 = er * er;
+        if (c->accel_reject > 0.0f && att_i_absf(er) > c->accel_reject) {
+            flags |= ATT_FLAG_ACCEL_REJECTED;
+        }
     }
-
-    if (!f->initialised) {
+    if (!st->initialised) {
         if (accel_ok) {
-            const att_vec3_t t = att_sensor_tilt(acc);
-            f->euler.x = att_wrap_pi(t.x); /* atan2 may give -pi */
-            f->euler.y = t.y;
-            f->euler.z = 0.0f;
-            f->q = att_quat_from_euler(f->euler.x, f->euler.y, 0.0f);
-            f->initialised = true;
+            att_ekf_start(st, acc_in);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
         }
-        f->steps = f->steps + 1u;
-        f->flags = flags;
+        st->steps = st->steps + 1u;
+        st->flags = flags;
         return flags;
     }
-
-    if (gyro_ok) {
-        w = gyr;
-    } else {
-        w.x = 0.0f; /* time passes without rate information: state kept, P := P + Q */
-        w.y = 0.0f;
-        w.z = 0.0f;
-    }
-    flags |= att_ekf_predict(f, w, gyro_ok);
+    w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
+    flags |= att_ekf_predict(c, st, w, gyro_ok, pa);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_ekf_update(f, acc);
+        flags |= att_ekf_update(c, st, acc, e2, pa);
+    } else {
+        att_ekf_p_copy(st->p, pa);
     }
-    f->q = att_quat_from_euler(f->euler.x, f->euler.y, f->euler.z);
-    f->steps = f->steps + 1u;
-    f->flags = flags;
+    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
+        /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */
+        flags |= att_ekf_condition(st->p, c->p_max);
+    }
+    st->steps = st->steps + 1u;
+    st->flags = flags;
     return flags;
+}
+
+uint32_t att_ekf_step_out(att_ekf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_ekf_update_step(f, &in->gyr, &in->acc);
+    if (out != NULL) {
+        out->euler = f->st.euler;
+        out->gyro_bias = f->st.bias;
+        out->flags = flags;
+        out->steps = f->st.steps;
+        out->valid = ATT_OUT_EULER | ATT_OUT_BIAS;
+    }
+    return flags;
+}
+
+uint32_t att_ekf_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
+{
+    att_sample_t in;
+    in.gyr = gyr;
+    in.acc = acc;
+    in.mag = att_i_vec3(0.0f, 0.0f, 0.0f);
+    return att_ekf_step_out(f, &in, NULL);
 }

@@ -82,9 +82,14 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
         settings->ekf.q_phi = 0.0001f;
         settings->ekf.q_theta = 0.0001f;
         settings->ekf.q_psi = 0.1f;
+        settings->ekf.q_bias = 1e-12f; /* the notes' filter had no bias states: they stay at 0 */
+        settings->ekf.p0_bias = 1e-12f;
         settings->ekf.r_phi = 6.0f;
         settings->ekf.r_theta = 6.0f;
+        settings->ekf.r_accel = 0.0f;
+        settings->ekf.gate = 0.0f;
         settings->ekf.accel_reject = 0.1f;
+        settings->ekf.tau_acc_lp = 0.0f;
         settings->ekf.noise_rates = false;
         break;
     default:
@@ -245,12 +250,11 @@ static bool att_filter_basic(const att_filter_t *f, att_output_t *out)
         out->steps = f->u.kf.st.steps;
         return true;
     case ATT_FILTER_EKF:
-        out->q = f->u.ekf.q;
-        out->euler = f->u.ekf.euler;
-        out->gyro_bias = zero;
-        out->flags = f->u.ekf.flags;
-        out->steps = f->u.ekf.steps;
-        out->valid |= ATT_OUT_EULER;
+        out->euler = f->u.ekf.st.euler; /* the state: q is derived on request */
+        out->gyro_bias = f->u.ekf.st.bias;
+        out->flags = f->u.ekf.st.flags;
+        out->steps = f->u.ekf.st.steps;
+        out->valid = ATT_OUT_EULER | ATT_OUT_BIAS;
         return true;
     case ATT_FILTER_GYRO:
         out->q = f->u.gyro.st.q;
@@ -287,15 +291,19 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
     if ((out->valid & ATT_OUT_EULER) == 0u) {
         out->euler = att_quat_to_euler(out->q);
     }
+    if ((out->valid & ATT_OUT_Q) == 0u) {
+        out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
+    }
     if (f->kind == ATT_FILTER_KF) {
         out->cov[0] = f->u.kf.st.p; /* P = p I */
         out->cov[1] = f->u.kf.st.p;
         out->cov[2] = f->u.kf.st.p;
         out->cov[3] = f->u.kf.st.p;
     } else if (f->kind == ATT_FILTER_EKF) {
-        out->cov[0] = f->u.ekf.p[0][0];
-        out->cov[1] = f->u.ekf.p[1][1];
-        out->cov[2] = f->u.ekf.p[2][2];
+        out->cov[0] = f->u.ekf.st.p[0]; /* phi, theta, psi; then the mean bias variance */
+        out->cov[1] = f->u.ekf.st.p[6];
+        out->cov[2] = f->u.ekf.st.p[11];
+        out->cov[3] = ((f->u.ekf.st.p[15] + f->u.ekf.st.p[18]) + f->u.ekf.st.p[20]) * 0x1.555556p-2f;
     }
     out->valid = ATT_OUT_ALL;
 }
@@ -318,8 +326,7 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
     case ATT_FILTER_KF:
         return att_kf_step_out(&f->u.kf, in, out);
     case ATT_FILTER_EKF:
-        flags = att_ekf_step(&f->u.ekf, in->gyr, in->acc);
-        break;
+        return att_ekf_step_out(&f->u.ekf, in, out);
     case ATT_FILTER_GYRO:
         flags = att_gyro_step(&f->u.gyro, in->gyr);
         break;

@@ -73,11 +73,12 @@ float att_node_bus_load(const att_node_settings_t *s)
     float sets_per_s;
     float t_set;
     float t_classic;
+    uint32_t classic_bits = att_node_classic_bits(8u);
     if (s == NULL || !att_node_rates_ok(s)) {
         return -1.0f;
     }
     sets_per_s = s->sample_rate / (float)s->output_divider;
-    t_classic = (float)att_node_classic_bits(8u) / (float)s->bitrate;
+    t_classic = (float)classic_bits / (float)s->bitrate;
     if (s->fd) {
         t_set = att_node_fd_frame_time(64u, s->bitrate, s->data_bitrate);
     } else {
@@ -99,6 +100,8 @@ static float att_node_filter_dt(att_filter_kind_t kind, const att_filter_setting
         return fs->mars.dt;
     case ATT_FILTER_KF:
         return fs->kf.dt;
+    case ATT_FILTER_EKF:
+        return fs->ekf.dt;
     case ATT_FILTER_GYRO:
         return fs->gyro.dt;
     default:

@@ -20,4 +20,7 @@ uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict 
 /** att_kf_step on in->gyr, in->acc; fills out (may be NULL) like att_ars_step_out. */
 uint32_t att_kf_step_out(att_kf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out);
 
+/** att_ekf_step on in->gyr, in->acc; fills out (may be NULL) with euler, gyro_bias, flags, steps. */
+uint32_t att_ekf_step_out(att_ekf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out);
+
 #endif /* ATT_STEP_H */

@@ -66,13 +66,18 @@ def check_gains(kind: FilterKind, settings: Any) -> None:
 
     """
     for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
-        g = float(getattr(settings, gain))
-        t = float(getattr(settings, tau))
-        if t > 0 and g != 0:
+        # the reference steps n instances in lockstep: its settings fields may be arrays (one per instance)
+        g = np.asarray(getattr(settings, gain), np.float64)
+        t = np.asarray(getattr(settings, tau), np.float64)
+        bad = np.broadcast_to((t > 0) & (g != 0), np.broadcast_shapes(g.shape, t.shape))
+        if bad.any():
+            i = np.unravel_index(int(np.argmax(bad)), bad.shape)
+            gi, ti = float(np.broadcast_to(g, bad.shape)[i]), float(np.broadcast_to(t, bad.shape)[i])
+            where = f" (instance {i[0] if len(i) == 1 else i})" if bad.ndim else ""
             raise SettingsConflictError(
-                f"{kind.label}: {gain}={g:g} (a per-sample gain) is set together with {tau}={t:g} s (a time "
-                f"constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, or "
-                f"{gain}=0 (or leave it unset) to use {tau}"
+                f"{kind.label}{where}: {gain}={gi:g} (a per-sample gain) is set together with {tau}={ti:g} s "
+                f"(a time constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, "
+                f"or {gain}=0 (or leave it unset) to use {tau}"
             )
 
 
@@ -89,13 +94,17 @@ def implied_gains(kind: FilterKind, base: Any, overrides: dict[str, Any]) -> dic
     defaults = cls()
     current = base if base is not None else defaults
     for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
-        t = out.get(tau, getattr(current, tau))
-        if (
-            float(t) > 0
-            and gain not in out
-            and float(getattr(current, gain)) == float(getattr(defaults, gain))
-        ):
-            out[gain] = 0.0
+        if gain in out:
+            continue
+        t = np.asarray(out.get(tau, getattr(current, tau)), np.float64)
+        g = getattr(current, gain)
+        unused = (t > 0) & (np.asarray(g, np.float64) == float(getattr(defaults, gain)))
+        if unused.ndim == 0:
+            if unused:
+                out[gain] = 0.0
+        elif unused.any():  # per-instance arrays (the reference): 0 where that instance's tau is in use
+            garr = np.broadcast_to(np.asarray(g), unused.shape)
+            out[gain] = np.where(unused, np.zeros_like(garr), garr)
     return out
 
 

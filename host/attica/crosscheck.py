@@ -51,8 +51,9 @@ class CrossCheck:
 
 
 def records_equal(a: NDArray[np.void], b: NDArray[np.void]) -> NDArray[np.bool_]:
-    """Per record: all float fields bit-identical (NaN == NaN), flags and steps equal."""
+    """Per record: all float fields bit-identical (NaN == NaN); flags, steps and valid equal."""
     ok: NDArray[np.bool_] = (a["flags"] == b["flags"]) & (a["steps"] == b["steps"])
+    ok &= a["valid"] == b["valid"]
     for name in FLOAT_FIELDS:
         x = a[name]
         y = b[name]

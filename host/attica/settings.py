@@ -174,23 +174,29 @@ class MarsSettings:
 
 @dataclass(frozen=True)
 class EkfSettings:
-    """Euler-angle EKF settings (``att_ekf_settings_t``); see att_ekf.h for meanings."""
+    """Euler-angle EKF with gyro bias states (``att_ekf_settings_t``); see att_ekf.h for meanings."""
 
     dt: float = 0.01
-    q_phi: float = 0.03
-    q_theta: float = 0.03
-    q_psi: float = 1.0
-    r_phi: float = 3.0
-    r_theta: float = 3.0
+    q_phi: float = 1e-3
+    q_theta: float = 1e-3
+    q_psi: float = 1e-3
+    q_bias: float = 1e-8
+    r_phi: float = 1e-4
+    r_theta: float = 1e-4
+    r_accel: float = 0.0
+    gate: float = 0.0
     p0: float = 1.0
+    p0_bias: float = 1e-4
     p_max: float = 1000000.0
     gravity: float = 9.80665
-    accel_reject: float = 0.1
+    accel_reject: float = 0.0
     accel_range: float = 156.9064
     gyro_range: float = 34.906586
     cos_min: float = 0.001
+    tau_acc_lp: float = 1.5
     init_from_accel: bool = True
     euler_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise_rates: bool = True
 
 
@@ -292,9 +298,14 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "q_phi": 0.0001,
         "q_theta": 0.0001,
         "q_psi": 0.1,
+        "q_bias": 1e-12,
+        "p0_bias": 1e-12,
         "r_phi": 6.0,
         "r_theta": 6.0,
+        "r_accel": 0.0,
+        "gate": 0.0,
         "accel_reject": 0.1,
+        "tau_acc_lp": 0.0,
         "noise_rates": False,
     },
     FilterKind.GYRO: {},

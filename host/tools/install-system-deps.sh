@@ -26,6 +26,13 @@ command -v cmake >/dev/null 2>&1 || want+=(cmake)
 command -v linux.uml >/dev/null 2>&1 || want+=(user-mode-linux)
 command -v candump >/dev/null 2>&1 || want+=(can-utils)
 command -v insmod >/dev/null 2>&1 || want+=(kmod)
+# Robustness (tests/test_sanitize.py, tests/test_fuzz.py; libFuzzer and the sanitizer runtimes come
+# with clang): static analysers, and the i386 C library and libgcc for the -m32 build (not
+# gcc-multilib: on Debian it conflicts with the aarch64/riscv64 cross compilers above).
+command -v cppcheck >/dev/null 2>&1 || want+=(cppcheck)
+command -v clang-tidy >/dev/null 2>&1 || want+=(clang-tidy)
+[ -f /usr/include/x86_64-linux-gnu/gnu/stubs-32.h ] || want+=(libc6-dev-i386)
+ls /usr/lib/gcc/x86_64-linux-gnu/*/32/libgcc.a >/dev/null 2>&1 || want+=(lib32gcc-12-dev)
 for extra in "$@"; do
   case "$extra" in
     *:*) pkg=${extra%%:*}; cmd=${extra#*:} ;;

@@ -1,50 +1,52 @@
 /**
  * @file att_ekf.h
- * @brief Euler-angle extended Kalman filter (EKF), after the Hanyang University lecture notes.
+ * @brief Euler-angle extended Kalman filter with gyro bias states (6-state EKF), after the Hanyang
+ * University lecture notes, made robust like att_kf.h.
  *
- * State x = (phi, theta, psi), ZYX Euler angles in rad (roll, pitch, yaw; sensor-to-earth, ENU).
- * Per step, with the sensor-frame rate w = (p, q, r) in rad/s and the sample period dt:
+ * State x = (phi, theta, psi, b_x, b_y, b_z): ZYX Euler angles in rad (roll, pitch, yaw;
+ * sensor-to-earth, ENU) and the gyro bias in rad/s (sensor frame); covariance P (6x6, symmetric,
+ * stored as its upper triangle). Per step, with w = (p, q, r) - b (rad/s, sensor frame), dt:
  *
- *  1. prediction: x := x + dt E(phi, theta) w with the Euler kinematics
+ *  1. prediction: angles := angles + dt E(phi, theta) w with the Euler kinematics
  *       phi'   = p + sin(phi) tan(theta) q + cos(phi) tan(theta) r
  *       theta' = cos(phi) q - sin(phi) r
  *       psi'   = sin(phi) / cos(theta) q + cos(phi) / cos(theta) r
- *     (the same expressions as att_gyro.c), and P := A P A^T + Q with the discretised Jacobian
- *     A = I + dt J evaluated at the state before the step. With u = sin(phi) q + cos(phi) r and
- *     v = cos(phi) q - sin(phi) r, tan = tan(theta), sec = 1 / cos(theta):
- *       J = [ v tan   u sec sec   0 ]
- *           [ -u      0           0 ]
- *           [ v sec   u sec tan   0 ]
- *     An unusable gyro sample is treated as w = 0 (state kept, P := P + Q).
- *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and in
- *     J, so P stays finite there (it can grow by a factor of about (dt |w| / cos_min^2)^2 per step).
- *  2. update with the accelerometer (skipped when the sample is unusable or ||a|/g - 1| >
- *     accel_reject): z = (atan2(ay, az), atan2(-ax, sqrt(ay^2 + az^2))) (att_sensor_tilt),
- *     H = [I2 0], innovation y = z - H x wrapped to (-pi, pi] per component, S = H P H^T + R,
- *     K = P H^T S^-1 (explicit 2x2 inverse; det(S) not > 0 or not finite: ATT_FLAG_NUMERIC and no
- *     update), x := x + K y, and the Joseph form P := (I - K H) P (I - K H)^T + K R K^T.
- *  After each stage (prediction, update):
- *  - theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
- *    (phi + pi, +-pi - theta, psi + pi); P's theta row and column change sign with it. phi and psi are
- *    wrapped to (-pi, pi].
- *  - P is conditioned: a variance above p_max is brought down to p_max by the congruence D P D
- *    (D diagonal, correlations kept); if P then fails a positive definiteness test with margin (L D L^T
- *    pivots d_i > 2^-12 P_ii), its correlations are multiplied by 1 - 2^-10, or set to zero when that
- *    is not enough. Either sets ATT_FLAG_CLAMPED. In normal operation neither happens until the yaw
- *    variance reaches p_max (after about 1e7 steps with the defaults).
- *  - a stage whose angles or P are not finite, or that leaves a variance not > 0, is discarded
- *    (ATT_FLAG_NUMERIC): a failed prediction leaves the state as before the step (the update still
- *    runs), a failed update leaves the predicted state.
- *  P is stored exactly symmetric (upper triangle computed, mirrored).
+ *     (as att_gyro.c), bias := bias (random walk), and P := F P F^T + Q with the discretised Jacobian
+ *       F = [ I + dt J   -dt E ]      J = [ v tan   u sec sec   0 ]   u = sin(phi) q + cos(phi) r
+ *           [ 0           I    ]          [ -u      0           0 ]   v = cos(phi) q - sin(phi) r
+ *                                         [ v sec   u sec tan   0 ]   tan = tan(theta), sec = 1/cos(theta)
+ *     evaluated at the state before the step, written out block by block for the sparsity of F.
+ *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and the
+ *     Jacobians: the singularity of the representation, where the estimate is unreliable but finite.
+ *     An unusable gyro sample gives w = 0: the state is kept, P := P + Q.
+ *  2. update (skipped when the accel sample is unusable or ||a|/g - 1| > accel_reject): the measured
+ *     roll and pitch, H = [I2 0]. The measurement is taken, as in att_kf.h, from the specific force in
+ *     the earth frame of the prediction, low-passed by two cascaded first-order stages (tau_acc_lp):
+ *     C = (c_w, c_x, c_y, 0), the trig-free alignment of the low-passed vector with z (att_ars.h), is the
+ *     tilt error of the prediction as an earth-frame rotation e = 2 (c_x, c_y, 0); the roll and pitch
+ *     that remove it are, to first order (e = M d for Euler differences d, M the earth-frame axes of the
+ *     three Euler rotations), y = ((cos(psi) e_x + sin(psi) e_y) / cos(theta), -sin(psi) e_x +
+ *     cos(psi) e_y): the innovation. S = P[0:2,0:2] + diag(r_phi, r_theta) (1 + r_accel (|a|/g - 1)^2);
+ *     with the chi-square gate d^2 = y^T S^-1 y > gate the update is rejected (ATT_FLAG_ACCEL_REJECTED)
+ *     and above gate / 4 the measurement noise is scaled so that d^2 = gate / 4 (a soft limit);
+ *     K = P H^T S^-1, x := x + K y, P := P - K S K^T (upper triangle, mirrored). The earth-frame rotation
+ *     of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), so they stay
+ *     in the estimate's earth frame.
+ *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
+ *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
+ *  (-pi, pi]. A stage whose state or P is not finite, or leaves a variance not > 0, is discarded
+ *  (ATT_FLAG_NUMERIC). Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
+ *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
+ *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by
+ *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
  *
- * Noises: with noise_rates (default) the q_* are rates (rad^2/s, added as q dt per step) and the r_*
- * densities (rad^2 s, R = r / dt per sample), so the time constants do not depend on dt; without,
- * per step / per sample as in the notes. Defaults (tuned on BROAD, docs/accuracy.md): q_phi = q_theta
- * 0.03 rad^2/s, q_psi 1 rad^2/s, r_phi = r_theta 3 rad^2 s, P0 = I. The notes' Q = diag(1e-4, 1e-4, 0.1)
- * per step and R = 6 I2 are the seed preset (att_filter_settings_preset). Yaw is not observed: its
- * variance grows every step (up to p_max).
+ * Noises: with noise_rates (default) the q_* are rates (added as q dt per step) and r_* densities
+ * (R = r / dt per sample), so the time constants do not depend on dt; without, per step / per sample
+ * as in the notes (the seed preset). The quaternion of the output is derived from the angles on request
+ * (att_filter_output); att_filter_step fills the Euler angles and the bias.
  *
- * Units: rad, rad/s, m/s^2, s, variances rad^2. Frames: gyro/accel in the sensor frame.
+ * Units: rad, rad/s, m/s^2, s, variances rad^2 and (rad/s)^2. Frames: gyro/accel in the sensor frame.
+ * Mirrored bit for bit by host/attica/reference/ekf.py.
  */
 #ifndef ATT_EKF_H
 #define ATT_EKF_H
@@ -56,46 +58,84 @@ extern "C" {
 #endif
 
 /* ATT_CDEF_BEGIN */
-/** Settings of the Euler EKF. Fill with att_ekf_settings_default, then change fields. */
+/**
+ * Settings of the Euler EKF. Fill with att_ekf_settings_default, then change fields. Each field's valid
+ * range is given in brackets; init refuses anything else (NaN and Inf included).
+ */
 typedef struct {
-    float dt;              /**< sample period, s; 0 < dt <= 1 */
-    float q_phi;           /**< process noise variance of roll per step, rad^2; [0, 1e6] */
-    float q_theta;         /**< process noise variance of pitch per step, rad^2; [0, 1e6] */
-    float q_psi;           /**< process noise variance of yaw per step, rad^2; [0, 1e6] */
-    float r_phi;           /**< measurement noise variance of accel roll, rad^2; (0, 1e6] */
-    float r_theta;         /**< measurement noise variance of accel pitch, rad^2; (0, 1e6] */
-    float p0;              /**< initial variance of each angle (P0 = p0 I), rad^2; (0, p_max] */
-    float p_max;           /**< cap on each variance (numeric guard), rad^2; [1e-6, 1e6] */
-    float gravity;         /**< g, m/s^2; > 0 */
-    float accel_reject;    /**< skip the update when ||a|/g - 1| > this; 0 = never skip */
-    float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; > 0 */
-    float gyro_range;      /**< any |w_i| above this: prediction with w = 0, rad/s; > 0 */
-    float cos_min;         /**< guard on |cos(theta)|, (0, 1) */
-    bool init_from_accel;  /**< take roll/pitch from the first valid accel sample (yaw 0) */
-    att_vec3_t euler_init; /**< start (phi, theta, psi) when init_from_accel is false, rad; |theta| <= pi/2 */
-    bool noise_rates;      /**< true: q_* in rad^2/s (Q = q dt), r_* in rad^2 s (R = r / dt) */
+    float dt;              /**< sample period, s; [1e-6, 1] */
+    float q_phi;           /**< process noise of roll (rate or per step, see noise_rates), rad^2; [1e-20, 1e6] */
+    float q_theta;         /**< process noise of pitch, rad^2; [1e-20, 1e6] */
+    float q_psi;           /**< process noise of yaw, rad^2; [1e-20, 1e6] */
+    float q_bias;          /**< process noise of each bias component, (rad/s)^2; [1e-20, 1e6] */
+    float r_phi;           /**< measurement noise of roll (density or per sample), rad^2; [1e-20, 1e6] */
+    float r_theta;         /**< measurement noise of pitch, rad^2; [1e-20, 1e6] */
+    float r_accel;         /**< growth of the measurement noise with (|a|/g - 1)^2; [0, 1e6] */
+    float gate;            /**< chi-square gate on the normalised innovation (2 dof); [0, 1e6]; 0 = off */
+    float p0;              /**< initial variance of each angle, rad^2; [1e-6, p_max] */
+    float p0_bias;         /**< initial variance of each bias component, (rad/s)^2; [1e-20, p_max] */
+    float p_max;           /**< cap on each variance (numeric guard); [1e-6, 1e6] */
+    float gravity;         /**< g, m/s^2; [1, 100] */
+    float accel_reject;    /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
+    float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
+    float gyro_range;      /**< any |w_i| above this: prediction with w = 0, rad/s; (0, 1e3] */
+    float cos_min;         /**< guard on |cos(theta)|; (0, 1) */
+    float tau_acc_lp;      /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    bool init_from_accel;  /**< take roll/pitch from the first usable accel sample (yaw 0) */
+    att_vec3_t euler_init; /**< start angles without init_from_accel, rad; |phi|, |psi| <= 8192, |theta| <= pi/2 */
+    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+    bool noise_rates;      /**< true: q_* rates (Q = q dt), r_* densities (R = r / dt); false: per step */
 } att_ekf_settings_t;
 
-/** State of one Euler EKF instance (no heap; copy freely). */
+/** Coefficients derived from the settings by att_ekf_init: what a step needs, and the reset values. */
 typedef struct {
-    att_ekf_settings_t s; /**< validated copy of the settings */
-    float q_step[3];      /**< process noise variances added per step (phi, theta, psi), rad^2 */
-    float r_step[2];      /**< measurement noise variances of one sample (phi, theta), rad^2 */
+    float dt;               /**< sample period, s */
+    float q_step[4];        /**< process noise added per step: phi, theta, psi, each bias component */
+    float r_step[2];        /**< measurement noise of one sample (roll, pitch), before the adaptive factor */
+    float r_accel;          /**< growth of R with (|a|/g - 1)^2 */
+    float gate;             /**< chi-square gate (0 = off) */
+    float soft;             /**< gate / 4 */
+    float p0;               /**< angle variance after reset, rad^2 */
+    float p0_bias;          /**< bias variance after reset, (rad/s)^2 */
+    float p_max;            /**< cap on each variance */
+    float gravity;          /**< g, m/s^2 */
+    float accel_reject;     /**< ||a|/g - 1| limit (0 = never) */
+    float accel_range2;     /**< saturation limit of |a|^2, (m/s^2)^2 */
+    float gyro_range;       /**< saturation limit of |w_i|, rad/s */
+    float cos_min;          /**< guard on |cos(theta)| */
+    float k_lp;             /**< per-sample gain of each accel low-pass stage (0 = off) */
+    att_vec3_t euler_init;  /**< angles after reset without init_from_accel, rad (wrapped) */
+    att_vec3_t bias_init;   /**< bias after reset, rad/s */
+    bool init_from_accel;   /**< wait for the first usable accel sample */
+    bool lp_on;             /**< k_lp > 0 */
+    bool need_norm;         /**< |a| is needed (r_accel or accel_reject set) */
+} att_ekf_coeffs_t;
+
+/** Dynamic state of an Euler EKF instance. */
+typedef struct {
     att_vec3_t euler;     /**< (phi, theta, psi), rad, ZYX sensor-to-earth (ENU) */
-    att_quat_t q;         /**< att_quat_from_euler(euler), sensor-to-earth */
-    float p[3][3];        /**< error covariance of (phi, theta, psi), rad^2, symmetric */
-    bool initialised;     /**< euler holds a valid attitude */
+    att_vec3_t bias;      /**< gyro bias estimate, rad/s, sensor frame */
+    float p[21];          /**< covariance of (phi, theta, psi, b_x, b_y, b_z): upper triangle row by row */
+    att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
+    att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
+    bool initialised;     /**< euler holds a valid attitude */
+} att_ekf_state_t;
+
+/** One Euler EKF instance (no heap; copy freely). */
+typedef struct {
+    att_ekf_coeffs_t c; /**< derived from the settings at init / retune */
+    att_ekf_state_t st; /**< changes every step */
 } att_ekf_t;
 
-/** Default settings for sample period dt (s): rate noises (above), P0 = I, accel_reject 0.1. */
+/** Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md), rate-independent. */
 void att_ekf_settings_default(att_ekf_settings_t *settings, float dt);
 /** ATT_OK when every field is within its range, else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
 att_status_t att_ekf_settings_validate(const att_ekf_settings_t *settings);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings);
-/** New settings (noises, limits), the angles and covariance kept; on error f is unchanged. */
+/** New settings (noises, limits), the angles, bias and covariance kept; on error f is unchanged. */
 att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings);
 /** Back to the state right after att_ekf_init, keeping the settings. */
 void att_ekf_reset(att_ekf_t *f);

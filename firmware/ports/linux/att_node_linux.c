@@ -16,6 +16,10 @@
  * file is compiled with the firmware flags plus -std=gnu99 (the socket headers need the GNU/BSD
  * definitions such as struct ifreq); see the `node` target of the Makefile.
  *
+ * A full tx queue (ENOBUFS, e.g. a bus that cannot keep up or a held qdisc) is waited out: no output
+ * is dropped, the inputs wait in the socket's receive buffer. An interface that goes down or is
+ * removed stops the node with a message naming it.
+ *
  * Exit status: 0 on a clean stop, 1 on a socket or runtime error, 2 on a usage or settings error.
  */
 #include <errno.h>
@@ -68,8 +72,19 @@ typedef struct {
     unsigned long long rx_ignored; /* extended, remote or error frames: not attica's */
     unsigned long long rx_rejected; /* att_node_rx returned false (ring full) */
     unsigned long long tx_retries;  /* write() had to wait for buffer space */
+    unsigned long long tx_full;     /* episodes of a full tx queue (ENOBUFS / EAGAIN): waited, nothing lost */
     unsigned long long steps;
 } port_stats_t;
+
+static const char *g_channel = "";
+
+/** A clear message for an interface that went down or disappeared (errno ENODEV / ENETDOWN / ENXIO). */
+static int iface_gone(int err) {
+    if (err != ENODEV && err != ENETDOWN && err != ENXIO) return 0;
+    fprintf(stderr, PROG ": error: CAN interface '%s' %s (%s): stopping\n", g_channel,
+            err == ENETDOWN ? "went down" : "was removed", strerror(err));
+    return 1;
+}
 
 static void usage(FILE *to) {
     fprintf(to,
@@ -255,11 +270,16 @@ static int open_socket(const options_t *o) {
     return s;
 }
 
-/** Write one frame, waiting (up to 1 s in total) while the socket's send buffer is full. */
+/**
+ * Write one frame. While the interface's tx queue or the socket's send buffer is full (ENOBUFS,
+ * EAGAIN) wait and retry for as long as it takes: the frame is kept, and the inputs wait in the
+ * socket's receive buffer meanwhile (the core never drops an output). A warning is printed once per
+ * episode. Stops on SIGINT/SIGTERM, or with a clear message when the interface goes away.
+ */
 static int send_frame(int s, const att_can_frame_t *f, int fd_mode, port_stats_t *st) {
     struct canfd_frame out;
     size_t size;
-    int waited_ms = 0;
+    int waiting = 0;
     memset(&out, 0, sizeof out);
     out.can_id = f->id & CAN_SFF_MASK;
     out.len = f->len;
@@ -275,22 +295,32 @@ static int send_frame(int s, const att_can_frame_t *f, int fd_mode, port_stats_t
         ssize_t n = write(s, &out, size);
         if (n == (ssize_t)size) {
             st->tx_frames++;
+            if (waiting) {
+                fprintf(stderr, PROG ": tx queue of '%s' has room again: sending\n", g_channel);
+            }
             return 0;
         }
-        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) && waited_ms < 1000) {
+        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
             struct pollfd p;
+            if (!waiting) {
+                waiting = 1;
+                st->tx_full++;
+                fprintf(stderr, PROG ": warning: tx queue of '%s' is full (%s): waiting, no output is dropped\n",
+                        g_channel, strerror(errno));
+            }
+            if (g_stop) return -1;
             p.fd = s;
             p.events = POLLOUT;
             p.revents = 0;
             st->tx_retries++;
             (void)poll(&p, 1, 1);
-            waited_ms += 1;
             continue;
         }
         if (n < 0 && errno == EINTR) {
             if (g_stop) return -1;
             continue;
         }
+        if (n < 0 && iface_gone(errno)) return -1;
         fprintf(stderr, PROG ": error: write to CAN socket failed: %s\n", n < 0 ? strerror(errno) : "short write");
         return -1;
     }
@@ -307,9 +337,9 @@ static int flush_tx(int s, att_node_t *node, int fd_mode, port_stats_t *st) {
 
 static void print_stats(const att_node_t *node, const port_stats_t *st) {
     printf(PROG ": stats: steps=%llu rx_frames=%llu tx_frames=%llu ignored=%llu rx_rejected=%llu "
-           "tx_retries=%llu | node: rx_frames=%lu crc_errors=%lu counter_gaps=%lu dlc_errors=%lu "
+           "tx_retries=%llu tx_full=%llu | node: rx_frames=%lu crc_errors=%lu counter_gaps=%lu dlc_errors=%lu "
            "unknown_ids=%lu duplicates=%lu stale_partials=%lu rx_overflows=%lu tx_overflows=%lu steps=%lu\n",
-           st->steps, st->rx_frames, st->tx_frames, st->rx_ignored, st->rx_rejected, st->tx_retries,
+           st->steps, st->rx_frames, st->tx_frames, st->rx_ignored, st->rx_rejected, st->tx_retries, st->tx_full,
            (unsigned long)node->stats.rx_frames, (unsigned long)node->stats.crc_errors,
            (unsigned long)node->stats.counter_gaps, (unsigned long)node->stats.dlc_errors,
            (unsigned long)node->stats.unknown_ids, (unsigned long)node->stats.duplicates,
@@ -363,6 +393,7 @@ int main(int argc, char **argv) {
         return 2;
     }
 
+    g_channel = o.channel;
     s = open_socket(&o);
     if (s < 0) return 1;
 
@@ -396,7 +427,13 @@ int main(int argc, char **argv) {
         }
         if (r == 0) continue;
         if (p.revents & (POLLERR | POLLHUP | POLLNVAL)) {
-            fprintf(stderr, PROG ": error: CAN socket error (interface '%s' down or removed?)\n", o.channel);
+            int err = 0;
+            socklen_t len = sizeof err;
+            (void)getsockopt(s, SOL_SOCKET, SO_ERROR, &err, &len);
+            if (!iface_gone(err)) {
+                fprintf(stderr, PROG ": error: CAN socket error on '%s': %s\n", o.channel,
+                        err ? strerror(err) : "poll reported an error");
+            }
             rc = 1;
             break;
         }
@@ -407,7 +444,7 @@ int main(int argc, char **argv) {
             ssize_t n = read(s, &in, sizeof in);
             if (n < 0) {
                 if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) break;
-                fprintf(stderr, PROG ": error: read from CAN socket failed: %s\n", strerror(errno));
+                if (!iface_gone(errno)) fprintf(stderr, PROG ": error: read from CAN socket failed: %s\n", strerror(errno));
                 rc = 1;
                 break;
             }

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import os
+import re
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -27,6 +28,15 @@ LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
 """Log formats read and written (by python-can)."""
 
 _FD_LENGTHS = frozenset({0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64})
+
+_CANDUMP_LINE = re.compile(
+    r"\(\d+(?:\.\d*)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#"
+    r"(?:[Rr]\d?|#[0-9A-Fa-f](?:[0-9A-Fa-f]{2})*|(?:[0-9A-Fa-f]{2})*)(?:\s+[RTrt])?"
+)
+"""A candump -L line: ``(seconds) channel ID#DATA`` with whole bytes of hex (``ID##<flags>DATA`` for
+CAN FD, ``ID#R[dlc]`` for a remote frame), optionally ``R``/``T`` for the direction. python-can's reader
+is lenient (an odd number of hex digits gives a frame whose dlc disagrees with its data, a timestamp
+without parentheses or a ``+`` in the data is taken), so each line is matched against this first."""
 
 
 class LogError(Exception):
@@ -121,6 +131,11 @@ def _read_candump(p: Path) -> Iterator[can.Message]:
                     f"{p}:{lines.lineno}: bad log line {lines.line[:80]!r}: {why} "
                     "(expected '(timestamp) channel ID#DATA', the candump -L format)"
                 ) from None
+            if not _CANDUMP_LINE.fullmatch(lines.line):
+                raise LogError(
+                    f"{p}:{lines.lineno}: bad log line {lines.line[:80]!r}: not in the candump -L format "
+                    "(expected '(timestamp) channel ID#DATA' with two hex digits per data byte)"
+                )
             why = _problem(msg)
             if why:
                 raise LogError(f"{p}:{lines.lineno}: bad log line {lines.line[:80]!r}: {why}")

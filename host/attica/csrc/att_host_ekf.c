@@ -5,13 +5,12 @@
 #include "att_host_ekf.h"
 
 size_t att_host_ekf_run(att_ekf_t *f, size_t m, const float *gyr, const float *acc, size_t steps,
-                        float *euler, float *quat, float *cov, uint32_t *flags)
+                        float *euler, float *bias, float *cov, uint32_t *flags)
 {
     size_t k;
     size_t i;
     size_t r;
     size_t a;
-    size_t b;
     att_vec3_t g;
     att_vec3_t s;
     uint32_t fl;
@@ -32,21 +31,18 @@ size_t att_host_ekf_run(att_ekf_t *f, size_t m, const float *gyr, const float *a
                 flags[r] = fl;
             }
             if (euler != NULL) {
-                euler[3u * r] = f[i].euler.x;
-                euler[3u * r + 1u] = f[i].euler.y;
-                euler[3u * r + 2u] = f[i].euler.z;
+                euler[3u * r] = f[i].st.euler.x;
+                euler[3u * r + 1u] = f[i].st.euler.y;
+                euler[3u * r + 2u] = f[i].st.euler.z;
             }
-            if (quat != NULL) {
-                quat[4u * r] = f[i].q.w;
-                quat[4u * r + 1u] = f[i].q.x;
-                quat[4u * r + 2u] = f[i].q.y;
-                quat[4u * r + 3u] = f[i].q.z;
+            if (bias != NULL) {
+                bias[3u * r] = f[i].st.bias.x;
+                bias[3u * r + 1u] = f[i].st.bias.y;
+                bias[3u * r + 2u] = f[i].st.bias.z;
             }
             if (cov != NULL) {
-                for (a = 0u; a < 3u; a++) {
-                    for (b = 0u; b < 3u; b++) {
-                        cov[9u * r + 3u * a + b] = f[i].p[a][b];
-                    }
+                for (a = 0u; a < 21u; a++) {
+                    cov[21u * r + a] = f[i].st.p[a];
                 }
             }
         }

@@ -66,7 +66,9 @@ StateSpec = dict[str, str]
 A path is a member name of the kind's C struct, dotted for nested members (``"st.q"`` is ``f.st.q``
 in C and ``self.q`` in the reference). Layouts: ``quat`` (w,x,y,z tuple of (n,) float32), ``vec3``
 (x,y,z tuple), ``f32``, ``u32``, ``bool``,
-``f32xN`` (tuple of N (n,) float32 arrays from a C ``float[N]`` or ``float[a][b]`` field).
+``f32xN`` (tuple of N (n,) float32 arrays from a C ``float[N]`` or ``float[a][b]`` field). A layout
+may name the reference attribute after a colon when it differs from the path's last part
+(``"c.bias.mode": "u32:bias_mode"``).
 """
 
 _QUAT_KEYS = ("w", "x", "y", "z")
@@ -74,6 +76,7 @@ _VEC_KEYS = ("x", "y", "z")
 
 
 def _c_values(layout: str, value: Any) -> list[Any]:
+    layout = layout.partition(":")[0]
     if layout == "quat":
         return [getattr(value, k) for k in _QUAT_KEYS]
     if layout == "vec3":
@@ -112,15 +115,16 @@ def _c_field(c_state: Any, path: str) -> Any:
     return c_state
 
 
-def _ref_name(path: str) -> str:
-    return path.rsplit(".", 1)[-1]
+def _ref_name(path: str, layout: str = "") -> str:
+    alias = layout.partition(":")[2]
+    return alias or path.rsplit(".", 1)[-1]
 
 
 def load_c_state(obj: Any, spec: StateSpec, i: int, c_state: Any) -> None:
     """Set instance ``i`` of reference object ``obj`` from a cffi C state struct."""
     for name, layout in spec.items():
         vals = _c_values(layout, _c_field(c_state, name))
-        arrays = _arrays(getattr(obj, _ref_name(name)))
+        arrays = _arrays(getattr(obj, _ref_name(name, layout)))
         if len(arrays) != len(vals):
             raise ValueError(f"state field {name}: {len(arrays)} reference arrays, {len(vals)} C values")
         for arr, v in zip(arrays, vals):
@@ -130,8 +134,8 @@ def load_c_state(obj: Any, spec: StateSpec, i: int, c_state: Any) -> None:
 def state_values(obj: Any, spec: StateSpec, i: int) -> list[Any]:
     """Instance ``i``'s state as a flat list (numpy scalars), in spec order."""
     out: list[Any] = []
-    for name in spec:
-        out.extend(a[i] for a in _arrays(getattr(obj, _ref_name(name))))
+    for name, layout in spec.items():
+        out.extend(a[i] for a in _arrays(getattr(obj, _ref_name(name, layout))))
     return out
 
 
@@ -153,6 +157,6 @@ def _deep_copy(value: Any) -> Any:
 
 def carry_state(old: Any, new: Any) -> None:
     """Copy the state attributes (``old.STATE``) of reference filter ``old`` into ``new`` (a retune)."""
-    for path in old.STATE:
-        name = _ref_name(path)
+    for path, layout in old.STATE.items():
+        name = _ref_name(path, layout)
         setattr(new, name, _deep_copy(getattr(old, name)))

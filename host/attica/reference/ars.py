@@ -60,10 +60,27 @@ class Ars:
         "c.dt": "f32",
         "c.k": "f32",
         "c.k_lp": "f32",
+        "c.gain_c": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
+        "c.bias.mode": "u32:bias_mode",
+        "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
+        "c.bias.rest_gyro2": "f32",
+        "c.bias.acc2_lo": "f32",
+        "c.bias.acc2_hi": "f32",
+        "c.q_init": "quat",
+        "c.bias_init": "vec3",
+        "c.integration": "u32",
+        "c.init_from_accel": "bool",
+        "c.lp_on": "bool",
+        "c.reject_on": "bool",
         "c.full": "bool",
     }
-    """C coefficients computed by att_ars_init that this class derives itself (compared by the tests)."""
+    """Every C coefficient of att_ars_coeffs_t (set by att_ars_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: ArsSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else ArsSettings()
@@ -81,6 +98,9 @@ class Ars:
         self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.bias_init = split3(s.bias_init, n)
+        self.bias_init = dm.vec3_where(  # as c.bias_init: zero when the bias is OFF
+            self.bias_mode == BiasMode.OFF, (np.zeros(n, np.float32),) * 3, self.bias_init
+        )
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
         self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
@@ -95,6 +115,7 @@ class Ars:
             setting(s.q_init[2], n),
             setting(s.q_init[3], n),
         )
+        _, self.q_init = dm.quat_normalize(self.q_init)  # as c.q_init: normalised once, at init
         with np.errstate(all="ignore"):
             self.k = np.where(tau > dm.ZERO, self.dt / (tau + self.dt), gain).astype(np.float32)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
@@ -102,12 +123,15 @@ class Ars:
         with np.errstate(all="ignore"):
             self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
         self.full = (self.k == dm.ONE) & (self.gain_c == dm.ZERO)
+        self.lp_on = self.k_lp > dm.ZERO
+        self.reject_on = self.accel_reject > dm.ZERO
         self.reset()
 
     def reset(self) -> None:
         """Back to the state after construction (att_ars_reset)."""
         n = self.n
-        _, self.q = dm.quat_normalize(self.q_init)
+        qi = self.q_init
+        self.q = (qi[0].copy(), qi[1].copy(), qi[2].copy(), qi[3].copy())
         off = self.bias_mode == BiasMode.OFF
         self.bias = dm.vec3_where(off, dm.vec3(np.zeros(n), np.zeros(n), np.zeros(n)), self.bias_init)
         self.bias_n = np.zeros(n, np.uint32)

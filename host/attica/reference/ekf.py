@@ -1,4 +1,7 @@
-"""Mirror of firmware/src/att_ekf.c: the Euler-angle extended Kalman filter, many instances in lockstep."""
+"""Mirror of firmware/src/att_ekf.c: the Euler-angle EKF with gyro bias states, instances in lockstep.
+
+P is kept as the 21 elements of the packed upper triangle (att_ekf_state_t.p), each an (n,) array.
+"""
 
 from __future__ import annotations
 
@@ -10,108 +13,130 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference.ars import align_up
 from attica.settings import EkfSettings, Flag
 
 _U0 = np.uint32(0)
-_PI = dm.c("0x1.921fb6p+1")
-_PIO2 = dm.c("0x1.921fb6p+0")
-_PIVOT_MIN = dm.c("0x1p-12")
-_SHRINK = dm.c("0x1.ff8p-1")
+PI = dm.c("0x1.921fb6p+1")
+PIO2 = dm.c("0x1.921fb6p+0")
+TWOPI_HI = dm.c("0x1.921fb6p+2")
+TWOPI_LO = dm.c("-0x1.777a5cp-23")
+PIVOT_MIN = dm.c("0x1p-12")
+SHRINK = dm.c("0x1.ff8p-1")
+QUARTER = dm.c("0x1p-2")
+THIRD = dm.c("0x1.555556p-2")
+COND_MASK = np.uint32(15)
 
-Mat = list[list[Any]]
-"""A 3x3 matrix as rows of float32 (n,) arrays."""
+_IX = [
+    [0, 1, 2, 3, 4, 5],
+    [1, 6, 7, 8, 9, 10],
+    [2, 7, 11, 12, 13, 14],
+    [3, 8, 12, 15, 16, 17],
+    [4, 9, 13, 16, 18, 19],
+    [5, 10, 14, 17, 19, 20],
+]
+"""att_ekf_ix: packed index of element (i, j) of the symmetric 6x6 P."""
 
 
 def _u(flag: Flag) -> np.uint32:
     return np.uint32(flag.value)
 
 
-def _mul(a: Mat, b: Mat) -> Mat:
-    """att_ekf_mul: a b, each element ((a_i0 b_0j + a_i1 b_1j) + a_i2 b_2j)."""
-    return [[a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j] for j in range(3)] for i in range(3)]
+def _wrap(a: Any) -> Any:
+    """att_ekf_wrap: one 2 pi step for small excursions, att_wrap_pi beyond."""
+    with np.errstate(all="ignore"):
+        a = np.where(a > PI, (a - TWOPI_HI) - TWOPI_LO, np.where(a <= -PI, (a + TWOPI_HI) + TWOPI_LO, a))
+        far = (a > PI) | (a <= -PI)
+        return np.where(far, dm.wrap_pi(a), a).astype(np.float32)
 
 
-def _mul_t_sym(t: Mat, m: Mat) -> Mat:
-    """att_ekf_mul_t_sym: upper triangle of t m^T, mirrored to the lower triangle."""
-    out: Mat = [[None, None, None] for _ in range(3)]
-    for i in range(3):
-        for j in range(i, 3):
-            out[i][j] = t[i][0] * m[j][0] + t[i][1] * m[j][1] + t[i][2] * m[j][2]
-            out[j][i] = out[i][j]
-    return out
+def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any]]:
+    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped."""
+    ex, ey, ez = e
+    ey = _wrap(ey)
+    flip = (ey > PIO2) | (ey < -PIO2)
+    ey = np.where(flip, np.where(ey > dm.ZERO, PI, -PI) - ey, ey)
+    ex = np.where(flip, ex + PI, ex)
+    ez = np.where(flip, ez + PI, ez)
+    p = list(p)
+    for k in range(6):
+        if k != 1:
+            i = _IX[1][k]
+            p[i] = np.where(flip, -p[i], p[i])
+    return (_wrap(ex), ey.astype(np.float32), _wrap(ez)), p
 
 
-def _mat_where(cond: Any, a: Mat, b: Mat) -> Mat:
-    return [[np.where(cond, a[i][j], b[i][j]) for j in range(3)] for i in range(3)]
+def _usable(p: list[Any]) -> Any:
+    """att_ekf_p_usable: the sum of the 21 elements finite and every variance > 0."""
+    with np.errstate(all="ignore"):
+        s = p[0]
+        for i in range(1, 21):
+            s = s + p[i]
+        return (
+            dm.isfinitef(s)
+            & (p[0] > dm.ZERO)
+            & (p[6] > dm.ZERO)
+            & (p[11] > dm.ZERO)
+            & (p[15] > dm.ZERO)
+            & (p[18] > dm.ZERO)
+            & (p[20] > dm.ZERO)
+        )
 
 
-def _mat_finite(p: Mat) -> Any:
-    ok = dm.isfinitef(p[0][0])
-    for i in range(3):
-        for j in range(3):
-            ok = ok & dm.isfinitef(p[i][j])
-    return ok
+def _pd_ok(p: list[Any]) -> Any:
+    """att_ekf_pd_ok: L D L^T pivots d_0 > 0, d_i > 2^-12 P_ii.
+
+    The C loop stops at the first failure; here the test of each pivot is accumulated, which gives the
+    same answer.
+    """
+    with np.errstate(all="ignore"):
+        ok = np.ones(np.shape(p[0]), np.bool_)
+        lo: dict[tuple[int, int], Any] = {}
+        d: list[Any] = []
+        for j in range(6):
+            dj = p[_IX[j][j]]
+            for k in range(j):
+                dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
+            limit = dm.ZERO if j == 0 else PIVOT_MIN * p[_IX[j][j]]
+            ok = ok & (dj > limit)
+            d.append(dj)
+            for i in range(j + 1, 6):
+                v = p[_IX[i][j]]
+                for k in range(j):
+                    v = v - (lo[(i, k)] * lo[(j, k)]) * d[k]
+                lo[(i, j)] = v / dj
+        return ok
 
 
-def _canon(e: dm.Vec3, p: Mat) -> tuple[dm.Vec3, Mat]:
-    """att_ekf_canon: theta wrapped and brought into [-pi/2, pi/2], phi and psi wrapped; P follows."""
-    ey = dm.wrap_pi(e[1])
-    over = ey > _PIO2
-    under = ey < -_PIO2
-    flip = over | under
-    ey = np.where(over, _PI - ey, np.where(under, -_PI - ey, ey))
-    ex = np.where(flip, e[0] + _PI, e[0])
-    ez = np.where(flip, e[2] + _PI, e[2])
-    out = [list(row) for row in p]
-    for i, j in ((0, 1), (1, 0), (1, 2), (2, 1)):
-        out[i][j] = np.where(flip, -p[i][j], p[i][j])
-    return (dm.wrap_pi(ex), ey, dm.wrap_pi(ez)), out
-
-
-def _cap(p: Mat, p_max: Any) -> tuple[Mat, Any]:
-    """att_ekf_cap: (P, capped); the congruence D P D (d = 1 leaves the bits unchanged)."""
-    over = [p[i][i] > p_max for i in range(3)]
-    d = [np.where(over[i], dm.sqrtf(p_max / p[i][i]), dm.ONE) for i in range(3)]
-    out: Mat = [[None, None, None] for _ in range(3)]
-    for i in range(3):
-        for j in range(i, 3):
-            out[i][j] = p[i][j] * d[i] * d[j]
-            out[j][i] = out[i][j]
-    return out, over[0] | over[1] | over[2]
-
-
-def _pd_ok(p: Mat) -> Any:
-    """att_ekf_pd_ok: L D L^T pivots positive with a relative margin."""
-    d0 = p[0][0]
-    l10 = p[1][0] / d0
-    d1 = p[1][1] - l10 * p[1][0]
-    l20 = p[2][0] / d0
-    e21 = p[2][1] - l20 * p[1][0]
-    l21 = e21 / d1
-    d2 = p[2][2] - l20 * p[2][0] - l21 * e21
-    return (d0 > dm.ZERO) & (d1 > _PIVOT_MIN * p[1][1]) & (d2 > _PIVOT_MIN * p[2][2])
-
-
-def _shrink(p: Mat, s: Any) -> Mat:
-    """att_ekf_shrink: off-diagonal elements times s."""
-    p01 = p[0][1] * s
-    p02 = p[0][2] * s
-    p12 = p[1][2] * s
-    return [[p[0][0], p01, p02], [p01, p[1][1], p12], [p02, p12, p[2][2]]]
-
-
-def _condition(p: Mat, p_max: Any) -> tuple[Mat, Any]:
-    """att_ekf_condition: (P, flags); NUMERIC means the caller discards the stage."""
-    numeric = ~_mat_finite(p) | ~(p[0][0] > dm.ZERO) | ~(p[1][1] > dm.ZERO) | ~(p[2][2] > dm.ZERO)
-    pc, capped = _cap(p, p_max)
-    ok1 = _pd_ok(pc)
-    p1 = _shrink(pc, _SHRINK)
-    ok2 = _pd_ok(p1)
-    p2 = _shrink(p1, dm.ZERO)
-    out = _mat_where(ok1, pc, _mat_where(ok2, p1, p2))
-    clamped = capped | ~ok1
-    flags = np.where(numeric, _u(Flag.NUMERIC), np.where(clamped, _u(Flag.CLAMPED), _U0))
-    return out, flags
+def _condition(p: list[Any], p_max: Any) -> tuple[list[Any], Any]:
+    """att_ekf_condition: (P, changed) with the cap, the PD test and the correlation repair."""
+    with np.errstate(all="ignore"):
+        dd = []
+        capped = np.zeros(np.shape(p[0]), np.bool_)
+        for i in range(6):
+            v = p[_IX[i][i]]
+            over = v > p_max
+            dd.append(np.where(over, dm.sqrtf(p_max / v), dm.ONE))
+            capped = capped | over
+        q = list(p)
+        for i in range(6):
+            for j in range(i, 6):
+                k = _IX[i][j]
+                q[k] = np.where(capped, (p[k] * dd[i]) * dd[j], p[k])
+        ok = _pd_ok(q)
+        shr = list(q)
+        for i in range(6):
+            for j in range(i + 1, 6):
+                k = _IX[i][j]
+                shr[k] = q[k] * SHRINK
+        ok2 = _pd_ok(shr)
+        out = []
+        for idx in range(21):
+            diag = idx in (0, 6, 11, 15, 18, 20)
+            zero = np.zeros(np.shape(p[0]), np.float32)
+            repaired = shr[idx] if diag else np.where(ok2, shr[idx], zero)
+            out.append(np.where(ok, q[idx], repaired).astype(np.float32))
+        return out, capped | ~ok
 
 
 class Ekf:
@@ -121,165 +146,329 @@ class Ekf:
     """
 
     STATE: StateSpec = {
-        "euler": "vec3",
-        "q": "quat",
-        "p": "f32x9",
-        "initialised": "bool",
-        "steps": "u32",
-        "flags": "u32",
+        "st.euler": "vec3",
+        "st.bias": "vec3",
+        "st.p": "f32x21",
+        "st.lp1": "vec3",
+        "st.lp2": "vec3",
+        "st.steps": "u32",
+        "st.flags": "u32",
+        "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+
+    COEFFS: StateSpec = {
+        "c.dt": "f32",
+        "c.q_step": "f32x4",
+        "c.r_step": "f32x2",
+        "c.r_accel": "f32",
+        "c.gate": "f32",
+        "c.soft": "f32",
+        "c.p0": "f32",
+        "c.p0_bias": "f32",
+        "c.p_max": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
+        "c.cos_min": "f32",
+        "c.k_lp": "f32",
+        "c.euler_init": "vec3",
+        "c.bias_init": "vec3",
+        "c.init_from_accel": "bool",
+        "c.lp_on": "bool",
+        "c.need_norm": "bool",
+    }
+    """Every C coefficient of att_ekf_coeffs_t (set by att_ekf_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: EkfSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else EkfSettings()
         self.settings = s
         self.n = n
         self.dt = setting(s.dt, n)
-        # att_ekf_init: per-step variances (q_step, r_step); with noise_rates the settings are rates
         rates = setting(s.noise_rates, n, np.bool_)
+        dq = np.where(rates, self.dt, dm.ONE).astype(np.float32)
+        self.q_step = (
+            setting(s.q_phi, n) * dq,
+            setting(s.q_theta, n) * dq,
+            setting(s.q_psi, n) * dq,
+            setting(s.q_bias, n) * dq,
+        )
         with np.errstate(all="ignore"):
-            q_phi = setting(s.q_phi, n)
-            q_theta = setting(s.q_theta, n)
-            q_psi = setting(s.q_psi, n)
-            r_phi = setting(s.r_phi, n)
-            r_theta = setting(s.r_theta, n)
-            self.q_phi = np.where(rates, q_phi * self.dt, q_phi).astype(np.float32)
-            self.q_theta = np.where(rates, q_theta * self.dt, q_theta).astype(np.float32)
-            self.q_psi = np.where(rates, q_psi * self.dt, q_psi).astype(np.float32)
-            self.r_phi = np.where(rates, r_phi / self.dt, r_phi).astype(np.float32)
-            self.r_theta = np.where(rates, r_theta / self.dt, r_theta).astype(np.float32)
+            self.r_step = (setting(s.r_phi, n) / dq, setting(s.r_theta, n) / dq)
+        self.r_accel = setting(s.r_accel, n)
+        self.gate = setting(s.gate, n)
+        self.soft = self.gate * QUARTER
         self.p0 = setting(s.p0, n)
+        self.p0_bias = setting(s.p0_bias, n)
         self.p_max = setting(s.p_max, n)
         self.gravity = setting(s.gravity, n)
         self.accel_reject = setting(s.accel_reject, n)
-        self.accel_range = setting(s.accel_range, n)
+        acc_range = setting(s.accel_range, n)
+        self.accel_range2 = acc_range * acc_range
         self.gyro_range = setting(s.gyro_range, n)
         self.cos_min = setting(s.cos_min, n)
+        tau_lp = setting(s.tau_acc_lp, n)
+        with np.errstate(all="ignore"):
+            self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
+        ei = split3(s.euler_init, n)
+        self.euler_init: dm.Vec3 = (dm.wrap_pi(ei[0]), ei[1], dm.wrap_pi(ei[2]))
+        self.bias_init = split3(s.bias_init, n)
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
-        self.euler_init = split3(s.euler_init, n)
+        self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
+        self.lp_on = self.k_lp > dm.ZERO
+        self._zeros = np.zeros(n, np.float32)
         self.reset()
 
     def reset(self) -> None:
-        """Back to the state after construction (att_ekf_reset)."""
-        n = self.n
-        e0 = self.euler_init
-        self.euler: dm.Vec3 = (dm.wrap_pi(e0[0]), e0[1].copy(), dm.wrap_pi(e0[2]))
-        self.q = dm.quat_from_euler(*self.euler)
-        zero = np.zeros(n, np.float32)
-        self.p: Mat = [[self.p0.copy() if i == j else zero.copy() for j in range(3)] for i in range(3)]
+        """att_ekf_reset."""
+        z = self._zeros
+        self.euler: dm.Vec3 = tuple(np.copy(v) for v in self.euler_init)  # type: ignore[assignment]
+        self.bias: dm.Vec3 = tuple(np.copy(v) for v in self.bias_init)  # type: ignore[assignment]
+        p = [z.copy() for _ in range(21)]
+        for i in (0, 6, 11):
+            p[i] = self.p0.copy()
+        for i in (15, 18, 20):
+            p[i] = self.p0_bias.copy()
+        self.p: list[Any] = p
+        self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
+        self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
+        self.steps = np.zeros(self.n, np.uint32)
+        self.flags = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
-        self.steps = np.zeros(n, np.uint32)
-        self.flags = np.zeros(n, np.uint32)
 
-    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[dm.Vec3, Mat, Any]:
-        """att_ekf_predict: (euler, P, flags) after the prediction (state kept on NUMERIC)."""
+    def _guard(self, c: Any) -> tuple[Any, Any]:
+        small = dm.absf(c) < self.cos_min
+        return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
+
+    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, dm.Vec3, list[Any], Any]:
+        """att_ekf_predict: (ok, angles, P, flags) of the prediction."""
         dt = self.dt
-        phi, theta, psi = self.euler
-        p, q, r = w
-        sphi = dm.sinf(phi)
-        cphi = dm.cosf(phi)
-        sth = dm.sinf(theta)
-        cth = dm.cosf(theta)
-        gimbal = dm.absf(cth) < self.cos_min
-        cth = np.where(gimbal, np.where(cth < dm.ZERO, -self.cos_min, self.cos_min), cth)
-        flags = np.where(gimbal & gyro_ok, _u(Flag.GIMBAL), _U0)
-        tth = sth / cth
-        sec = dm.ONE / cth
-        ex = phi + (p + sphi * tth * q + cphi * tth * r) * dt
-        ey = theta + (cphi * q - sphi * r) * dt
-        ez = psi + (sphi / cth * q + cphi / cth * r) * dt
-        u = sphi * q + cphi * r
-        v = cphi * q - sphi * r
-        zero = np.zeros(self.n, np.float32)
-        one = np.full(self.n, dm.ONE, np.float32)
-        a: Mat = [
-            [dm.ONE + dt * (v * tth), dt * (u * sec * sec), zero],
-            [-(dt * u), one, zero],
-            [dt * (v * sec), dt * (u * sec * tth), one],
-        ]
-        pp = _mul_t_sym(_mul(a, self.p), a)
-        pp[0][0] = pp[0][0] + self.q_phi
-        pp[1][1] = pp[1][1] + self.q_theta
-        pp[2][2] = pp[2][2] + self.q_psi
-        e, pp = _canon((ex, ey, ez), pp)
-        pp, cond = _condition(pp, self.p_max)
-        ok = dm.vec3_isfinite(e) & (cond != _u(Flag.NUMERIC))
-        flags = flags | np.where(ok, cond, _u(Flag.NUMERIC))
-        return dm.vec3_where(ok, e, self.euler), _mat_where(ok, pp, self.p), flags
+        p = self.p
+        ex0, ey0, ez0 = self.euler
+        wx, wy, wz = w
+        with np.errstate(all="ignore"):
+            sphi = dm.sinf(ex0)
+            cphi = dm.cosf(ex0)
+            sth = dm.sinf(ey0)
+            cth, gim = self._guard(dm.cosf(ey0))
+            flags = np.where(gim & gyro_ok, _u(Flag.GIMBAL), _U0)
+            tth = sth / cth
+            sec = dm.ONE / cth
+            hdt = dt * dm.HALF
+            xm = ex0 + (wx + sphi * tth * wy + cphi * tth * wz) * hdt
+            ym = ey0 + (cphi * wy - sphi * wz) * hdt
+            sm = dm.sinf(xm)
+            cm = dm.cosf(xm)
+            stm = dm.sinf(ym)
+            ctm, _ = self._guard(dm.cosf(ym))
+            ttm = stm / ctm
+            secm = dm.ONE / ctm
+            e = (
+                ex0 + (wx + sm * ttm * wy + cm * ttm * wz) * dt,
+                ey0 + (cm * wy - sm * wz) * dt,
+                ez0 + (sm * secm * wy + cm * secm * wz) * dt,
+            )
+            u = sphi * wy + cphi * wz
+            v = cphi * wy - sphi * wz
+            a00 = dm.ONE + dt * (v * tth)
+            a01 = dt * (u * sec * sec)
+            a10 = -(dt * u)
+            a20 = dt * (v * sec)
+            a21 = dt * (u * sec * tth)
+            b00 = -dt
+            b01 = -(dt * (sphi * tth))
+            b02 = -(dt * (cphi * tth))
+            b11 = -(dt * cphi)
+            b12 = dt * sphi
+            b21 = -(dt * (sphi * sec))
+            b22 = -(dt * (cphi * sec))
 
-    def _update(self, e0: dm.Vec3, p: Mat, a: dm.Vec3) -> tuple[dm.Vec3, Mat, Any]:
-        """att_ekf_update: (euler, P, flags) after the accel update (state kept on NUMERIC)."""
-        z = sensor.tilt(a)
-        y0 = dm.wrap_pi(z[0] - e0[0])
-        y1 = dm.wrap_pi(z[1] - e0[1])
-        s00 = p[0][0] + self.r_phi
-        s01 = p[0][1]
-        s11 = p[1][1] + self.r_theta
-        det = s00 * s11 - s01 * s01
-        det_ok = (det > dm.ZERO) & dm.isfinitef(det)
-        i00 = s11 / det
-        i01 = -s01 / det
-        i11 = s00 / det
-        k = [(p[i][0] * i00 + p[i][1] * i01, p[i][0] * i01 + p[i][1] * i11) for i in range(3)]
-        e = (
-            e0[0] + (k[0][0] * y0 + k[0][1] * y1),
-            e0[1] + (k[1][0] * y0 + k[1][1] * y1),
-            e0[2] + (k[2][0] * y0 + k[2][1] * y1),
+            def pp(i: int, j: int) -> Any:
+                return p[_IX[i][j]]
+
+            uu: list[list[Any]] = [[None] * 3 for _ in range(3)]
+            vv: list[list[Any]] = [[None] * 3 for _ in range(3)]
+            ww: list[list[Any]] = [[None] * 3 for _ in range(3)]
+            for j in range(3):
+                p0j, p1j, p2j = pp(0, 3 + j), pp(1, 3 + j), pp(2, 3 + j)
+                q0j, q1j, q2j = pp(3, 3 + j), pp(4, 3 + j), pp(5, 3 + j)
+                r0j, r1j, r2j = pp(0, j), pp(1, j), pp(2, j)
+                uu[0][j] = a00 * p0j + a01 * p1j
+                uu[1][j] = a10 * p0j + p1j
+                uu[2][j] = (a20 * p0j + a21 * p1j) + p2j
+                vv[0][j] = (b00 * q0j + b01 * q1j) + b02 * q2j
+                vv[1][j] = b11 * q1j + b12 * q2j
+                vv[2][j] = b21 * q1j + b22 * q2j
+                ww[0][j] = a00 * r0j + a01 * r1j
+                ww[1][j] = a10 * r0j + r1j
+                ww[2][j] = (a20 * r0j + a21 * r1j) + r2j
+            nn = [[uu[i][j] + vv[i][j] for j in range(3)] for i in range(3)]
+            x = [
+                [
+                    (nn[i][0] * b00 + nn[i][1] * b01) + nn[i][2] * b02,
+                    nn[i][1] * b11 + nn[i][2] * b12,
+                    nn[i][1] * b21 + nn[i][2] * b22,
+                ]
+                for i in range(3)
+            ]
+            y = [
+                [
+                    (uu[i][0] * b00 + uu[i][1] * b01) + uu[i][2] * b02,
+                    uu[i][1] * b11 + uu[i][2] * b12,
+                    uu[i][1] * b21 + uu[i][2] * b22,
+                ]
+                for i in range(3)
+            ]
+            pn: list[Any] = [None] * 21
+            for i in range(3):
+                w0, w1, w2 = ww[i]
+                t = [w0 * a00 + w1 * a01, w0 * a10 + w1, (w0 * a20 + w1 * a21) + w2]
+                for j in range(i, 3):
+                    pn[_IX[i][j]] = (t[j] + x[i][j]) + y[j][i]
+                for j in range(3):
+                    pn[_IX[i][3 + j]] = nn[i][j]
+            for i in range(3, 6):
+                for j in range(i, 6):
+                    pn[_IX[i][j]] = pp(i, j)
+            for i, qi in ((0, 0), (1, 1), (2, 2), (3, 3), (4, 3), (5, 3)):
+                pn[_IX[i][i]] = pn[_IX[i][i]] + self.q_step[qi]
+            e, pn = _canon(e, pn)
+            ok = dm.vec3_isfinite(e) & _usable(pn)
+        return ok, e, pn, flags
+
+    def _update(self, a: dm.Vec3, e2: Any) -> tuple[Any, Any, tuple[Any, ...]]:
+        """att_ekf_update: (applied, flags, new state parts) of the update at the current state."""
+        p = self.p
+        ex0, ey0, ez0 = self.euler
+        with np.errstate(all="ignore"):
+            sphi, cphi = dm.sinf(ex0), dm.cosf(ex0)
+            sth, cth = dm.sinf(ey0), dm.cosf(ey0)
+            spsi, cpsi = dm.sinf(ez0), dm.cosf(ez0)
+            ax, ay, az = a
+            vv = (
+                (cpsi * cth) * ax
+                + ((cpsi * sth) * sphi - spsi * cphi) * ay
+                + ((cpsi * sth) * cphi + spsi * sphi) * az,
+                (spsi * cth) * ax
+                + ((spsi * sth) * sphi + cpsi * cphi) * ay
+                + ((spsi * sth) * cphi - cpsi * sphi) * az,
+                (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
+            )
+            lp_on = self.k_lp > dm.ZERO
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(vv, self.lp1), self.k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
+            lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
+            vv = dm.vec3_where(lp_on, lp2, vv)
+            ok_a, (_, cx, cy), _ = align_up(vv)
+            exx = dm.TWO * cx
+            eyy = dm.TWO * cy
+            cg, _ = self._guard(cth)
+            y0 = (cpsi * exx + spsi * eyy) / cg
+            y1 = cpsi * eyy - spsi * exx
+            s00 = p[0] + self.r_step[0] * (dm.ONE + self.r_accel * e2)
+            s01 = p[1]
+            s11 = p[6] + self.r_step[1] * (dm.ONE + self.r_accel * e2)
+            det = s00 * s11 - s01 * s01
+            ok_det = (det > dm.ZERO) & dm.isfinitef(det)
+            i00 = s11 / det
+            i01 = -s01 / det
+            i11 = s00 / det
+            d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1)
+            gate_on = self.gate > dm.ZERO
+            gated = gate_on & (d2 > self.gate)
+            fk = np.where(gate_on & (d2 > self.soft), self.soft / d2, dm.ONE).astype(np.float32)
+            k0 = []
+            k1 = []
+            for i in range(6):
+                pi0, pi1 = p[_IX[i][0]], p[_IX[i][1]]
+                k0.append((pi0 * i00 + pi1 * i01) * fk)
+                k1.append((pi0 * i01 + pi1 * i11) * fk)
+            e = (
+                ex0 + (k0[0] * y0 + k1[0] * y1),
+                ey0 + (k0[1] * y0 + k1[1] * y1),
+                ez0 + (k0[2] * y0 + k1[2] * y1),
+            )
+            pn: list[Any] = [None] * 21
+            for i in range(6):
+                for j in range(i, 6):
+                    pn[_IX[i][j]] = p[_IX[i][j]] - (k0[i] * p[_IX[j][0]] + k1[i] * p[_IX[j][1]])
+            dphi = e[0] - ex0
+            dth = e[1] - ey0
+            dpsi = e[2] - ez0
+            eps = ((dphi * cth) * cpsi - dth * spsi, (dphi * cth) * spsi + dth * cpsi, dpsi - dphi * sth)
+            e, pn = _canon(e, pn)
+            ok_u = dm.vec3_isfinite(e) & _usable(pn)
+            bias = (
+                self.bias[0] + (k0[3] * y0 + k1[3] * y1),
+                self.bias[1] + (k0[4] * y0 + k1[4] * y1),
+                self.bias[2] + (k0[5] * y0 + k1[5] * y1),
+            )
+            lp1n = dm.vec3_add(lp1, dm.vec3_cross(eps, lp1))
+            lp2n = dm.vec3_add(lp2, dm.vec3_cross(eps, lp2))
+        numeric = ok_a & (~ok_det | (~gated & ~ok_u))
+        applied = ok_a & ok_det & ~gated & ok_u
+        flags = np.where(
+            numeric, _u(Flag.NUMERIC), np.where(ok_a & ok_det & gated, _u(Flag.ACCEL_REJECTED), _U0)
         )
-        zero = np.zeros(self.n, np.float32)
-        one = np.full(self.n, dm.ONE, np.float32)
-        m: Mat = [
-            [dm.ONE - k[0][0], dm.ZERO - k[0][1], zero],
-            [dm.ZERO - k[1][0], dm.ONE - k[1][1], zero],
-            [dm.ZERO - k[2][0], dm.ZERO - k[2][1], one],
-        ]
-        pn = _mul_t_sym(_mul(m, p), m)
-        for i in range(3):
-            for j in range(i, 3):
-                pn[i][j] = pn[i][j] + (k[i][0] * self.r_phi * k[j][0] + k[i][1] * self.r_theta * k[j][1])
-                pn[j][i] = pn[i][j]
-        e, pn = _canon(e, pn)
-        pn, cond = _condition(pn, self.p_max)
-        take = det_ok & dm.vec3_isfinite(e) & (cond != _u(Flag.NUMERIC))
-        flags = np.where(take, cond, _u(Flag.NUMERIC))
-        return dm.vec3_where(take, e, e0), _mat_where(take, pn, p), flags
+        lp_apply = applied & lp_on
+        return (
+            applied,
+            flags,
+            (e, bias, pn, dm.vec3_where(lp_apply, lp1n, self.lp1), dm.vec3_where(lp_apply, lp2n, self.lp2)),
+        )
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
-        """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
+        """One update of every instance; gyr, acc (n, 3) or (3,). Returns flags (n,)."""
         g = split3(gyr, self.n)
         a = split3(acc, self.n)
         flags = sensor.check_gyro(g, self.gyro_range)
         gyro_ok = flags == _U0
-        accel_flags, norm = sensor.check_accel(a, self.accel_range)
+        accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
         accel_ok = accel_flags == _U0
         flags = flags | accel_flags
+        z = self._zeros
         with np.errstate(all="ignore"):
-            err = norm / self.gravity - dm.ONE
-            rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(err) > self.accel_reject)
+            er = dm.sqrtf(n2) / self.gravity - dm.ONE
+            use_e = accel_ok & self.need_norm
+            e2 = np.where(use_e, er * er, dm.ZERO).astype(np.float32)
+            rejected = use_e & (self.accel_reject > dm.ZERO) & (dm.absf(er) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
-
-            # not yet initialised: roll and pitch from the first valid accel sample, yaw 0
             waiting = ~self.initialised
             init_now = waiting & accel_ok
             t = sensor.tilt(a)
-            e_init = (dm.wrap_pi(t[0]), t[1], np.zeros(self.n, np.float32))
+            start = (dm.wrap_pi(t[0]), t[1], z)
+            _, q_tilt = dm.quat_normalize_bounded(dm.quat_from_euler(start[0], start[1], z))
+            lp_start = dm.quat_rotate(q_tilt, a)
             flags = flags | np.where(
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
-
-            zero = np.zeros(self.n, np.float32)
-            w = dm.vec3_where(gyro_ok, g, (zero, zero, zero))
-            e1, p1, pred_flags = self._predict(w, gyro_ok)
-            upd = accel_ok & ~rejected
-            e2, p2, upd_flags = self._update(e1, p1, a)
-            e2 = dm.vec3_where(upd, e2, e1)
-            p2 = _mat_where(upd, p2, p1)
-            run_flags = pred_flags | np.where(upd, upd_flags, _U0)
-            flags = flags | np.where(waiting, _U0, run_flags)
-
-            self.euler = dm.vec3_where(waiting, dm.vec3_where(init_now, e_init, self.euler), e2)
-            self.p = _mat_where(waiting, self.p, p2)
-            self.q = dm.quat_from_euler(*self.euler)
+            run = ~waiting
+            w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
+            ok_p, e_p, p_p, fl_p = self._predict(w, gyro_ok)
+            take_p = run & ok_p
+            flags = flags | np.where(run, fl_p, _U0) | np.where(run & ~ok_p, _u(Flag.NUMERIC), _U0)
+            self.euler = dm.vec3_where(take_p, e_p, self.euler)
+            self.p = [np.where(take_p, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
+            measure = run & accel_ok & ~rejected
+            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u) = self._update(a, e2)
+            flags = flags | np.where(measure, fl_u, _U0)
+            take_u = measure & applied
+            self.euler = dm.vec3_where(take_u, e_u, self.euler)
+            self.bias = dm.vec3_where(take_u, b_u, self.bias)
+            self.p = [np.where(take_u, p_u[i], self.p[i]).astype(np.float32) for i in range(21)]
+            self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
+            self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
+            gimbal = (flags & _u(Flag.GIMBAL)) != _U0
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal)
+            p_c, changed = _condition(self.p, self.p_max)
+            self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
+            flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)
+            self.euler = dm.vec3_where(init_now, start, self.euler)
+            self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
+            self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
@@ -293,27 +482,19 @@ class Ekf:
 
     @property
     def quat(self) -> NDArray[np.float32]:
-        """Attitudes (n, 4), w,x,y,z, sensor-to-earth."""
-        return stack(self.q)
+        """Attitudes (n, 4) from the angles (att_quat_from_euler)."""
+        return stack(dm.quat_from_euler(*self.euler))
 
     @property
-    def euler_angles(self) -> NDArray[np.float32]:
-        """ZYX Euler angles (n, 3): roll phi, pitch theta, yaw psi, rad."""
-        return stack(self.euler)
+    def gyro_bias(self) -> NDArray[np.float32]:
+        """Gyro bias estimates (n, 3), rad/s, sensor frame."""
+        return stack(self.bias)
 
     @property
     def covariance(self) -> NDArray[np.float32]:
-        """Error covariance P (n, 3, 3) of (phi, theta, psi), rad^2."""
-        return np.stack([stack(tuple(row)) for row in self.p], axis=1)
-
-    @property
-    def cov_diag(self) -> NDArray[np.float32]:
-        """Variances (n, 3): P_phi, P_theta, P_psi, rad^2."""
-        return stack((self.p[0][0], self.p[1][1], self.p[2][2]))
+        """The packed upper triangles of P (n, 21)."""
+        return stack(tuple(self.p))
 
     def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
-        """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3).
-
-        Returns quats (N, 4) or (N, n, 4) and flags (N,) or (N, n).
-        """
+        """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3)."""
         return run_steps(self, gyr, acc)

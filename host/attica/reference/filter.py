@@ -12,13 +12,20 @@ from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
 from attica.reference.ars import Ars
-from attica.reference.ekf import Ekf
+from attica.reference.ekf import THIRD, Ekf
 from attica.reference.gyro import Gyro
 from attica.reference.kf import Kf
 from attica.reference.mars import Mars
 from attica.reference.tilt import Tilt
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, np.floating):
+        fb = np.float32(b)
+        return bool((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32))
+    return int(a) == int(b)
 
 
 class Filter:
@@ -97,20 +104,24 @@ class Filter:
                 raise ValueError(f"state {i} is a {int(st.kind)} filter, expected {self.kind.label}")
             load_c_state(self.impl, self.impl.STATE, i, getattr(st.u, self.kind.label))
 
+    def state_diff(self, i: int, c_state: Any) -> list[str]:
+        """The fields where instance i and the C ``att_filter_t`` differ (bit for bit, NaN == NaN).
+
+        Compared: every state field (``STATE``) and every coefficient (``COEFFS``: what init / retune
+        derived from the settings), so a wrong gain left by a retune is seen as well as a wrong state.
+        """
+        c_kind = getattr(c_state.u, self.kind.label)
+        diff = []
+        for name, layout in {**self.impl.STATE, **self.impl.COEFFS}.items():
+            ours = state_values(self.impl, {name: layout}, i)
+            theirs = c_state_values({name: layout}, c_kind)
+            if len(ours) != len(theirs) or not all(_same(a, b) for a, b in zip(ours, theirs, strict=True)):
+                diff.append(name)
+        return diff
+
     def state_matches(self, i: int, c_state: Any) -> bool:
-        """True when instance i's state equals the C ``att_filter_t`` bit for bit (NaN == NaN)."""
-        ours = state_values(self.impl, self.impl.STATE, i)
-        theirs = c_state_values(self.impl.STATE, getattr(c_state.u, self.kind.label))
-        if len(ours) != len(theirs):
-            return False
-        for a, b in zip(ours, theirs, strict=True):
-            if isinstance(a, np.floating):
-                fb = np.float32(b)
-                if not ((np.isnan(a) and np.isnan(fb)) or a.view(np.uint32) == fb.view(np.uint32)):
-                    return False
-            elif int(a) != int(b):
-                return False
-        return True
+        """True when instance i equals the C ``att_filter_t`` bit for bit: :meth:`state_diff` is empty."""
+        return not self.state_diff(i, c_state)
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         f = self.impl
@@ -126,18 +137,21 @@ class Filter:
         """att_filter_output for every instance: (n,) records of OUTPUT_DTYPE."""
         f = self.impl
         out = np.zeros(self.n, OUTPUT_DTYPE)
-        out["q"] = stack(f.q)
+        if self.kind == FilterKind.EKF:
+            out["q"] = f.quat  # derived from the angles on request
+        else:
+            out["q"] = stack(f.q)
         if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
             out["euler"] = stack(dm.quat_to_euler(f.q))
         else:
             out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF):
+        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF):
             out["gyro_bias"] = stack(f.bias)
         if self.kind == FilterKind.KF:
             out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
         elif self.kind == FilterKind.EKF:
-            zero = np.zeros(self.n, np.float32)
-            out["cov"] = stack((f.p[0][0], f.p[1][1], f.p[2][2], zero))
+            pb = ((f.p[15] + f.p[18]) + f.p[20]) * THIRD
+            out["cov"] = stack((f.p[0], f.p[6], f.p[11], pb))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)

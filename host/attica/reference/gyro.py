@@ -22,6 +22,14 @@ class Gyro:
 
     STATE: StateSpec = {"st.euler": "vec3", "st.q": "quat", "st.steps": "u32", "st.flags": "u32"}
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    COEFFS: StateSpec = {
+        "c.dt": "f32",
+        "c.gyro_range": "f32",
+        "c.cos_min": "f32",
+        "c.euler_init": "vec3",
+    }
+    """Every C coefficient of att_gyro_coeffs_t (set by att_gyro_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: GyroSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else GyroSettings()

@@ -49,14 +49,33 @@ class Kf:
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
 
     COEFFS: StateSpec = {
+        "c.dt": "f32",
         "c.half_dt": "f32",
         "c.q_step": "f32",
         "c.r_step": "f32",
+        "c.r_accel": "f32",
+        "c.gate": "f32",
         "c.soft": "f32",
+        "c.p0": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
         "c.k_lp": "f32",
+        "c.bias.mode": "u32:bias_mode",
+        "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
+        "c.bias.rest_gyro2": "f32",
+        "c.bias.acc2_lo": "f32",
+        "c.bias.acc2_hi": "f32",
+        "c.q_init": "quat",
+        "c.bias_init": "vec3",
+        "c.init_from_accel": "bool",
+        "c.lp_on": "bool",
+        "c.need_norm": "bool",
     }
-    """C coefficients computed by att_kf_init that this class derives itself (compared by the tests)."""
+    """Every C coefficient of att_kf_coeffs_t (set by att_kf_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: KfSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else KfSettings()
@@ -82,6 +101,9 @@ class Kf:
         self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.bias_init = split3(s.bias_init, n)
+        self.bias_init = dm.vec3_where(  # as c.bias_init: zero when the bias is OFF
+            self.bias_mode == BiasMode.OFF, (np.zeros(n, np.float32),) * 3, self.bias_init
+        )
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
         self.rest_time = setting(s.rest_time, n)
@@ -95,13 +117,16 @@ class Kf:
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
         qi = np.broadcast_to(np.asarray(s.q_init, np.float32), (n, 4))  # (4,) or one per instance (n, 4)
         self.q_init: dm.Quat = (qi[:, 0].copy(), qi[:, 1].copy(), qi[:, 2].copy(), qi[:, 3].copy())
+        _, self.q_init = dm.quat_normalize(self.q_init)  # as c.q_init: normalised once, at init
         self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
+        self.lp_on = self.k_lp > dm.ZERO
         self.reset()
 
     def reset(self) -> None:
         """Back to the state after construction (att_kf_reset)."""
         n = self.n
-        _, self.q = dm.quat_normalize(self.q_init)
+        qi = self.q_init
+        self.q = (qi[0].copy(), qi[1].copy(), qi[2].copy(), qi[3].copy())
         self.p = self.p0.copy()
         zero = np.zeros(n, np.float32)
         off = self.bias_mode == BiasMode.OFF

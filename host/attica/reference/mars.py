@@ -92,11 +92,33 @@ class Mars:
         "c.dt": "f32",
         "c.k_acc": "f32",
         "c.k_mag": "f32",
+        "c.k_mag1": "f32",
         "c.k_lp": "f32",
+        "c.gravity": "f32",
+        "c.accel_reject": "f32",
+        "c.accel_range2": "f32",
+        "c.gyro_range": "f32",
+        "c.mag_range": "f32",
+        "c.mag_norm_reject": "f32",
+        "c.mag_dip_reject": "f32",
+        "c.bias.mode": "u32:bias_mode",
+        "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
+        "c.bias.rest_gyro2": "f32",
+        "c.bias.acc2_lo": "f32",
+        "c.bias.acc2_hi": "f32",
+        "c.q_init": "quat",
+        "c.m0_init": "vec3",
+        "c.bias_init": "vec3",
+        "c.integration": "u32",
+        "c.mag_mode": "u32",
+        "c.init_from_sensors": "bool",
+        "c.lp_on": "bool",
+        "c.reject_on": "bool",
         "c.full": "bool",
     }
-    """C coefficients computed by att_mars_init that this class derives itself (compared by the tests)."""
+    """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: MarsSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else MarsSettings()
@@ -119,6 +141,7 @@ class Mars:
         self.bias_init = split3(s.bias_init, n)
         self.init_from_sensors = setting(s.init_from_sensors, n, np.bool_)
         self.q_init = _split4(s.q_init, n)
+        _, self.q_init = dm.quat_normalize(self.q_init)  # as c.q_init: normalised once, at init
         zeros = np.zeros(n, np.float32)
         self.m0_init = dm.vec3_where(self.init_from_sensors, (zeros, zeros, zeros), split3(s.m0_init, n))
         with np.errstate(all="ignore"):
@@ -128,11 +151,16 @@ class Mars:
         self.k_mag = k_mag.astype(np.float32)
         self.k_mag1 = (dm.ONE - self.k_mag).astype(np.float32)
         self.full = self.k_acc == dm.ONE
+        self.reject_on = self.accel_reject > dm.ZERO
         self.integration = setting(np.asarray(s.integration, np.int32), n, np.int32)
         tau_lp = setting(s.tau_acc_lp, n)
         with np.errstate(all="ignore"):
             self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
+        self.lp_on = self.k_lp > dm.ZERO
         self.bias_mode = setting(np.asarray(s.bias_mode, np.int32), n, np.int32)
+        self.bias_init = dm.vec3_where(  # as c.bias_init: zero when the bias is OFF
+            self.bias_mode == BiasMode.OFF, (np.zeros(n, np.float32),) * 3, self.bias_init
+        )
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
@@ -150,7 +178,8 @@ class Mars:
     def reset(self) -> None:
         """Back to the state after construction (att_mars_reset)."""
         n = self.n
-        _, self.q = dm.quat_normalize(self.q_init)
+        qi = self.q_init
+        self.q = (qi[0].copy(), qi[1].copy(), qi[2].copy(), qi[3].copy())
         z = self._zeros
         self.m0: dm.Vec3 = (z.copy(), z.copy(), z.copy())
         self.m0_ref: dm.Vec3 = (z.copy(), z.copy(), z.copy())

@@ -26,6 +26,13 @@ class Tilt:
         "st.flags": "u32",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    COEFFS: StateSpec = {
+        "c.gravity": "f32",
+        "c.accel_range": "f32",
+        "c.normalise": "bool",
+    }
+    """Every C coefficient of att_tilt_coeffs_t (set by att_tilt_init / retune), derived here alike
+    from the settings; state_matches compares them after the state."""
 
     def __init__(self, settings: TiltSettings | None = None, n: int = 1) -> None:
         s = settings if settings is not None else TiltSettings()

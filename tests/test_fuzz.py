@@ -1,0 +1,181 @@
+"""The bounded CI slice of the fuzz campaign and the regression inputs of every finding.
+
+``make fuzz`` runs long (tests/fuzz/campaign.py, docs/robustness.md); here every C target runs a few
+seconds in its ASan+UBSan and MSan builds from the seed corpora, the host parsers a few seconds under
+atheris, and every reproducer in tests/fuzz/regressions/ runs once. The filter findings are defects of
+the filter core, fixed since; their regressions must pass. A new open finding gets its class in
+tests/fuzz/known_findings.txt, its reproducer in tests/fuzz/regressions/ and a strict xfail here.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from helpers import ROOT, need
+
+FUZZ = ROOT / "build" / "fuzz"
+HERE = ROOT / "tests" / "fuzz"
+REG = HERE / "regressions"
+SLICE_S = int(os.environ.get("ATT_FUZZ_SLICE", "10"))
+
+
+@pytest.fixture(scope="module")
+def built() -> Path:
+    r = subprocess.run(["make", "-s", "fuzz-build"], cwd=ROOT, capture_output=True, text=True)
+    if r.returncode != 0 and "fsanitize" in r.stderr and "unsupported" in r.stderr:
+        need(False, f"clang cannot build libFuzzer/sanitizer targets here: {r.stderr[-500:]}")
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    r = subprocess.run(
+        [sys.executable, str(HERE / "seeds.py"), str(FUZZ / "seeds")],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "host")},
+    )
+    assert r.returncode == 0, r.stderr
+    return FUZZ
+
+
+def _run(
+    exe: Path, *args: str, known: bool = False, timeout: float = 120
+) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ)
+    env.pop("ATT_FUZZ_KNOWN", None)
+    if known:
+        env["ATT_FUZZ_KNOWN"] = "@" + str(HERE / "known_findings.txt")
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, env=env, timeout=timeout)
+
+
+@pytest.mark.parametrize(
+    "exe",
+    ["fuzz_can", "fuzz_node", "fuzz_filter", "fuzz_can-msan", "fuzz_node-msan", "fuzz_filter-msan"],
+)
+def test_fuzz_slice(built: Path, exe: str, tmp_path: Path) -> None:
+    """A few seconds of each target from the seeds: no finding outside the known list."""
+    target = exe.split("-")[0]
+    seconds = SLICE_S if "msan" not in exe else max(SLICE_S // 2, 3)
+    r = _run(
+        built / exe,
+        f"-max_total_time={seconds}",
+        "-print_final_stats=1",
+        f"-artifact_prefix={tmp_path}/",
+        str(tmp_path),
+        str(built / "seeds" / target),
+        known=True,
+        timeout=seconds * 4 + 60,
+    )
+    assert r.returncode == 0, r.stderr[-4000:]
+    assert "stat::number_of_executed_units" in r.stderr
+    runs = int(r.stderr.split("stat::number_of_executed_units:")[1].split()[0])
+    print(f"{exe}: {runs} executions in {seconds} s")
+    assert runs > 100
+
+
+def test_seeds_pass_every_invariant(built: Path) -> None:
+    """The seed corpora themselves (the test streams) break no invariant, even the strict ones."""
+    for target in ("fuzz_can", "fuzz_node", "fuzz_filter"):
+        r = _run(built / target, "-runs=0", str(built / "seeds" / target))
+        assert r.returncode == 0, (target, r.stderr[-3000:])
+
+
+def test_the_harness_can_fail(built: Path) -> None:
+    """A fuzz target that cannot fail proves nothing: a filter broken on purpose is reported.
+
+    ATT_FUZZ_BREAK_AT=0 overwrites the filter with NaN bytes before the first fuzzed sample; the run
+    aborts with the class of the violation, and with every class known (ATT_FUZZ_KNOWN=*) it counts it.
+    """
+    reg = REG / "filter-gyro-pitch.bin"
+    env = {**os.environ, "ATT_FUZZ_BREAK_AT": "0"}
+    env.pop("ATT_FUZZ_KNOWN", None)
+    exe = str(built / "fuzz_filter")
+    r = subprocess.run([exe, str(reg)], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode != 0 and "invariant violated" in r.stderr and "gyro:" in r.stderr, r.stderr
+    r = subprocess.run(
+        [str(built / "fuzz_filter"), str(reg)],
+        capture_output=True,
+        text=True,
+        env={**env, "ATT_FUZZ_KNOWN": "*"},
+        timeout=120,
+    )
+    assert r.returncode == 0 and "known finding gyro:" in r.stderr, r.stderr
+
+
+# reproducer -> the finding it reproduced (fixed: each must pass now, without any known list)
+FILTER_FINDINGS = {
+    "filter-gyro-Q_FINITE.bin": "F1 gyro: 1.5e22 rad/s under gyro_range 1.7e38 (accepted): q NaN, flags 0",
+    "filter-gyro-pitch.bin": "F1 gyro: dt 0.1, 34.9 rad/s, defaults: pitch -1.742 rad at step 5, flags 0",
+    "filter-gyro-STUCK.bin": "F1 gyro: gyro_range 1e6: pitch -3496 rad after one step, then NUMERIC forever",
+    "filter-ars-STUCK.bin": "F2 ars: gravity 8.9e-41 accepted at init; every step NOT_READY | ACCEL_INVALID",
+    "filter-ekf-STUCK.bin": "F2 ekf: gravity 3.1e-43 accepted at init; every step NOT_READY | ACCEL_INVALID",
+    "filter-kf-STUCK.bin": "F2 kf: accel_range 8.4e-45 accepted at init; every step NOT_READY | ACCEL_RANGE",
+    "filter-tilt-STUCK.bin": "F2 tilt: accel_range 1.1e-42 accepted; every step NOT_READY | ACCEL_RANGE",
+    "filter-tilt-FROZEN.bin": "F2 tilt: gravity 3.8e-37 (normalise off) accepted; q never moves again",
+    "filter-mars-STUCK.bin": "F2 mars: bias_init.y 3.4e38 accepted at init; NUMERIC forever",
+    "filter-mars-BIAS_FINITE.bin": "F3 mars: bias_init.x = gyro_range = FLT_MAX: bias mean overflows to +Inf",
+    "filter-mars-NUMERIC_KEPT.bin": "F4 mars: bias_init.x -3.4e38: NUMERIC flagged while q changed",
+    "filter-ekf-NUMERIC_KEPT.bin": "F4 ekf: gyro_range, gyro FLT_MAX: NUMERIC flagged while q changed",
+    "filter-ars-lowpass-NaN.bin": "F6 ars: accel_range +Inf, accel 1e30 (x3): low-pass NaN, NUMERIC forever",
+    "filter-ekf-gimbal-P_SPD.bin": "F7 ekf: pitch at +-90 deg (GIMBAL): F ~ 1/cos(theta) made P indefinite "
+    "(P00 = P22 = 4.3e7) before the next conditioning step",
+}
+
+
+def test_every_regression_is_listed() -> None:
+    files = {p.name for p in REG.iterdir()}
+    assert files == set(FILTER_FINDINGS) | {"node-msan-retune.bin"}
+
+
+def test_no_known_finding_is_open() -> None:
+    """known_findings.txt lists open defects only; every one listed needs a reproducer and an xfail here."""
+    lines = [ln.strip() for ln in (HERE / "known_findings.txt").read_text().splitlines()]
+    assert [ln for ln in lines if ln and not ln.startswith("#")] == []
+
+
+@pytest.mark.parametrize("name", sorted(FILTER_FINDINGS))
+def test_filter_regression(built: Path, name: str) -> None:
+    """Each reproducer, strict (no known list): the defect it found stays fixed."""
+    r = _run(built / "fuzz_filter", str(REG / name))
+    assert r.returncode == 0, f"{FILTER_FINDINGS[name]}: {r.stderr[-2000:]}"
+
+
+def test_node_msan_regression(built: Path) -> None:
+    """M1: att_node_retune compared union padding copied uninitialised (fixed: att_filter_retune)."""
+    r = _run(built / "fuzz_node-msan", str(REG / "node-msan-retune.bin"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert _run(built / "fuzz_node", str(REG / "node-msan-retune.bin")).returncode == 0
+
+
+@pytest.mark.parametrize("target", ["candump", "csv"])
+def test_host_parser_slice(target: str, tmp_path: Path) -> None:
+    """atheris on the host parsers of untrusted files, a few seconds each."""
+    try:
+        import atheris  # noqa: F401
+    except ImportError:
+        need(False, "atheris is not installed (pip install atheris)")
+    seed = tmp_path / "seed"
+    if target == "candump":
+        seed.write_text("(1.000000) vcan0 100#00112233445566AA\n(1.5) vcan0 110##1" + "00" * 64 + "\n")
+    else:
+        seed.write_text(
+            "# rate=100\ngyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z\n0,0,0,0,0,9.8,1,2,3\n"
+        )
+    r = subprocess.run(
+        [
+            sys.executable,
+            str(HERE / "fuzz_host.py"),
+            f"-max_total_time={max(SLICE_S // 2, 3)}",
+            "-print_final_stats=1",
+            f"-artifact_prefix={tmp_path}/",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "host"), "ATT_HOST_TARGET": target},
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr[-4000:]
+    assert "stat::number_of_executed_units" in r.stderr
