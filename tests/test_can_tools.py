@@ -218,3 +218,22 @@ def test_replay_writes_both_directions(tmp_path: Path) -> None:
         mon.account(m)
     assert not mon.lost_anything and mon.stats.last_step == round(3 * RATE)
 
+
+def test_candump_io_is_python_cans(tmp_path: Path) -> None:
+    """.log files are written by python-can's CanutilsLogWriter and read by its CanutilsLogReader."""
+    from attica.can import logs
+
+    w = logs.open_writer(tmp_path / "x.log")
+    try:
+        assert isinstance(w, can.CanutilsLogWriter)
+        w.on_message_received(
+            can.Message(
+                timestamp=1.5, arbitration_id=0x100, is_extended_id=False, data=b"\x01\x02", channel="can0"
+            )
+        )
+    finally:
+        w.stop()
+    assert (tmp_path / "x.log").read_text().split() == ["(1.500000)", "can0", "100#0102", "R"]
+    assert logs.CanutilsLogReader is can.CanutilsLogReader
+    (m,) = read_log(tmp_path / "x.log")
+    assert (m.arbitration_id, bytes(m.data), m.is_rx) == (0x100, b"\x01\x02", True)

@@ -151,12 +151,23 @@ def test_run_and_demo_agree(capsys: pytest.CaptureFixture[str]) -> None:
         (["replay", "-w", "{tmp}/bus.xyz"], "unknown log format"),
         (["verify", "--data", "{rec}", "--rate", "100"], "--rate describes a simulation"),
         (["monitor", "--log", "{tmp}/missing.log"], "no such log file"),
+        (["sim", "-o", "{tmp}"], "is a directory"),
+        (["sim", "-o", "/nonexistent/dir/x.npz"], "directory /nonexistent/dir does not exist"),
+        (["monitor", "--log", "{tmp}/a.log", "-w", "{tmp}/a.log"], "is the --log being read"),
+        (["monitor", "--log", "{tmp}/a.log", "--duration", "5"], "with --log the whole log is read"),
+        (["monitor", "--duration", "0"], "--duration must be > 0"),
+        (["monitor", "--max-lines", "-1"], "--max-lines must be >= 0"),
+        (["monitor", "-w", "{tmp}/dir.log"], "is a directory"),
+        (["verify", "--with-node", "-w", "/nonexistent/bus.log"], "directory /nonexistent does not exist"),
+        (["verify", "--log", "{tmp}/a.log", "-w", "{tmp}/b.log"], "nothing new to write"),
     ],
 )
 def test_user_errors_before_any_work(
     args: list[str], message: str | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     rec = tmp_path / "rec.npz"
+    (tmp_path / "a.log").write_text("(1.000000) can0 100#0011223344556677\n")
+    (tmp_path / "dir.log").mkdir()
     if any("{rec}" in a for a in args):
         assert main(["sim", "--duration", "10", "-o", str(rec)]) == 0
         capsys.readouterr()
@@ -253,3 +264,21 @@ def test_eval_tables_fit_and_plots_are_wide(tmp_path: Path, capsys: pytest.Captu
         head = path.read_bytes()[:24]
         assert head[:8] == b"\x89PNG\r\n\x1a\n"
         assert int.from_bytes(head[16:20], "big") == 1600  # IHDR width
+
+
+def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=0.5", "--set", "r_noise=0.02"]
+    assert main(args) == 0
+    cap = capsys.readouterr()
+    assert (
+        "attica: note: --set tau=0.5 applies to ars only (mars, kf, ekf, gyro, tilt have no setting"
+        in cap.err
+    )
+    assert "attica: note: --set r_noise=0.02 applies to " in cap.err
+    # before running: the notes come first, and a refused setting stops everything before any output
+    assert main(["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=-1"]) == 2
+    cap = capsys.readouterr()
+    assert (
+        cap.err.startswith("attica: note: --set tau=-1 applies to ars only") and "attica: error: " in cap.err
+    )
+    assert cap.out == ""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import can
 
@@ -42,7 +43,20 @@ def run(args: argparse.Namespace) -> int:
 
     if args.count is not None and args.count <= 0:
         raise CliError("--count must be > 0")
+    if args.duration is not None and not args.duration > 0:
+        raise CliError(f"--duration must be > 0 s, got {args.duration:g}")
+    if args.max_lines is not None and args.max_lines < 0:
+        raise CliError(f"--max-lines must be >= 0, got {args.max_lines}")
+    if not args.stats_every >= 0:
+        raise CliError(f"--stats-every must be >= 0 s, got {args.stats_every:g}")
+    if args.log and (args.duration is not None or args.stats_every):
+        raise CliError("--duration and --stats-every watch a bus; with --log the whole log is read")
     paths = log_paths(args)
+    if args.log:
+        source = Path(args.log).resolve()
+        same = [p for p in paths if p.resolve() == source]
+        if same:
+            raise CliError(f"--write {same[0]} is the --log being read (it would be overwritten)")
     try:
         mon = Monitor(
             args.dbc,

@@ -29,6 +29,8 @@ def run(args: argparse.Namespace) -> int:
     """``attica sim``."""
     check_data_or_sim(args)
     out = Path(args.output)
+    if out.is_dir():
+        raise CliError(f"output {out} is a directory (give a file name, e.g. {out / 'sim.npz'})")
     if out.suffix == "":
         out = out.with_name(out.name + ".npz")
     if out.suffix.lower() not in (".npz", ".csv"):

@@ -22,7 +22,7 @@ from attica.data import Recording
 from attica.evaluate.core import Report
 from attica.settings import FilterKind
 
-__all__ = ["PLOT_PEERS", "plot_groups", "plot_trial", "write_plots"]
+__all__ = ["PLOT_PEERS", "groups_figure", "plot_groups", "plot_trial", "trial_figure", "write_plots"]
 
 WIDTH_PX = 1600
 DPI = 100
@@ -65,14 +65,18 @@ def _split(report: Report, names: Sequence[str]) -> tuple[list[str], list[str]]:
     return six, nine
 
 
-def plot_trial(report: Report, rec: Recording, path: Path, methods: Sequence[str] | None = None) -> None:
-    """Error over time on one trial: 6-axis methods' inclination and 9-axis methods' total error."""
+def trial_figure(report: Report, rec: Recording, methods: Sequence[str] | None = None) -> Any:
+    """The matplotlib figure of :func:`plot_trial` (None when no method is drawn); close it after use.
+
+    One chart per kind of method (6-axis: inclination error, 9-axis: total error), each with its own
+    scale and its legend right of the data.
+    """
     plt = _pyplot()
     names = [r.method.name for r in report.results if methods is None or r.method.name in methods]
     six, nine = _split(report, names)
     panels = [(t, n) for t, n in (("6-axis: inclination error", six), ("9-axis: total error", nine)) if n]
     if not panels:
-        return
+        return None
     fig, axes = plt.subplots(
         len(panels), 1, figsize=(WIDTH_PX / DPI, 3.2 * len(panels) + 0.6), dpi=DPI, sharex=True, squeeze=False
     )
@@ -98,18 +102,31 @@ def plot_trial(report: Report, rec: Recording, path: Path, methods: Sequence[str
     axes[-1, 0].set_xlabel("time (s); movement phases shaded")
     fig.suptitle(rec.name, fontsize=11)
     fig.tight_layout(rect=(0, 0, 0.88, 1))
-    fig.savefig(path)
-    plt.close(fig)
+    return fig
 
 
-def plot_groups(report: Report, path: Path, methods: Sequence[str] | None = None) -> None:
-    """Per-group RMSE bars and the all-trial average: 6-axis inclination and 9-axis total charts."""
+def _save(fig: Any, path: Path) -> None:
+    if fig is None:
+        return
+    try:
+        fig.savefig(path)
+    finally:
+        _pyplot().close(fig)
+
+
+def plot_trial(report: Report, rec: Recording, path: Path, methods: Sequence[str] | None = None) -> None:
+    """Error over time on one trial: 6-axis methods' inclination and 9-axis methods' total error (PNG)."""
+    _save(trial_figure(report, rec, methods), path)
+
+
+def groups_figure(report: Report, methods: Sequence[str] | None = None) -> Any:
+    """The matplotlib figure of :func:`plot_groups` (None when no method is drawn); close it after use."""
     plt = _pyplot()
     names = [r.method.name for r in report.results if methods is None or r.method.name in methods]
     six, nine = _split(report, names)
     panels = [(t, n) for t, n in (("6-axis: inclination RMSE", six), ("9-axis: total RMSE", nine)) if n]
     if not panels:
-        return
+        return None
     labels = [*report.groups, "average"]
     fig, axes = plt.subplots(
         len(panels), 1, figsize=(WIDTH_PX / DPI, 3.6 * len(panels) + 0.8), dpi=DPI, squeeze=False
@@ -133,8 +150,12 @@ def plot_groups(report: Report, path: Path, methods: Sequence[str] | None = None
         ax.grid(True, axis="y", which="both", lw=0.3, color="0.8")
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.005, 1.0), borderaxespad=0.0)
     fig.tight_layout(rect=(0, 0, 0.88, 1))
-    fig.savefig(path)
-    plt.close(fig)
+    return fig
+
+
+def plot_groups(report: Report, path: Path, methods: Sequence[str] | None = None) -> None:
+    """Per-group RMSE bars and the all-trial average: 6-axis inclination and 9-axis total charts (PNG)."""
+    _save(groups_figure(report, methods), path)
 
 
 def write_plots(report: Report, recs: Iterable[Recording], out: Path) -> list[Path]:
