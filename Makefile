@@ -12,7 +12,7 @@ DEV := PYTHONPATH=tools$${PYTHONPATH:+:$$PYTHONPATH} $(PY)
 
 all: build
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py firmware/include/attica/att_version.h
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[dev,eval,peers]'
@@ -23,6 +23,7 @@ setup: $(STAMP)
 deps:
 	@bash host/tools/install-system-deps.sh
 
+# the cffi extension in place for this editable checkout (a wheel builds it through setup.py's hook)
 build: setup node
 	$(PY) -m attica._build
 
@@ -78,7 +79,8 @@ cross: deps setup
 	$(DEV) -m attica_dev.cross golden
 
 clean:
-	rm -rf build host/attica/_native*.so host/attica/_native.stamp .pytest_cache .mypy_cache .ruff_cache
+	rm -rf build dist host/attica/_native*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \
+		.pytest_cache .mypy_cache .ruff_cache
 
 # --- robustness: fuzzing, sanitizers, soak (docs/robustness.md) ---------------------------------
 # libFuzzer targets (clang): ASan+UBSan builds and a MemorySanitizer build of each C target; atheris

@@ -26,7 +26,15 @@ import pytest
 from conftest import require_tool
 
 from attica import _build
-from attica.settings import ArsSettings, BiasMode, GyroSettings, Integration, TiltSettings, implemented_kinds
+from attica.settings import (
+    ArsSettings,
+    BiasMode,
+    GyroSettings,
+    Integration,
+    TiltSettings,
+    implemented_kinds,
+    make_settings,
+)
 from attica_dev import golden
 
 COMPILERS = ["gcc", "clang"]
@@ -377,7 +385,7 @@ FILTER_STREAMS = 100
 SHORT_CHUNKS = 4
 LONG_KINDS = {"ars"}
 
-FILTER_CASES: dict[str, tuple[str, Any]] = {  # name: (kind, settings; None = defaults)
+FILTER_CASES: dict[str, tuple[str, Any]] = {  # name: (kind, settings)
     "ars-default": ("ars", ArsSettings()),
     "ars-euler-running": (
         "ars",
@@ -393,6 +401,7 @@ FILTER_CASES: dict[str, tuple[str, Any]] = {  # name: (kind, settings; None = de
             init_from_accel=False,
             q_init=(0.9, 0.1, -0.3, 0.2),
             gain_c=0.0,
+            tau=0.0,  # the per-sample gain path (a gain beside a time constant > 0 is refused)
             gain=0.02,
             accel_range=30.0,
             gyro_range=10.0,
@@ -408,7 +417,7 @@ FILTER_CASES: dict[str, tuple[str, Any]] = {  # name: (kind, settings; None = de
 # Every implemented filter kind gets golden coverage with its defaults, without editing this file.
 for _kind in implemented_kinds():
     if not any(k == _kind.label for k, _ in FILTER_CASES.values()):
-        FILTER_CASES[f"{_kind.label}-default"] = (_kind.label, None)
+        FILTER_CASES[f"{_kind.label}-default"] = (_kind.label, make_settings(_kind))
 
 
 Imu = tuple[np.ndarray[Any, Any], np.ndarray[Any, Any], np.ndarray[Any, Any]]

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from attica.cli import main
+from attica.cli import build_parser, main
 from attica.data import load_recording
 
 
@@ -49,10 +51,234 @@ def test_run_with_settings(capsys: pytest.CaptureFixture[str]) -> None:
         (["run", "--filter", "ars", "--set", "bias_init=1,2"], "3 comma-separated numbers"),
         (["run", "--data", "/nonexistent/x.npz"], "no such recording"),
         (["run", "--filter", "ars", "--set", "dt=-1"], "dt is the recording's sample period"),
-        (["run", "--filter", "ars", "--set", "gain=5"], "out of range"),
-        (["sim", "--duration", "6", "-o", "/tmp/never.npz"], "use a longer --duration or fewer --breaks"),
+        (["run", "--filter", "ars", "--set", "tau=0", "--set", "gain=5"], "out of range"),
+        (["run", "--filter", "ars", "--set", "gain=0.3", "--set", "tau=0.5"], "gain=0.3 (a per-sample gain)"),
+        (
+            ["sim", "--duration", "6", "--breaks", "2", "-o", "/tmp/never.npz"],
+            "use a longer --duration or fewer",
+        ),
     ],
 )
 def test_errors_are_clear(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([*args, "-q"] if args[0] == "run" else args) == 2
     assert message in capsys.readouterr().err
+
+
+# --- every rough edge of the command line ---------------------------------------------------------
+
+
+def _walk(parser: argparse.ArgumentParser, path: str = "attica") -> list[tuple[str, argparse.Action]]:
+    out = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                assert choice.help, f"{path} {choice.dest}: no one-line description"
+            for name, sub in action.choices.items():
+                assert sub.description, f"{path} {name}: no description"
+                out += _walk(sub, f"{path} {name}")
+        else:
+            out.append((path, action))
+    return out
+
+
+def test_every_subcommand_and_option_has_help() -> None:
+    from attica.commands import COMMANDS
+
+    parser = build_parser()
+    actions = _walk(parser)
+    assert {p.split()[1] for p, _ in actions if " " in p} == set(COMMANDS)
+    for path, action in actions:
+        assert action.help and action.help != argparse.SUPPRESS, f"{path} {action.option_strings}: no help"
+
+
+def test_version_and_paths(capsys: pytest.CaptureFixture[str]) -> None:
+    import attica
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.startswith(f"attica {attica.__version__} (")
+    assert main(["paths"]) == 0
+    out = capsys.readouterr().out
+    for key in ("firmware", "include", "src", "cflags file", "dbc", "version header", "cflags", "extension"):
+        assert re.search(rf"^{key}\s", out, re.M), key
+    assert main(["paths", "--dbc"]) == 0
+    assert Path(capsys.readouterr().out.strip()).name == "attica.dbc"
+    assert main(["paths", "--sources"]) == 0
+    assert all(Path(s).suffix == ".c" and Path(s).is_file() for s in capsys.readouterr().out.split())
+    assert main(["paths", "--cflags"]) == 0
+    assert "-ffp-contract=off" in capsys.readouterr().out.split()
+
+
+def test_run_and_demo_agree(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--duration", "15", "-q"]) == 0
+    demo = capsys.readouterr().out
+    assert main(["run", "--duration", "15", "-q"]) == 0
+    run = capsys.readouterr().out
+    line = [ln for ln in demo.splitlines() if "RMSE" in ln]
+    assert line and line[0] in run.splitlines()
+    assert "3 taps" in demo and "3 taps" in run
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (
+            ["run", "--data", "{rec}", "--rate", "100"],
+            "--rate describes a simulation, but --data gives a recording",
+        ),
+        (
+            ["run", "--data", "{rec}", "--duration", "5", "--seed", "2"],
+            "--duration, --seed describe a simulation",
+        ),
+        (["run", "-o", "/nonexistent/dir/out.npz"], "directory /nonexistent/dir does not exist"),
+        (["run", "-o", "{tmp}"], "is a directory"),
+        (
+            ["run", "--filter", "all", "--set", "nosuch=1"],
+            "none of ars, mars, kf, ekf, gyro, tilt has no setting",
+        ),
+        (["run", "--filter", "ars,"], None),
+        (["run", "--filter", ",", "-q"], "empty filter selection"),
+        (["run", "--filter", "madgwick"], "unknown filter 'madgwick'"),
+        (["sim", "-o", "{tmp}/x.txt"], "must be .npz or .csv"),
+        (["eval", "--data", "{tmp}", "--peers", "nosuch"], "unknown peer(s) nosuch"),
+        (["eval", "--data", "{tmp}", "--filter", ","], "empty filter selection"),
+        (["eval", "--data", "{tmp}", "--limit", "0"], "--limit must be >= 1"),
+        (["eval", "--data", "{rec}", "--out", "{rec}"], "exists and is not a directory"),
+        (["eval", "--data", "{tmp}/nothing"], "no such file or directory"),
+        (["replay", "--count", "0"], "--count must be > 0"),
+        (["replay", "-w", "/nonexistent/bus.log"], "directory /nonexistent does not exist"),
+        (["replay", "-w", "{tmp}/bus.xyz"], "unknown log format"),
+        (["verify", "--data", "{rec}", "--rate", "100"], "--rate describes a simulation"),
+        (["monitor", "--log", "{tmp}/missing.log"], "no such log file"),
+        (["sim", "-o", "{tmp}"], "is a directory"),
+        (["sim", "-o", "/nonexistent/dir/x.npz"], "directory /nonexistent/dir does not exist"),
+        (["monitor", "--log", "{tmp}/a.log", "-w", "{tmp}/a.log"], "is the --log being read"),
+        (["monitor", "--log", "{tmp}/a.log", "--duration", "5"], "with --log the whole log is read"),
+        (["monitor", "--duration", "0"], "--duration must be > 0"),
+        (["monitor", "--max-lines", "-1"], "--max-lines must be >= 0"),
+        (["monitor", "-w", "{tmp}/dir.log"], "is a directory"),
+        (["verify", "--with-node", "-w", "/nonexistent/bus.log"], "directory /nonexistent does not exist"),
+        (["verify", "--log", "{tmp}/a.log", "-w", "{tmp}/b.log"], "nothing new to write"),
+    ],
+)
+def test_user_errors_before_any_work(
+    args: list[str], message: str | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = tmp_path / "rec.npz"
+    (tmp_path / "a.log").write_text("(1.000000) can0 100#0011223344556677\n")
+    (tmp_path / "dir.log").mkdir()
+    if any("{rec}" in a for a in args):
+        assert main(["sim", "--duration", "10", "-o", str(rec)]) == 0
+        capsys.readouterr()
+    argv = [a.replace("{rec}", str(rec)).replace("{tmp}", str(tmp_path)) for a in args]
+    code = main(argv)
+    cap = capsys.readouterr()
+    if message is None:  # a trailing comma is fine
+        assert code == 0
+        return
+    assert code == 2, cap
+    assert cap.err.startswith("attica: error: ") and message in cap.err, cap.err
+    assert "samples" not in cap.out and "Traceback" not in cap.err  # refused before the work
+
+
+def test_argparse_errors_have_the_same_form(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--duration", "soon"])
+    assert exc.value.code == 2
+    assert "attica: error: run: argument --duration: invalid float value: 'soon'" in capsys.readouterr().err
+
+
+def test_set_with_several_filters_applies_where_it_exists(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = [
+        "run",
+        "--filter",
+        "ars,mars,kf",
+        "--duration",
+        "12",
+        "-q",
+        "--set",
+        "tau=0.5",
+        "--set",
+        "q_noise=0.002",
+    ]
+    assert main(args) == 0
+    cap = capsys.readouterr()
+    assert "--set tau=0.5 applies to ars only (mars, kf have no setting 'tau')" in cap.err
+    assert "--set q_noise=0.002 applies to kf only (ars, mars have no setting 'q_noise')" in cap.err
+    assert cap.err.index("applies") < len(cap.err) and "ars:" in cap.out and "kf:" in cap.out
+    # applied: the same error lines as a run of that filter alone with the setting
+    assert main(["run", "--filter", "kf", "--duration", "12", "-q", "--set", "q_noise=0.002"]) == 0
+    kf_line = [ln for ln in capsys.readouterr().out.splitlines() if "kf:" in ln][0]
+    assert kf_line in cap.out.splitlines()
+
+
+def test_run_unit_warning_and_silencing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from attica.sim import SimConfig, simulate
+
+    rec = simulate(SimConfig(duration=12.0, rate=200.0, seed=1))
+    rec.gyr = np.degrees(rec.gyr).astype(np.float32)
+    path = tmp_path / "degrees.npz"
+    rec.save(path)
+    assert main(["run", "--data", str(path), "-q"]) == 0
+    assert "attica: warning:" in capsys.readouterr().err
+    assert main(["run", "--data", str(path), "-q", "--no-unit-check"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_eval_tables_fit_and_plots_are_wide(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from attica.evaluate import Method, run_methods
+    from attica.evaluate.plots import plot_groups, plot_trial
+    from attica.evaluate.tables import format_tables
+    from attica.sim import SimConfig, simulate
+
+    recs = []
+    for seed, name in ((1, "01_undisturbed_slow_rotation_A"), (2, "24_disturbed_tapping_A")):
+        r = simulate(SimConfig(duration=12.0, rate=100.0, seed=seed))
+        r.name, r.groups = name, ("all_trials", name.split("_")[1])
+        recs.append(r)
+
+    def method(i: int, nine: bool) -> Method:
+        def run(rec: object) -> np.ndarray:
+            q = np.array(rec.quat_true, np.float64)  # type: ignore[attr-defined]
+            return q  # the truth (errors 0)
+
+        return Method(f"{'nine' if nine else 'six'}_method_{i:02d}", "test", nine, "default", run)
+
+    methods = [method(i, False) for i in range(14)] + [method(i, True) for i in range(9)]
+    report = run_methods(methods, recs, progress=False, curves=True)
+    text = format_tables(report)
+    assert max(len(ln) for ln in text.splitlines()) <= 110
+    assert "6-axis: inclination RMSE (deg)" in text and "9-axis: total RMSE (deg)" in text
+    assert "part 2 of" in text  # 14 six-axis columns do not fit in one table
+    wide = format_tables(report, wide=True)
+    assert max(len(ln) for ln in wide.splitlines()) > 110 and "part 2" not in wide
+    pytest.importorskip("matplotlib")
+    for path, draw in (
+        (tmp_path / "trial.png", lambda p: plot_trial(report, recs[0], p)),
+        (tmp_path / "groups.png", lambda p: plot_groups(report, p)),
+    ):
+        draw(path)
+        head = path.read_bytes()[:24]
+        assert head[:8] == b"\x89PNG\r\n\x1a\n"
+        assert int.from_bytes(head[16:20], "big") == 1600  # IHDR width
+
+
+def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=0.5", "--set", "r_noise=0.02"]
+    assert main(args) == 0
+    cap = capsys.readouterr()
+    assert (
+        "attica: note: --set tau=0.5 applies to ars only (mars, kf, ekf, gyro, tilt have no setting"
+        in cap.err
+    )
+    assert "attica: note: --set r_noise=0.02 applies to " in cap.err
+    # before running: the notes come first, and a refused setting stops everything before any output
+    assert main(["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=-1"]) == 2
+    cap = capsys.readouterr()
+    assert (
+        cap.err.startswith("attica: note: --set tau=-1 applies to ars only") and "attica: error: " in cap.err
+    )
+    assert cap.out == ""

@@ -15,6 +15,7 @@ import pytest
 from attica import crosscheck as cc
 from attica import native, sim
 from attica.can import codec as c
+from attica.can import compare as compare_mod
 from attica.can import verify as v
 from attica.outputs import OUTPUT_DTYPE
 from attica.reference import filter as ref_filter
@@ -201,7 +202,7 @@ def test_verify_reports_a_flipped_bit_in_every_compared_field(fd: bool) -> None:
     exp, out = _node_run(kind, fd)
     rx = v.sort_outputs(out)
     assert v.compare(exp, kind, fd, rx).exact
-    for name in v._COMPARED:
+    for name in compare_mod._COMPARED:
         if fd and name in ("q16", "euler_raw", "bias_raw"):
             continue
         arr = rx.sets[name]

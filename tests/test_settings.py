@@ -86,8 +86,8 @@ def test_bad_arguments() -> None:
     with pytest.raises(ValueError, match="unknown filter"):
         native.Filter("madgwick")
     with pytest.raises(TypeError, match="no field"):
-        native.Filter("ars", gian=0.2)
-    f2 = native.Filter("ars")
+        native.Filter("ars", 0.01, gian=0.2)
+    f2 = native.Filter("ars", 0.01)
     with pytest.raises(ValueError, match="shape"):
         f2.run(np.zeros((10, 3)), np.zeros((9, 3)))
     with pytest.raises(ValueError, match="3 components"):

@@ -6,8 +6,18 @@ and linked into the extension; only the cffi wrapper itself is compiled with Pyt
 declarations given to cffi are the ``ATT_CDEF_BEGIN``/``ATT_CDEF_END`` sections of the headers, so
 the headers are the single source of the API.
 
-Run ``python -m attica._build`` (``make build`` does); :mod:`attica.native` also builds on first
-import when the extension is missing or older than its sources.
+Two callers, one set of steps:
+
+- ``setup.py`` (``pip install .``, ``python -m build``): its ``build_ext`` hook compiles the objects
+  and the wrapper into the wheel, and its ``build_py`` hook copies the firmware tree into the package
+  as ``attica/_firmware`` (:func:`copy_firmware`), so that an installed attica carries its sources,
+  headers, flags and DBC (:mod:`attica.resources`).
+- ``python -m attica._build`` (``make build``): builds the extension in place for an editable
+  checkout and writes ``_native.stamp`` (a digest of its inputs); :mod:`attica.native` refuses to load
+  an extension whose stamp no longer matches the checkout (it never builds anything itself).
+
+This module uses the standard library only (``setup.py`` loads it by path in the build environment);
+the paths below are those of a checkout (``ROOT`` is the repository).
 """
 
 from __future__ import annotations
@@ -21,6 +31,7 @@ import subprocess
 import sys
 import sysconfig
 from pathlib import Path
+from typing import Any
 
 PKG = Path(__file__).resolve().parent
 ROOT = PKG.parent.parent
@@ -29,6 +40,11 @@ INCLUDE = FIRMWARE / "include"
 CSRC = PKG / "csrc"
 BUILD = ROOT / "build" / "native"
 STAMP = PKG / "_native.stamp"
+VERSION_HEADER = INCLUDE / "attica" / "att_version.h"
+"""The version (read by setup.py and attica.__version__ through attica._version)."""
+
+FIRMWARE_DATA = "_firmware"
+"""Name of the firmware copy inside an installed package (``attica/_firmware``)."""
 
 _CDEF = re.compile(r"/\* ATT_CDEF_BEGIN \*/(.*?)/\* ATT_CDEF_END \*/", re.S)
 
@@ -108,14 +124,15 @@ def inputs_digest() -> str:
     return h.hexdigest()
 
 
-def compile_objects(cc: str, opt: str = "-O2") -> list[Path]:
-    """Compile firmware and host kernels with the strict flags; return the object paths."""
-    BUILD.mkdir(parents=True, exist_ok=True)
+def compile_objects(cc: str, opt: str = "-O2", build_dir: Path | None = None) -> list[Path]:
+    """Compile firmware and host kernels with the strict flags into ``build_dir``; return the objects."""
+    out_dir = build_dir if build_dir is not None else BUILD
+    out_dir.mkdir(parents=True, exist_ok=True)
     objs = []
     for src in firmware_sources() + sorted(CSRC.glob("*.c")):
-        obj = BUILD / (src.stem + ".o")
+        obj = out_dir / (src.stem + ".o")
         cmd = [
-            cc,
+            *shlex.split(cc),
             *cflags(),
             opt,
             "-fPIC",
@@ -133,12 +150,10 @@ def compile_objects(cc: str, opt: str = "-O2") -> list[Path]:
     return objs
 
 
-def build(verbose: bool = False) -> Path:
-    """Build the extension into the package folder; return its path."""
+def make_ffi(objects: list[Path]) -> Any:
+    """The cffi builder of ``attica._native``: the headers' declarations, linked with ``objects``."""
     from cffi import FFI
 
-    cc = os.environ.get("CC", "cc")
-    objs = compile_objects(cc)
     ffi = FFI()
     ffi.cdef(cdef_text())
     includes = "".join(
@@ -148,8 +163,33 @@ def build(verbose: bool = False) -> Path:
         "attica._native",
         includes,
         include_dirs=[str(INCLUDE), str(CSRC)],
-        extra_objects=[str(o) for o in objs],
+        extra_objects=[str(o) for o in objects],
     )
+    return ffi
+
+
+def copy_firmware(dest: Path) -> list[Path]:
+    """Copy the firmware tree (sources, headers, cflags.txt, DBC, ports, CMake and make files) to ``dest``.
+
+    Returns the files written. Build products (objects, archives) are left out.
+    """
+    if dest.exists():
+        shutil.rmtree(dest)
+    written = []
+    for src in sorted(FIRMWARE.rglob("*")):
+        if not src.is_file() or src.suffix in (".o", ".a", ".so") or "__pycache__" in src.parts:
+            continue
+        target = dest / src.relative_to(FIRMWARE)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src, target)
+        written.append(target)
+    return written
+
+
+def build(verbose: bool = False) -> Path:
+    """Build the extension into the checkout's package folder (editable use); return its path."""
+    cc = os.environ.get("CC", "cc")
+    ffi = make_ffi(compile_objects(cc))
     tmp = BUILD / "cffi"
     tmp.mkdir(parents=True, exist_ok=True)
     built = Path(ffi.compile(tmpdir=str(tmp), verbose=verbose))
@@ -164,7 +204,7 @@ def build(verbose: bool = False) -> Path:
 
 
 def is_stale() -> bool:
-    """True when the extension is missing or was built from other inputs."""
+    """True when the in-place extension is missing or was built from other inputs (checkout only)."""
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
     if not (PKG / ("_native" + suffix)).exists() or not STAMP.exists():
         return True

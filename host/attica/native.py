@@ -1,7 +1,9 @@
 """cffi binding of the attica firmware (the same C sources, built with the same strict flags).
 
-The extension is built by ``make build`` (``python -m attica._build``); if it is missing or older
-than the firmware sources, importing this module builds it first (needs a C compiler).
+The extension ``attica._native`` is built when the wheel is built (the build hook of setup.py) or,
+in an editable checkout, by ``make build`` (``python -m attica._build``). Importing this module never
+compiles or writes anything: a missing extension, or one older than the checkout's sources, is an
+ImportError that says what to run.
 
 Scalar and batch entry points take float32 numpy arrays and loop in C without copying
 (``ffi.from_buffer``); arrays of another dtype or layout are converted once.
@@ -9,26 +11,32 @@ Scalar and batch entry points take float32 numpy arrays and loop in C without co
 
 from __future__ import annotations
 
-import fcntl
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from attica import _build
+from attica.checks import filter_settings, warn_units
 from attica.outputs import OUTPUT_DTYPE
+from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Preset, make_settings, to_dict
 
 
 def _load() -> tuple[Any, Any]:
-    lock_path = _build.ROOT / "build" / ".native.lock"
-    lock_path.parent.mkdir(parents=True, exist_ok=True)
-    with open(lock_path, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if _build.is_stale():
-            _build.build()
-    from attica import _native  # type: ignore[attr-defined]
+    from attica import _build
 
+    try:
+        from attica import _native
+    except ImportError as exc:
+        raise ImportError(
+            f"attica's C extension (attica._native) is not built ({exc}): in a checkout run `make build`; "
+            "otherwise reinstall attica (pip install attica-*.whl, or pip install . from the sources)"
+        ) from exc
+    if _build.STAMP.exists() and _build.is_stale():  # an editable checkout whose sources changed
+        raise ImportError(
+            f"attica._native ({_native.__file__}) was built from other sources than the checkout's "
+            f"{_build.FIRMWARE}: run `make build`"
+        )
     return _native.ffi, _native.lib
 
 
@@ -177,42 +185,63 @@ def default_settings(kind: str | int | FilterKind, dt: float = 0.01, preset: str
 class Filter:
     """Any C filter through the unified interface (``att_filter_t``).
 
+    ``Filter("ars", 0.01)``: the ARS at 100 Hz with its default settings; the second argument is the
+    sample period in seconds, as in VQF (required for every kind with a sample period).
+
     Parameters
     ----------
     kind
-        ``"ars"``, ``"gyro"``, ``"tilt"``... or a :class:`FilterKind`.
-    settings
-        A settings dataclass for the kind (defaults when None).
+        ``"ars"``, ``"mars"``, ``"kf"``, ``"ekf"``, ``"gyro"``, ``"tilt"`` or a :class:`FilterKind`.
     dt
-        Sample period in s (overrides ``settings.dt``).
+        Sample period in s (overrides ``settings.dt``). Required unless ``settings`` is given (it
+        carries ``dt``); the accel-only ``tilt`` has none. A settings dataclass in this place is taken
+        as ``settings``.
+    settings
+        A settings dataclass for the kind (the kind's defaults when None).
     **overrides
-        Settings fields to change.
+        Settings fields to change (unknown names raise TypeError).
+
+    Raises
+    ------
+    TypeError
+        No sample period, unknown settings fields.
+    ValueError
+        A bad ``dt``, a per-sample gain together with a time constant (names both fields).
+    NativeError
+        The C library refused the settings.
 
     """
 
     def __init__(
-        self, kind: str | int | FilterKind, settings: Any = None, dt: float | None = None, **overrides: Any
+        self, kind: str | int | FilterKind, dt: Any = None, settings: Any = None, **overrides: Any
     ) -> None:
-        self.kind = FilterKind.parse(kind)
-        self.settings = make_settings(self.kind, settings, dt, **overrides)
+        self.kind, self._settings = filter_settings(kind, dt, settings, overrides, "native.Filter")
         self._s = ffi.new("att_filter_settings_t *")
         _check(lib.att_filter_settings_default(int(self.kind), 0.01, self._s), "att_filter_settings_default")
-        _fill(getattr(self._s, self.kind.label), to_dict(self.settings))
+        _fill(getattr(self._s, self.kind.label), to_dict(self._settings))
         self._f = ffi.new("att_filter_t *")
         _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
         self._in = ffi.new("att_sample_t *")
+
+    @property
+    def settings(self) -> Any:
+        """The settings in use (a frozen dataclass: change them with :meth:`retune`)."""
+        return self._settings
+
+    def __repr__(self) -> str:
+        return f"native.Filter({self.kind.label!r}, settings={self._settings!r})"
 
     def reset(self) -> None:
         """att_filter_reset."""
         lib.att_filter_reset(self._f)
 
-    def output(self) -> NDArray[np.void]:
+    def output(self) -> Outputs:
         """att_filter_output: the current output record (shape ())."""
         out = np.zeros((), OUTPUT_DTYPE)
         lib.att_filter_output(self._f, ffi.from_buffer("att_output_t[]", out))
-        return out
+        return as_outputs(out)
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True) -> NDArray[np.void]:
+    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True) -> Outputs:
         """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record.
 
         With ``full`` (default) the record is the whole att_filter_output after the step (Euler angles
@@ -229,21 +258,67 @@ class Filter:
         lib.att_filter_step(self._f, self._in, buf)
         if full:
             lib.att_filter_output(self._f, buf)
-        return out
+        return as_outputs(out)
+
+    def retune(self, settings: Any = None, **changes: Any) -> None:
+        """New settings, the state kept: ``att_filter_retune`` (the attitude, bias and rest memories go on).
+
+        ``changes`` are settings fields (``f.retune(tau_acc_lp=2.0)``); the others keep their values
+        (or those of ``settings``, a settings dataclass of the kind, when given).
+        The same checks as at construction apply (a per-sample gain beside its time constant is an error;
+        setting only the time constant leaves the gain at 0). What a changed setting resets is the C
+        library's rule (``att_<kind>_retune``). On an error nothing changes.
+
+        Raises
+        ------
+        TypeError
+            Unknown settings fields.
+        ValueError
+            Conflicting gains, a bad ``dt``.
+        NativeError
+            The C library refused the new settings (the filter is left as it was).
+
+        """
+        base = settings if settings is not None else self._settings
+        _, new = filter_settings(self.kind, None, base, changes, "Filter.retune")
+        s = ffi.new("att_filter_settings_t *")
+        _check(lib.att_filter_settings_default(int(self.kind), 0.01, s), "att_filter_settings_default")
+        _fill(getattr(s, self.kind.label), to_dict(new))
+        _check(lib.att_filter_retune(self._f, s), f"att_filter_retune({self.kind.label})")
+        self._s = s
+        self._settings = new
 
     @property
     def state(self) -> Any:
         """The C state (``att_filter_t *``; live, not a copy)."""
         return self._f
 
-    def run(self, gyr: Any, acc: Any, mag: Any = None, snapshot_every: int = 0, full: bool = True) -> Any:
+    def run(
+        self,
+        gyr: Any,
+        acc: Any,
+        mag: Any = None,
+        snapshot_every: int = 0,
+        full: bool = True,
+        check_units: bool = True,
+    ) -> Any:
         """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
 
-        With ``full`` (default) every record is the whole att_filter_output after its step (Euler
-        angles, covariance); ``full=False`` keeps only what att_filter_step fills (q, gyro_bias, flags,
-        steps; see the ``valid`` field), which is what a firmware loop pays for. With
-        ``snapshot_every`` > 0 returns ``(records, snapshots)`` where snapshots is a cffi array of
-        ``att_filter_t`` holding the state just before steps 0, k, 2k, ...
+        Parameters
+        ----------
+        gyr, acc, mag
+            (N, 3): rad/s, m/s^2, uT (``mag`` None, or NaN / zero rows: no mag sample).
+        snapshot_every
+            > 0: return ``(records, snapshots)`` where snapshots is a cffi array of ``att_filter_t``
+            holding the state just before steps 0, k, 2k, ...
+        full
+            True (default): every record is the whole att_filter_output after its step (Euler angles,
+            covariance); False keeps only what att_filter_step fills (q, gyro_bias, flags, steps; see
+            the ``valid`` field), which is what a firmware loop pays for.
+        check_units
+            Warn (:class:`attica.UnitWarning`) when the median magnitudes look like deg/s, g, gauss or
+            nT; False skips the check.
+
         """
         g = _f32(gyr)
         a = _f32(acc)
@@ -251,6 +326,8 @@ class Filter:
         if g.ndim != 2 or g.shape[1] != 3 or a.shape != g.shape or (m is not None and m.shape != g.shape):
             shapes = ", ".join(str(x.shape) for x in (g, a, m) if x is not None)
             raise ValueError(f"gyr, acc (and mag) must all have shape (N, 3); got {shapes}")
+        if check_units:
+            warn_units(g, a, m, f"{self.kind.label} Filter.run")
         out = np.zeros(g.shape[0], OUTPUT_DTYPE)
         every = max(int(snapshot_every), 0)
         snaps = ffi.new("att_filter_t[]", -(-g.shape[0] // every)) if every else ffi.NULL
@@ -266,5 +343,5 @@ class Filter:
             snaps,
         )
         if every:
-            return out, snaps
-        return out
+            return as_outputs(out), snaps
+        return as_outputs(out)

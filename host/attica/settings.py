@@ -1,7 +1,8 @@
 """Filter settings shared by the C binding (:mod:`attica.native`) and the reference.
 
 Each dataclass mirrors a C settings struct field by field (same names, same units). Defaults equal
-the C ``att_*_settings_default`` functions; ``tests/test_settings.py`` checks that.
+the C ``att_*_settings_default`` functions; ``tests/test_settings.py`` checks that. The dataclasses are
+frozen: change settings with :func:`dataclasses.replace`, :func:`make_settings` or a filter's ``retune``.
 """
 
 from __future__ import annotations
@@ -32,9 +33,14 @@ class Flag(enum.IntFlag):
     BAD_ARG = 0x8000
 
 
+def flag_names(value: int) -> list[str]:
+    """Names of the flags set in a flags word, in bit order (``[]`` for none)."""
+    return [f.name for f in Flag if f.name is not None and int(value) & f.value]
+
+
 def describe_flags(value: int) -> str:
     """Human-readable ``A|B`` names of a flags word (``-`` for none)."""
-    names = [f.name for f in Flag if f.name is not None and value & f.value]
+    names = flag_names(value)
     return "|".join(names) if names else "-"
 
 
@@ -55,7 +61,7 @@ class Integration(enum.IntEnum):
     FIRST_ORDER = 2
 
 
-@dataclass
+@dataclass(frozen=True)
 class ArsSettings:
     """Complementary ARS settings (``att_ars_settings_t``); see att_ars.h for meanings."""
 
@@ -79,7 +85,7 @@ class ArsSettings:
     tau_acc_lp: float = 1.5
 
 
-@dataclass
+@dataclass(frozen=True)
 class GyroSettings:
     """Gyro-only Euler-rate integration baseline (``att_gyro_settings_t``); see att_gyro.h."""
 
@@ -89,7 +95,7 @@ class GyroSettings:
     euler_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
-@dataclass
+@dataclass(frozen=True)
 class TiltSettings:
     """Accel-only tilt baseline (``att_tilt_settings_t``); see att_tilt.h."""
 
@@ -103,7 +109,7 @@ def to_dict(settings: Any) -> dict[str, Any]:
     return {f.name: getattr(settings, f.name) for f in fields(settings)}
 
 
-@dataclass
+@dataclass(frozen=True)
 class KfSettings:
     """Linear quaternion KF settings (``att_kf_settings_t``); see att_kf.h for meanings."""
 
@@ -136,7 +142,7 @@ class MagMode(enum.IntEnum):
     FULL = 1
 
 
-@dataclass
+@dataclass(frozen=True)
 class MarsSettings:
     """9-axis complementary filter settings (``att_mars_settings_t``); see att_mars.h for meanings."""
 
@@ -166,7 +172,7 @@ class MarsSettings:
     rest_time: float = 0.5
 
 
-@dataclass
+@dataclass(frozen=True)
 class EkfSettings:
     """Euler-angle EKF with gyro bias states (``att_ekf_settings_t``); see att_ekf.h for meanings."""
 

@@ -2,9 +2,10 @@
 
 ``ATT_HOST_TARGET`` selects the target:
 
-- ``candump``: a candump -L log (``attica.can.monitor.read_log``, used by ``attica monitor --log``
-  and ``attica verify --log``). Invariants: only ``LogError`` escapes; every frame read has a length
-  that fits its format; a frame written back with ``candump_text`` parses to the same frame.
+- ``candump``: a candump -L log (``attica.can.monitor.read_log``: python-can's reader behind the line
+  check of ``attica.can.logs``, used by ``attica monitor --log`` and ``attica verify --log``).
+  Invariants: only ``LogError`` escapes; every frame read has a length that fits its format; a frame
+  written back with ``candump_text`` parses to the same frame.
 - ``csv``: a recording (``attica.data.load_csv``, used by ``attica eval``). Invariants: only
   ``ValueError`` escapes; a loaded recording has float32 (N, 3) gyr/acc/mag, finite gyr and acc, and a
   finite rate > 0.
@@ -29,8 +30,9 @@ import numpy as np
 
 import attica.can.codec  # noqa: F401
 
-with atheris.instrument_imports(include=["attica.can.monitor", "attica.data"]):
-    from attica.can.monitor import LogError, _parse_candump, candump_text, read_log
+_PARSERS = ["attica.can.logs", "attica.can.monitor", "attica.data"]  # prefixes: attica.data.* too
+with atheris.instrument_imports(include=_PARSERS):
+    from attica.can.monitor import LogError, candump_text, read_log
     from attica.data import load_csv
 
 TMP = Path(tempfile.mkdtemp(prefix="attica-fuzz-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
@@ -39,6 +41,15 @@ TMP = Path(tempfile.mkdtemp(prefix="attica-fuzz-", dir="/dev/shm" if os.path.isd
 def _same_frame(a: object, b: object) -> bool:
     keys = ("arbitration_id", "is_extended_id", "is_remote_frame", "is_error_frame", "is_fd", "dlc")
     return all(getattr(a, k) == getattr(b, k) for k in keys) and bytes(a.data) == bytes(b.data)  # type: ignore[attr-defined]
+
+
+def _reparse(text: str) -> object:
+    """The one frame of a candump -L line, read back through read_log (python-can's reader)."""
+    path = TMP / "again.log"
+    path.write_text(text + "\n", encoding="utf-8")
+    frames = list(read_log(path))
+    assert len(frames) == 1, (text, frames)
+    return frames[0]
 
 
 def candump(data: bytes) -> None:
@@ -52,7 +63,7 @@ def candump(data: bytes) -> None:
         assert len(m.data) <= (64 if m.is_fd else 8), m
         if m.is_error_frame:
             continue
-        again = _parse_candump(candump_text(m))
+        again = _reparse(candump_text(m))
         assert _same_frame(m, again), (m, again)
 
 

@@ -13,18 +13,27 @@ Problems: ``!CRC`` (E2E CRC wrong; for ATT_STATUS of an output set over the set'
 the bus load (worst-case bit stuffing, as the node computes it) are summed up at the end and, when
 watching a bus, every ``stats_every`` seconds.
 
-Logs: ``--write`` writes what is seen with python-can's writers: ``.log`` (candump -L format, readable
-by ``candump``'s tools, ``cantools decode`` and ``canplayer``), ``.asc``, ``.blf`` (and whatever else
-``can.Logger`` knows). ``--log`` reads a log instead of a bus: ``.log`` with our own parser (errors name
-the line), other formats with ``can.LogReader``.
+Flags (ATT_STATUS, ATT_OUT_FD) are shown by name (``flags=AT_REST|BIAS_UPDATED``, ``flags=none``).
+
+Lost frames: the alive counters are 4 bits, so they see gaps modulo 16 only; the monitor also follows
+the node's 16-bit step counter (ATT_STATUS / ATT_OUT_FD), which counts every output set missing, and
+compares it with the IMU samples seen: the node cannot step without a sample, so when it reports more
+steps than the samples this view holds, the difference is samples lost from the view (a log cut short,
+a monitor that could not keep up) and the summary says so.
+
+Watching a bus, a receive thread takes the frames off the socket as they come (:class:`BusReader`), so a
+burst faster than decoding and printing waits in memory instead of overflowing the socket buffer, and at
+the end (``--duration``, ``--count``, Ctrl-C) every frame already received is shown before the summary.
+
+Logs (``--write``, ``--log``): :mod:`attica.can.logs` (python-can's readers and writers).
 """
 
 from __future__ import annotations
 
 import math
 import os
-import re
-from collections.abc import Iterator
+import queue
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,10 +41,12 @@ from typing import Any
 import can
 
 from attica.can import codec
+from attica.can.logs import LogError, open_writer, read_log
+from attica.settings import describe_flags
 
 __all__ = [
+    "BusReader",
     "LogError",
-    "LogMessage",
     "Monitor",
     "MonitorError",
     "candump_text",
@@ -44,21 +55,12 @@ __all__ = [
     "read_log",
 ]
 
+FLAG_SIGNALS = frozenset({"flags"})
+"""Signals shown by flag name (ATT_STATUS.flags, ATT_OUT_FD.flags: ATT_FLAG_* of att_types.h)."""
+
 
 class MonitorError(Exception):
     """A user error of the monitor (missing DBC, unknown log format...)."""
-
-
-class LogError(MonitorError):
-    """A log file could not be read (the message names the file and line)."""
-
-
-class LogMessage(can.Message):
-    """A frame read from a candump log; keeps the log's CAN FD flags digit (e.g. 5 = BRS | FDF)."""
-
-    __slots__ = ("fd_flags",)
-
-    fd_flags: int | None
 
 
 def candump_text(msg: can.Message, channel: str | None = None) -> str:
@@ -75,12 +77,18 @@ def candump_text(msg: can.Message, channel: str | None = None) -> str:
     if msg.is_remote_frame:
         return f"({ts:.6f}) {ch} {ident}#R"
     data = bytes(msg.data).hex().upper()
-    if msg.is_fd:
+    if msg.is_fd:  # the log's own flags digit (candump adds FDF 4), else BRS 1 | ESI 2 as python-can writes
         flags = getattr(msg, "fd_flags", None)
         if flags is None:
             flags = (1 if msg.bitrate_switch else 0) | (2 if msg.error_state_indicator else 0)
         return f"({ts:.6f}) {ch} {ident}##{flags:X}{data}"
     return f"({ts:.6f}) {ch} {ident}#{data}"
+
+
+def flags_text(value: int) -> str:
+    """ATT_FLAG_* names of a flags signal: ``AT_REST|BIAS_UPDATED``, ``none`` for 0."""
+    text = describe_flags(int(value))
+    return "none" if text == "-" else text
 
 
 def format_value(v: Any) -> str:
@@ -92,127 +100,6 @@ def format_value(v: Any) -> str:
     if isinstance(v, float):
         return "nan" if math.isnan(v) else repr(v)
     return str(v)
-
-
-# --- logs -----------------------------------------------------------------------------------------
-
-_CANDUMP = re.compile(
-    r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{1,8})#(?P<rest>\S*)(?:\s+(?P<dir>[RrTt]))?$"
-)
-
-
-def _parse_candump(line: str) -> can.Message:
-    m = _CANDUMP.match(line)
-    if m is None:
-        raise ValueError("expected '(timestamp) channel ID#DATA' (candump -L format)")
-    ident = m.group("id")
-    rest = m.group("rest")
-    can_id = int(ident, 16)
-    extended = len(ident) > 3
-    if not extended and can_id > 0x7FF:
-        raise ValueError(f"standard ID {ident} is above 7FF")
-    fd = False
-    brs = esi = False
-    flags = None
-    remote = False
-    if rest.startswith("#"):
-        fd = True
-        if len(rest) < 2 or rest[1] not in "0123456789ABCDEFabcdef":
-            raise ValueError("CAN FD frame without its flags digit after '##'")
-        flags = int(rest[1], 16)
-        brs, esi = bool(flags & 1), bool(flags & 2)
-        rest = rest[2:]
-    if rest[:1] in ("R", "r") and not fd:
-        remote = True
-        data = b""
-    else:
-        if len(rest) % 2:
-            raise ValueError(f"odd number of hex digits in the data {rest!r}")
-        try:
-            data = bytes.fromhex(rest)
-        except ValueError:
-            raise ValueError(f"data {rest!r} is not hex") from None
-    if len(data) > (64 if fd else 8):
-        raise ValueError(f"{len(data)} data bytes is too long for a {'CAN FD' if fd else 'classic'} frame")
-    if fd and len(data) not in (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64):
-        raise ValueError(f"{len(data)} bytes is not a valid CAN FD length")
-    is_err = extended and bool(can_id & 0x20000000)
-    ch: str | int = m.group("ch")
-    msg = LogMessage(
-        timestamp=float(m.group("ts")),
-        arbitration_id=can_id & 0x1FFFFFFF,
-        is_extended_id=extended,
-        is_remote_frame=remote,
-        is_error_frame=is_err,
-        is_fd=fd,
-        bitrate_switch=brs,
-        error_state_indicator=esi,
-        dlc=len(data),
-        data=data,
-        channel=ch,
-        is_rx=(m.group("dir") or "R").upper() == "R",
-        check=False,
-    )
-    msg.fd_flags = flags
-    return msg
-
-
-def read_log(path: str | os.PathLike[str]) -> Iterator[can.Message]:
-    """Frames of a log: ``.log`` (candump -L) with line-numbered errors, other formats via python-can.
-
-    Raises
-    ------
-    LogError
-        Missing file, unknown format, or a line that is not a frame.
-
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise LogError(f"no such log file: {p}")
-    if p.suffix.lower() == ".log" or p.suffix == "":
-        with open(p, encoding="utf-8", errors="replace") as fh:
-            for lineno, raw in enumerate(fh, 1):
-                line = raw.strip()
-                if not line or line.startswith("#"):
-                    continue
-                try:
-                    yield _parse_candump(line)
-                except ValueError as exc:
-                    raise LogError(f"{p}:{lineno}: bad log line {line[:80]!r}: {exc}") from None
-        return
-    try:
-        reader = can.LogReader(p)
-    except ValueError as exc:
-        raise LogError(
-            f"{p}: cannot read this log format ({exc}); use .log, .asc, .blf, .csv or .trc"
-        ) from None
-    try:
-        yield from reader
-    except Exception as exc:  # python-can readers raise anything on a bad file
-        raise LogError(f"{p}: bad log file: {type(exc).__name__}: {exc}") from None
-    finally:
-        reader.stop()
-
-
-def open_writer(path: str | os.PathLike[str], channel: str = "can0") -> can.Listener:
-    """A python-can writer for ``path`` by its suffix (``.log`` = candump -L, ``.asc``, ``.blf``...).
-
-    Raises
-    ------
-    MonitorError
-        Unknown suffix or a file that cannot be created.
-
-    """
-    p = Path(path)
-    kwargs: dict[str, Any] = {}
-    if p.suffix.lower() == ".log":
-        kwargs["channel"] = channel
-    try:
-        return can.Logger(p, **kwargs)
-    except ValueError as exc:
-        raise MonitorError(f"cannot write {p}: {exc} (use .log for candump -L, .asc or .blf)") from None
-    except OSError as exc:
-        raise MonitorError(f"cannot write {p}: {exc}") from None
 
 
 # --- the monitor ----------------------------------------------------------------------------------
@@ -227,14 +114,23 @@ class MonitorStats:
     crc_errors: int = 0
     crc_unchecked: int = 0
     counter_gaps: int = 0
-    missing_frames: int = 0
+    missing_frames: int = 0  # by the 4-bit alive counters: modulo 16
     repeats: int = 0
     dlc_errors: int = 0
     unknown_ids: int = 0
     other: int = 0  # error, remote and extended-ID frames
+    fd_frames: int = 0
     bus_time: float = 0.0  # s of bus time used (worst-case stuffing)
     first_ts: float | None = None
     last_ts: float | None = None
+    imu_samples: int = 0  # IMU samples begun (IMU_GYRO or IMU_FD frames with a good CRC)
+    sets: int = 0  # output sets with a good CRC (ATT_STATUS of a set, ATT_OUT_FD)
+    first_step: int | None = None  # the node's step count (unwrapped) at the first and last set seen
+    last_step: int | None = None
+    step_divider: int = 0  # smallest step increase between sets (the node's output divider)
+    missing_sets: int = 0  # output sets missing by the node's step counter
+    samples_behind: int = 0  # most steps the node reported beyond the IMU samples seen (see module doc)
+    dropped: int = 0  # frames the monitor had to drop (receive backlog full)
 
     @property
     def span(self) -> float:
@@ -256,7 +152,7 @@ class Monitor:
     channel
         Channel name used when a frame carries none.
     decode
-        False: candump text and checks only.
+        False: candump text and checks only (no cantools decoding: faster).
 
     """
 
@@ -286,8 +182,12 @@ class Monitor:
         self.channel = channel
         self.decode_signals = decode
         self.stats = MonitorStats()
+        self._names = {m.frame_id: m.name for m in db.messages}
         self._last_counter: dict[int, int] = {}
         self._quat: dict[int, can.Message] = {}
+        self._step_low: int | None = None
+        self._step_base = 0  # node steps before this view's samples (see _node_step)
+        self._imu_offset = 0  # IMU samples seen before the node's last reset
 
     def signals(self, msg: can.Message) -> tuple[str, dict[str, Any]] | None:
         """(message name, decoded signals) by the DBC, or None when the ID is not in it / cannot decode."""
@@ -309,6 +209,34 @@ class Monitor:
                 n, self.bitrate, self.data_bitrate if msg.bitrate_switch else self.bitrate
             )
         return codec.classic_bits(n) / self.bitrate
+
+    def _node_step(self, low: int) -> None:
+        """Follow the node's 16-bit step count of a good output set."""
+        st = self.stats
+        st.sets += 1
+        if self._step_low is None or st.last_step is None:
+            full = low
+            # a node that started within this view reports no more steps than the samples seen; one
+            # that ran before: count from its first set (a lower bound of the loss, never a false one)
+            self._step_base = 0 if low <= st.imu_samples - self._imu_offset else low
+            st.first_step = full
+        else:
+            delta = (low - self._step_low) & 0xFFFF
+            if delta >= 0x8000:  # backwards: a reset or an old frame; restart the tracking
+                self._step_low = None
+                st.last_step = None
+                self._node_step(low)
+                st.sets -= 1
+                return
+            full = st.last_step + delta
+            if delta:
+                st.step_divider = delta if not st.step_divider else min(st.step_divider, delta)
+                if delta > st.step_divider:
+                    st.missing_sets += delta // st.step_divider - 1
+        self._step_low = low
+        st.last_step = full
+        behind = (full - self._step_base) - (st.imu_samples - self._imu_offset)
+        st.samples_behind = max(st.samples_behind, behind)
 
     def check(self, msg: can.Message) -> list[str]:
         """The problems of one frame (updates the counters)."""
@@ -337,10 +265,21 @@ class Monitor:
             elif not codec.check_status_set(msg, *parts):
                 st.crc_errors += 1
                 probs.append("!CRC")
+            else:
+                self._node_step(data[4] | data[5] << 8)
             self._quat.clear()
         elif res == codec.Check.CRC:
             st.crc_errors += 1
             probs.append("!CRC")
+        elif can_id == codec.ID_OUT_FD:
+            self._node_step(data[6] | data[7] << 8)
+        elif can_id in (codec.ID_IMU_GYRO, codec.ID_IMU_FD):
+            st.imu_samples += 1
+        if answer and (data[7] & 0xF) == int(codec.Cmd.RESET) and not probs:
+            self._step_low = None  # the node restarts at step 0
+            st.last_step = None
+            self._step_base = 0
+            self._imu_offset = st.imu_samples
         if (
             can_id not in codec.NO_CRC
             and can_id not in (codec.ID_DIAG, codec.ID_CMD)
@@ -361,8 +300,8 @@ class Monitor:
             self._last_counter[can_id] = c
         return probs
 
-    def feed(self, msg: can.Message) -> str:
-        """Account for one frame and return its line."""
+    def account(self, msg: can.Message) -> list[str]:
+        """Count and check one frame without making its line (faster: no decoding); the problems."""
         st = self.stats
         st.frames += 1
         ts = msg.timestamp or 0.0
@@ -371,20 +310,28 @@ class Monitor:
         st.last_ts = ts
         if not msg.is_error_frame:
             st.bus_time += self._frame_time(msg)
-        text = candump_text(msg, self.channel)
+            st.fd_frames += 1 if msg.is_fd else 0
         probs = self.check(msg)
-        dec = (
-            self.signals(msg)
-            if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id)
-            else None
-        )
-        if dec is not None:
-            name, values = dec
-            st.by_name[name] = st.by_name.get(name, 0) + 1
-            if self.decode_signals:
+        if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
+            name = self._names.get(msg.arbitration_id)
+            if name is not None:
+                st.by_name[name] = st.by_name.get(name, 0) + 1
+        return probs
+
+    def feed(self, msg: can.Message) -> str:
+        """Account for one frame and return its line."""
+        probs = self.account(msg)
+        text = candump_text(msg, self.channel)
+        if self.decode_signals and not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
+            dec = self.signals(msg)
+            if dec is not None:
+                name, values = dec
                 text += "  " + name
                 if values:
-                    text += " " + " ".join(f"{k}={format_value(v)}" for k, v in values.items())
+                    text += " " + " ".join(
+                        f"{k}={flags_text(int(v)) if k in FLAG_SIGNALS else format_value(v)}"
+                        for k, v in values.items()
+                    )
         if probs:
             text += "  " + " ".join(probs)
         return text
@@ -395,19 +342,104 @@ class Monitor:
         return self.stats.bus_time / span if span > 0 else 0.0
 
     def summary(self) -> list[str]:
-        """Counters and bus load."""
+        """Counters, bus load and what was lost."""
         st = self.stats
         rate = st.frames / st.span if st.span > 0 else 0.0
         names = ", ".join(f"{k} {v}" for k, v in sorted(st.by_name.items()))
-        return [
-            f"{st.frames} frames in {st.span:.3f} s ({rate:.0f} frames/s), "
-            f"bus load {100 * self.bus_load():.1f} % of {self.bitrate / 1000:g} kbit/s "
-            f"(CAN FD data phase {self.data_bitrate / 1e6:g} Mbit/s)",
+        bus = f"bus load {100 * self.bus_load():.1f} % of {self.bitrate / 1000:g} kbit/s"
+        if st.fd_frames:
+            bus += f" (CAN FD data phase {self.data_bitrate / 1e6:g} Mbit/s, {st.fd_frames} FD frames)"
+        out = [
+            f"{st.frames} frames in {st.span:.3f} s ({rate:.0f} frames/s), {bus}",
             f"crc errors {st.crc_errors} (unchecked {st.crc_unchecked}), counter gaps {st.counter_gaps} "
-            f"({st.missing_frames} frames missing), repeats {st.repeats}, dlc errors {st.dlc_errors}, "
-            f"unknown ids {st.unknown_ids}, other frames {st.other}",
-            f"messages: {names or 'none'}",
+            f"({st.missing_frames} frames missing by the 4-bit counters), repeats {st.repeats}, "
+            f"dlc errors {st.dlc_errors}, unknown ids {st.unknown_ids}, other frames {st.other}",
         ]
+        if st.sets and st.first_step is not None and st.last_step is not None:
+            lost = [f"{st.missing_sets} output sets missing by the node's step counter"]
+            if st.samples_behind > 0:
+                lost.append(
+                    f"at least {st.samples_behind} IMU samples the node stepped with are not in this view "
+                    "(LOST: a log cut short, or frames dropped before they were seen)"
+                )
+            out.append(
+                f"IMU samples seen {st.imu_samples}; output sets {st.sets} for node steps "
+                f"{st.first_step}..{st.last_step}: " + "; ".join(lost)
+            )
+        elif st.imu_samples:
+            out.append(f"IMU samples seen {st.imu_samples}; no output set from a node")
+        if st.dropped:
+            out.append(f"DROPPED {st.dropped} frames: the monitor fell too far behind the bus")
+        out.append(f"messages: {names or 'none'}")
+        return out
+
+    @property
+    def lost_anything(self) -> bool:
+        """True when the counters show lost or dropped frames."""
+        st = self.stats
+        return bool(st.missing_frames or st.missing_sets or st.samples_behind > 0 or st.dropped)
+
+
+class BusReader:
+    """Takes frames off a bus in a background thread, so that bursts wait in memory, not in the socket.
+
+    Parameters
+    ----------
+    bus
+        An open bus.
+    max_backlog
+        Most frames kept waiting; beyond that frames are dropped and counted (:attr:`dropped`).
+
+    """
+
+    def __init__(self, bus: can.BusABC, max_backlog: int = 2_000_000) -> None:
+        self.bus = bus
+        self.max_backlog = max_backlog
+        self.dropped = 0
+        self._q: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="attica-monitor-rx", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                msg = self.bus.recv(0.05)
+                if msg is None:
+                    continue
+                if self._q.qsize() >= self.max_backlog:
+                    self.dropped += 1
+                else:
+                    self._q.put(msg)
+        except BaseException as exc:  # reported by get()
+            self._error = exc
+
+    def get(self, timeout: float) -> can.Message | None:
+        """The next frame (None after ``timeout`` s without one)."""
+        try:
+            return self._q.get(timeout=timeout)
+        except queue.Empty:
+            if self._error is not None:
+                raise self._error from None
+            return None
+
+    def stop(self) -> list[can.Message]:
+        """Stop the thread; returns every frame still waiting, then those already in the socket."""
+        self._stop.set()
+        self._thread.join(2.0)
+        rest = []
+        while True:
+            try:
+                rest.append(self._q.get_nowait())
+            except queue.Empty:
+                break
+        for _ in range(1_000_000):  # what the kernel already holds
+            msg = self.bus.recv(0.0)
+            if msg is None:
+                break
+            rest.append(msg)
+        return rest
 
 
 def decoded_fields(line: str) -> tuple[str, str, dict[str, str]]:
@@ -426,9 +458,17 @@ def decoded_fields(line: str) -> tuple[str, str, dict[str, str]]:
 
 
 def same_value(a: str, b: str) -> bool:
-    """Two signal value texts equal (numbers compared as floats, NaN == NaN; names as text)."""
+    """Two signal value texts equal (numbers compared as floats, NaN == NaN; names as text).
+
+    A flags value by name (``AT_REST|BIAS_UPDATED``, ``none``) equals its integer.
+    """
     try:
         x, y = float(a), float(b)
     except ValueError:
-        return a == b
+        if a == b:
+            return True
+        for text, number in ((a, b), (b, a)):
+            if number.isdigit() and text == flags_text(int(number)):
+                return True
+        return False
     return (math.isnan(x) and math.isnan(y)) or x == y

@@ -175,6 +175,7 @@ def replay(
     progress: bool = False,
     channel: str | None = None,
     service: Callable[[], object] | None = None,
+    on_send: Callable[[can.Message], None] | None = None,
 ) -> ReplayStats:
     """Send ``stream`` on ``bus``.
 
@@ -209,6 +210,8 @@ def replay(
     service
         Called before every read from the bus: lets an in-process node on the same thread take its
         frames and answer (e.g. ``NodeRunner(...).service``), instead of running it in a thread.
+    on_send
+        Called with every frame once it was sent (e.g. a log writer, :class:`attica.can.logs.LogTee`).
 
     """
     if speed <= 0:
@@ -273,6 +276,8 @@ def replay(
                         time.sleep(due - now)
                 for msg in msgs[j * per_sample : (j + 1) * per_sample]:
                     _send(bus, msg, stats)
+                    if on_send is not None:
+                        on_send(msg)
                 stats.samples += 1
                 stats.frames += per_sample
                 if listen and (service is None or (k & 7) == 7):

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import can
 
 from attica.can.bus import from_messages, is_attica_candidate, to_messages
-from attica.can.codec import Node
+from attica.can.node import Node
 
 __all__ = ["NodeRunner", "RunnerStats"]
 

@@ -15,6 +15,9 @@ Three ways to get the node's input:
   is reconstructed with :func:`assemble`, a model of the node's sample assembly (att_node.h);
 - a log (:func:`verify_frames` on a candump log that holds both directions): as for a tap.
 
+The parts: :mod:`attica.can.assembly` (the node's sample assembly), :mod:`attica.can.compare`
+(expected outputs, collection, comparison, alignment); this module runs whole verifications.
+
 The report counts, per expected output set: received and equal (ok), received with a good CRC but
 different (mismatched), lost; and separately sets with a bad CRC or incomplete (corrupted), sets
 received twice (duplicates) and sets for steps that should not exist (unexpected). With a tap or a
@@ -26,7 +29,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from typing import Any
 
 import can
@@ -34,629 +36,45 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.can import codec
+from attica.can.assembly import INPUT_FAULTS, INPUT_IDS, OUTPUT_IDS, Assembly, assemble
 from attica.can.bus import from_messages, is_attica_candidate, to_messages
-from attica.can.replay import ImuStream, ReplayStats, StepTracker, replay
-from attica.settings import FilterKind, make_settings
+from attica.can.compare import (
+    Expected,
+    OutputCollector,
+    Received,
+    VerifyReport,
+    align_inputs,
+    compare,
+    expected_outputs,
+    input_values,
+    node_dt,
+    sort_outputs,
+)
+from attica.can.replay import ImuStream, replay
+from attica.settings import FilterKind
 
 __all__ = [
     "Assembly",
+    "Expected",
+    "INPUT_FAULTS",
+    "INPUT_IDS",
+    "NodeNotAnsweringError",
+    "OUTPUT_IDS",
     "OutputCollector",
+    "Received",
     "VerifyReport",
+    "align_inputs",
     "assemble",
+    "compare",
     "expected_outputs",
+    "frames_of",
+    "input_values",
     "node_dt",
     "reset_node",
+    "sort_outputs",
     "verify_frames",
     "verify_live",
 ]
-
-INPUT_IDS = frozenset({codec.ID_IMU_GYRO, codec.ID_IMU_ACC, codec.ID_IMU_MAG, codec.ID_IMU_FD, codec.ID_CMD})
-"""IDs the node receives (everything else is counted as unknown by the node)."""
-
-OUTPUT_IDS = frozenset({*codec.SET_IDS, codec.ID_DIAG, codec.ID_OUT_FD})
-"""IDs the node sends."""
-
-_COMPARED = (
-    "counter",
-    "kind",
-    "flags",
-    "steps",
-    "q",
-    "q16",
-    "euler_raw",
-    "bias_raw",
-    "euler",
-    "gyro_bias",
-    "cov",
-)
-"""Fields of :data:`attica.can.codec.SET_DTYPE` compared bit for bit (error_count reflects the node's
-receive errors, not the filter)."""
-
-INPUT_FAULTS = ("crc_errors", "dlc_errors", "unknown_ids", "duplicates", "stale_partials", "counter_gaps")
-"""Input fault counters of the node (ATT_DIAG) that :func:`assemble` predicts."""
-
-
-def node_dt(rate: float) -> float:
-    """The filter's dt as the node computes it: ``1.0f / sample_rate`` in float32."""
-    return float(np.float32(1.0) / np.float32(rate))
-
-
-# --- the node's sample assembly, as a model -------------------------------------------------------
-
-
-@dataclass
-class Assembly:
-    """Samples the node completes from a frame sequence, and the input faults it counts."""
-
-    gyr: NDArray[np.float32]
-    acc: NDArray[np.float32]
-    mag: NDArray[np.float32]
-    counters: dict[str, int]
-    frames: int = 0
-    commands: int = 0
-    started: int = 0  # samples begun (completed + discarded partials)
-
-    def __len__(self) -> int:
-        return int(self.gyr.shape[0])
-
-
-def assemble(frames: NDArray[np.void]) -> Assembly:
-    """Model of att_node.c's receive path (att_node.h): which samples complete, which faults count.
-
-    Every frame is checked (known ID, length/format, E2E CRC) and then assembled: a classic part with a
-    counter other than the partial sample's discards the partial (stale) and begins a new sample; a
-    repeated part, or a frame of the sample just completed, is a duplicate; a new sample whose counter
-    does not follow the previous sample's is counted once as a counter gap. Commands are counted and
-    otherwise ignored here.
-    """
-    fr = np.atleast_1d(frames)
-    counts = dict.fromkeys(INPUT_FAULTS, 0)
-    g: list[NDArray[np.float32]] = []
-    a: list[NDArray[np.float32]] = []
-    m: list[NDArray[np.float32]] = []
-    part: dict[int, NDArray[np.float32]] = {}
-    part_counter = 0
-    last_counter = 0
-    have_last = False
-    commands = 0
-    started = 0
-    fracs = {
-        codec.ID_IMU_GYRO: codec.GYR_FRAC,
-        codec.ID_IMU_ACC: codec.ACC_FRAC,
-        codec.ID_IMU_MAG: codec.MAG_FRAC,
-    }
-
-    def begin(c: int) -> bool:
-        nonlocal have_last, last_counter, started
-        replaced = False
-        if part:
-            counts["stale_partials"] += 1
-            part.clear()
-            replaced = True
-        elif have_last and c == last_counter:
-            counts["duplicates"] += 1
-            return False
-        if have_last and c != ((last_counter + 1) & 0xF) and not (replaced and c == last_counter):
-            counts["counter_gaps"] += 1
-        have_last = True
-        last_counter = c
-        started += 1
-        return True
-
-    for rec in fr:
-        can_id = int(rec["id"])
-        if can_id not in INPUT_IDS:
-            counts["unknown_ids"] += 1
-            continue
-        chk = codec.check(rec)
-        if chk == codec.Check.DLC:
-            counts["dlc_errors"] += 1
-            continue
-        if chk == codec.Check.CRC:
-            counts["crc_errors"] += 1
-            continue
-        if chk != codec.Check.OK:
-            counts["unknown_ids"] += 1
-            continue
-        data = rec["data"]
-        c = int(data[1]) & 0xF
-        if can_id == codec.ID_CMD:
-            commands += 1
-            continue
-        if can_id == codec.ID_IMU_FD:
-            if begin(c):
-                v = np.frombuffer(data[4:40].tobytes(), "<f4").astype(np.float32)
-                g.append(v[0:3])
-                a.append(v[3:6])
-                m.append(v[6:9])
-            continue
-        if part and c == part_counter:
-            if can_id in part:
-                counts["duplicates"] += 1
-                continue
-        else:
-            if not begin(c):
-                continue
-            part_counter = c
-        raw = np.frombuffer(data[2:8].tobytes(), "<i2")
-        part[can_id] = codec.dequantise(raw, fracs[can_id])
-        if len(part) == 3:
-            g.append(part[codec.ID_IMU_GYRO])
-            a.append(part[codec.ID_IMU_ACC])
-            m.append(part[codec.ID_IMU_MAG])
-            part.clear()
-
-    def stack(rows: list[NDArray[np.float32]]) -> NDArray[np.float32]:
-        return np.array(rows, np.float32).reshape(-1, 3)
-
-    return Assembly(
-        stack(g), stack(a), stack(m), counts, frames=int(fr.shape[0]), commands=commands, started=started
-    )
-
-
-# --- expected outputs -----------------------------------------------------------------------------
-
-
-@dataclass
-class Expected:
-    """The reference's outputs for a node input, and whether C and numpy agreed on them."""
-
-    records: NDArray[np.void]  # OUTPUT_DTYPE, one per step
-    reference_ok: bool
-    reference_detail: str = ""
-
-
-def expected_outputs(
-    kind: FilterKind,
-    rate: float,
-    gyr: NDArray[np.float32],
-    acc: NDArray[np.float32],
-    mag: NDArray[np.float32],
-    settings: Any = None,
-    progress: Callable[[int, int], None] | None = None,
-) -> Expected:
-    """Outputs of every step for the node input (the floats the node steps with).
-
-    Runs :func:`attica.crosscheck.crosscheck`: the C filter and the numpy reference must agree bit for
-    bit, else ``reference_ok`` is False and ``reference_detail`` says where.
-    """
-    from attica.crosscheck import Stream, crosscheck
-
-    s = make_settings(kind, settings, dt=node_dt(rate))
-    if gyr.shape[0] == 0:
-        from attica.outputs import OUTPUT_DTYPE
-
-        return Expected(np.zeros(0, OUTPUT_DTYPE), True)
-    # many short lockstep segments: the reference steps all of them at once (vectorised)
-    segment = max(50, min(1000, int(gyr.shape[0]) // 400))
-    r = crosscheck(kind, [Stream(gyr, acc, mag, "can")], s, segment=segment, progress=progress)
-    detail = "" if r.ok else f"{r.mismatched_steps} steps differ; {r.first_mismatch}"
-    return Expected(r.c_outputs[0], r.ok, detail)
-
-
-def input_values(stream: ImuStream, fd: bool) -> tuple[NDArray[np.float32], ...]:
-    """The floats the node steps with when ``stream`` is sent (classic: scaled int16; FD: exact)."""
-    if fd:
-        return stream.gyr, stream.acc, stream.mag
-    return codec.imu_values(stream.gyr, stream.acc, stream.mag)
-
-
-# --- collecting and comparing the outputs ---------------------------------------------------------
-
-
-class OutputCollector:
-    """Keeps the node's output frames (in arrival order) from received messages."""
-
-    def __init__(self) -> None:
-        self.msgs: list[can.Message] = []
-        self.tracker = StepTracker()
-        self.received = 0
-        self.inputs: list[can.Message] = []
-        self.keep_inputs = False
-        self.first_time: float | None = None
-        self.last_time: float | None = None
-
-    def feed(self, msg: can.Message) -> None:
-        """Look at one received message."""
-        self.received += 1
-        now = time.perf_counter()
-        if self.first_time is None:
-            self.first_time = now
-        self.last_time = now
-        if not is_attica_candidate(msg):
-            return
-        if msg.arbitration_id in OUTPUT_IDS:
-            self.msgs.append(msg)
-            self.tracker.feed(msg)
-        elif self.keep_inputs and msg.arbitration_id in INPUT_IDS:
-            self.inputs.append(msg)
-
-    @property
-    def steps(self) -> int:
-        """The node's step count as last reported."""
-        return self.tracker.steps
-
-    def frames(self) -> NDArray[np.void]:
-        """The output frames kept so far."""
-        return np.asarray(from_messages(self.msgs))
-
-
-@dataclass
-class VerifyReport:
-    """Outcome of a verification (see the module docstring)."""
-
-    kind: FilterKind
-    fd: bool
-    samples_sent: int = 0
-    steps_expected: int = 0
-    sets_expected: int = 0
-    sets_ok: int = 0
-    mismatched: int = 0
-    lost: int = 0
-    missing: int = 0
-    corrupted: int = 0
-    incomplete: int = 0
-    duplicates: int = 0
-    unexpected: int = 0
-    reference_ok: bool = True
-    reference_detail: str = ""
-    first_mismatch: str = ""
-    input_faults: dict[str, int] = field(default_factory=dict)
-    node_diag: dict[str, int] = field(default_factory=dict)
-    error_count: int = 0
-    answers: int = 0
-    skipped: list[int] = field(default_factory=list)
-    frames_sent: int = 0
-    frames_received: int = 0
-    elapsed: float = 0.0
-    replay: ReplayStats | None = None
-
-    @property
-    def exact(self) -> bool:
-        """Every expected output set arrived and is bit-identical to the reference; nothing else arrived."""
-        return (
-            self.reference_ok
-            and self.sets_expected > 0
-            and self.sets_ok == self.sets_expected
-            and self.mismatched == 0
-            and self.lost == 0
-            and self.corrupted == 0
-            and self.unexpected == 0
-        )
-
-    @property
-    def samples_lost(self) -> int:
-        """Samples sent that never stepped the filter."""
-        return max(self.samples_sent - self.steps_expected, 0)
-
-    @property
-    def ok(self) -> bool:
-        """:attr:`exact`, no duplicates, and no input faults."""
-        return (
-            self.exact
-            and self.duplicates == 0
-            and not any(self.input_faults.values())
-            and self.samples_lost == 0
-        )
-
-    def lines(self) -> list[str]:
-        """Human-readable report."""
-        mode = "CAN FD" if self.fd else "classic CAN"
-        out = [
-            f"{self.kind.label} over {mode}: {self.samples_sent} samples sent, "
-            f"{self.steps_expected} filter steps, {self.sets_expected} output sets expected"
-        ]
-        out.append(
-            f"  received: {self.sets_ok} bit-exact, {self.mismatched} mismatched, {self.missing} missing "
-            f"({self.corrupted} corrupted, {self.incomplete} of them incomplete; {self.lost} lost), "
-            f"{self.duplicates} duplicates, {self.unexpected} unexpected"
-        )
-        if self.skipped:
-            shown = ", ".join(str(i) for i in self.skipped[:10]) + (" ..." if len(self.skipped) > 10 else "")
-            out.append(
-                f"  {len(self.skipped)} samples never reached the filter (lost on the way; sample {shown}); "
-                "the comparison uses the samples the node did step with"
-            )
-        if self.input_faults:
-            faults = ", ".join(f"{k} {v}" for k, v in self.input_faults.items())
-            out.append(f"  input faults the node must count: {faults}; samples lost {self.samples_lost}")
-        if self.node_diag:
-            out.append("  node ATT_DIAG: " + ", ".join(f"{k} {v}" for k, v in self.node_diag.items()))
-        ref = (
-            "C == numpy reference, bit for bit"
-            if self.reference_ok
-            else f"C != reference: {self.reference_detail}"
-        )
-        out.append(f"  reference: {ref}")
-        if self.first_mismatch:
-            out.append(f"  first mismatch: {self.first_mismatch}")
-        if self.elapsed > 0:
-            total = self.frames_sent + self.frames_received
-            out.append(
-                f"  {self.frames_sent} frames sent, {self.frames_received} received in {self.elapsed:.2f} s: "
-                f"{total / self.elapsed:.0f} frames/s end to end, "
-                f"{self.steps_expected / self.elapsed:.0f} steps/s"
-            )
-        if self.ok:
-            verdict = "BIT-EXACT"
-        elif self.exact:
-            verdict = "BIT-EXACT, BUT WITH LOSSES OR FAULTS (all counted above)"
-        else:
-            verdict = "FAILED"
-        out.append(f"  verdict: {verdict}")
-        return out
-
-
-def _split_sets(fr: NDArray[np.void]) -> tuple[NDArray[np.void], int, NDArray[np.void], int]:
-    """Sort output frames: (complete sets' frames, incomplete sets, DIAG frames, command answers).
-
-    The complete sets' frames (classic sets and OUT_FD frames) stay in arrival order.
-
-    A classic set is QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS back to back (the node queues a set at
-    once); a set broken by a missing, extra or out-of-order frame counts once as incomplete and its
-    remaining frames are skipped up to the next QUAT_A.
-    """
-    ids = fr["id"].tolist()
-    keep: list[int] = []
-    partial: list[int] = []
-    broken = False
-    incomplete = 0
-    diag: list[int] = []
-    answers = 0
-    for i, can_id in enumerate(ids):
-        if can_id == codec.ID_DIAG:
-            diag.append(i)
-            continue
-        if can_id == codec.ID_STATUS and int(fr["len"][i]) == 8 and int(fr["data"][i, 7]) & codec.ACK_ANSWER:
-            answers += 1
-            continue
-        if can_id == codec.ID_OUT_FD:
-            if partial or broken:
-                incomplete += 1
-                partial, broken = [], False
-            keep.append(i)
-            continue
-        if can_id not in codec.SET_IDS:
-            continue
-        pos = codec.SET_IDS.index(can_id)
-        if pos == 0:
-            if partial or broken:
-                incomplete += 1
-            partial, broken = [i], False
-        elif broken:
-            continue
-        elif partial and len(partial) == pos:
-            partial.append(i)
-            if pos == 5:
-                keep.extend(partial)
-                partial = []
-        else:
-            # out of sequence: the set in progress (or a set whose start was lost) is broken
-            partial, broken = [], True
-    if partial or broken:
-        incomplete += 1
-    return fr[np.array(keep, np.int64)], incomplete, fr[np.array(diag, np.int64)], answers
-
-
-def _describe(name: str, got: Any, want: Any) -> str:
-    def show(x: Any) -> str:
-        arr = np.asarray(x)
-        if arr.dtype.kind == "f":
-            return "[" + ", ".join(f"{float(v)!r} ({float(v).hex()})" for v in arr.reshape(-1)) + "]"
-        return str(arr.tolist())
-
-    return f"{name}: got {show(got)}, expected {show(want)}"
-
-
-def _unwrap(low: NDArray[Any]) -> NDArray[np.int64]:
-    """Full step numbers of 16-bit step fields in arrival order (starting from 0)."""
-    out = np.zeros(low.shape[0], np.int64)
-    prev_low = 0
-    prev = 0
-    for i, v in enumerate(low.tolist()):
-        delta = (v - prev_low) & 0xFFFF
-        prev = prev + delta if delta < 0x8000 else prev - (0x10000 - delta)
-        prev_low = v
-        out[i] = prev
-    return out
-
-
-def _rows(a: NDArray[Any]) -> NDArray[np.uint8]:
-    arr = np.ascontiguousarray(a)
-    return arr.view(np.uint8).reshape(arr.shape[0], -1)
-
-
-def _equal_rows(got: NDArray[np.void], want: NDArray[np.void], counter_offset: int) -> NDArray[np.bool_]:
-    """Per set: every compared field bit-identical (counters shifted by ``counter_offset``)."""
-    ok = np.ones(got.shape[0], np.bool_)
-    for name in _COMPARED:
-        if name == "counter":
-            ok &= got["counter"] == ((want["counter"].astype(np.int64) + counter_offset) & 0xF).astype(
-                np.uint8
-            )
-        else:
-            ok &= (_rows(got[name]) == _rows(want[name])).all(axis=1)
-    return ok
-
-
-def _mismatch_text(got: np.void, want: np.void, counter_offset: int) -> str:
-    diffs = []
-    for name in _COMPARED:
-        a = np.asarray(got[name])
-        b = np.asarray(want[name])
-        if name == "counter":
-            b = np.asarray((int(b) + counter_offset) & 0xF, a.dtype)
-        if a.tobytes() != b.tobytes():
-            diffs.append(_describe(name, a, b))
-    return "; ".join(diffs)
-
-
-@dataclass
-class Received:
-    """The node's output frames sorted out: good sets with their step numbers, and what was wrong."""
-
-    sets: NDArray[np.void]  # SET_DTYPE, CRC good, arrival order
-    step: NDArray[np.int64]  # full step number of each
-    bad_crc: int
-    incomplete: int
-    answers: int
-    diag: NDArray[np.void]
-
-
-def sort_outputs(outputs: NDArray[np.void]) -> Received:
-    """Split output frames into sets (checked), DIAG frames and command answers."""
-    fr = np.atleast_1d(outputs)
-    good, incomplete, diag, answers = _split_sets(fr)
-    got = codec.decode_outputs(good).sets if good.shape[0] else np.zeros(0, codec.SET_DTYPE)
-    dg = codec.decode_outputs(diag).diag if diag.shape[0] else np.zeros(0, codec.DIAG_DTYPE)
-    ok = got[got["crc_ok"]]
-    return Received(ok, _unwrap(ok["steps"]), int((~got["crc_ok"]).sum()), incomplete, answers, dg)
-
-
-def compare(
-    expected: Expected,
-    kind: FilterKind,
-    fd: bool,
-    outputs: NDArray[np.void] | Received,
-    output_divider: int = 1,
-) -> VerifyReport:
-    """Compare output frames (arrival order) with the expected per-step outputs."""
-    rep = VerifyReport(kind=kind, fd=fd)
-    recs = expected.records
-    steps = int(recs.shape[0])
-    rep.steps_expected = steps
-    rep.reference_ok = expected.reference_ok
-    rep.reference_detail = expected.reference_detail
-    chosen = recs[output_divider - 1 :: output_divider]
-    rep.sets_expected = int(chosen.shape[0])
-    want = (
-        codec.decode_outputs(codec.encode_outputs(chosen, kind, fd=fd)).sets
-        if rep.sets_expected
-        else np.zeros(0, codec.SET_DTYPE)
-    )
-    rx = outputs if isinstance(outputs, Received) else sort_outputs(outputs)
-    rep.incomplete = rx.incomplete
-    rep.answers = rx.answers
-    good_diag = rx.diag[rx.diag["crc_ok"]]
-    if good_diag.shape[0]:
-        last = good_diag[-1]
-        rep.node_diag = {name: int(last[name]) for name in INPUT_FAULTS}
-    rep.corrupted = rx.incomplete + rx.bad_crc
-    if rx.sets.shape[0] and not fd:
-        rep.error_count = int(rx.sets["error_count"][-1])
-    full = rx.step
-    valid = (full >= 1) & (full <= steps) & (full % output_divider == 0)
-    rep.unexpected = int((~valid).sum())
-    if rep.unexpected:
-        bad = int(full[~valid][0])
-        rep.first_mismatch = f"a set for step {bad}, which should not exist (steps 1..{steps})"
-    idx = np.nonzero(valid)[0]
-    j = full[idx] // output_divider - 1
-    _, first = np.unique(j, return_index=True)
-    rep.duplicates = int(idx.shape[0] - first.shape[0])
-    idx = idx[np.sort(first)]
-    j = full[idx] // output_divider - 1
-    seen = np.zeros(rep.sets_expected, np.bool_)
-    seen[j] = True
-    if idx.shape[0]:
-        got = rx.sets[idx]
-        w = want[j]
-        offset = (int(got["counter"][0]) - int(w["counter"][0])) & 0xF
-        eq = _equal_rows(got, w, offset)
-        rep.sets_ok = int(eq.sum())
-        rep.mismatched = int((~eq).sum())
-        if rep.mismatched and not rep.first_mismatch:
-            k = int(np.argmin(eq))
-            rep.first_mismatch = f"step {int(full[idx[k]])}: " + _mismatch_text(got[k], w[k], offset)
-    rep.missing = int((~seen).sum())
-    rep.lost = max(rep.missing - rep.corrupted, 0)
-    return rep
-
-
-def align_inputs(
-    kind: FilterKind,
-    rate: float,
-    gyr: NDArray[np.float32],
-    acc: NDArray[np.float32],
-    mag: NDArray[np.float32],
-    rx: Received,
-    fd: bool,
-    settings: Any = None,
-    max_skip: int = 32,
-    max_losses: int = 256,
-) -> tuple[NDArray[np.int64], list[int]]:
-    """Which sent samples the node stepped with, found from its outputs (output divider 1 only).
-
-    Samples lost on the way to the node (dropped frames, full socket buffers) shift every later step.
-    Starting from "no loss", at the first step whose received set differs from the C filter's, this
-    tries skipping 1..max_skip samples there and keeps the skip that makes that set bit-identical.
-    Returns (indices of the stepped samples, indices of the skipped samples). The final proof is the
-    comparison with the reference over the stepped samples; alignment only uses the C filter.
-    """
-    from attica import native
-
-    n = int(gyr.shape[0])
-    seq = np.arange(n, dtype=np.int64)
-    skipped: list[int] = []
-    if rx.sets.shape[0] == 0 or n == 0:
-        return seq, skipped
-    s = make_settings(kind, settings, dt=node_dt(rate))
-    by_step: dict[int, int] = {}
-    for i, st in enumerate(rx.step.tolist()):
-        by_step.setdefault(int(st), i)
-    steps_rx = np.array(sorted(by_step), np.int64)
-    rows = np.array([by_step[int(k)] for k in steps_rx], np.int64)
-    ffi = native.ffi
-    offset: int | None = None
-    start = 0  # steps before this are known to match
-    for _ in range(max_losses):
-        m = seq.shape[0]
-        f = native.Filter(kind, s)
-        out = f.run(gyr[seq], acc[seq], mag[seq])
-        want = codec.decode_outputs(codec.encode_outputs(out, kind, fd=fd)).sets
-        sel = (steps_rx >= max(start, 1)) & (steps_rx <= m)
-        if not sel.any():
-            break
-        st = steps_rx[sel]
-        got = rx.sets[rows[sel]]
-        w = want[st - 1]
-        if offset is None:
-            offset = (int(got["counter"][0]) - int(w["counter"][0])) & 0xF
-        eq = _equal_rows(got, w, offset)
-        if eq.all():
-            break
-        k = int(np.argmin(eq))
-        bad_step = int(st[k])
-        target = got[k : k + 1]
-        # state just before the bad step
-        f = native.Filter(kind, s)
-        if bad_step > 1:
-            f.run(gyr[seq[: bad_step - 1]], acc[seq[: bad_step - 1]], mag[seq[: bad_step - 1]])
-        snap = ffi.new("att_filter_t *")
-        snap[0] = f.state[0]
-        fixed = False
-        for d in range(1, max_skip + 1):
-            if bad_step - 1 + d >= m:
-                break
-            cand = int(seq[bad_step - 1 + d])
-            f.state[0] = snap[0]
-            rec = f.run(gyr[cand : cand + 1], acc[cand : cand + 1], mag[cand : cand + 1])
-            rec["steps"] = bad_step  # the node's step count does not see the skipped samples
-            ws = codec.decode_outputs(
-                codec.encode_outputs(rec, kind, counter0=int(w["counter"][k]), fd=fd)
-            ).sets
-            if _equal_rows(target, ws, offset).all():
-                skipped.extend(seq[bad_step - 1 : bad_step - 1 + d].tolist())
-                seq = np.concatenate([seq[: bad_step - 1], seq[bad_step - 1 + d :]])
-                fixed = True
-                break
-        if not fixed:
-            break  # a real mismatch: leave it to the comparison
-        start = bad_step
-    return seq, skipped
-
-
-# --- whole runs -----------------------------------------------------------------------------------
 
 
 class NodeNotAnsweringError(RuntimeError):
@@ -664,9 +82,16 @@ class NodeNotAnsweringError(RuntimeError):
 
 
 def reset_node(
-    bus: can.BusABC, timeout: float = 2.0, counter: int = 0, service: Callable[[], object] | None = None
+    bus: can.BusABC,
+    timeout: float = 2.0,
+    counter: int = 0,
+    service: Callable[[], object] | None = None,
+    on_send: Callable[[can.Message], None] | None = None,
+    on_receive: Callable[[can.Message], None] | None = None,
 ) -> codec.Answer:
     """Send CMD reset and wait for the node's answer (the node restarts its filter; steps restart at 0).
+
+    ``on_send`` / ``on_receive`` see the command and every frame received meanwhile (e.g. a log).
 
     Raises
     ------
@@ -676,6 +101,8 @@ def reset_node(
     """
     cmd = to_messages(codec.encode_cmd(int(codec.Cmd.RESET), counter=counter))[0]
     bus.send(cmd)
+    if on_send is not None:
+        on_send(cmd)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if service is not None:
@@ -683,6 +110,8 @@ def reset_node(
         msg = bus.recv(min(max(deadline - time.monotonic(), 0.0), 0.05 if service is not None else 1.0))
         if msg is None:
             continue
+        if on_receive is not None:
+            on_receive(msg)
         if (
             is_attica_candidate(msg)
             and msg.arbitration_id == codec.ID_STATUS
@@ -715,6 +144,7 @@ def verify_live(
     progress: bool = False,
     on_message: Callable[[can.Message], None] | None = None,
     service: Callable[[], object] | None = None,
+    on_send: Callable[[can.Message], None] | None = None,
 ) -> VerifyReport:
     """Replay ``stream`` to a node on ``bus`` and check every output set it sends back.
 
@@ -746,10 +176,12 @@ def verify_live(
     service
         An in-process node's :meth:`~attica.can.runner.NodeRunner.service`, called before every read
         (the node then runs on this thread).
+    on_send
+        Called with every frame sent (with ``on_message``: a log of both directions).
 
     """
     if reset:
-        ans = reset_node(bus, service=service)
+        ans = reset_node(bus, service=service, on_send=on_send, on_receive=on_message)
         if FilterKind(ans.kind) != kind:
             raise ValueError(
                 f"the node runs {FilterKind(ans.kind).label}, not {kind.label}: pass --filter accordingly"
@@ -785,6 +217,7 @@ def verify_live(
         acked=lambda: coll.steps,
         progress=progress,
         service=service,
+        on_send=on_send,
     )
     want_steps = len(stream)
     last_count = coll.received

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.checks import filter_settings, warn_units
 from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
@@ -17,7 +18,8 @@ from attica.reference.kf import Kf
 from attica.reference.mars import Mars
 from attica.reference.mekf import Mekf
 from attica.reference.tilt import Tilt
-from attica.settings import FilterKind, make_settings
+from attica.results import Outputs, as_outputs
+from attica.settings import FilterKind
 
 THREE = dm.c("0x1.8p+1")
 
@@ -32,16 +34,19 @@ def _same(a: Any, b: Any) -> bool:
 class Filter:
     """Any reference filter by kind, ``n`` instances in lockstep, with the C interface's outputs.
 
+    ``Filter("ars", 0.01)``: the sample period in s follows the kind, as in :class:`attica.native.Filter`.
+
     Parameters
     ----------
     kind
         ``"ars"``, ``"gyro"``, ``"tilt"``... or a :class:`FilterKind`.
+    dt
+        Sample period in s (overrides ``settings.dt``); required unless ``settings`` is given (tilt has
+        none). A settings dataclass in this place is taken as ``settings``.
     settings
         A settings dataclass for the kind (defaults when None).
     n
         Number of independent instances stepped in lockstep.
-    dt
-        Sample period in s (overrides ``settings.dt``).
     **overrides
         Settings fields to change.
 
@@ -50,13 +55,12 @@ class Filter:
     def __init__(
         self,
         kind: str | int | FilterKind,
+        dt: Any = None,
         settings: Any = None,
         n: int = 1,
-        dt: float | None = None,
         **overrides: Any,
     ) -> None:
-        self.kind = FilterKind.parse(kind)
-        self.settings = make_settings(self.kind, settings, dt, **overrides)
+        self.kind, self._settings = filter_settings(kind, dt, settings, overrides, "reference.Filter")
         self.n = n
         impl: Any
         if self.kind == FilterKind.ARS:
@@ -77,6 +81,11 @@ class Filter:
             raise ValueError(f"filter {self.kind.label} has no reference implementation")
         self.impl = impl
 
+    @property
+    def settings(self) -> Any:
+        """The settings in use (a frozen dataclass)."""
+        return self._settings
+
     def reset(self) -> None:
         """att_filter_reset."""
         self.impl.reset()
@@ -84,11 +93,13 @@ class Filter:
     def retune(self, settings: Any = None, **overrides: Any) -> None:
         """att_filter_retune: new settings for every instance, the state kept (see each kind's retune).
 
-        ``settings`` (a settings dataclass, default: the current ones) with field ``overrides``.
+        ``settings`` (a settings dataclass, default: the current ones) with field ``overrides``; the
+        checks of the constructor apply (conflicting gains are an error).
         """
-        new = make_settings(self.kind, settings if settings is not None else self.settings, **overrides)
+        base = settings if settings is not None else self._settings
+        _, new = filter_settings(self.kind, None, base, overrides, "reference.Filter.retune")
         self.impl.retune(new)
-        self.settings = new
+        self._settings = new
 
     def load_c_states(self, states: Any) -> None:
         """Set instance i from ``states[i]``, a C ``att_filter_t`` of the same kind (cffi)."""
@@ -127,7 +138,7 @@ class Filter:
             return f.step(gyr)  # type: ignore[no-any-return]
         return f.step(acc)  # type: ignore[no-any-return]
 
-    def output(self) -> NDArray[np.void]:
+    def output(self) -> Outputs:
         """att_filter_output for every instance: (n,) records of OUTPUT_DTYPE."""
         f = self.impl
         out = np.zeros(self.n, OUTPUT_DTYPE)
@@ -152,20 +163,23 @@ class Filter:
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)
-        return out
+        return as_outputs(out)
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+    def step(self, gyr: Any, acc: Any, mag: Any = None) -> Outputs:
         """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records."""
         if mag is None:
             mag = np.zeros(3, np.float32)
         self._step_impl(gyr, acc, mag)
         return self.output()
 
-    def run(self, gyr: Any, acc: Any, mag: Any = None) -> NDArray[np.void]:
+    def run(self, gyr: Any, acc: Any, mag: Any = None, check_units: bool = True) -> Outputs:
         """Step through N samples: inputs (N, 3) (all instances fed the same) or (N, n, 3).
 
-        Returns (N,) records for n == 1 and 2-D inputs, else (N, n).
+        Returns (N,) records for n == 1 and 2-D inputs, else (N, n). ``check_units``: warn
+        (:class:`attica.UnitWarning`) when the inputs look like deg/s, g, gauss or nT.
         """
+        if check_units:
+            warn_units(gyr, acc, mag, f"{self.kind.label} reference Filter.run")
         g, multi = as_batch(gyr, 3)
         a, _ = as_batch(acc, 3)
         m = as_batch(mag, 3)[0] if mag is not None else np.zeros((g.shape[0], 1, 3), np.float32)
@@ -175,5 +189,5 @@ class Filter:
         for i in range(g.shape[0]):
             out[i] = self.step(g[i], a[i], m[i])
         if not multi and self.n == 1:
-            return out[:, 0]
-        return out
+            return as_outputs(out[:, 0])
+        return as_outputs(out)

@@ -1,0 +1,185 @@
+"""The C node (firmware/src/att_node.c, att_node.h) in-process through cffi: push frames, poll, pop frames."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.can.layout import FRAME_DTYPE, frames
+from attica.checks import check_gains, implied_gains
+from attica.outputs import OUTPUT_DTYPE
+from attica.settings import FilterKind, make_settings, to_dict
+
+STATS_FIELDS = (
+    "rx_frames",
+    "crc_errors",
+    "counter_gaps",
+    "dlc_errors",
+    "unknown_ids",
+    "duplicates",
+    "stale_partials",
+    "rx_overflows",
+    "tx_overflows",
+    "samples",
+    "steps",
+    "sets",
+    "tx_frames",
+    "commands",
+)
+"""Fields of ``att_node_stats_t``."""
+
+
+class NodeError(RuntimeError):
+    """att_node_init refused the settings."""
+
+
+class Node:
+    """The C node (att_node.h) in-process: push frames, poll, pop frames.
+
+    Parameters
+    ----------
+    kind
+        Filter kind (name or :class:`FilterKind`).
+    settings
+        Filter settings dataclass (defaults when None); ``dt`` is set to ``1 / sample_rate`` (float32)
+        unless given in ``overrides``.
+    sample_rate
+        Hz.
+    bitrate, data_bitrate, fd, output_divider, diag_divider
+        As in ``att_node_settings_t``.
+    **overrides
+        Filter settings fields to change.
+
+    Raises
+    ------
+    NodeError
+        When ``att_node_init`` refuses the settings (the message names the bus load when > 100 %).
+
+    """
+
+    def __init__(
+        self,
+        kind: str | int | FilterKind,
+        settings: Any = None,
+        sample_rate: float = 100.0,
+        bitrate: int = 500_000,
+        data_bitrate: int = 0,
+        fd: bool = False,
+        output_divider: int = 1,
+        diag_divider: int = 16,
+        **overrides: Any,
+    ) -> None:
+        from attica import native
+
+        self._native = native
+        ffi, lib = native.ffi, native.lib
+        self.kind = FilterKind.parse(kind)
+        dt = float(np.float32(1.0) / np.float32(sample_rate))
+        overrides.setdefault("dt", dt)
+        dt_over = overrides.pop("dt")
+        self.settings = make_settings(
+            self.kind, settings, dt_over, **implied_gains(self.kind, settings, overrides)
+        )
+        check_gains(self.kind, self.settings)
+        s = ffi.new("att_node_settings_t *")
+        native._check(
+            lib.att_filter_settings_default(int(self.kind), dt, ffi.addressof(s, "filter")),
+            "att_filter_settings_default",
+        )
+        native._fill(getattr(s.filter, self.kind.label), to_dict(self.settings))
+        s.kind = int(self.kind)
+        s.sample_rate = sample_rate
+        s.bitrate = bitrate
+        s.data_bitrate = data_bitrate
+        s.fd = fd
+        s.output_divider = output_divider
+        s.diag_divider = diag_divider
+        self._s = s
+        self.fd = fd
+        self.bus_load = float(lib.att_node_bus_load(s))
+        self._n = ffi.new("att_node_t *")
+        status = int(lib.att_node_init(self._n, s))
+        if status != lib.ATT_OK:
+            why = "a setting is out of range" if status == lib.ATT_ERR_SETTINGS else f"status {status}"
+            sdt = getattr(self.settings, "dt", None)
+            if sdt is not None and abs(sdt * sample_rate - 1.0) > 1e-3:
+                why = f"the filter's dt {sdt:g} s does not match sample_rate {sample_rate:g} Hz"
+            if self.bus_load > 1.0:
+                why = f"the outputs need {100 * self.bus_load:.1f} % of the bus (> 100 %)"
+            raise NodeError(f"att_node_init: {why}")
+        self._one = ffi.new("att_can_frame_t *")
+
+    @property
+    def state(self) -> Any:
+        """The C node (``att_node_t *``; live)."""
+        return self._n
+
+    def stats(self) -> dict[str, int]:
+        """The node counters."""
+        st = self._n.stats
+        return {name: int(getattr(st, name)) for name in STATS_FIELDS}
+
+    def output(self) -> NDArray[np.void]:
+        """Output of the last filter step (OUTPUT_DTYPE record, shape ())."""
+        out = np.zeros((), OUTPUT_DTYPE)
+        self._native.ffi.memmove(out, self._native.ffi.addressof(self._n, "out"), OUTPUT_DTYPE.itemsize)
+        return out
+
+    @property
+    def running_kind(self) -> FilterKind:
+        """The filter kind now running (changes with a select command)."""
+        return FilterKind(int(self._n.kind))
+
+    def push(self, fr: NDArray[np.void]) -> int:
+        """att_node_rx for each frame; returns how many the rx ring took."""
+        fr = np.ascontiguousarray(np.atleast_1d(fr), FRAME_DTYPE)
+        ffi, lib = self._native.ffi, self._native.lib
+        buf = ffi.from_buffer("att_can_frame_t[]", fr)
+        return sum(1 for i in range(fr.shape[0]) if lib.att_node_rx(self._n, buf + i))
+
+    def poll(self) -> int:
+        """att_node_poll: returns the steps run."""
+        return int(self._native.lib.att_node_poll(self._n))
+
+    def pop(self) -> NDArray[np.void]:
+        """Every frame waiting in the tx ring."""
+        lib = self._native.lib
+        n = int(lib.att_node_tx_pending(self._n))
+        out = frames(n)
+        buf = self._native.ffi.from_buffer("att_can_frame_t[]", out)
+        for i in range(n):
+            lib.att_node_tx(self._n, buf + i)
+        return out
+
+    def rx_pending(self) -> int:
+        """Frames waiting in the rx ring (att_node_poll leaves some while the tx ring is short of room)."""
+        return int(self._n.rx_head - self._n.rx_tail) & 0xFFFFFFFF
+
+    def flush(self) -> tuple[NDArray[np.void], int]:
+        """Poll and pop until the rx ring is empty; returns (frames sent, steps run)."""
+        outs = [self.pop()]
+        steps = 0
+        while True:
+            steps += self.poll()
+            outs.append(self.pop())
+            if self.rx_pending() == 0:
+                return np.concatenate(outs), steps
+
+    def run(self, fr: NDArray[np.void]) -> tuple[NDArray[np.void], int]:
+        """Feed frames as a port does (rx, poll, drain tx after each); returns (frames sent, steps run)."""
+        fr = np.ascontiguousarray(np.atleast_1d(fr), FRAME_DTYPE)
+        ffi, lib = self._native.ffi, self._native.lib
+        cap = 8 * fr.shape[0] + 128
+        out = frames(cap)
+        n_out = ffi.new("size_t *")
+        steps = lib.att_host_node_run(
+            self._n,
+            ffi.from_buffer("att_can_frame_t[]", fr),
+            fr.shape[0],
+            ffi.from_buffer("att_can_frame_t[]", out),
+            cap,
+            n_out,
+        )
+        return out[: int(n_out[0])], int(steps)

@@ -1,0 +1,250 @@
+"""Checks that stop silent misuse of the filters: the sample period, conflicting gains, input units.
+
+- :func:`filter_settings`: the settings of a new filter from ``(kind, dt, settings, **overrides)``,
+  with the sample period required (a positional float after the kind is ``dt``, as in VQF) and a
+  per-sample gain refused while a time constant replaces it (:func:`check_gains`); setting only the
+  time constant leaves the gain at 0, unused (:func:`implied_gains`).
+- :func:`unit_problems` / :func:`warn_units`: median magnitudes of the inputs that look like deg/s, g,
+  milli-g, gauss or nT instead of rad/s, m/s^2 and uT, reported as a :class:`UnitWarning`.
+
+Silence the unit warnings with ``warnings.simplefilter("ignore", attica.UnitWarning)`` (or
+``check_units=False`` in ``Filter.run``, ``--no-unit-check`` on the command line).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+import warnings
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from attica.settings import SETTINGS_CLASS, FilterKind, make_settings
+
+__all__ = [
+    "GAIN_TIME_CONSTANTS",
+    "SettingsConflictError",
+    "UnitWarning",
+    "check_gains",
+    "filter_settings",
+    "implied_gains",
+    "unit_problems",
+    "warn_units",
+]
+
+
+class UnitWarning(UserWarning):
+    """The inputs (or ``dt``) look like other units than attica's (rad/s, m/s^2, uT, s)."""
+
+
+class SettingsConflictError(ValueError):
+    """Two settings contradict each other (a per-sample gain and the time constant that replaces it)."""
+
+
+GAIN_TIME_CONSTANTS: dict[FilterKind, tuple[tuple[str, str], ...]] = {
+    FilterKind.ARS: (("gain", "tau"),),
+    FilterKind.MARS: (("alpha_acc", "tau_acc"), ("alpha_mag", "tau_mag")),
+}
+"""Per kind: (per-sample gain, time constant) pairs. A time constant > 0 sets the gain to
+``dt / (tau + dt)``, so the per-sample gain must then be left unset (0, its default)."""
+
+
+def check_gains(kind: FilterKind, settings: Any) -> None:
+    """Refuse a per-sample gain together with the time constant that would override it.
+
+    The rule of the C library (``att_<kind>_settings_validate``: "must be 0 when tau > 0"): a time
+    constant > 0 replaces the per-sample gain, so a non-zero gain beside it is an error, not something
+    to ignore silently. This check says so naming both fields, before the C library's generic refusal.
+
+    Raises
+    ------
+    SettingsConflictError
+        Naming both fields and how to choose one.
+
+    """
+    for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
+        # the reference steps n instances in lockstep: its settings fields may be arrays (one per instance)
+        g = np.asarray(getattr(settings, gain), np.float64)
+        t = np.asarray(getattr(settings, tau), np.float64)
+        bad = np.broadcast_to((t > 0) & (g != 0), np.broadcast_shapes(g.shape, t.shape))
+        if bad.any():
+            i = np.unravel_index(int(np.argmax(bad)), bad.shape)
+            gi, ti = float(np.broadcast_to(g, bad.shape)[i]), float(np.broadcast_to(t, bad.shape)[i])
+            where = f" (instance {i[0] if len(i) == 1 else i})" if bad.ndim else ""
+            raise SettingsConflictError(
+                f"{kind.label}{where}: {gain}={gi:g} (a per-sample gain) is set together with {tau}={ti:g} s "
+                f"(a time constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, "
+                f"or {gain}=0 (or leave it unset) to use {tau}"
+            )
+
+
+def implied_gains(kind: FilterKind, base: Any, overrides: dict[str, Any]) -> dict[str, Any]:
+    """``overrides`` with each per-sample gain set to 0 where its time constant is in use (> 0).
+
+    A per-sample gain left at its default (not in ``overrides``, default value in ``base``) yields to a
+    time constant > 0, given in ``overrides`` or set in ``base`` (e.g. ``ArsSettings(tau=0.5)``): the
+    gain's default means "unused" once a time constant is in use. A gain given with a value of its own
+    together with its time constant is left for :func:`check_gains` to refuse.
+    """
+    out = dict(overrides)
+    cls = SETTINGS_CLASS[kind]
+    defaults = cls()
+    current = base if base is not None else defaults
+    for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
+        if gain in out:
+            continue
+        t = np.asarray(out.get(tau, getattr(current, tau)), np.float64)
+        g = getattr(current, gain)
+        unused = (t > 0) & (np.asarray(g, np.float64) == float(getattr(defaults, gain)))
+        if unused.ndim == 0:
+            if unused:
+                out[gain] = 0.0
+        elif unused.any():  # per-instance arrays (the reference): 0 where that instance's tau is in use
+            garr = np.broadcast_to(np.asarray(g), unused.shape)
+            out[gain] = np.where(unused, np.zeros_like(garr), garr)
+    return out
+
+
+def _is_real(x: Any) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
+def filter_settings(
+    kind: str | int | FilterKind,
+    dt: Any,
+    settings: Any,
+    overrides: dict[str, Any],
+    who: str = "Filter",
+) -> tuple[FilterKind, Any]:
+    """The kind and settings of a new filter, checked.
+
+    Parameters
+    ----------
+    kind
+        Filter kind (name, number or :class:`FilterKind`).
+    dt
+        Sample period in s. A settings dataclass here is taken as ``settings`` (the positional form
+        ``Filter(kind, settings)``).
+    settings
+        A settings dataclass of the kind (its ``dt`` is used when ``dt`` is None), or None.
+    overrides
+        Settings fields to change.
+    who
+        Name used in error messages (``native.Filter``, ``reference.Filter``).
+
+    Raises
+    ------
+    TypeError
+        No sample period for a kind that has one, ``dt`` not a number, unknown fields.
+    ValueError
+        ``dt`` not finite and > 0, unknown kind, or conflicting gains (:func:`check_gains`).
+
+    """
+    k = FilterKind.parse(kind)
+    if dt is not None and not _is_real(dt):
+        if dataclasses.is_dataclass(dt) and not isinstance(dt, type):
+            if settings is not None:
+                raise TypeError(f"{who}: settings given twice (positionally and as settings=)")
+            settings, dt = dt, None
+        else:
+            raise TypeError(
+                f"{who}: dt is the sample period in s (a number, e.g. {who}({k.label!r}, 0.01) for 100 Hz); "
+                f"got {type(dt).__name__}"
+            )
+    cls = SETTINGS_CLASS.get(k)
+    has_dt = cls is not None and "dt" in {f.name for f in dataclasses.fields(cls)}
+    if has_dt and dt is None and settings is None:
+        raise TypeError(
+            f"{who}({k.label!r}) needs the sample period: {who}({k.label!r}, dt) with dt in s, e.g. "
+            f"{who}({k.label!r}, 0.01) for 100 Hz, or settings=... that carry dt"
+        )
+    if dt is not None:
+        value = float(dt)
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{who}: dt must be a finite sample period > 0 s, got {dt!r}")
+        if value >= 1.0:
+            warnings.warn(
+                f"{who}: dt = {value:g} s (a sample rate of {1 / value:g} Hz): dt is the sample period in "
+                f"seconds, not a rate in Hz (for {value:g} Hz pass dt = {1 / value:g})",
+                UnitWarning,
+                stacklevel=4,
+            )
+    s = make_settings(k, settings, None if dt is None else float(dt), **implied_gains(k, settings, overrides))
+    check_gains(k, s)
+    return k, s
+
+
+# --- units ------------------------------------------------------------------------------------------
+
+_SAMPLE_ROWS = 20_000
+"""Rows looked at (evenly spread) when computing the median magnitudes of a long recording."""
+
+
+def _median_norm(x: ArrayLike | None, q: float = 50.0) -> float:
+    if x is None:
+        return math.nan
+    with np.errstate(all="ignore"):
+        a = np.asarray(x, np.float64)
+        if a.ndim == 0 or a.shape[-1] != 3 or a.size == 0:
+            return math.nan
+        a = a.reshape(-1, 3)
+        if a.shape[0] > _SAMPLE_ROWS:
+            a = a[:: a.shape[0] // _SAMPLE_ROWS]
+        n: NDArray[np.float64] = np.sqrt(a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1] + a[:, 2] * a[:, 2])
+        n = n[np.isfinite(n) & (n > 0)]  # zero or NaN rows: no sample
+        return float(np.percentile(n, q)) if n.size else math.nan
+
+
+def unit_problems(gyr: ArrayLike | None, acc: ArrayLike | None, mag: ArrayLike | None = None) -> list[str]:
+    """What looks wrong with the units of the inputs, judged by median magnitudes (empty: nothing).
+
+    attica takes gyro in rad/s, accel in m/s^2 (|a| about 9.81 at rest) and mag in uT (the earth's
+    field is 25..65 uT). Looks like deg/s: median |gyr| > 8 rad/s, or more than 1 % of the samples above
+    35 rad/s (2000 deg/s, the full scale of common MEMS gyros and the default ``gyro_range``; a recording
+    mostly at rest has a small median in any unit, and the fastest BROAD trial's 99th percentile is
+    19 rad/s); g: median |acc| in 0.3..3; milli-g: 300..3000; gauss: median |mag| in 0.05..2; nT:
+    2000..200000.
+    """
+    out = []
+    g = _median_norm(gyr)
+    g99 = _median_norm(gyr, 99.0)
+    if g > 8.0 or g99 > 35.0:
+        out.append(
+            f"|gyr| (median {g:.3g}, 99th percentile {g99:.3g}) looks like deg/s "
+            "(attica takes rad/s: multiply by pi/180)"
+        )
+    a = _median_norm(acc)
+    if 0.3 <= a <= 3.0:
+        out.append(f"median |acc| = {a:.3g} looks like g (attica takes m/s^2: multiply by 9.80665)")
+    elif 300.0 <= a <= 3000.0:
+        out.append(f"median |acc| = {a:.3g} looks like milli-g (attica takes m/s^2: multiply by 0.00980665)")
+    m = _median_norm(mag)
+    if 0.05 <= m <= 2.0:
+        out.append(f"median |mag| = {m:.3g} looks like gauss (attica takes uT: multiply by 100)")
+    elif 2000.0 <= m <= 200000.0:
+        out.append(f"median |mag| = {m:.3g} looks like nT (attica takes uT: divide by 1000)")
+    return out
+
+
+def warn_units(
+    gyr: ArrayLike | None,
+    acc: ArrayLike | None,
+    mag: ArrayLike | None = None,
+    where: str = "",
+    stacklevel: int = 3,
+) -> list[str]:
+    """Issue one :class:`UnitWarning` listing :func:`unit_problems` (if any); returns the problems."""
+    problems = unit_problems(gyr, acc, mag)
+    if problems:
+        prefix = f"{where}: " if where else ""
+        warnings.warn(
+            prefix
+            + "; ".join(problems)
+            + " (silence: warnings.simplefilter('ignore', attica.UnitWarning), or check_units=False)",
+            UnitWarning,
+            stacklevel=stacklevel,
+        )
+    return problems

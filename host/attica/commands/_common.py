@@ -1,0 +1,318 @@
+"""What several subcommands share: the error type, simulation options, recordings, settings."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import enum
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from attica.checks import SettingsConflictError, check_gains, implied_gains, unit_problems
+from attica.settings import FilterKind, make_settings
+
+
+class CliError(Exception):
+    """A user error: printed as ``attica: error: <message>`` without a traceback, exit status 2."""
+
+
+def warn(message: str) -> None:
+    """Print ``attica: warning: <message>`` on stderr."""
+    print(f"attica: warning: {message}", file=sys.stderr, flush=True)
+
+
+def progress(total: int, desc: str, enabled: bool, unit: str = "step") -> Any:
+    """A tqdm bar on stderr, shown only on a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit=unit,
+        unit_scale=True,
+        disable=not (enabled and sys.stderr.isatty()),
+        leave=False,
+        file=sys.stderr,
+        mininterval=0.2,
+    )
+
+
+# --- simulation options ---------------------------------------------------------------------------
+
+SIM_DEFAULTS: dict[str, Any] = {"duration": 60.0, "rate": 285.714, "seed": 0, "taps": 3, "breaks": 2}
+"""The simulation every command makes when given no recording (``demo`` and ``run`` see the same data)."""
+
+
+def add_sim_arguments(p: argparse.ArgumentParser, duration: float | None = None) -> None:
+    """``--duration --rate --seed --taps --breaks`` (None defaults: :func:`sim_config` fills them in)."""
+    d = {**SIM_DEFAULTS, **({"duration": duration} if duration is not None else {})}
+    g = p.add_argument_group("simulation (without --data)")
+    g.add_argument("--duration", type=float, help=f"seconds to simulate (default {d['duration']:g})")
+    g.add_argument("--rate", type=float, help=f"sample rate in Hz (default {d['rate']:g})")
+    g.add_argument("--seed", type=int, help=f"random seed (default {d['seed']})")
+    g.add_argument(
+        "--taps", type=int, help=f"number of taps, short acceleration impulses (default {d['taps']})"
+    )
+    g.add_argument("--breaks", type=int, help=f"still pauses inside the motion (default {d['breaks']})")
+    p.set_defaults(_sim_defaults=d)
+
+
+SIM_OPTIONS = ("duration", "rate", "seed", "taps", "breaks")
+
+
+def sim_options_given(args: argparse.Namespace) -> list[str]:
+    """The simulation options given explicitly on the command line."""
+    return [f"--{k}" for k in SIM_OPTIONS if getattr(args, k, None) is not None]
+
+
+def sim_value(args: argparse.Namespace, name: str) -> Any:
+    """A simulation option's value (its default when not given)."""
+    v = getattr(args, name, None)
+    return v if v is not None else args._sim_defaults[name]
+
+
+def sim_config(args: argparse.Namespace) -> Any:
+    """The :class:`attica.sim.SimConfig` of the simulation options.
+
+    Without ``--breaks``, a short simulation gets as many of the default still pauses as fit in it.
+    """
+    import math
+
+    from attica.sim import SimConfig
+
+    cfg = SimConfig(
+        duration=sim_value(args, "duration"),
+        rate=sim_value(args, "rate"),
+        seed=sim_value(args, "seed"),
+        taps=sim_value(args, "taps"),
+        rest_breaks=sim_value(args, "breaks"),
+    )
+    if getattr(args, "breaks", None) is None:
+        motion = cfg.duration - cfg.rest_start - cfg.rest_end
+        if motion > 0:
+            # nb pauses of break_duration need motion left between them
+            fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
+            cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+    return cfg
+
+
+def simulate(args: argparse.Namespace) -> Any:
+    """Simulate with the command's options (a configuration that does not fit is a CliError)."""
+    from attica.sim import simulate_with_truth
+
+    try:
+        rec, _ = simulate_with_truth(sim_config(args))
+    except ValueError as exc:
+        raise CliError(f"simulation: {exc} (use a longer --duration or fewer --breaks)") from None
+    return rec
+
+
+def describe_source(args: argparse.Namespace) -> str:
+    """``<file>`` or ``simulation (seed S, D s at R Hz)``."""
+    if getattr(args, "data", None):
+        return str(args.data)
+    return (
+        f"simulation (seed {sim_value(args, 'seed')}, {sim_value(args, 'duration'):g} s at "
+        f"{sim_value(args, 'rate'):g} Hz, {sim_value(args, 'taps')} taps)"
+    )
+
+
+def check_data_or_sim(args: argparse.Namespace) -> None:
+    """Refuse simulation options together with ``--data`` (a recording has its own rate and length)."""
+    given = sim_options_given(args)
+    if getattr(args, "data", None) and given:
+        verb = "describes" if len(given) == 1 else "describe"
+        raise CliError(
+            f"{', '.join(given)} {verb} a simulation, but --data gives a recording (with its own sample "
+            "rate and length); drop them or drop --data"
+        )
+    if not getattr(args, "data", None):
+        for name in ("duration", "rate"):
+            v = getattr(args, name, None)
+            if v is not None and not v > 0:
+                raise CliError(f"--{name} must be > 0, got {v:g}")
+
+
+def load_data(args: argparse.Namespace) -> Any:
+    """The recording of ``--data`` or the simulation of the options."""
+    from attica.data import load_recording
+
+    if getattr(args, "data", None):
+        path = Path(args.data)
+        if not path.exists():
+            raise CliError(f"no such recording: {path}")
+        try:
+            return load_recording(path)
+        except ValueError as exc:
+            raise CliError(f"{path}: {exc}") from None
+    return simulate(args)
+
+
+def check_units(rec: Any, args: argparse.Namespace, what: str = "") -> None:
+    """Print a warning when the recording's units look wrong (unless ``--no-unit-check``)."""
+    if getattr(args, "no_unit_check", False):
+        return
+    problems = unit_problems(rec.gyr, rec.acc, rec.mag)
+    if problems:
+        warn(f"{what or rec.name}: {'; '.join(problems)} (--no-unit-check silences this)")
+
+
+def add_unit_check_argument(p: argparse.ArgumentParser) -> None:
+    """``--no-unit-check``."""
+    p.add_argument(
+        "--no-unit-check",
+        action="store_true",
+        help="do not warn when the inputs look like deg/s, g, gauss or nT instead of rad/s, m/s^2, uT",
+    )
+
+
+# --- output paths ---------------------------------------------------------------------------------
+
+
+def check_output_file(path: Path, what: str = "output") -> Path:
+    """Refuse an output file that cannot be written (checked before the work); returns the path."""
+    if path.is_dir():
+        raise CliError(f"{what} {path} is a directory")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise CliError(f"cannot write {what} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise CliError(f"cannot write {what} {path}: permission denied")
+    return path
+
+
+def prepare_output_dir(path: Path, what: str = "output directory") -> Path:
+    """Create an output directory (parents too) or refuse it, before the work; returns the path."""
+    if path.exists() and not path.is_dir():
+        raise CliError(f"{what} {path} exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f"cannot create {what} {path}: {exc.strerror or exc}") from None
+    if not os.access(path, os.W_OK):
+        raise CliError(f"cannot write into {what} {path}: permission denied")
+    return path
+
+
+# --- filters and settings -------------------------------------------------------------------------
+
+
+def parse_kinds(text: str, allowed: Sequence[FilterKind] | None = None) -> list[FilterKind]:
+    """``all`` or comma-separated kind names; an empty or unknown selection is a CliError."""
+    from attica.settings import implemented_kinds
+
+    choices = list(allowed) if allowed is not None else implemented_kinds()
+    if text.strip() == "all":
+        return choices
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise CliError(
+            f"empty filter selection {text!r}; choose all or some of: {', '.join(k.label for k in choices)}"
+        )
+    out = []
+    for name in names:
+        try:
+            k = FilterKind.parse(name)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        if k not in choices:
+            raise CliError(
+                f"{k.label} is not available here; choose from: {', '.join(c.label for c in choices)}"
+            )
+        if k not in out:
+            out.append(k)
+    return out
+
+
+def _parse_value(text: str, current: Any) -> Any:
+    if isinstance(current, bool):
+        if text.lower() in ("1", "true", "yes", "on"):
+            return True
+        if text.lower() in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(f"expected true/false, got {text!r}")
+    if isinstance(current, enum.Enum):
+        cls = type(current)
+        try:
+            return cls[text.upper()]
+        except KeyError:
+            try:
+                return cls(int(text))
+            except ValueError:
+                names = ", ".join(m.name.lower() for m in cls)
+                raise ValueError(f"expected one of {names}, got {text!r}") from None
+    if isinstance(current, int):
+        return int(text)
+    if isinstance(current, tuple):
+        parts = [float(p) for p in text.split(",")]
+        if len(parts) != len(current):
+            raise ValueError(f"expected {len(current)} comma-separated numbers, got {text!r}")
+        return tuple(parts)
+    return float(text)
+
+
+def _fields(kind: FilterKind) -> dict[str, Any]:
+    defaults = make_settings(kind)
+    return {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
+
+
+def parse_overrides(kind: FilterKind, items: Sequence[str]) -> dict[str, Any]:
+    """``name=value`` strings to typed settings overrides for ``kind`` (every name must exist)."""
+    return plan_overrides([kind], items)[kind]
+
+
+def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[FilterKind, dict[str, Any]]:
+    """``--set name=value`` for several kinds: each setting goes to the kinds that have it.
+
+    A setting that no selected kind has is a CliError; one that only some have is applied there, and a
+    note on stderr says where (before anything runs). ``dt`` is refused: it is the data's sample period.
+    """
+    fields = {k: _fields(k) for k in kinds}
+    out: dict[FilterKind, dict[str, Any]] = {k: {} for k in kinds}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep:
+            raise CliError(f"--set expects name=value, got {item!r}")
+        if name == "dt":
+            raise CliError("dt is the recording's sample period (1 / rate); use --rate for simulations")
+        having = [k for k in kinds if name in fields[k]]
+        if not having:
+            known = sorted(set().union(*(fields[k] for k in kinds)))
+            which = kinds[0].label if len(kinds) == 1 else "none of " + ", ".join(k.label for k in kinds)
+            raise CliError(f"{which} has no setting {name!r}; settings: {', '.join(known)}")
+        for k in having:
+            try:
+                out[k][name] = _parse_value(value, fields[k][name])
+            except ValueError as exc:
+                raise CliError(f"--set {name}: {exc}") from None
+        missing = [k.label for k in kinds if k not in having]
+        if missing:
+            print(
+                f"attica: note: --set {item} applies to {', '.join(k.label for k in having)} only "
+                f"({', '.join(missing)} {'has' if len(missing) == 1 else 'have'} no setting {name!r})",
+                file=sys.stderr,
+                flush=True,
+            )
+    return out
+
+
+def filter_settings(kind: FilterKind, rate: float, overrides: dict[str, Any], base: Any = None) -> Any:
+    """Settings of ``kind`` at ``rate`` with the overrides, checked (conflicts and C refusals: CliError)."""
+    try:
+        s = make_settings(kind, base, dt=1.0 / rate, **implied_gains(kind, base, overrides))
+        check_gains(kind, s)
+    except SettingsConflictError as exc:
+        raise CliError(f"{exc} (with --set)") from None
+    except (TypeError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    from attica import native
+
+    try:
+        native.Filter(kind, settings=s)  # the C library's own checks, before any work
+    except native.NativeError as exc:
+        raise CliError(f"{kind.label}: {exc}") from None
+    return s

@@ -1,0 +1,221 @@
+"""``attica eval``: accuracy on recorded trials with the BROAD metrics, peers side by side.
+
+Runs attica's C filters (and with ``--peers`` other people's filters) over every recording of a
+directory, prints the RMSE per trial, per group and on average (6-axis methods by inclination, 9-axis
+methods by total error, in tables that fit 110 columns; ``--wide`` for one table each), and with
+``--out`` writes results.json and PNG plots. ``--grid`` runs the grid search that chose the defaults.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from attica.commands._common import (
+    CliError,
+    add_unit_check_argument,
+    check_units,
+    parse_kinds,
+    prepare_output_dir,
+    warn,
+)
+from attica.settings import FilterKind, Preset, implemented_kinds
+
+NAME = "eval"
+HELP = "accuracy on recorded trials (BROAD metrics): tables, plots, JSON, peers side by side"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``attica eval``."""
+    from attica.evaluate import VARIANTS
+
+    choices = ", ".join([k.label for k in FilterKind] + list(VARIANTS))
+    p.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds and variants ({choices})")
+    p.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")
+    p.add_argument(
+        "--preset",
+        default="default",
+        choices=["default", "seed", "both"],
+        help="settings preset of attica's filters (default: default)",
+    )
+    p.add_argument("--out", help="directory for results.json and the PNG plots (created if missing)")
+    p.add_argument(
+        "--peers",
+        nargs="?",
+        const="all",
+        help="also run other people's filters: all installed ones, or comma-separated names (vqf9,fusion9)",
+    )
+    p.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
+    p.add_argument("--limit", type=int, help="only the first N trials")
+    p.add_argument("--wide", action="store_true", help="one table per kind of method, however wide")
+    p.add_argument("--no-plots", action="store_true", help="write no PNGs")
+    add_unit_check_argument(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def _peers(spec: str | None) -> list[Any]:
+    """The peer methods asked for; unknown or missing names are CliErrors (before any work)."""
+    from attica.evaluate import peer_methods
+    from attica.peers import PEERS
+
+    if spec is None:
+        return []
+    if spec in ("", "all"):
+        methods = peer_methods(None)
+        if not methods:
+            raise CliError("--peers: no peer library is installed (pip install '.[peers]')")
+        return methods
+    names = [n.strip() for n in spec.split(",") if n.strip()]
+    if not names:
+        raise CliError("--peers: empty selection; give all or names such as vqf9,fusion9")
+    known = {p.name: p for p in PEERS}
+    bases = {p.name.split("@")[0] for p in PEERS}
+    unknown = [n for n in names if n not in known and n not in bases]
+    if unknown:
+        raise CliError(f"--peers: unknown peer(s) {', '.join(unknown)}; peers: {', '.join(sorted(known))}")
+    missing = sorted(
+        {p.library for p in PEERS if (p.name in names or p.name.split("@")[0] in names) and not p.installed}
+    )
+    if missing:
+        raise CliError(f"--peers: {', '.join(missing)} not installed (pip install '.[peers]')")
+    return peer_methods(names)
+
+
+def run(args: argparse.Namespace) -> int:
+    """``attica eval``."""
+    from attica.evaluate import format_summary, format_tables, load_trials, run_methods
+
+    if args.limit is not None and args.limit < 1:
+        raise CliError("--limit must be >= 1")
+    if args.grid:
+        names = _grid_names(args.filter)
+        methods: list[Any] = []
+    else:
+        names = _method_names(args.filter)
+        presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
+        methods = [_attica(n, p) for p in presets for n in names] + _peers(args.peers)
+    out = prepare_output_dir(Path(args.out)) if args.out else None
+    plots = out is not None and not args.no_plots and not args.grid
+    if plots:
+        from attica.evaluate.plots import _pyplot
+
+        try:
+            _pyplot()
+        except RuntimeError as exc:
+            raise CliError(str(exc)) from None
+    try:
+        recs = load_trials(args.data, args.limit)
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        raise CliError(str(exc)) from None
+    missing_truth = [r.name for r in recs if r.quat_true is None]
+    if missing_truth:
+        raise CliError(f"no ground truth (opt_quat / quat_* columns) in: {', '.join(missing_truth)}")
+    print(f"{args.data}: {len(recs)} trials, {sum(len(r) for r in recs)} samples")
+    for rec in recs:
+        check_units(rec, args)
+    if args.grid:
+        return _grid(args, names, recs, out)
+    t0 = time.perf_counter()
+    report = run_methods(methods, recs, progress=not args.quiet, curves=plots)
+    print(f"{len(methods)} methods x {len(recs)} trials in {time.perf_counter() - t0:.1f} s\n")
+    print(format_tables(report, wide=args.wide))
+    print(format_summary(report))
+    if out is not None:
+        data = {
+            "command": " ".join(["attica", *sys.argv[1:]]) if sys.argv[1:2] == ["eval"] else "attica eval"
+        }
+        data.update(report.as_dict())
+        (out / "results.json").write_text(json.dumps(data, indent=1))
+        print(f"\nwrote {out / 'results.json'}")
+        if plots:
+            from attica.evaluate.plots import write_plots
+
+            written = write_plots(report, recs, out)
+            print(f"wrote {len(written)} plots to {out} (error_*.png, groups*.png)")
+    return 0
+
+
+def _method_names(spec: str) -> list[str]:
+    """Kinds and variants (``mekf6``) to run: ``all`` is every kind, each followed by its variants."""
+    from attica.evaluate import VARIANTS
+
+    names: list[str] = []
+    if spec.strip() == "all":
+        for k in implemented_kinds():
+            names.append(k.label)
+            names += [v for v, (kind, _, _) in VARIANTS.items() if kind == k]
+        return names
+    parts = [t.strip() for t in spec.split(",") if t.strip()]
+    for part in parts:
+        if part in VARIANTS:
+            names.append(part)
+        else:
+            names += [k.label for k in parse_kinds(part)]
+    if not names:
+        raise CliError(f"empty filter selection {spec!r}")
+    return list(dict.fromkeys(names))
+
+
+def _grid_names(spec: str) -> list[str]:
+    """Kinds and variants that have a tuning grid (``--grid``); others are a CliError."""
+    from attica.evaluate import GRIDS, VARIANT_GRIDS
+
+    tunable = [k.label for k in implemented_kinds() if k in GRIDS] + list(VARIANT_GRIDS)
+    if spec.strip() == "all":
+        return tunable
+    names = _method_names(spec)
+    bad = [n for n in names if n not in tunable]
+    if bad:
+        raise CliError(f"--grid: {', '.join(bad)} has no tuning grid; tunable: {', '.join(tunable)}")
+    return names
+
+
+def _attica(name: str, preset: Preset) -> Any:
+    """Attica's method for a kind or variant name."""
+    from attica.evaluate import VARIANTS, attica_method
+
+    if name in VARIANTS:
+        return attica_method(VARIANTS[name][0], preset, variant=name)
+    return attica_method(FilterKind.parse(name), preset)
+
+
+def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None) -> int:
+    """``attica eval --grid``: every grid (kinds and variants), best five, in-sample and leave-one-out."""
+    from attica.evaluate import GRIDS, METRICS, VARIANT_GRIDS, VARIANTS
+    from attica.tuning import grid_scores, leave_one_out
+
+    if args.peers is not None:
+        warn("--peers is ignored by --grid (it searches attica's settings only)")
+    grids: dict[str, Any] = {}
+    for name in names:
+        variant = name if name in VARIANT_GRIDS else ""
+        kind = VARIANTS[name][0] if variant else FilterKind.parse(name)
+        grid = VARIANT_GRIDS[name] if variant else GRIDS[kind]
+        res = grid_scores(kind, recs, grid, variant=variant, progress=not args.quiet)
+        rows = res.ranked()
+        print(f"\ngrid {name} ({len(rows)} points, ranked by mean {res.metric} RMSE); best 5:")
+        for over, e in rows[:5]:
+            print(f"  {e.total:7.2f} {e.heading:7.2f} {e.inclination:7.2f}  {over}")
+        entry: dict[str, Any] = {
+            "grid": grid,
+            "ranked": [{"settings": o, **{k: getattr(e, k) for k in METRICS}} for o, e in rows],
+        }
+        if len(recs) >= 2:
+            loo = leave_one_out(res)
+            print(
+                f"  {res.metric}: in-sample {loo.in_sample:.3f}, leave-one-trial-out {loo.mean:.3f} "
+                f"(the best point on the other {len(recs) - 1} trials, scored on the held-out one)"
+            )
+            entry["in_sample"] = loo.in_sample
+            entry["leave_one_out"] = loo.mean
+            entry["held_out"] = {t: float(v) for t, v in zip(res.trials, loo.held_out, strict=True)}
+            entry["chosen"] = {t: res.points[i] for t, i in zip(res.trials, loo.chosen, strict=True)}
+        grids[name] = entry
+    if out is not None:
+        (out / "grid.json").write_text(json.dumps(grids, indent=1, default=str))
+        print(f"wrote {out / 'grid.json'}")
+    return 0

@@ -1,0 +1,63 @@
+"""``attica node``: the C node in-process on a python-can bus (virtual, udp_multicast, socketcan ...).
+
+On Linux SocketCAN the stand-alone ``build/attica-node`` (``make node``) does the same without Python.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from attica.commands._can import KINDS, StopSignals, add_bus_arguments, describe_bus, open_bus, parse_kind
+from attica.commands._common import CliError
+
+NAME = "node"
+HELP = "run the C node in-process on a CAN bus (virtual, udp_multicast, socketcan)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``attica node``."""
+    add_bus_arguments(p)
+    p.add_argument("--filter", default="ars", choices=KINDS, help="filter kind (default ars)")
+    p.add_argument(
+        "--rate", type=float, default=285.714, help="sample rate = 1/dt of the filter (default 285.714)"
+    )
+    p.add_argument("--output-divider", type=int, default=1, help="send outputs every Nth step (default 1)")
+    p.add_argument("--diag-divider", type=int, default=16, help="ATT_DIAG every Nth output set (0 = never)")
+    p.add_argument("--count", type=int, help="stop after N filter steps")
+    p.add_argument("--idle-timeout", type=float, help="stop after this many seconds without a frame")
+    p.add_argument("-q", "--quiet", action="store_true", help="no start-up line")
+
+
+def run(args: argparse.Namespace) -> int:
+    """``attica node``."""
+    from attica.can.node import Node, NodeError
+    from attica.can.runner import NodeRunner
+
+    kind = parse_kind(args.filter)
+    try:
+        node = Node(
+            kind,
+            sample_rate=args.rate,
+            bitrate=args.bitrate,
+            data_bitrate=args.data_bitrate if args.fd else 0,
+            fd=args.fd,
+            output_divider=args.output_divider,
+            diag_divider=args.diag_divider,
+        )
+    except (NodeError, ValueError, TypeError) as exc:
+        raise CliError(f"node settings refused: {exc}") from None
+    bus = open_bus(args)
+    try:
+        runner = NodeRunner(bus, node)
+        if not args.quiet:
+            print(
+                f"attica node: {kind.label} on {describe_bus(args)}, {args.rate:g} Hz, output bus load "
+                f"{100 * node.bus_load:.1f} % of {args.bitrate} bit/s: ready",
+                flush=True,
+            )
+        with StopSignals() as stop:
+            stats = runner.serve(stop=stop, count=args.count, idle_timeout=args.idle_timeout)
+        print(f"attica node: stats: {stats.line(node.stats())}", flush=True)
+    finally:
+        bus.shutdown()
+    return 0

@@ -1,0 +1,84 @@
+"""``attica replay``: send a simulated or recorded IMU stream to a node as CAN frames.
+
+Real time (``--realtime``, ``--speed``) or as fast as the node takes them (flow control by its reported
+steps, ``--window``). ``--write`` logs the traffic of this process, both directions (the frames sent
+and those received while replaying), in one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from attica.commands._can import (
+    add_bus_arguments,
+    add_pacing_arguments,
+    add_stream_arguments,
+    add_write_argument,
+    check_stream_args,
+    describe_bus,
+    log_paths,
+    open_bus,
+    stream,
+)
+from attica.commands._common import CliError
+
+NAME = "replay"
+HELP = "send a simulated or recorded IMU stream as CAN frames (real time or as fast as the node goes)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``attica replay``."""
+    add_bus_arguments(p)
+    add_stream_arguments(p)
+    add_pacing_arguments(p)
+    add_write_argument(p, "the frames sent and received")
+
+
+def run(args: argparse.Namespace) -> int:
+    """``attica replay``."""
+    from attica.can.logs import LogError, LogTee
+    from attica.can.replay import replay
+
+    check_stream_args(args)
+    paths = log_paths(args)
+    st = stream(args)
+    try:
+        tee = LogTee(paths, channel=args.channel or "can0")
+    except LogError as exc:
+        raise CliError(str(exc)) from None
+    bus = open_bus(args)
+    try:
+        if not args.quiet:
+            how = "in real time" if args.realtime else "as fast as possible"
+            print(
+                f"replaying {len(st)} samples at {st.rate:g} Hz {how} on {describe_bus(args)}",
+                file=sys.stderr,
+            )
+        try:
+            stats = replay(
+                bus,
+                st,
+                fd=args.fd,
+                realtime=args.realtime,
+                speed=args.speed,
+                window=args.window,
+                progress=not args.quiet,
+                receive=tee.received if tee else None,
+                on_send=tee.sent if tee else None,
+            )
+        except KeyboardInterrupt:
+            print("attica replay: interrupted", file=sys.stderr)
+            return 130
+        print(stats.line())
+        if tee:  # the node's answers to the last samples belong in the log too
+            msg = bus.recv(0.3)
+            while msg is not None:
+                tee.received(msg)
+                msg = bus.recv(0.3)
+        if tee:
+            print(f"wrote {tee.frames} frames to {', '.join(str(p) for p in paths)}")
+    finally:
+        bus.shutdown()
+        tee.close()
+    return 0

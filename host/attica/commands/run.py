@@ -1,0 +1,154 @@
+"""``attica run``: run C filters over simulated or recorded data and print their error against truth."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.commands._common import (
+    CliError,
+    add_sim_arguments,
+    add_unit_check_argument,
+    check_data_or_sim,
+    check_output_file,
+    check_units,
+    describe_source,
+    filter_settings,
+    load_data,
+    parse_kinds,
+    plan_overrides,
+    progress,
+)
+from attica.outputs import OUTPUT_DTYPE
+from attica.settings import FilterKind, describe_flags
+
+NAME = "run"
+HELP = "run C filters over simulated or recorded data, print the attitude error (and check the bits)"
+
+CHUNK = 20_000
+"""Samples per C batch (the progress bar moves between batches)."""
+
+USES_MAG = {FilterKind.MARS}
+"""Kinds whose heading is meaningful (9-axis); 6-axis filters are judged by inclination only."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``attica run``."""
+    p.add_argument("--filter", default="ars", help="filter kind, comma-separated kinds, or all (default ars)")
+    p.add_argument(
+        "--data", help="recording (.npz in BROAD layout, .csv, BROAD .hdf5/.mat); default: simulate"
+    )
+    add_sim_arguments(p)
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="NAME=VALUE",
+        help="change a setting (repeatable; with several filters it applies to those that have it)",
+    )
+    p.add_argument("--check", action="store_true", help="also run the numpy reference and compare the bits")
+    p.add_argument("-o", "--output", help="write the outputs to this .npz (several filters: NAME_<kind>.npz)")
+    add_unit_check_argument(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def run_native(kind: FilterKind, rec: Any, settings: Any, show_progress: bool) -> NDArray[np.void]:
+    """Run the C filter over a recording in chunks (for the progress bar); (N,) output records."""
+    from attica import native
+
+    f = native.Filter(kind, settings=settings)
+    out = np.zeros(len(rec.gyr), OUTPUT_DTYPE)
+    with progress(len(rec.gyr), f"{kind.label} (C)", show_progress) as bar:
+        for start in range(0, len(rec.gyr), CHUNK):
+            sl = slice(start, start + CHUNK)
+            out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False)
+            bar.update(len(out[sl]))
+    return out
+
+
+def flag_summary(flags: NDArray[np.uint32]) -> str:
+    """The most frequent flag combinations with their counts."""
+    values, counts = np.unique(flags, return_counts=True)
+    rows = sorted(zip(counts, values), reverse=True)[:6]
+    return ", ".join(f"{describe_flags(int(v))}: {int(c)}" for c, v in rows)
+
+
+def error_line(kind: FilterKind, rec: Any, out: NDArray[np.void]) -> str:
+    """The RMSE line of one filter (the same in ``run`` and ``demo``)."""
+    from attica.metrics import evaluate
+
+    if rec.quat_true is None:
+        return f"{kind.label:>6}: no ground truth in this recording; last attitude {out['q'][-1]}"
+    e = evaluate(out["q"].astype(np.float64), rec.quat_true, rec.movement)
+    if kind in USES_MAG:
+        return (
+            f"{kind.label:>6}: RMSE total {e.total:6.2f} deg   heading {e.heading:6.2f} deg   "
+            f"inclination {e.inclination:6.2f} deg"
+        )
+    return f"{kind.label:>6}: RMSE inclination {e.inclination:6.2f} deg (6-axis: heading not observable)"
+
+
+def crosscheck_line(kind: FilterKind, rec: Any, settings: Any, show_progress: bool) -> tuple[bool, list[str]]:
+    """Run the numpy reference against the C filter; (bit-exact, report lines)."""
+    import warnings
+
+    from attica.checks import UnitWarning
+    from attica.crosscheck import Stream, crosscheck
+
+    with progress(0, f"{kind.label} reference", show_progress) as bar, warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnitWarning)  # the units were judged (and reported) once already
+
+        def step(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        r = crosscheck(kind, [Stream(rec.gyr, rec.acc, rec.mag, rec.name)], settings, progress=step)
+    verdict = "bit-exact" if r.ok else "MISMATCH"
+    lines = [
+        f"        C vs numpy reference: {r.steps} steps compared, {r.mismatched_steps} differ: {verdict}"
+    ]
+    if not r.ok:
+        lines.append(f"        first difference: {r.first_mismatch}")
+    return r.ok, lines
+
+
+def output_paths(path: Path, kinds: list[FilterKind]) -> dict[FilterKind, Path]:
+    """Where each filter's outputs go (checked before any work)."""
+    if path.is_dir():
+        raise CliError(f"output {path} is a directory (give a file name, e.g. {path / 'out.npz'})")
+    base = path if path.suffix else path.with_name(path.name + ".npz")
+    if len(kinds) == 1:
+        return {kinds[0]: check_output_file(base)}
+    return {k: check_output_file(base.with_name(f"{base.stem}_{k.label}{base.suffix}")) for k in kinds}
+
+
+def run(args: argparse.Namespace) -> int:
+    """``attica run``."""
+    kinds = parse_kinds(args.filter)
+    check_data_or_sim(args)
+    outputs = output_paths(Path(args.output), kinds) if args.output else {}
+    overrides = plan_overrides(kinds, args.set or [])
+    rec = load_data(args)
+    settings = {k: filter_settings(k, rec.rate, overrides[k]) for k in kinds}  # all checked before running
+    print(f"{describe_source(args)}: {len(rec.gyr)} samples at {rec.rate:g} Hz")
+    check_units(rec, args)
+    status = 0
+    for kind in kinds:
+        t0 = time.perf_counter()
+        out = run_native(kind, rec, settings[kind], not args.quiet)
+        elapsed = time.perf_counter() - t0
+        print(error_line(kind, rec, out))
+        print(f"        {len(out)} steps in {elapsed * 1e3:.0f} ms; flags: {flag_summary(out['flags'])}")
+        if args.check:
+            ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet)
+            print("\n".join(lines))
+            status = status or (0 if ok else 1)
+        if kind in outputs:
+            arrays: dict[str, Any] = {name: out[name] for name in out.dtype.names or ()}
+            np.savez_compressed(outputs[kind], **arrays)
+            print(f"        wrote {outputs[kind]}")
+    return status

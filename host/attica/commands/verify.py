@@ -1,0 +1,151 @@
+"""``attica verify``: replay a stream to a node and prove its outputs bit-exact against the reference.
+
+Live: sends the stream (``--with-node`` runs the C node in this process on the same bus), collects
+every output set and compares it bit for bit with the numpy reference fed the samples the node got.
+``--log``: the same proof from a recorded log of both directions. ``--write`` logs this session's
+traffic, both directions, so that ``attica verify --log`` and ``attica monitor --log`` can check it.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import can
+
+from attica.commands._can import (
+    KINDS,
+    add_bus_arguments,
+    add_pacing_arguments,
+    add_stream_arguments,
+    add_write_argument,
+    check_stream_args,
+    describe_bus,
+    log_paths,
+    open_bus,
+    parse_kind,
+    stream,
+)
+from attica.commands._common import CliError
+
+NAME = "verify"
+HELP = "replay a stream to a node (or read a log) and check every output set bit for bit"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``attica verify``."""
+    add_bus_arguments(p)
+    add_stream_arguments(p)
+    add_pacing_arguments(p)
+    p.add_argument("--filter", default="ars", choices=KINDS, help="the node's filter (default ars)")
+    p.add_argument("--output-divider", type=int, default=1, help="the node's output divider (default 1)")
+    p.add_argument("--no-reset", action="store_true", help="do not reset the node first (it must be fresh)")
+    p.add_argument("--with-node", action="store_true", help="run the node in this process on the same bus")
+    p.add_argument(
+        "--show", type=int, default=0, metavar="N", help="print the first N received frames, decoded"
+    )
+    p.add_argument("--log", help="verify a recorded log of both directions instead of a live bus")
+    add_write_argument(p, "the frames sent and received (live)")
+
+
+def _verify_log(args: argparse.Namespace) -> int:
+    from attica.can.logs import LogError, read_log
+    from attica.can.verify import frames_of, verify_frames
+
+    if args.write:
+        raise CliError("--write logs a live session; with --log there is nothing new to write")
+    kind = parse_kind(args.filter)
+    rate = args.rate if args.rate is not None else 285.714
+    try:
+        frames = frames_of(read_log(args.log))
+    except LogError as exc:
+        raise CliError(str(exc)) from None
+    rep = verify_frames(frames, kind, rate, fd=True if args.fd else None, output_divider=args.output_divider)
+    print(f"{args.log}: {rep.frames_received} frames")
+    for line in rep.lines():
+        print(line)
+    return 0 if rep.ok else 1
+
+
+def run(args: argparse.Namespace) -> int:
+    """``attica verify``."""
+    from attica.can.logs import LogError, LogTee
+    from attica.can.monitor import Monitor
+    from attica.can.node import Node, NodeError
+    from attica.can.runner import NodeRunner
+    from attica.can.verify import NodeNotAnsweringError, verify_live
+
+    if args.output_divider < 1:
+        raise CliError("--output-divider must be >= 1")
+    if args.log:
+        return _verify_log(args)
+    kind = parse_kind(args.filter)
+    check_stream_args(args)
+    paths = log_paths(args)
+    st = stream(args)
+    node = None
+    if args.with_node:
+        try:
+            node = Node(
+                kind,
+                sample_rate=st.rate,
+                bitrate=args.bitrate,
+                data_bitrate=args.data_bitrate if args.fd else 0,
+                fd=args.fd,
+                output_divider=args.output_divider,
+            )
+        except NodeError as exc:
+            raise CliError(f"node settings refused: {exc}") from None
+    try:
+        tee = LogTee(paths, channel=args.channel or "can0")
+    except LogError as exc:
+        raise CliError(str(exc)) from None
+    mon = Monitor(bitrate=args.bitrate, data_bitrate=args.data_bitrate) if args.show else None
+    shown = 0
+
+    def on_message(msg: can.Message) -> None:
+        nonlocal shown
+        tee.received(msg)
+        if mon is not None and shown < args.show:
+            print("   " + mon.feed(msg), flush=True)
+            shown += 1
+
+    bus = open_bus(args)
+    node_bus = None
+    try:
+        runner = None
+        if node is not None:
+            node_bus = open_bus(args)
+            runner = NodeRunner(node_bus, node)
+        print(
+            f"verify: {len(st)} samples at {st.rate:g} Hz to the {kind.label} node "
+            f"on {describe_bus(args)}" + (" (node in this process)" if node is not None else ""),
+            flush=True,
+        )
+        try:
+            rep = verify_live(
+                bus,
+                st,
+                kind,
+                fd=args.fd,
+                output_divider=args.output_divider,
+                realtime=args.realtime,
+                speed=args.speed,
+                window=args.window,
+                reset=not args.no_reset,
+                progress=not args.quiet,
+                on_message=on_message if (mon is not None or tee) else None,
+                service=runner.service if runner is not None else None,
+                on_send=tee.sent if tee else None,
+            )
+        except (NodeNotAnsweringError, ValueError) as exc:
+            raise CliError(str(exc)) from None
+    finally:
+        if node_bus is not None:
+            node_bus.shutdown()
+        bus.shutdown()
+        tee.close()
+    for line in rep.lines():
+        print(line)
+    if tee:
+        print(f"  wrote {tee.frames} frames to {', '.join(str(p) for p in paths)}")
+    return 0 if rep.ok else 1
