@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica import _build
+from attica.calibration.stages import fill_c
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, Preset, make_settings, to_dict
 
@@ -131,6 +132,10 @@ def _check(status: int, what: str) -> None:
         raise NativeError(f"{what}: NULL argument")
     if status == lib.ATT_ERR_SETTINGS:
         raise NativeError(f"{what}: a setting is out of range or not finite")
+    if status == lib.ATT_ERR_KIND:
+        raise NativeError(f"{what}: not supported by this filter kind (or not initialised)")
+    if status == lib.ATT_ERR_STATE:
+        raise NativeError(f"{what}: the filter is not initialised yet (no valid sample)")
     if status != lib.ATT_OK:
         raise NativeError(f"{what}: status {status}")
 
@@ -185,13 +190,25 @@ class Filter:
         A settings dataclass for the kind (defaults when None).
     dt
         Sample period in s (overrides ``settings.dt``).
+    calibration
+        Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
+        :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
+    gravity, accel_outputs
+        g of the acceleration outputs (m/s^2) and whether they are kept (:meth:`accel`).
     **overrides
         Settings fields to change.
 
     """
 
     def __init__(
-        self, kind: str | int | FilterKind, settings: Any = None, dt: float | None = None, **overrides: Any
+        self,
+        kind: str | int | FilterKind,
+        settings: Any = None,
+        dt: float | None = None,
+        calibration: Any = None,
+        gravity: float = 9.80665,
+        accel_outputs: bool = False,
+        **overrides: Any,
     ) -> None:
         self.kind = FilterKind.parse(kind)
         self.settings = make_settings(self.kind, settings, dt, **overrides)
@@ -201,6 +218,37 @@ class Filter:
         self._f = ffi.new("att_filter_t *")
         _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
         self._in = ffi.new("att_sample_t *")
+        if calibration is not None or accel_outputs or gravity != 9.80665:
+            self.calibrate(calibration, gravity, accel_outputs)
+
+    def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
+        """att_filter_calibrate: new input/output stages, the state kept (NativeError says why if refused)."""
+        from attica.reference.calib import as_stage_settings
+
+        cs = ffi.new("att_calib_settings_t *")
+        fill_c(cs, as_stage_settings(calibration, gravity, accel_outputs))
+        problem = lib.att_calib_settings_check(cs)
+        if problem != lib.ATT_CALIB_OK:
+            why = ffi.string(lib.att_calib_error_name(problem)).decode()
+            raise NativeError(f"att_filter_calibrate: {why}")
+        _check(lib.att_filter_calibrate(self._f, cs), "att_filter_calibrate")
+
+    def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]] | None:
+        """att_filter_accel: (gravity, linear, earth), each (3,) m/s^2; None when not available."""
+        a = ffi.new("att_accel_t *")
+        lib.att_filter_accel(self._f, a)
+        if a.valid != lib.ATT_OUT_ACCEL:
+            return None
+        vecs = (a.gravity, a.linear, a.earth)
+        return tuple(np.array([v.x, v.y, v.z], np.float32) for v in vecs)  # type: ignore[return-value]
+
+    def set_heading(self, heading: float) -> None:
+        """att_filter_set_heading (rad, the output convention's yaw)."""
+        _check(lib.att_filter_set_heading(self._f, heading), "att_filter_set_heading")
+
+    def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
+        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        _check(lib.att_filter_heading_update(self._f, heading, gain, valid), "att_filter_heading_update")
 
     def reset(self) -> None:
         """att_filter_reset."""

@@ -8,8 +8,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.outputs import OUT_ALL, OUTPUT_DTYPE
+from attica.reference import calib as rc
 from attica.reference import detmath as dm
-from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
+from attica.reference._common import as_batch, c_state_values, load_c_state, split3, stack, state_values
 from attica.reference.ars import Ars
 from attica.reference.ekf import THIRD, Ekf
 from attica.reference.gyro import Gyro
@@ -39,6 +40,12 @@ class Filter:
         Number of independent instances stepped in lockstep.
     dt
         Sample period in s (overrides ``settings.dt``).
+    calibration
+        Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
+        :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
+    gravity, accel_outputs
+        g of the acceleration outputs (m/s^2) and whether they are kept (:meth:`accel`), when
+        ``calibration`` is a Calibration or None.
     **overrides
         Settings fields to change.
 
@@ -50,11 +57,15 @@ class Filter:
         settings: Any = None,
         n: int = 1,
         dt: float | None = None,
+        calibration: Any = None,
+        gravity: float = 9.80665,
+        accel_outputs: bool = False,
         **overrides: Any,
     ) -> None:
         self.kind = FilterKind.parse(kind)
         self.settings = make_settings(self.kind, settings, dt, **overrides)
         self.n = n
+        self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
         impl: Any
         if self.kind == FilterKind.ARS:
             impl = Ars(self.settings, n)
@@ -73,8 +84,27 @@ class Filter:
         self.impl = impl
 
     def reset(self) -> None:
-        """att_filter_reset."""
+        """att_filter_reset (the calibration is kept)."""
         self.impl.reset()
+        self.stages.acc_body = None
+
+    def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
+        """att_filter_calibrate: new input/output stages, the state kept (ValueError when refused)."""
+        self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
+
+    def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+        """att_filter_accel: (gravity, linear, earth) accelerations, each (n, 3), m/s^2."""
+        q = self.impl.quat if self.kind == FilterKind.EKF else self.impl.q
+        g, lin, e = self.stages.accel(tuple(q.T) if self.kind == FilterKind.EKF else q)
+        return stack(g), stack(lin), stack(e)
+
+    def set_heading(self, heading: float) -> None:
+        """att_filter_set_heading (rad, the output convention's yaw)."""
+        rc.set_heading(self.kind.label, self.impl, self.stages.convention, heading)
+
+    def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
+        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        rc.heading_update(self.kind.label, self.impl, self.stages.convention, heading, gain, valid)
 
     def retune(self, settings: Any = None, **overrides: Any) -> None:
         """att_filter_retune: new settings for every instance, the state kept (see each kind's retune).
@@ -141,6 +171,10 @@ class Filter:
         elif self.kind == FilterKind.EKF:
             pb = ((f.p[15] + f.p[18]) + f.p[20]) * THIRD
             out["cov"] = stack((f.p[0], f.p[6], f.p[11], pb))
+        if self.stages.convention != rc.ENU:
+            qc = rc.quat_to(tuple(out["q"].T), self.stages.convention)
+            out["q"] = stack(qc)
+            out["euler"] = stack(dm.quat_to_euler(qc))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)
@@ -150,6 +184,12 @@ class Filter:
         """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records."""
         if mag is None:
             mag = np.zeros(3, np.float32)
+        st = self.stages
+        if st.active & (rc.ACTIVE_INPUT | rc.ACTIVE_ACC):
+            g3, a3, m3 = st.apply(split3(gyr, self.n), split3(acc, self.n), split3(mag, self.n))
+            gyr, acc, mag = stack(g3), stack(a3), stack(m3)
+            if st.active & rc.ACTIVE_ACC:
+                st.acc_body = a3
         self._step_impl(gyr, acc, mag)
         return self.output()
 
