@@ -193,8 +193,8 @@ class Filter:
     calibration
         Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
         :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
-    gravity, accel_outputs
-        g of the acceleration outputs (m/s^2) and whether they are kept (:meth:`accel`).
+    accel_outputs
+        Keep each step's accel for :meth:`accel` (g: the kind's ``gravity`` setting, else 9.80665).
     **overrides
         Settings fields to change.
 
@@ -206,7 +206,6 @@ class Filter:
         settings: Any = None,
         dt: float | None = None,
         calibration: Any = None,
-        gravity: float = 9.80665,
         accel_outputs: bool = False,
         **overrides: Any,
     ) -> None:
@@ -218,8 +217,8 @@ class Filter:
         self._f = ffi.new("att_filter_t *")
         _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
         self._in = ffi.new("att_sample_t *")
-        if calibration is not None or accel_outputs or gravity != 9.80665:
-            self.calibrate(calibration, gravity, accel_outputs)
+        if calibration is not None or accel_outputs:
+            self.calibrate(calibration, float(getattr(self.settings, "gravity", 9.80665)), accel_outputs)
 
     def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
         """att_filter_calibrate: new input/output stages, the state kept (NativeError says why if refused)."""

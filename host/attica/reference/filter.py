@@ -43,9 +43,9 @@ class Filter:
     calibration
         Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
         :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
-    gravity, accel_outputs
-        g of the acceleration outputs (m/s^2) and whether they are kept (:meth:`accel`), when
-        ``calibration`` is a Calibration or None.
+    accel_outputs
+        Keep each step's accel for :meth:`accel` (g: the kind's ``gravity`` setting, else 9.80665),
+        when ``calibration`` is a Calibration or None.
     **overrides
         Settings fields to change.
 
@@ -58,14 +58,14 @@ class Filter:
         n: int = 1,
         dt: float | None = None,
         calibration: Any = None,
-        gravity: float = 9.80665,
         accel_outputs: bool = False,
         **overrides: Any,
     ) -> None:
         self.kind = FilterKind.parse(kind)
         self.settings = make_settings(self.kind, settings, dt, **overrides)
         self.n = n
-        self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
+        g = float(getattr(self.settings, "gravity", 9.80665))
+        self.stages = rc.Stages(rc.as_stage_settings(calibration, g, accel_outputs))
         impl: Any
         if self.kind == FilterKind.ARS:
             impl = Ars(self.settings, n)
