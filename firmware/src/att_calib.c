@@ -397,3 +397,94 @@ const char *att_calib_error_name(att_calib_error_t e)
         return "?";
     }
 }
+
+/* The float slot of field index (see att_calib_field_set), NULL for the integer fields and beyond. */
+static float *att_calib_field_slot(att_calib_settings_t *s, uint32_t index)
+{
+    att_vec3_t *v = NULL;
+    uint32_t k = 0u;
+    if (index < 9u) {
+        return &s->gyro.misalignment[index];
+    }
+    if (index >= 15u && index < 24u) {
+        return &s->accel.misalignment[index - 15u];
+    }
+    if (index >= 30u && index < 39u) {
+        return &s->mag.soft_iron[index - 30u];
+    }
+    if (index < 15u) {
+        v = (index < 12u) ? &s->gyro.sensitivity : &s->gyro.offset;
+        k = (index - 9u) % 3u;
+    } else if (index < 30u) {
+        v = (index < 27u) ? &s->accel.sensitivity : &s->accel.offset;
+        k = (index - 24u) % 3u;
+    } else if (index < 42u) {
+        v = &s->mag.hard_iron;
+        k = index - 39u;
+    } else if (index < 46u) {
+        float *q[4];
+        q[0] = &s->mounting.w;
+        q[1] = &s->mounting.x;
+        q[2] = &s->mounting.y;
+        q[3] = &s->mounting.z;
+        return q[index - 42u];
+    } else if (index == 48u) {
+        return &s->gravity;
+    } else {
+        return NULL;
+    }
+    return (k == 0u) ? &v->x : ((k == 1u) ? &v->y : &v->z);
+}
+
+bool att_calib_field_set(att_calib_settings_t *s, uint32_t index, float value)
+{
+    float *slot;
+    uint32_t u;
+    if (s == NULL || index >= ATT_CALIB_FIELDS) {
+        return false;
+    }
+    slot = att_calib_field_slot(s, index);
+    if (slot != NULL) {
+        *slot = value;
+        return true;
+    }
+    if (!(value >= 0.0f && value <= 16777216.0f)) {
+        return false; /* NaN, negative or too large for the exact conversion */
+    }
+    u = (uint32_t)value;
+    if ((float)u != value) {
+        return false;
+    }
+    if (index == 46u) {
+        s->remap = u;
+    } else if (index == 47u) {
+        s->convention = (att_convention_t)u; /* validated by the settings check */
+    } else {
+        if (u > 1u) {
+            return false;
+        }
+        s->accel_outputs = (u == 1u);
+    }
+    return true;
+}
+
+bool att_calib_field_get(const att_calib_settings_t *s, uint32_t index, float *value)
+{
+    att_calib_settings_t t;
+    float *slot;
+    if (s == NULL || value == NULL || index >= ATT_CALIB_FIELDS) {
+        return false;
+    }
+    t = *s;
+    slot = att_calib_field_slot(&t, index);
+    if (slot != NULL) {
+        *value = *slot;
+    } else if (index == 46u) {
+        *value = (float)(s->remap & 0xFFFFFFu);
+    } else if (index == 47u) {
+        *value = (float)((uint32_t)s->convention & 0xFFFFFFu);
+    } else {
+        *value = s->accel_outputs ? 1.0f : 0.0f;
+    }
+    return true;
+}

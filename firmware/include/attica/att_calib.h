@@ -153,6 +153,18 @@ att_vec3_t att_calib_vec_to(att_vec3_t v, att_convention_t conv);
 uint32_t att_calib_remap_parse(const char *name);
 /** The name of remap 1 .. 24 ("+x+y+z" is 1, the identity); NULL for another number. */
 const char *att_calib_remap_name(uint32_t remap);
+/**
+ * Field i of the settings as one float (the CAN command CAL_SET and the persisted form): 0..8 gyro
+ * misalignment (row-major), 9..11 gyro sensitivity, 12..14 gyro offset, 15..29 the same for the accel,
+ * 30..38 soft iron, 39..41 hard iron, 42..45 mounting quaternion w, x, y, z, 46 remap, 47 convention,
+ * 48 gravity, 49 accel_outputs. Integer fields (46, 47, 49) take exact integers 0 .. 2^24. Writes
+ * nothing and returns false for an unknown index or an integer field given a non-integer; the settings
+ * as a whole are validated later (att_calib_settings_check).
+ */
+bool att_calib_field_set(att_calib_settings_t *s, uint32_t index, float value);
+/** Field i of the settings (see att_calib_field_set); false for an unknown index or NULL. */
+bool att_calib_field_get(const att_calib_settings_t *s, uint32_t index, float *value);
+#define ATT_CALIB_FIELDS 50 /* number of att_calib_field_set indices */
 /** Short text of an att_calib_error_t ("gyro matrix", ...; "?" if unknown). */
 const char *att_calib_error_name(att_calib_error_t e);
 /* ATT_CDEF_END */
