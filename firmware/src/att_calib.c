@@ -4,6 +4,7 @@
  */
 #include "att_fp.h"
 
+#include "att_calib_i.h"
 #include "att_core.h"
 #include "att_inline.h"
 #include "attica/att_calib.h"
@@ -156,14 +157,14 @@ att_status_t att_calib_settings_validate(const att_calib_settings_t *s)
     return (e == ATT_CALIB_ERR_NULL) ? ATT_ERR_NULL : ATT_ERR_SETTINGS;
 }
 
-/* Remap r (1 .. 24) as body axis k = (neg[k] ? -1 : 1) * sensor axis axis[k]. */
-static void att_calib_remap_axes(uint32_t r, uint8_t axis[3], uint8_t neg[3])
+/* Remap r (1 .. 24) as body axis k = (sign[k] set ? -1 : 1) * sensor axis axis[k]. */
+static void att_calib_remap_axes(uint32_t r, uint32_t axis[3], uint32_t sign[3])
 {
     const char *name = att_calib_remaps[r - 1u];
     uint32_t k;
     for (k = 0u; k < 3u; k++) {
-        neg[k] = (name[2u * k] == '-') ? 1u : 0u;
-        axis[k] = (uint8_t)(name[2u * k + 1u] - 'x');
+        sign[k] = (name[2u * k] == '-') ? 0x80000000u : 0u;
+        axis[k] = (uint32_t)(name[2u * k + 1u] - 'x');
     }
 }
 
@@ -194,15 +195,18 @@ static void att_calib_fold(att_calib_stage_t *st, const float m[9], att_vec3_t s
     st->mode = 0u;
     st->o = o;
     for (i = 0u; i < 3u; i++) {
-        st->axis[i] = (uint8_t)i;
-        st->neg[i] = 0u;
+        st->axis[i] = i;
+        st->sign[i] = 0u;
         for (j = 0u; j < 3u; j++) {
             x[3u * i + j] = m[3u * i + j] * sv[j];
         }
     }
     if (r > 0u) {
-        att_calib_remap_axes(r, st->axis, st->neg);
+        att_calib_remap_axes(r, st->axis, st->sign);
     }
+    st->perm = (st->axis[0] == 0u) ? ((st->axis[1] == 1u) ? 0u : 1u)
+                                   : ((st->axis[0] == 1u) ? ((st->axis[1] == 0u) ? 2u : 3u)
+                                                          : ((st->axis[1] == 0u) ? 4u : 5u));
     if (model_identity && mount_identity) {
         for (i = 0u; i < 9u; i++) {
             st->a[i] = att_calib_eye[i];
@@ -215,7 +219,7 @@ static void att_calib_fold(att_calib_stage_t *st, const float m[9], att_vec3_t s
             st->a[i] = 0.0f;
         }
         for (i = 0u; i < 3u; i++) {
-            st->a[3u * i + st->axis[i]] = st->neg[i] ? -1.0f : 1.0f;
+            st->a[3u * i + st->axis[i]] = (st->sign[i] != 0u) ? -1.0f : 1.0f;
         }
         return;
     }
@@ -224,7 +228,7 @@ static void att_calib_fold(att_calib_stage_t *st, const float m[9], att_vec3_t s
         for (j = 0u; j < 3u; j++) {
             if (r > 0u) {
                 const float v = x[3u * st->axis[i] + j];
-                st->a[3u * i + j] = st->neg[i] ? -v : v;
+                st->a[3u * i + j] = (st->sign[i] != 0u) ? -v : v;
             } else if (mount_identity) {
                 st->a[3u * i + j] = x[3u * i + j];
             } else {
@@ -280,35 +284,12 @@ att_status_t att_calib_init(att_calib_t *c, const att_calib_settings_t *s)
     return ATT_OK;
 }
 
-static void att_calib_stage(const att_calib_stage_t *st, att_vec3_t *v)
-{
-    if (st->mode == 1u) {
-        const float r[3] = {v->x, v->y, v->z};
-        v->x = st->neg[0] ? -r[st->axis[0]] : r[st->axis[0]];
-        v->y = st->neg[1] ? -r[st->axis[1]] : r[st->axis[1]];
-        v->z = st->neg[2] ? -r[st->axis[2]] : r[st->axis[2]];
-    } else if (st->mode == 2u) {
-        const float dx = v->x - st->o.x;
-        const float dy = v->y - st->o.y;
-        const float dz = v->z - st->o.z;
-        v->x = (st->a[0] * dx + st->a[1] * dy) + st->a[2] * dz;
-        v->y = (st->a[3] * dx + st->a[4] * dy) + st->a[5] * dz;
-        v->z = (st->a[6] * dx + st->a[7] * dy) + st->a[8] * dz;
-    }
-}
-
 void att_calib_apply(const att_calib_t *c, att_vec3_t *gyr, att_vec3_t *acc, att_vec3_t *mag)
 {
     if (c == NULL || gyr == NULL || acc == NULL || mag == NULL) {
         return;
     }
-    att_calib_stage(&c->gyr, gyr);
-    att_calib_stage(&c->acc, acc);
-    /* absent (NaN component or the zero vector) stays absent: NaN fails both comparisons */
-    if (c->mag.mode != 0u && !(mag->x == 0.0f && mag->y == 0.0f && mag->z == 0.0f) &&
-        (mag->x == mag->x && mag->y == mag->y && mag->z == mag->z)) {
-        att_calib_stage(&c->mag, mag);
-    }
+    att_i_calib_apply(c, gyr, acc, mag, gyr, acc, mag);
 }
 
 att_quat_t att_calib_quat_to(att_quat_t q, att_convention_t conv)

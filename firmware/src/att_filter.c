@@ -4,6 +4,7 @@
  */
 #include "att_fp.h"
 
+#include "att_calib_i.h"
 #include "att_core.h"
 #include "att_inline.h"
 #include "att_step.h"
@@ -356,17 +357,20 @@ static ATT_ALWAYS_INLINE uint32_t att_filter_dispatch(att_filter_t *f, const att
  */
 static ATT_NOINLINE uint32_t att_filter_step_cal(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
-    att_sample_t s = *in;
+    att_sample_t s;
+    const att_sample_t *src = in;
     uint32_t flags;
-    if ((f->cal.active & ATT_CALIB_ACTIVE_INPUT) != 0u) {
-        att_calib_apply(&f->cal, &s.gyr, &s.acc, &s.mag);
+    const uint32_t active = f->cal.active;
+    if ((active & ATT_CALIB_ACTIVE_INPUT) != 0u) {
+        att_i_calib_apply(&f->cal, &in->gyr, &in->acc, &in->mag, &s.gyr, &s.acc, &s.mag);
+        src = &s;
     }
-    if ((f->cal.active & ATT_CALIB_ACTIVE_ACC) != 0u) {
-        f->cal.acc_body = s.acc;
+    if ((active & ATT_CALIB_ACTIVE_ACC) != 0u) {
+        f->cal.acc_body = src->acc;
         f->cal.have_acc = true;
     }
-    flags = att_filter_dispatch(f, &s, out);
-    if (out != NULL && (f->cal.active & ATT_CALIB_ACTIVE_CONV) != 0u && f->kind != ATT_FILTER_NONE) {
+    flags = att_filter_dispatch(f, src, out);
+    if (out != NULL && (active & ATT_CALIB_ACTIVE_CONV) != 0u) {
         if ((out->valid & ATT_OUT_Q) == 0u) {
             out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
             out->valid |= ATT_OUT_Q;

@@ -14,7 +14,8 @@
  * - inertial model of the gyro (rad/s) and the accel (m/s^2): v = M (s * (raw - o)), misalignment M
  *   (3x3), sensitivity s (3), offset o (3);
  * - magnetic model (uT): m = S (raw - h), soft-iron S (3x3), hard-iron h (3); an absent mag sample
- *   (a NaN component or the zero vector) stays absent;
+ *   stays absent: the zero vector is passed on unchanged, and a NaN component makes every component
+ *   NaN (0 * NaN is NaN);
  * - mounting: v_body = R v, R the rotation body <- sensor, given as a unit quaternion or as one of the
  *   24 axis remaps by name (att_calib_remap_parse).
  * Each sensor's model and the mounting are folded, when the settings are applied, into one stage per
@@ -101,8 +102,9 @@ typedef struct {
     uint32_t mode;      /**< 0 identity, 1 signed permutation (axis, neg), 2 affine v = a (raw - o) */
     float a[9];         /**< A = R M diag(s), row-major (affine) */
     att_vec3_t o;       /**< offset, sensor frame, the sensor's unit (affine) */
-    uint8_t axis[3];    /**< permutation: body axis i = raw axis axis[i] ... */
-    uint8_t neg[3];     /**< ... negated when neg[i] is 1 */
+    uint32_t perm;      /**< the axis order as one of 6: xyz, xzy, yxz, yzx, zxy, zyx (from axis) */
+    uint32_t axis[3];   /**< permutation: body axis i = raw axis axis[i] ... */
+    uint32_t sign[3];   /**< ... with its sign bit flipped (exact negation) when sign[i] is 0x80000000 */
 } att_calib_stage_t;
 
 /** The applied stages (att_calib_init); part of att_filter_t. */
@@ -142,7 +144,7 @@ att_status_t att_calib_settings_validate(const att_calib_settings_t *s);
 att_status_t att_calib_init(att_calib_t *c, const att_calib_settings_t *s);
 /**
  * The input stage in place: gyr (rad/s), acc (m/s^2), mag (uT), sensor frame in, calibrated body
- * frame out. An absent mag (NaN component or zero vector) is left unchanged.
+ * frame out. A zero mag vector (absent) is left unchanged; a NaN component stays NaN.
  */
 void att_calib_apply(const att_calib_t *c, att_vec3_t *gyr, att_vec3_t *acc, att_vec3_t *mag);
 /** q (sensor-to-ENU) expressed in the earth frame of convention conv (unknown conv: q). */

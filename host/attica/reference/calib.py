@@ -250,7 +250,7 @@ class Stages:
         m = mag
         if self.mag.mode != 0:
             mx, my, mz = (dm.f32(c) for c in mag)
-            present = ~((mx == 0) & (my == 0) & (mz == 0)) & (mx == mx) & (my == my) & (mz == mz)
+            present = ~((mx == 0) & (my == 0) & (mz == 0))  # the zero vector; NaN propagates
             m = dm.vec3_where(present, self.mag.apply((mx, my, mz)), (mx, my, mz))
         return g, a, m
 
