@@ -275,3 +275,34 @@ def test_node_refuses_invalid_calibration_at_init() -> None:
     s.calib.gravity = 0.0
     n = ffi.new("att_node_t *")
     assert lib.att_node_init(n, s) == lib.ATT_ERR_SETTINGS
+
+
+def test_docs_tables_and_example() -> None:
+    """docs/can.md carries the acceleration load table; the docs/integration.md example compiles."""
+    import re
+    import shutil
+    import subprocess
+
+    from attica.can import codec
+
+    from helpers import ROOT
+
+    assert codec.bus_load_table(accel_out=True) in (ROOT / "docs" / "can.md").read_text()
+    text = (ROOT / "docs" / "integration.md").read_text()
+    block = re.search(r"## Calibration, mounting and NED output\n\n```c\n(.*?)```", text, re.S)
+    assert block is not None
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:  # pragma: no cover - the build needs a compiler anyway
+        pytest.skip("no C compiler")
+    stubs = (
+        "void read_imu(att_vec3_t *g, att_vec3_t *a, att_vec3_t *m);\n"
+        "void publish(att_quat_t q, att_vec3_t e, uint32_t flags);\n"
+    )
+    head = '#include "attica/att_filter.h"\n'
+    src = block.group(1).replace(head, head + stubs)
+    r = subprocess.run(
+        [cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wno-unused-function", "-fsyntax-only",
+         "-I", str(ROOT / "firmware" / "include"), "-x", "c", "-"],
+        input=src, text=True, capture_output=True,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
