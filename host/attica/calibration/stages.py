@@ -130,3 +130,12 @@ def fill_c(struct: Any, s: StageSettings) -> None:
     struct.convention = s.convention
     struct.gravity = s.gravity
     struct.accel_outputs = bool(s.accel_outputs)
+
+
+def fields(s: StageSettings) -> list[float]:
+    """The settings as the 50 floats of att_calib_field_get (the CAN CAL_SET and persisted order)."""
+    out: list[float] = [*s.gyro_misalignment, *s.gyro_sensitivity, *s.gyro_offset]
+    out += [*s.accel_misalignment, *s.accel_sensitivity, *s.accel_offset]
+    out += [*s.soft_iron, *s.hard_iron, *s.mounting]
+    out += [float(s.remap), float(s.convention), s.gravity, 1.0 if s.accel_outputs else 0.0]
+    return out

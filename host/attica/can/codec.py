@@ -718,8 +718,10 @@ BUS_TABLE_COLUMNS = (
 
 
 def bus_load_table(with_inputs: bool = False, accel_out: bool = False) -> str:
-    """The markdown bus load table of docs/can.md (outputs only, or outputs + IMU inputs), DIAG every 16th;
-    ``accel_out`` with the acceleration frames."""
+    """The markdown bus load table of docs/can.md (outputs only, or outputs + IMU inputs), DIAG every 16th.
+
+    ``accel_out``: with the acceleration frames.
+    """
     head = "| output rate | " + " | ".join(name for name, *_ in BUS_TABLE_COLUMNS) + " |"
     rule = "|---|" + "---|" * len(BUS_TABLE_COLUMNS)
     rows = [head, rule]
