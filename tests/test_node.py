@@ -581,7 +581,7 @@ def test_set_gain_changes_the_gain_and_keeps_the_state() -> None:
         ("ars", c.Cmd.SELECT, 0, 0.0, c.Ack.BAD_ARG),
         ("ars", c.Cmd.SELECT, 9, 0.0, c.Ack.BAD_ARG),
         ("ars", 0, 0, 0.0, c.Ack.UNKNOWN_CMD),
-        ("ars", 7, 1, 0.0, c.Ack.UNKNOWN_CMD),
+        ("ars", 10, 1, 0.0, c.Ack.UNKNOWN_CMD),  # 4..9 are the calibration commands (test_calib_node.py)
     ],
 )
 def test_refused_commands_are_answered_and_change_nothing(

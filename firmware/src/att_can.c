@@ -108,10 +108,14 @@ uint8_t att_can_msg_len(uint32_t id)
     case ATT_CAN_ID_BIAS:
     case ATT_CAN_ID_STATUS:
     case ATT_CAN_ID_DIAG:
+    case ATT_CAN_ID_LIN_ACC:
+    case ATT_CAN_ID_EARTH_ACC:
+    case ATT_CAN_ID_CAL_ACK:
     case ATT_CAN_ID_CMD:
         return (uint8_t)ATT_CAN_CLASSIC_LEN;
     case ATT_CAN_ID_IMU_FD:
     case ATT_CAN_ID_OUT_FD:
+    case ATT_CAN_ID_ACCEL_FD:
         return (uint8_t)ATT_CAN_FD_LEN;
     default:
         return 0u;
@@ -563,4 +567,134 @@ bool att_can_decode_output(const att_can_frame_t *f, att_output_t *o)
     default:
         return false;
     }
+}
+
+void att_can_encode_accel(const att_accel_t *a, uint8_t counter, att_can_frame_t out[2])
+{
+    struct att_can_db_att_lin_acc_t l;
+    struct att_can_db_att_earth_acc_t e;
+    if (a == NULL || out == NULL) {
+        return;
+    }
+    l.crc = 0u;
+    l.counter = att_can_c4(counter);
+    l.lin_x = att_can_quantise(a->linear.x, ATT_CAN_ACC_FRAC);
+    l.lin_y = att_can_quantise(a->linear.y, ATT_CAN_ACC_FRAC);
+    l.lin_z = att_can_quantise(a->linear.z, ATT_CAN_ACC_FRAC);
+    att_can_frame_start(&out[0], ATT_CAN_ID_LIN_ACC);
+    (void)att_can_db_att_lin_acc_pack(out[0].data, &l, sizeof out[0].data);
+    att_can_seal(&out[0]);
+    e.crc = 0u;
+    e.counter = att_can_c4(counter);
+    e.earth_x = att_can_quantise(a->earth.x, ATT_CAN_ACC_FRAC);
+    e.earth_y = att_can_quantise(a->earth.y, ATT_CAN_ACC_FRAC);
+    e.earth_z = att_can_quantise(a->earth.z, ATT_CAN_ACC_FRAC);
+    att_can_frame_start(&out[1], ATT_CAN_ID_EARTH_ACC);
+    (void)att_can_db_att_earth_acc_pack(out[1].data, &e, sizeof out[1].data);
+    att_can_seal(&out[1]);
+}
+
+void att_can_encode_accel_fd(const att_accel_t *a, uint8_t counter, att_can_frame_t *out)
+{
+    struct att_can_db_att_accel_fd_t m;
+    if (a == NULL || out == NULL) {
+        return;
+    }
+    m.crc = 0u;
+    m.counter = att_can_c4(counter);
+    m.valid = (a->valid == (uint32_t)ATT_OUT_ACCEL) ? 1u : 0u;
+    m.grav_x = a->gravity.x;
+    m.grav_y = a->gravity.y;
+    m.grav_z = a->gravity.z;
+    m.lin_x = a->linear.x;
+    m.lin_y = a->linear.y;
+    m.lin_z = a->linear.z;
+    m.earth_x = a->earth.x;
+    m.earth_y = a->earth.y;
+    m.earth_z = a->earth.z;
+    att_can_frame_start(out, ATT_CAN_ID_ACCEL_FD);
+    (void)att_can_db_att_accel_fd_pack(out->data, &m, sizeof out->data);
+    att_can_seal(out);
+}
+
+bool att_can_decode_accel_fd(const att_can_frame_t *f, att_accel_t *out)
+{
+    struct att_can_db_att_accel_fd_t m;
+    if (f == NULL || out == NULL || f->id != ATT_CAN_ID_ACCEL_FD || f->len != (uint8_t)ATT_CAN_FD_LEN) {
+        return false;
+    }
+    if (att_can_db_att_accel_fd_unpack(&m, f->data, ATT_CAN_FD_LEN) != 0) {
+        return false;
+    }
+    out->gravity.x = m.grav_x;
+    out->gravity.y = m.grav_y;
+    out->gravity.z = m.grav_z;
+    out->linear.x = m.lin_x;
+    out->linear.y = m.lin_y;
+    out->linear.z = m.lin_z;
+    out->earth.x = m.earth_x;
+    out->earth.y = m.earth_y;
+    out->earth.z = m.earth_z;
+    out->valid = (m.valid == 1u) ? (uint32_t)ATT_OUT_ACCEL : 0u;
+    return true;
+}
+
+bool att_can_decode_accel_part(const att_can_frame_t *f, att_vec3_t *v)
+{
+    if (f == NULL || v == NULL || f->len != (uint8_t)ATT_CAN_CLASSIC_LEN) {
+        return false;
+    }
+    if (f->id == ATT_CAN_ID_LIN_ACC) {
+        struct att_can_db_att_lin_acc_t l;
+        (void)att_can_db_att_lin_acc_unpack(&l, f->data, ATT_CAN_CLASSIC_LEN);
+        v->x = att_can_dequantise(l.lin_x, ATT_CAN_ACC_FRAC);
+        v->y = att_can_dequantise(l.lin_y, ATT_CAN_ACC_FRAC);
+        v->z = att_can_dequantise(l.lin_z, ATT_CAN_ACC_FRAC);
+        return true;
+    }
+    if (f->id == ATT_CAN_ID_EARTH_ACC) {
+        struct att_can_db_att_earth_acc_t e;
+        (void)att_can_db_att_earth_acc_unpack(&e, f->data, ATT_CAN_CLASSIC_LEN);
+        v->x = att_can_dequantise(e.earth_x, ATT_CAN_ACC_FRAC);
+        v->y = att_can_dequantise(e.earth_y, ATT_CAN_ACC_FRAC);
+        v->z = att_can_dequantise(e.earth_z, ATT_CAN_ACC_FRAC);
+        return true;
+    }
+    return false;
+}
+
+void att_can_encode_cal_ack(const att_can_cal_ack_t *a, att_can_frame_t *out)
+{
+    struct att_can_db_att_cal_ack_t m;
+    if (a == NULL || out == NULL) {
+        return;
+    }
+    m.crc = 0u;
+    m.counter = att_can_c4(a->counter);
+    m.cmd = a->cmd;
+    m.result = a->result;
+    m.reason = a->reason;
+    m.index = a->index;
+    m.persisted = a->persisted;
+    m.session = a->session;
+    att_can_frame_start(out, ATT_CAN_ID_CAL_ACK);
+    (void)att_can_db_att_cal_ack_pack(out->data, &m, sizeof out->data);
+    att_can_seal(out);
+}
+
+bool att_can_decode_cal_ack(const att_can_frame_t *f, att_can_cal_ack_t *out)
+{
+    struct att_can_db_att_cal_ack_t m;
+    if (f == NULL || out == NULL || f->id != ATT_CAN_ID_CAL_ACK || f->len != (uint8_t)ATT_CAN_CLASSIC_LEN) {
+        return false;
+    }
+    (void)att_can_db_att_cal_ack_unpack(&m, f->data, ATT_CAN_CLASSIC_LEN);
+    out->counter = m.counter;
+    out->cmd = m.cmd;
+    out->result = m.result;
+    out->reason = m.reason;
+    out->index = m.index;
+    out->persisted = m.persisted;
+    out->session = m.session;
+    return true;
 }

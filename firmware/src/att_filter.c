@@ -4,6 +4,8 @@
  */
 #include "att_fp.h"
 
+#include "att_calib_i.h"
+#include "att_core.h"
 #include "att_inline.h"
 #include "att_step.h"
 #include "attica/att_filter.h"
@@ -161,6 +163,9 @@ att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_
         break;
     }
     if (st == ATT_OK) {
+        att_calib_settings_t cs;
+        att_calib_settings_default(&cs);
+        (void)att_calib_init(&f->cal, &cs); /* the defaults are valid */
         f->kind = kind;
     }
     return st;
@@ -196,6 +201,8 @@ void att_filter_reset(att_filter_t *f)
     if (f == NULL) {
         return;
     }
+    f->cal.have_acc = false;
+    f->cal.acc_body = att_i_vec3(0.0f, 0.0f, 0.0f);
     switch (f->kind) {
     case ATT_FILTER_ARS:
         att_ars_reset(&f->u.ars);
@@ -307,11 +314,14 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
         out->valid = ATT_OUT_ALL;
         return;
     }
-    if ((out->valid & ATT_OUT_EULER) == 0u) {
-        out->euler = att_quat_to_euler(out->q);
-    }
     if ((out->valid & ATT_OUT_Q) == 0u) {
         out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
+    }
+    if ((f->cal.active & ATT_CALIB_ACTIVE_CONV) != 0u) {
+        out->q = att_calib_quat_to(out->q, f->cal.convention);
+        out->euler = att_quat_to_euler(out->q);
+    } else if ((out->valid & ATT_OUT_EULER) == 0u) {
+        out->euler = att_quat_to_euler(out->q);
     }
     if (f->kind == ATT_FILTER_KF) {
         out->cov[0] = f->u.kf.st.p; /* P = p I */
@@ -333,16 +343,10 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
     out->valid = ATT_OUT_ALL;
 }
 
-uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+/* The kind's step on in (the sample after the input stage). */
+static ATT_ALWAYS_INLINE uint32_t att_filter_dispatch(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
     uint32_t flags;
-    if (f == NULL || in == NULL) {
-        if (out != NULL) {
-            att_filter_clear(out);
-            out->flags = ATT_FLAG_BAD_ARG;
-        }
-        return ATT_FLAG_BAD_ARG;
-    }
     switch (f->kind) {
     case ATT_FILTER_ARS:
         return att_ars_step_out(&f->u.ars, in, out);
@@ -371,6 +375,274 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
         (void)att_filter_basic(f, out);
     }
     return flags;
+}
+
+/*
+ * att_filter_step with some stage active: the input stage on a copy of the sample, the kind's step,
+ * then the per-step fields in the convention's frame (q, and euler when the kind reports it; the
+ * Euler-state kinds also get q). Out of line: the identity case pays one test in att_filter_step.
+ */
+static ATT_NOINLINE uint32_t att_filter_step_cal(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    att_sample_t s;
+    const att_sample_t *src = in;
+    uint32_t flags;
+    const uint32_t active = f->cal.active;
+    if ((active & ATT_CALIB_ACTIVE_INPUT) != 0u) {
+        att_i_calib_apply(&f->cal, &in->gyr, &in->acc, &in->mag, &s.gyr, &s.acc, &s.mag);
+        src = &s;
+    }
+    if ((active & ATT_CALIB_ACTIVE_ACC) != 0u) {
+        f->cal.acc_body = src->acc;
+        f->cal.have_acc = true;
+    }
+    flags = att_filter_dispatch(f, src, out);
+    if (out != NULL && (active & ATT_CALIB_ACTIVE_CONV) != 0u) {
+        if ((out->valid & ATT_OUT_Q) == 0u) {
+            out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
+            out->valid |= ATT_OUT_Q;
+        }
+        out->q = att_calib_quat_to(out->q, f->cal.convention);
+        if ((out->valid & ATT_OUT_EULER) != 0u) {
+            out->euler = att_quat_to_euler(out->q);
+        }
+    }
+    return flags;
+}
+
+uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    if (f == NULL || in == NULL) {
+        if (out != NULL) {
+            att_filter_clear(out);
+            out->flags = ATT_FLAG_BAD_ARG;
+        }
+        return ATT_FLAG_BAD_ARG;
+    }
+    if (f->cal.active != 0u && f->kind != ATT_FILTER_NONE) {
+        return att_filter_step_cal(f, in, out);
+    }
+    return att_filter_dispatch(f, in, out);
+}
+
+att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s)
+{
+    att_calib_t c;
+    att_status_t st;
+    if (f == NULL || s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (att_filter_name(f->kind)[0] == '?') {
+        return ATT_ERR_KIND;
+    }
+    st = att_calib_init(&c, s);
+    if (st == ATT_OK) {
+        f->cal = c;
+    }
+    return st;
+}
+
+/* The current attitude, sensor(body)-to-ENU; false for an unknown kind. */
+static bool att_filter_q_enu(const att_filter_t *f, att_quat_t *q)
+{
+    att_output_t o;
+    if (!att_filter_basic(f, &o)) {
+        return false;
+    }
+    *q = ((o.valid & ATT_OUT_Q) != 0u) ? o.q : att_quat_from_euler(o.euler.x, o.euler.y, o.euler.z);
+    return true;
+}
+
+void att_filter_accel(const att_filter_t *f, att_accel_t *out)
+{
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    att_quat_t q;
+    att_vec3_t a;
+    att_vec3_t e;
+    float m[9];
+    float g;
+    if (out == NULL) {
+        return;
+    }
+    out->gravity = zero;
+    out->linear = zero;
+    out->earth = zero;
+    out->valid = 0u;
+    if (f == NULL || (f->cal.active & ATT_CALIB_ACTIVE_ACC) == 0u || !f->cal.have_acc || !att_filter_q_enu(f, &q)) {
+        return;
+    }
+    g = f->cal.gravity;
+    a = f->cal.acc_body;
+    att_quat_to_matrix(q, m);
+    out->gravity = att_i_vec3(m[6] * g, m[7] * g, m[8] * g); /* R^T (0, 0, g): the up direction, body */
+    out->linear = att_i_vec3_sub(a, out->gravity);
+    e.x = (m[0] * a.x + m[1] * a.y) + m[2] * a.z;
+    e.y = (m[3] * a.x + m[4] * a.y) + m[5] * a.z;
+    e.z = ((m[6] * a.x + m[7] * a.y) + m[8] * a.z) - g;
+    out->earth = att_calib_vec_to(e, f->cal.convention);
+    out->valid = ATT_OUT_ACCEL;
+}
+
+#define ATT_FILTER_PIO2 0x1.921fb6p+0f
+#define ATT_FILTER_HEADING_MAX 8192.0f
+
+/* The ENU yaw (rad) that heading (rad, in the convention of f) means. */
+static float att_filter_heading_enu(const att_filter_t *f, float heading)
+{
+    if (f->cal.convention == ATT_CONV_NED) {
+        return att_wrap_pi(ATT_FILTER_PIO2 - heading);
+    }
+    if (f->cal.convention == ATT_CONV_NWU) {
+        return att_wrap_pi(heading + ATT_FILTER_PIO2);
+    }
+    return att_wrap_pi(heading);
+}
+
+/* v turned by the angle with cosine c and sine s about the earth z axis. */
+static att_vec3_t att_filter_turn(att_vec3_t v, float c, float s)
+{
+    return att_i_vec3(c * v.x - s * v.y, s * v.x + c * v.y, v.z);
+}
+
+/*
+ * Turn the attitude of f about the earth vertical so that its yaw becomes target (rad, ENU), by the
+ * fraction gain of the wrapped difference; the earth-frame memories turn with it. Returns the status.
+ */
+static att_status_t att_filter_yaw_to(att_filter_t *f, float target, float gain)
+{
+    att_quat_t q;
+    att_vec3_t *lp1 = NULL;
+    att_vec3_t *lp2 = NULL;
+    att_vec3_t *euler = NULL;
+    bool ready = true;
+    float yaw;
+    float delta;
+    float hs;
+    float hc;
+    float s;
+    float c;
+    switch (f->kind) {
+    case ATT_FILTER_ARS:
+        lp1 = &f->u.ars.st.lp1;
+        lp2 = &f->u.ars.st.lp2;
+        ready = f->u.ars.st.initialised;
+        break;
+    case ATT_FILTER_MARS:
+        lp1 = &f->u.mars.st.lp1;
+        lp2 = &f->u.mars.st.lp2;
+        ready = f->u.mars.st.initialised;
+        break;
+    case ATT_FILTER_KF:
+        lp1 = &f->u.kf.st.lp1;
+        lp2 = &f->u.kf.st.lp2;
+        ready = f->u.kf.st.initialised;
+        break;
+    case ATT_FILTER_EKF:
+        lp1 = &f->u.ekf.st.lp1;
+        lp2 = &f->u.ekf.st.lp2;
+        euler = &f->u.ekf.st.euler;
+        ready = f->u.ekf.st.initialised;
+        break;
+    case ATT_FILTER_GYRO:
+        euler = &f->u.gyro.st.euler;
+        break;
+    case ATT_FILTER_MEKF:
+        lp1 = &f->u.mekf.st.lp1;
+        lp2 = &f->u.mekf.st.lp2;
+        ready = f->u.mekf.st.initialised;
+        break;
+    default:
+        return ATT_ERR_KIND;
+    }
+    if (!ready) {
+        return ATT_ERR_STATE;
+    }
+    (void)att_filter_q_enu(f, &q);
+    yaw = (euler != NULL) ? euler->z
+                          : att_atan2f(2.0f * (q.w * q.z + q.x * q.y), 1.0f - 2.0f * (q.y * q.y + q.z * q.z));
+    delta = att_wrap_pi(target - yaw) * gain;
+    if (!att_i_isfinitef(delta)) {
+        return ATT_ERR_STATE; /* an Euler-state yaw outside the wrap domain */
+    }
+    att_i_sincosf(delta, &s, &c);
+    if (lp1 != NULL) {
+        *lp1 = att_filter_turn(*lp1, c, s);
+        *lp2 = att_filter_turn(*lp2, c, s);
+    }
+    if (f->kind == ATT_FILTER_MARS) {
+        f->u.mars.st.m0 = att_filter_turn(f->u.mars.st.m0, c, s);
+        f->u.mars.st.m0_ref = att_filter_turn(f->u.mars.st.m0_ref, c, s);
+        f->u.mars.st.m0_perp = att_filter_turn(f->u.mars.st.m0_perp, c, s);
+    }
+    if (f->kind == ATT_FILTER_MEKF) {
+        /* the heading measurement's tilt entries (-c r_x, -c r_y) are linear in m0_ref: they turn with it */
+        att_vec3_t h = att_filter_turn(att_i_vec3(f->u.mekf.st.mag_hx, f->u.mekf.st.mag_hy, 0.0f), c, s);
+        f->u.mekf.st.m0 = att_filter_turn(f->u.mekf.st.m0, c, s);
+        f->u.mekf.st.m0_ref = att_filter_turn(f->u.mekf.st.m0_ref, c, s);
+        f->u.mekf.st.mag_hx = h.x;
+        f->u.mekf.st.mag_hy = h.y;
+    }
+    if (euler != NULL) {
+        euler->z = (gain == 1.0f) ? target : att_wrap_pi(yaw + delta);
+        if (f->kind == ATT_FILTER_GYRO) {
+            f->u.gyro.st.q = att_quat_from_euler(euler->x, euler->y, euler->z);
+        }
+        return ATT_OK;
+    }
+    att_i_sincosf(delta * 0.5f, &hs, &hc);
+    (void)att_i_quat_normalize_bounded(att_i_quat_mul_z(hc, hs, q), &q);
+    switch (f->kind) {
+    case ATT_FILTER_ARS:
+        f->u.ars.st.q = q;
+        break;
+    case ATT_FILTER_MARS:
+        f->u.mars.st.q = q;
+        break;
+    case ATT_FILTER_MEKF:
+        f->u.mekf.st.q = q;
+        break;
+    default:
+        f->u.kf.st.q = q;
+        break;
+    }
+    return ATT_OK;
+}
+
+static bool att_filter_heading_ok(float heading)
+{
+    return att_i_in(heading, -ATT_FILTER_HEADING_MAX, ATT_FILTER_HEADING_MAX);
+}
+
+att_status_t att_filter_set_heading(att_filter_t *f, float heading)
+{
+    if (f == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (f->kind == ATT_FILTER_TILT || att_filter_name(f->kind)[0] == '?') {
+        return ATT_ERR_KIND;
+    }
+    if (!att_filter_heading_ok(heading)) {
+        return ATT_ERR_SETTINGS;
+    }
+    return att_filter_yaw_to(f, att_filter_heading_enu(f, heading), 1.0f);
+}
+
+att_status_t att_filter_heading_update(att_filter_t *f, float heading, float gain, bool valid)
+{
+    if (f == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (f->kind != ATT_FILTER_ARS && f->kind != ATT_FILTER_KF && f->kind != ATT_FILTER_EKF &&
+        f->kind != ATT_FILTER_GYRO && !(f->kind == ATT_FILTER_MEKF && !f->u.mekf.c.use_mag)) {
+        return ATT_ERR_KIND;
+    }
+    if (!att_filter_heading_ok(heading) || !att_i_in(gain, 0.0f, 1.0f)) {
+        return ATT_ERR_SETTINGS;
+    }
+    if (!valid) {
+        return ATT_OK;
+    }
+    return att_filter_yaw_to(f, att_filter_heading_enu(f, heading), gain);
 }
 
 const char *att_filter_name(att_filter_kind_t kind)

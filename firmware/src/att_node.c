@@ -20,6 +20,19 @@
 #define ATT_NODE_MAX_DIVIDER 65535u
 #define ATT_NODE_SET_FRAMES 6u
 
+/* A bool field holds 0 or 1 (read as bytes: another value would make reading it undefined). */
+static bool att_i_bool_ok_node(const bool *b)
+{
+    const unsigned char *p = (const unsigned char *)b;
+    size_t i;
+    for (i = 1u; i < sizeof *b; i++) {
+        if (p[i] != 0u) {
+            return false;
+        }
+    }
+    return p[0] <= 1u;
+}
+
 #if (ATT_NODE_RX_RING & (ATT_NODE_RX_RING - 1)) != 0 || (ATT_NODE_TX_RING & (ATT_NODE_TX_RING - 1)) != 0
 #error "ATT_NODE_RX_RING and ATT_NODE_TX_RING must be powers of two"
 #endif
@@ -81,8 +94,14 @@ float att_node_bus_load(const att_node_settings_t *s)
     t_classic = (float)classic_bits / (float)s->bitrate;
     if (s->fd) {
         t_set = att_node_fd_frame_time(64u, s->bitrate, s->data_bitrate);
+        if (s->accel_out) {
+            t_set += att_node_fd_frame_time(64u, s->bitrate, s->data_bitrate);
+        }
     } else {
         t_set = (float)ATT_NODE_SET_FRAMES * t_classic;
+        if (s->accel_out) {
+            t_set += 2.0f * t_classic;
+        }
     }
     if (s->diag_divider != 0u) {
         t_set += t_classic / (float)s->diag_divider;
@@ -146,6 +165,8 @@ att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate
     s->fd = false;
     s->output_divider = 1u;
     s->diag_divider = 16u;
+    att_calib_settings_default(&s->calib);
+    s->accel_out = false;
     return ATT_OK;
 }
 
@@ -164,6 +185,14 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     if (st != ATT_OK) {
         return st;
     }
+    if (!att_i_bool_ok_node(&s->accel_out) || att_filter_calibrate(&f, &s->calib) != ATT_OK) {
+        return ATT_ERR_SETTINGS;
+    }
+    if (s->accel_out) {
+        att_calib_settings_t c = s->calib;
+        c.accel_outputs = true;
+        (void)att_filter_calibrate(&f, &c); /* valid: only accel_outputs changed */
+    }
     if (!att_node_dt_matches(s)) {
         return ATT_ERR_SETTINGS; /* the filter would integrate with another period than the samples have */
     }
@@ -176,8 +205,18 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     n->kind = s->kind;
     n->fs = s->filter;
     n->f = f;
+    n->cal = s->calib;
     att_filter_output(&n->f, &n->out);
     return ATT_OK;
+}
+
+void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx)
+{
+    if (n == NULL) {
+        return;
+    }
+    n->persist = fn;
+    n->persist_ctx = ctx;
 }
 
 /* --- rings ----------------------------------------------------------------------------------- */
@@ -279,6 +318,17 @@ static void att_node_emit(att_node_t *n)
     } else {
         (void)att_can_encode_output_set(&n->out, n->kind, counter, att_node_error_count(n), set);
         att_node_queue(n, set, ATT_NODE_SET_FRAMES);
+    }
+    if (n->s.accel_out) {
+        att_accel_t a;
+        att_filter_accel(&n->f, &a);
+        if (n->s.fd) {
+            att_can_encode_accel_fd(&a, counter, &set[0]);
+            att_node_queue(n, set, 1u);
+        } else {
+            att_can_encode_accel(&a, counter, set);
+            att_node_queue(n, set, 2u);
+        }
     }
     n->stats.sets++;
     if (n->s.diag_divider != 0u && (n->stats.sets % n->s.diag_divider) == 0u) {
@@ -384,6 +434,8 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
     if (att_filter_init(&f, kind, &fs) != ATT_OK) {
         return (uint8_t)ATT_CAN_ACK_REFUSED;
     }
+    f.cal = n->f.cal; /* the calibration stays (it is not part of the filter's state) */
+    f.cal.have_acc = false;
     n->kind = kind;
     n->fs = fs;
     n->f = f;
@@ -433,6 +485,98 @@ static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
     return (uint8_t)ATT_CAN_ACK_OK;
 }
 
+/* Apply calibration cs to the running filter (state kept); REFUSED with *reason when invalid. */
+static uint8_t att_node_apply_cal(att_node_t *n, const att_calib_settings_t *cs, uint8_t *reason,
+                                  uint8_t *persisted)
+{
+    att_calib_settings_t t = *cs;
+    const att_calib_error_t e = att_calib_settings_check(&t);
+    if (e != ATT_CALIB_OK) {
+        *reason = (uint8_t)e;
+        return (uint8_t)ATT_CAN_ACK_REFUSED;
+    }
+    if (n->s.accel_out) {
+        t.accel_outputs = true;
+    }
+    (void)att_filter_calibrate(&n->f, &t); /* valid: checked above; one struct assignment */
+    n->cal = *cs;
+    att_filter_output(&n->f, &n->out);
+    if (n->persist != NULL) {
+        *persisted = n->persist(n->persist_ctx, &n->cal) ? (uint8_t)ATT_CAN_PERSIST_OK : (uint8_t)ATT_CAN_PERSIST_FAILED;
+    }
+    return (uint8_t)ATT_CAN_ACK_OK;
+}
+
+static void att_node_cal_command(att_node_t *n, const att_can_cmd_t *c)
+{
+    att_can_cal_ack_t a;
+    att_can_frame_t answer;
+    att_calib_settings_t t;
+    a.counter = c->counter;
+    a.cmd = c->cmd;
+    a.result = (uint8_t)ATT_CAN_ACK_OK;
+    a.reason = 0u;
+    a.index = c->arg;
+    a.persisted = (uint8_t)ATT_CAN_PERSIST_NONE;
+    switch (c->cmd) {
+    case ATT_CAN_CMD_CAL_BEGIN:
+        if (c->arg > 1u) {
+            a.result = (uint8_t)ATT_CAN_ACK_BAD_ARG;
+            break;
+        }
+        if (c->arg == 1u) {
+            att_calib_settings_default(&n->shadow);
+        } else {
+            n->shadow = n->cal;
+        }
+        n->shadow_open = true;
+        n->shadow_count = 0u;
+        break;
+    case ATT_CAN_CMD_CAL_SET:
+        if (!n->shadow_open || !att_calib_field_set(&n->shadow, c->arg, c->value)) {
+            a.result = (uint8_t)ATT_CAN_ACK_BAD_ARG;
+            break;
+        }
+        if (n->shadow_count < 255u) {
+            n->shadow_count++;
+        }
+        break;
+    case ATT_CAN_CMD_CAL_COMMIT:
+        a.index = n->shadow_count;
+        if (!n->shadow_open) {
+            a.result = (uint8_t)ATT_CAN_ACK_BAD_ARG;
+            break;
+        }
+        a.result = att_node_apply_cal(n, &n->shadow, &a.reason, &a.persisted);
+        if (a.result == (uint8_t)ATT_CAN_ACK_OK) {
+            n->shadow_open = false;
+        }
+        break;
+    case ATT_CAN_CMD_CAL_ABORT:
+        n->shadow_open = false;
+        break;
+    case ATT_CAN_CMD_SET_CONVENTION:
+    case ATT_CAN_CMD_SET_REMAP:
+        t = n->cal;
+        if (c->cmd == ATT_CAN_CMD_SET_CONVENTION) {
+            t.convention = (att_convention_t)c->arg;
+        } else {
+            t.remap = c->arg;
+            if (c->arg == 0u) {
+                t.mounting = att_quat_identity();
+            }
+        }
+        a.result = att_node_apply_cal(n, &t, &a.reason, &a.persisted);
+        break;
+    default:
+        a.result = (uint8_t)ATT_CAN_ACK_UNKNOWN_CMD;
+        break;
+    }
+    a.session = n->shadow_open ? 1u : 0u;
+    att_can_encode_cal_ack(&a, &answer);
+    att_node_queue(n, &answer, 1u);
+}
+
 static void att_node_command(att_node_t *n, const att_can_frame_t *f)
 {
     att_can_cmd_t c;
@@ -443,6 +587,10 @@ static void att_node_command(att_node_t *n, const att_can_frame_t *f)
         return;
     }
     n->stats.commands++;
+    if (c.cmd >= (uint8_t)ATT_CAN_CMD_CAL_BEGIN && c.cmd <= (uint8_t)ATT_CAN_CMD_SET_REMAP) {
+        att_node_cal_command(n, &c);
+        return;
+    }
     switch (c.cmd) {
     case ATT_CAN_CMD_SELECT:
         result = att_node_select(n, c.arg);

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.checks import filter_settings, warn_units
+from attica.calibration.stages import fill_c
 from attica.outputs import OUTPUT_DTYPE
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Preset, make_settings, to_dict
@@ -139,6 +140,10 @@ def _check(status: int, what: str) -> None:
         raise NativeError(f"{what}: NULL argument")
     if status == lib.ATT_ERR_SETTINGS:
         raise NativeError(f"{what}: a setting is out of range or not finite")
+    if status == lib.ATT_ERR_KIND:
+        raise NativeError(f"{what}: not supported by this filter kind (or not initialised)")
+    if status == lib.ATT_ERR_STATE:
+        raise NativeError(f"{what}: the filter is not initialised yet (no valid sample)")
     if status != lib.ATT_OK:
         raise NativeError(f"{what}: status {status}")
 
@@ -198,6 +203,11 @@ class Filter:
         as ``settings``.
     settings
         A settings dataclass for the kind (the kind's defaults when None).
+    calibration
+        Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
+        :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
+    accel_outputs
+        Keep each step's accel for :meth:`accel` (g: the kind's ``gravity`` setting, else 9.80665).
     **overrides
         Settings fields to change (unknown names raise TypeError).
 
@@ -213,7 +223,13 @@ class Filter:
     """
 
     def __init__(
-        self, kind: str | int | FilterKind, dt: Any = None, settings: Any = None, **overrides: Any
+        self,
+        kind: str | int | FilterKind,
+        dt: Any = None,
+        settings: Any = None,
+        calibration: Any = None,
+        accel_outputs: bool = False,
+        **overrides: Any,
     ) -> None:
         self.kind, self._settings = filter_settings(kind, dt, settings, overrides, "native.Filter")
         self._s = ffi.new("att_filter_settings_t *")
@@ -222,6 +238,37 @@ class Filter:
         self._f = ffi.new("att_filter_t *")
         _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
         self._in = ffi.new("att_sample_t *")
+        if calibration is not None or accel_outputs:
+            self.calibrate(calibration, float(getattr(self.settings, "gravity", 9.80665)), accel_outputs)
+
+    def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
+        """att_filter_calibrate: new input/output stages, the state kept (NativeError says why if refused)."""
+        from attica.reference.calib import as_stage_settings
+
+        cs = ffi.new("att_calib_settings_t *")
+        fill_c(cs, as_stage_settings(calibration, gravity, accel_outputs))
+        problem = lib.att_calib_settings_check(cs)
+        if problem != lib.ATT_CALIB_OK:
+            why = ffi.string(lib.att_calib_error_name(problem)).decode()
+            raise NativeError(f"att_filter_calibrate: {why}")
+        _check(lib.att_filter_calibrate(self._f, cs), "att_filter_calibrate")
+
+    def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]] | None:
+        """att_filter_accel: (gravity, linear, earth), each (3,) m/s^2; None when not available."""
+        a = ffi.new("att_accel_t *")
+        lib.att_filter_accel(self._f, a)
+        if a.valid != lib.ATT_OUT_ACCEL:
+            return None
+        vecs = (a.gravity, a.linear, a.earth)
+        return tuple(np.array([v.x, v.y, v.z], np.float32) for v in vecs)  # type: ignore[return-value]
+
+    def set_heading(self, heading: float) -> None:
+        """att_filter_set_heading (rad, the output convention's yaw)."""
+        _check(lib.att_filter_set_heading(self._f, heading), "att_filter_set_heading")
+
+    def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
+        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        _check(lib.att_filter_heading_update(self._f, heading, gain, valid), "att_filter_heading_update")
 
     @property
     def settings(self) -> Any:

@@ -38,6 +38,9 @@
  *   dt=0x3c23d70a                float fields: the binary32 bit pattern (here 0.01), read by strtoul
  *   bias_mode=3                  integer, enum and bool fields: decimal or 0x hex
  *   bias_init.x=0x00000000       vector/quaternion members as name.x / name.w ...
+ *   calib.12=0x3c23d70a          the input/output stages (att_calib.h): field 12 of att_calib_field_set
+ *                                (here the gyro offset x), as binary32 bits; any calib.N key applies
+ *                                att_filter_calibrate to every instance after init
  * Fields not given keep att_filter_settings_default(kind, 0.01f). Unknown keys are an error.
  */
 #include <errno.h>
@@ -517,6 +520,26 @@ static int gv_apply(att_filter_kind_t kind, att_filter_settings_t *s, const char
     return GV_EXIT_IO;
 }
 
+static att_calib_settings_t gv_calib; /* the calib.N keys of the settings file */
+static int gv_have_calib;
+
+static int gv_apply_calib(const char *key, const char *val, const char *path, unsigned long line)
+{
+    char *end = NULL;
+    unsigned long idx = strtoul(key + 6, &end, 10);
+    uint32_t w;
+    if (!gv_have_calib) {
+        att_calib_settings_default(&gv_calib);
+        gv_have_calib = 1;
+    }
+    if (end == key + 6 || *end != '\0' || idx >= (unsigned long)ATT_CALIB_FIELDS || !gv_parse_u32(val, &w) ||
+        !att_calib_field_set(&gv_calib, (uint32_t)idx, gv_w2f(w))) {
+        fprintf(stderr, "att_golden: %s:%lu: bad calibration field %s=%s\n", path, line, key, val);
+        return GV_EXIT_IO;
+    }
+    return GV_OK;
+}
+
 static int gv_read_settings(const char *path, att_filter_kind_t kind, att_filter_settings_t *s)
 {
     char buf[512];
@@ -569,6 +592,8 @@ static int gv_read_settings(const char *path, att_filter_kind_t kind, att_filter
                 fprintf(stderr, "att_golden: %s: settings for '%s', not '%s'\n", path, val, att_filter_name(kind));
                 st = GV_EXIT_IO;
             }
+        } else if (strncmp(key, "calib.", 6) == 0) {
+            st = gv_apply_calib(key, val, path, line);
         } else {
             st = gv_apply(kind, s, key, val, path, line);
         }
@@ -659,6 +684,12 @@ static int gv_run_filter(att_filter_kind_t kind, const char *set_path, const cha
         if (init != ATT_OK) {
             fprintf(stderr, "att_golden: %s: att_filter_init(%s) refused the settings (status %d)\n", set_path,
                     name, (int)init);
+            free(filters);
+            return gv_close(fin, in_path, GV_EXIT_SETTINGS);
+        }
+        if (gv_have_calib && att_filter_calibrate(&filters[j], &gv_calib) != ATT_OK) {
+            fprintf(stderr, "att_golden: %s: att_filter_calibrate refused the calibration (%s)\n", set_path,
+                    att_calib_error_name(att_calib_settings_check(&gv_calib)));
             free(filters);
             return gv_close(fin, in_path, GV_EXIT_SETTINGS);
         }

@@ -38,6 +38,10 @@
     X(att_bias, 0x204, 8)                                                                              \
     X(att_status, 0x205, 8)                                                                            \
     X(att_diag, 0x206, 8)                                                                              \
+    X(att_lin_acc, 0x207, 8)                                                                           \
+    X(att_earth_acc, 0x208, 8)                                                                         \
+    X(att_cal_ack, 0x209, 8)                                                                           \
+    X(att_accel_fd, 0x211, 64)                                                                         \
     X(att_out_fd, 0x210, 64)                                                                           \
     X(cmd, 0x300, 8)
 
@@ -147,6 +151,36 @@ static void check_decoders(const att_can_frame_t *f)
         expect_masked(f, &re[0], 1u, 8u, "status");
         FZ_CHECK(st.counter < 16u && st.kind < 16u, "status nibbles out of range");
     }
+    {
+        /* the calibration answer and the acceleration frames invert their encoders on the signal bits */
+        att_can_cal_ack_t ack;
+        att_accel_t acc;
+        bool is_acc = f->id == 0x207u || f->id == 0x208u;
+        FZ_CHECK(att_can_decode_cal_ack(f, &ack) == (f->id == 0x209u && f->len == 8u), "decode_cal_ack acceptance");
+        if (f->id == 0x209u && f->len == 8u) {
+            att_can_encode_cal_ack(&ack, &re[0]);
+            expect_masked(f, &re[0], 1u, 8u, "cal ack");
+            FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded cal ack does not check");
+        }
+        FZ_CHECK(att_can_decode_accel_part(f, &v) == (is_acc && f->len == 8u), "decode_accel_part acceptance");
+        if (is_acc && f->len == 8u) {
+            memset(&acc, 0, sizeof acc);
+            if (f->id == 0x207u) acc.linear = v;
+            else acc.earth = v;
+            att_can_encode_accel(&acc, counter, re);
+            expect_masked(f, &re[f->id - 0x207u], 1u, 8u, "accel part");
+            FZ_CHECK(att_can_check(&re[f->id - 0x207u]) == ATT_CAN_OK, "encoded accel part does not check");
+        }
+        FZ_CHECK(att_can_decode_accel_fd(f, &acc) == (f->id == 0x211u && f->len == 64u), "decode_accel_fd acceptance");
+        if (f->id == 0x211u && f->len == 64u) {
+            FZ_CHECK(acc.valid == 0u || acc.valid == ATT_OUT_ACCEL, "accel fd valid");
+            if (acc.valid != 0u || (f->data[2] == 0u)) {
+                att_can_encode_accel_fd(&acc, counter, &re[0]);
+                FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded accel fd does not check");
+                if (f->data[2] <= 1u) expect_masked(f, &re[0], 1u, 64u, "accel fd");
+            }
+        }
+    }
     memset(&o, 0, sizeof o);
     {
         bool want = f->len == model_len(f->id) &&
@@ -246,8 +280,8 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
     return 0;
 }
 
-static const uint32_t known_ids[] = {0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202,
-                                     0x203, 0x204, 0x205, 0x206, 0x210, 0x300};
+static const uint32_t known_ids[] = {0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204,
+                                     0x205, 0x206, 0x207, 0x208, 0x209, 0x210, 0x211, 0x300};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
@@ -265,7 +299,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     lensel = fz_u8(&r);
     memset(&f, 0, sizeof f);
     /* mostly attica IDs (else the decoders are rarely reached), sometimes any 11-bit ID */
-    f.id = (idsel & 0x8000u) ? (uint32_t)(idsel & 0x7FFu) : known_ids[(idsel & 0xFFu) % 13u];
+    f.id = (idsel & 0x8000u) ? (uint32_t)(idsel & 0x7FFu) : known_ids[(idsel & 0xFFu) % 17u];
     if (lensel & 0x80u) {
         f.len = (uint8_t)(lensel & 0x7Fu); /* up to 127: the decoders must not trust it */
         f.fd = (uint8_t)((lensel >> 6) & 1u);

@@ -45,9 +45,9 @@ static inline unsigned model_len(uint32_t id)
 {
     switch (id) {
     case 0x100: case 0x101: case 0x102: case 0x200: case 0x201: case 0x202: case 0x203: case 0x204:
-    case 0x205: case 0x206: case 0x300:
+    case 0x205: case 0x206: case 0x207: case 0x208: case 0x209: case 0x300:
         return 8u;
-    case 0x110: case 0x210:
+    case 0x110: case 0x210: case 0x211:
         return 64u;
     default:
         return 0u;

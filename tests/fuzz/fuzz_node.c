@@ -66,6 +66,20 @@ static void track_tx(const att_node_t *n, tracker_t *t, const att_can_frame_t *f
         t->answers++;
         return;
     }
+    if (f->id == ATT_CAN_ID_CAL_ACK) {
+        FZ_CHECK(t->in_set == 0u, "calibration answer inside an output set");
+        FZ_CHECK(att_can_check(f) == ATT_CAN_OK, "ATT_CAL_ACK does not check");
+        t->answers++;
+        return;
+    }
+    if (f->id == ATT_CAN_ID_LIN_ACC || f->id == ATT_CAN_ID_EARTH_ACC || f->id == ATT_CAN_ID_ACCEL_FD) {
+        FZ_CHECK(n->s.accel_out && t->in_set == 0u && t->sets > 0u, "acceleration frame %03x unasked or inside a set",
+                 (unsigned)f->id);
+        FZ_CHECK((f->id == ATT_CAN_ID_ACCEL_FD) == n->s.fd, "acceleration frame %03x in the wrong mode", (unsigned)f->id);
+        FZ_CHECK(att_can_check(f) == ATT_CAN_OK, "acceleration frame %03x does not check", (unsigned)f->id);
+        FZ_CHECK(att_can_counter(f) == ((t->sets - 1u) & 15u), "acceleration frame counter");
+        return;
+    }
     if (f->id == ATT_CAN_ID_DIAG) {
         FZ_CHECK(t->in_set == 0u, "DIAG inside an output set");
         FZ_CHECK(att_can_check(f) == ATT_CAN_OK, "DIAG does not check");
@@ -199,6 +213,22 @@ static void one_frame(att_node_t *n, tracker_t *t, const att_can_frame_t *f, boo
         uint8_t result;
         FZ_CHECK(att_can_decode_cmd(f, &cmd), "decode_cmd");
         FZ_CHECK(t->answers == answers0 + 1u && n->stats.commands == s0.commands + 1u, "command not answered once");
+        if (cmd.cmd >= ATT_CAN_CMD_CAL_BEGIN && cmd.cmd <= ATT_CAN_CMD_SET_REMAP) {
+            att_can_cal_ack_t ack;
+            FZ_CHECK(a->id == ATT_CAN_ID_CAL_ACK && att_can_decode_cal_ack(a, &ack) && ack.cmd == cmd.cmd &&
+                         ack.counter == cmd.counter,
+                     "calibration answer does not name the command");
+            FZ_CHECK(ack.result <= ATT_CAN_ACK_REFUSED && ack.session == (n->shadow_open ? 1u : 0u),
+                     "calibration answer fields");
+            FZ_CHECK((ack.result == ATT_CAN_ACK_REFUSED) == (ack.reason != 0u), "refusal without a reason");
+            if (ack.result != ATT_CAN_ACK_OK || cmd.cmd == ATT_CAN_CMD_CAL_BEGIN || cmd.cmd == ATT_CAN_CMD_CAL_SET ||
+                cmd.cmd == ATT_CAN_CMD_CAL_ABORT) {
+                FZ_CHECK(same_out(&o0, &o1), "calibration command %u (result %u) changed the filter's output",
+                         cmd.cmd, ack.result);
+            }
+            FZ_CHECK(att_calib_settings_check(&n->cal) == ATT_CALIB_OK, "the applied calibration is invalid");
+            return;
+        }
         FZ_CHECK(a->id == ATT_CAN_ID_STATUS && (a->data[7] & 0x8Fu) == (0x80u | (cmd.cmd & 15u)) &&
                      att_can_counter(a) == cmd.counter,
                  "answer does not name the command");
@@ -267,6 +297,7 @@ static bool run(att_node_t *n, tracker_t *t, const uint8_t *data, size_t size, u
     s.data_bitrate = s.fd ? 2000000u : 0u;
     s.output_divider = out_div[(b1 >> 1) & 3u];
     s.diag_divider = diag_div[(b1 >> 3) & 3u];
+    s.accel_out = (b1 & 0x20u) != 0u;
     memset(n, fill, sizeof *n);
     if (att_node_init(n, &s) != ATT_OK) {
         return false;
@@ -298,7 +329,7 @@ static bool run(att_node_t *n, tracker_t *t, const uint8_t *data, size_t size, u
             att_can_frame_t fr;
             uint8_t sel = fz_u8(&r);
             c.counter = counter;
-            c.cmd = (sel & 0x80u) ? fz_u8(&r) : (uint8_t)(1u + sel % 3u);
+            c.cmd = (sel & 0x80u) ? fz_u8(&r) : (uint8_t)(1u + sel % 9u);
             c.arg = (sel & 0x40u) ? fz_u8(&r) : (uint8_t)(fz_u8(&r) % 8u);
             c.value = ((sel & 0x30u) == 0u) ? fz_float(&r) : (float)fz_u8(&r) / 16.0f;
             att_can_encode_cmd(&c, &fr);

@@ -275,6 +275,8 @@ class FilterCase:
     imu: Imu
     source: str
     """``synthetic`` or ``broad``."""
+    calibration: Any = None
+    """Input/output stages (StageSettings; None: none)."""
 
     @property
     def steps(self) -> int:
@@ -337,7 +339,36 @@ def synthetic_cases(
     for name, (kind, overrides) in VARIANTS.items():
         if kind in implemented_kinds():
             cases.append(FilterCase(name, kind, make_settings(kind, **overrides), imu, "synthetic"))
+    for name, (kind, cal) in calibrated_variants().items():
+        if kind in implemented_kinds():
+            cases.append(FilterCase(name, kind, make_settings(kind), imu, "synthetic", cal))
     return cases
+
+
+def calibrated_variants() -> dict[str, tuple[FilterKind, Any]]:
+    """Kinds with non-identity input/output stages (att_calib.h) for the golden comparison."""
+    from attica.calibration.stages import StageSettings
+
+    m = (1.02, 0.013, -0.021, -0.017, 0.985, 0.006, 0.011, -0.024, 1.031)
+    model: dict[str, Any] = {
+        "gyro_misalignment": m,
+        "gyro_sensitivity": (1.01, 0.99, 1.003),
+        "gyro_offset": (0.01, -0.02, 0.004),
+        "accel_misalignment": m[::-1],
+        "accel_sensitivity": (0.98, 1.02, 1.0),
+        "accel_offset": (0.2, -0.1, 0.05),
+        "soft_iron": (1.1, 0.05, -0.02, 0.05, 0.92, 0.01, -0.02, 0.01, 1.05),
+        "hard_iron": (12.0, -7.5, 30.0),
+        "accel_outputs": True,
+    }
+    q4 = np.array([0.8775826, 0.2397127, -0.3595691, 0.1917702])
+    q = tuple(float(v) for v in q4 / np.linalg.norm(q4))  # a mounting quaternion, unit
+    return {
+        "ars-calib-ned-quat": (FilterKind.ARS, StageSettings(**model, mounting=q, convention=1)),
+        "mars-calib-nwu-remap": (FilterKind.MARS, StageSettings(**model, remap=14, convention=2)),
+        "kf-calib-remap-only": (FilterKind.KF, StageSettings(remap=9)),
+        "ekf-calib-ned-quat": (FilterKind.EKF, StageSettings(**model, mounting=q, convention=1)),
+    }
 
 
 def broad_files(directory: Path = BROAD) -> list[Path]:
@@ -378,7 +409,7 @@ def broad_cases(files: Sequence[Path]) -> list[FilterCase]:
 
 def reference_case(case: FilterCase) -> NDArray[np.void]:
     """The numpy reference outputs of one case, (steps, streams) records."""
-    return golden.reference_filter(case.kind, case.settings, *case.imu)
+    return golden.reference_filter(case.kind, case.settings, *case.imu, calibration=case.calibration)
 
 
 def reference_outputs(cases: Sequence[FilterCase], jobs: int = 0) -> dict[str, NDArray[np.void]]:
@@ -490,7 +521,14 @@ def run_case(
     streams = case.imu[0].shape[1]
     if not max_streams or streams <= max_streams:
         return golden.run_filter(
-            runner, case.kind, case.settings, *case.imu, prefix=prefix, workdir=workdir, in_file=in_file
+            runner,
+            case.kind,
+            case.settings,
+            *case.imu,
+            prefix=prefix,
+            workdir=workdir,
+            in_file=in_file,
+            calibration=case.calibration,
         )
     parts = []
     for s0 in range(0, streams, max_streams):
@@ -499,7 +537,16 @@ def run_case(
         golden.write_filter_input(part_file, case.kind, g, a, m)
         parts.append(
             golden.run_filter(
-                runner, case.kind, case.settings, g, a, m, prefix=prefix, workdir=workdir, in_file=part_file
+                runner,
+                case.kind,
+                case.settings,
+                g,
+                a,
+                m,
+                prefix=prefix,
+                workdir=workdir,
+                in_file=part_file,
+                calibration=case.calibration,
             )
         )
         part_file.unlink()
@@ -534,7 +581,7 @@ def compare_filters(
         in_file: Path | None = files[c.name]
         if streams and streams < c.imu[0].shape[1]:
             g, a, m = (np.ascontiguousarray(v[:, :streams]) for v in c.imu)
-            c = FilterCase(c.name, c.kind, c.settings, (g, a, m), c.source)
+            c = FilterCase(c.name, c.kind, c.settings, (g, a, m), c.source, c.calibration)
             ref = ref[:, :streams]
             in_file = None
         got = run_case(runner, prefix, c, in_file, wd, max_streams)

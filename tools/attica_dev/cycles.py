@@ -697,6 +697,57 @@ def profile_lines(counts: Counts, cfg: Config, labels: Sequence[str], steps: int
     return out
 
 
+STAGES: tuple[tuple[str, str, str, str], ...] = (
+    ("ars+gyro", "ars", "att_filter_step", "gyro model, the first stage (with the entry of the stage path)"),
+    ("ars+ned", "ars", "att_filter_step", "NED output, the only stage (with the entry of the stage path)"),
+    ("ars+gyro,accel", "ars+gyro", "att_filter_step", "+ accel model"),
+    ("mars+gyro,mag", "mars+gyro", "att_filter_step", "+ mag model (soft iron, hard iron; mars)"),
+    (
+        "ars+gyro,remap",
+        "ars+gyro",
+        "att_filter_step",
+        "+ mounting remap (gyro folded: 0; accel, mag permuted)",
+    ),
+    ("ars+remap", "ars", "att_filter_step", "mounting remap alone (3 sensors permuted)"),
+    (
+        "ars+gyro,accel,quat",
+        "ars+gyro,accel",
+        "att_filter_step",
+        "+ mounting quaternion (gyro, accel folded: 0; the mag rotated)",
+    ),
+    ("ars+quat", "ars", "att_filter_step", "mounting quaternion alone (3 sensors, 3x3)"),
+    ("ars+gyro,ned", "ars+gyro", "att_filter_step", "+ NED output (q per step)"),
+    ("ars+gyro,accout", "ars+gyro", "att_filter_step", "+ acceleration outputs kept"),
+    ("ars+accout", "", "att_filter_accel", "att_filter_accel on request (per call)"),
+)
+"""The input/output stages (att_calib.h) counted by :func:`stage_lines`: att_bench label, the row
+without the stage ("" = the absolute count), the counted function, and what is enabled."""
+
+
+def stage_lines(steps: int, out: Path = OUT, board: str = "m4f", opt: str = "-O2") -> list[str]:
+    """Instructions per step with each input/output stage enabled, beside the same filter without it."""
+    target = cross.TARGETS[board]
+    missing = target.missing()
+    if missing:
+        return [f"stages: missing {cross.install_hint(missing)}"]
+    elf = target.build([BENCH_SOURCE], opt, "att_bench.elf", out / f"{board}{opt}")
+    base: dict[str, float] = {}
+    lines = [
+        f"Input/output stages on the {board.upper()} {opt} (att_calib.h; instructions per call, mean over "
+        f"{steps} steps; added = beside the row without that stage; with no stage enabled att_filter_step "
+        f"pays one test of att_filter_t.cal.active):",
+        f"  {'stage':66s} {'instr':>8s} {'added':>8s}",
+    ]
+    for label, ref, function, what in STAGES:
+        if ref and ref not in base:
+            base[ref] = trace_steps(elf, ref, steps, board=board).mean
+        n = trace_steps(elf, label, steps, function, board).mean
+        added = f"{n - base[ref]:+8.1f}" if ref else f"{'':>8s}"
+        base.setdefault(label, n) if function == "att_filter_step" else None
+        lines.append(f"  {what:66s} {n:8.1f} {added}")
+    return lines
+
+
 def cycles_report(
     steps: int = BENCH_STEPS,
     configs: Sequence[Config] = DEFAULT_CONFIGS,
@@ -704,15 +755,19 @@ def cycles_report(
     profile: Sequence[str] = (),
     peers: bool = True,
     x86: bool = True,
+    stages: bool = True,
 ) -> str:
-    """Count everything and return the report (``make cycles``)."""
+    """Count everything and return the report (``make cycles``); ``stages``: the stage table too."""
     rows = attica_rows() + (peer_rows() if peers else [])
     counts = Counts()
     for i, cfg in enumerate(configs):
         count_cortex(cfg, rows, steps, out, counts, profile if i == 0 else ())
     if x86:
         count_x86(rows, out, counts)
-    return report(counts, rows, configs, steps, profile)
+    text = report(counts, rows, configs, steps, profile)
+    if stages:
+        text += "\n\n" + "\n".join(stage_lines(steps, out))
+    return text
 
 
 def _parse_configs(text: str) -> list[Config]:
@@ -748,7 +803,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--no-peers", action="store_true", help="attica only")
     p.add_argument("--no-x86", action="store_true", help="no callgrind columns")
+    p.add_argument("--no-stages", action="store_true", help="no input/output stage table")
+    p.add_argument("--stages-only", action="store_true", help="only the input/output stage table (M4F -O2)")
     args = p.parse_args(argv)
+    if args.stages_only:
+        try:
+            print("\n".join(stage_lines(args.steps)))
+        except (CyclesError, cross.CrossError) as e:
+            print(f"cycles: {e}", file=sys.stderr)
+            return 1
+        return 0
     try:
         print(
             cycles_report(
@@ -757,6 +821,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 profile=[s for s in args.profile.split(",") if s],
                 peers=not args.no_peers,
                 x86=not args.no_x86,
+                stages=not args.no_stages,
             )
         )
     except (CyclesError, cross.CrossError) as e:

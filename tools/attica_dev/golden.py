@@ -180,8 +180,11 @@ def _float_bits(value: Any) -> str:
     return f"0x{int(np.float32(value).view(np.uint32)):08x}"
 
 
-def settings_text(kind: str | int | FilterKind, settings: Any = None) -> str:
+def settings_text(kind: str | int | FilterKind, settings: Any = None, calibration: Any = None) -> str:
     """Return the runner's key=value settings text for a settings dataclass (defaults when None).
+
+    ``calibration`` (a Calibration or StageSettings; None: none) adds the ``calib.N`` lines of the
+    input/output stages (att_calib_field_set order).
 
     Float fields are written as their float32 bit patterns (exact), integer/enum/bool fields as
     decimal numbers, vector fields as ``name.x``/``name.y``/``name.z`` (``name.w`` first for
@@ -204,12 +207,21 @@ def settings_text(kind: str | int | FilterKind, settings: Any = None) -> str:
             lines.append(f"{f.name}={int(bool(value))}")
         else:
             lines.append(f"{f.name}={int(value)}")
+    if calibration is not None:
+        from attica.calibration.stages import fields
+        from attica.reference.calib import as_stage_settings
+
+        g = float(getattr(s, "gravity", 9.80665))
+        for i, v in enumerate(fields(as_stage_settings(calibration, g))):
+            lines.append(f"calib.{i}={_float_bits(v)}  # {np.float32(v)}")
     return "\n".join(lines) + "\n"
 
 
-def write_settings(path: Path, kind: str | int | FilterKind, settings: Any = None) -> None:
+def write_settings(
+    path: Path, kind: str | int | FilterKind, settings: Any = None, calibration: Any = None
+) -> None:
     """Write :func:`settings_text` to ``path``."""
-    Path(path).write_text(settings_text(kind, settings))
+    Path(path).write_text(settings_text(kind, settings, calibration))
 
 
 # --- building and running ----------------------------------------------------------------------
@@ -427,6 +439,7 @@ def run_filter(
     prefix: Sequence[str] = (),
     workdir: Path | None = None,
     in_file: Path | None = None,
+    calibration: Any = None,
 ) -> NDArray[np.void]:
     """Run a filter in the runner; return (N, M) records of OUTPUT_DTYPE (att_output_t per step).
 
@@ -446,6 +459,8 @@ def run_filter(
         Directory for the files (default: a temporary one).
     in_file
         An input file already written by :func:`write_filter_input` for these inputs.
+    calibration
+        Input/output stages of every instance (Calibration or StageSettings; None: none).
 
     """
     k = FilterKind.parse(kind)
@@ -458,7 +473,7 @@ def run_filter(
     try:
         tag = f"{k.label}.{os.getpid()}.{Path(runner).parent.name}"
         set_file = wd / f"{tag}.settings.txt"
-        write_settings(set_file, k, settings)
+        write_settings(set_file, k, settings, calibration)
         if in_file is None:
             in_file = wd / f"{tag}.in.bin"
             write_filter_input(in_file, k, gyr, acc, mag)
@@ -546,7 +561,7 @@ def reference_math(fn: str, rows: Any) -> FloatArray:
 
 
 def reference_filter(
-    kind: str | int | FilterKind, settings: Any, gyr: Any, acc: Any, mag: Any = None
+    kind: str | int | FilterKind, settings: Any, gyr: Any, acc: Any, mag: Any = None, calibration: Any = None
 ) -> NDArray[np.void]:
     """Run the numpy reference filter on the same inputs as :func:`run_filter`: (N, M) records."""
     from attica.reference.filter import Filter
@@ -557,7 +572,7 @@ def reference_filter(
     if g.ndim == 2:
         g, a = g[:, None, :], a[:, None, :]
         m = None if m is None else m[:, None, :]
-    f = Filter(kind, settings, n=g.shape[1])
+    f = Filter(kind, settings, n=g.shape[1], calibration=calibration)
     with np.errstate(all="ignore"):
         out = f.run(g, a, m, check_units=False)  # golden cases are adversarial on purpose
     return out.reshape(g.shape[0], g.shape[1])

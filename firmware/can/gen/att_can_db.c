@@ -2057,6 +2057,704 @@ bool att_can_db_att_out_fd_cov_3_is_in_phys_range(float value)
     return (true);
 }
 
+int att_can_db_att_lin_acc_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_lin_acc_t *src_p,
+    size_t size)
+{
+    uint16_t lin_x;
+    uint16_t lin_y;
+    uint16_t lin_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    lin_x = (uint16_t)src_p->lin_x;
+    dst_p[2] |= pack_left_shift_u16(lin_x, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(lin_x, 8u, 0xffu);
+    lin_y = (uint16_t)src_p->lin_y;
+    dst_p[4] |= pack_left_shift_u16(lin_y, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(lin_y, 8u, 0xffu);
+    lin_z = (uint16_t)src_p->lin_z;
+    dst_p[6] |= pack_left_shift_u16(lin_z, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(lin_z, 8u, 0xffu);
+
+    return (8);
+}
+
+int att_can_db_att_lin_acc_unpack(
+    struct att_can_db_att_lin_acc_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t lin_x;
+    uint16_t lin_y;
+    uint16_t lin_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    lin_x = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    lin_x |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->lin_x = (int16_t)lin_x;
+    lin_y = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    lin_y |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->lin_y = (int16_t)lin_y;
+    lin_z = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    lin_z |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->lin_z = (int16_t)lin_z;
+
+    return (0);
+}
+
+int att_can_db_att_lin_acc_init(struct att_can_db_att_lin_acc_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_lin_acc_t));
+
+    return 0;
+}
+
+bool att_can_db_att_lin_acc_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_lin_acc_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_lin_acc_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_lin_acc_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_lin_acc_lin_x_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_lin_acc_lin_x_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+bool att_can_db_att_lin_acc_lin_y_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_lin_acc_lin_y_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+bool att_can_db_att_lin_acc_lin_z_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_lin_acc_lin_z_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+int att_can_db_att_earth_acc_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_earth_acc_t *src_p,
+    size_t size)
+{
+    uint16_t earth_x;
+    uint16_t earth_y;
+    uint16_t earth_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    earth_x = (uint16_t)src_p->earth_x;
+    dst_p[2] |= pack_left_shift_u16(earth_x, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(earth_x, 8u, 0xffu);
+    earth_y = (uint16_t)src_p->earth_y;
+    dst_p[4] |= pack_left_shift_u16(earth_y, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(earth_y, 8u, 0xffu);
+    earth_z = (uint16_t)src_p->earth_z;
+    dst_p[6] |= pack_left_shift_u16(earth_z, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(earth_z, 8u, 0xffu);
+
+    return (8);
+}
+
+int att_can_db_att_earth_acc_unpack(
+    struct att_can_db_att_earth_acc_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t earth_x;
+    uint16_t earth_y;
+    uint16_t earth_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    earth_x = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    earth_x |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->earth_x = (int16_t)earth_x;
+    earth_y = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    earth_y |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->earth_y = (int16_t)earth_y;
+    earth_z = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    earth_z |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->earth_z = (int16_t)earth_z;
+
+    return (0);
+}
+
+int att_can_db_att_earth_acc_init(struct att_can_db_att_earth_acc_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_earth_acc_t));
+
+    return 0;
+}
+
+bool att_can_db_att_earth_acc_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_earth_acc_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_earth_acc_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_earth_acc_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_earth_acc_earth_x_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_earth_acc_earth_x_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+bool att_can_db_att_earth_acc_earth_y_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_earth_acc_earth_y_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+bool att_can_db_att_earth_acc_earth_z_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_earth_acc_earth_z_is_in_phys_range(float value)
+{
+    return ((value >= -127.99609375f) && (value <= 127.99609375f));
+}
+
+int att_can_db_att_cal_ack_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_cal_ack_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    dst_p[2] |= pack_left_shift_u8(src_p->cmd, 0u, 0xffu);
+    dst_p[3] |= pack_left_shift_u8(src_p->result, 0u, 0xffu);
+    dst_p[4] |= pack_left_shift_u8(src_p->reason, 0u, 0xffu);
+    dst_p[5] |= pack_left_shift_u8(src_p->index, 0u, 0xffu);
+    dst_p[6] |= pack_left_shift_u8(src_p->persisted, 0u, 0xffu);
+    dst_p[7] |= pack_left_shift_u8(src_p->session, 0u, 0xffu);
+
+    return (8);
+}
+
+int att_can_db_att_cal_ack_unpack(
+    struct att_can_db_att_cal_ack_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    dst_p->cmd = unpack_right_shift_u8(src_p[2], 0u, 0xffu);
+    dst_p->result = unpack_right_shift_u8(src_p[3], 0u, 0xffu);
+    dst_p->reason = unpack_right_shift_u8(src_p[4], 0u, 0xffu);
+    dst_p->index = unpack_right_shift_u8(src_p[5], 0u, 0xffu);
+    dst_p->persisted = unpack_right_shift_u8(src_p[6], 0u, 0xffu);
+    dst_p->session = unpack_right_shift_u8(src_p[7], 0u, 0xffu);
+
+    return (0);
+}
+
+int att_can_db_att_cal_ack_init(struct att_can_db_att_cal_ack_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_cal_ack_t));
+
+    return 0;
+}
+
+bool att_can_db_att_cal_ack_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_cal_ack_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_cal_ack_cmd_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_cmd_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_result_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_result_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_reason_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_reason_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_index_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_index_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_persisted_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_persisted_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_cal_ack_session_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_cal_ack_session_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+int att_can_db_att_accel_fd_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_accel_fd_t *src_p,
+    size_t size)
+{
+    uint32_t earth_x;
+    uint32_t earth_y;
+    uint32_t earth_z;
+    uint32_t grav_x;
+    uint32_t grav_y;
+    uint32_t grav_z;
+    uint32_t lin_x;
+    uint32_t lin_y;
+    uint32_t lin_z;
+
+    if (size < 64u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 64);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    dst_p[2] |= pack_left_shift_u8(src_p->valid, 0u, 0xffu);
+    memcpy(&grav_x, &src_p->grav_x, sizeof(grav_x));
+    dst_p[4] |= pack_left_shift_u32(grav_x, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u32(grav_x, 8u, 0xffu);
+    dst_p[6] |= pack_right_shift_u32(grav_x, 16u, 0xffu);
+    dst_p[7] |= pack_right_shift_u32(grav_x, 24u, 0xffu);
+    memcpy(&grav_y, &src_p->grav_y, sizeof(grav_y));
+    dst_p[8] |= pack_left_shift_u32(grav_y, 0u, 0xffu);
+    dst_p[9] |= pack_right_shift_u32(grav_y, 8u, 0xffu);
+    dst_p[10] |= pack_right_shift_u32(grav_y, 16u, 0xffu);
+    dst_p[11] |= pack_right_shift_u32(grav_y, 24u, 0xffu);
+    memcpy(&grav_z, &src_p->grav_z, sizeof(grav_z));
+    dst_p[12] |= pack_left_shift_u32(grav_z, 0u, 0xffu);
+    dst_p[13] |= pack_right_shift_u32(grav_z, 8u, 0xffu);
+    dst_p[14] |= pack_right_shift_u32(grav_z, 16u, 0xffu);
+    dst_p[15] |= pack_right_shift_u32(grav_z, 24u, 0xffu);
+    memcpy(&lin_x, &src_p->lin_x, sizeof(lin_x));
+    dst_p[16] |= pack_left_shift_u32(lin_x, 0u, 0xffu);
+    dst_p[17] |= pack_right_shift_u32(lin_x, 8u, 0xffu);
+    dst_p[18] |= pack_right_shift_u32(lin_x, 16u, 0xffu);
+    dst_p[19] |= pack_right_shift_u32(lin_x, 24u, 0xffu);
+    memcpy(&lin_y, &src_p->lin_y, sizeof(lin_y));
+    dst_p[20] |= pack_left_shift_u32(lin_y, 0u, 0xffu);
+    dst_p[21] |= pack_right_shift_u32(lin_y, 8u, 0xffu);
+    dst_p[22] |= pack_right_shift_u32(lin_y, 16u, 0xffu);
+    dst_p[23] |= pack_right_shift_u32(lin_y, 24u, 0xffu);
+    memcpy(&lin_z, &src_p->lin_z, sizeof(lin_z));
+    dst_p[24] |= pack_left_shift_u32(lin_z, 0u, 0xffu);
+    dst_p[25] |= pack_right_shift_u32(lin_z, 8u, 0xffu);
+    dst_p[26] |= pack_right_shift_u32(lin_z, 16u, 0xffu);
+    dst_p[27] |= pack_right_shift_u32(lin_z, 24u, 0xffu);
+    memcpy(&earth_x, &src_p->earth_x, sizeof(earth_x));
+    dst_p[28] |= pack_left_shift_u32(earth_x, 0u, 0xffu);
+    dst_p[29] |= pack_right_shift_u32(earth_x, 8u, 0xffu);
+    dst_p[30] |= pack_right_shift_u32(earth_x, 16u, 0xffu);
+    dst_p[31] |= pack_right_shift_u32(earth_x, 24u, 0xffu);
+    memcpy(&earth_y, &src_p->earth_y, sizeof(earth_y));
+    dst_p[32] |= pack_left_shift_u32(earth_y, 0u, 0xffu);
+    dst_p[33] |= pack_right_shift_u32(earth_y, 8u, 0xffu);
+    dst_p[34] |= pack_right_shift_u32(earth_y, 16u, 0xffu);
+    dst_p[35] |= pack_right_shift_u32(earth_y, 24u, 0xffu);
+    memcpy(&earth_z, &src_p->earth_z, sizeof(earth_z));
+    dst_p[36] |= pack_left_shift_u32(earth_z, 0u, 0xffu);
+    dst_p[37] |= pack_right_shift_u32(earth_z, 8u, 0xffu);
+    dst_p[38] |= pack_right_shift_u32(earth_z, 16u, 0xffu);
+    dst_p[39] |= pack_right_shift_u32(earth_z, 24u, 0xffu);
+
+    return (64);
+}
+
+int att_can_db_att_accel_fd_unpack(
+    struct att_can_db_att_accel_fd_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint32_t earth_x;
+    uint32_t earth_y;
+    uint32_t earth_z;
+    uint32_t grav_x;
+    uint32_t grav_y;
+    uint32_t grav_z;
+    uint32_t lin_x;
+    uint32_t lin_y;
+    uint32_t lin_z;
+
+    if (size < 64u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    dst_p->valid = unpack_right_shift_u8(src_p[2], 0u, 0xffu);
+    grav_x = unpack_right_shift_u32(src_p[4], 0u, 0xffu);
+    grav_x |= unpack_left_shift_u32(src_p[5], 8u, 0xffu);
+    grav_x |= unpack_left_shift_u32(src_p[6], 16u, 0xffu);
+    grav_x |= unpack_left_shift_u32(src_p[7], 24u, 0xffu);
+    memcpy(&dst_p->grav_x, &grav_x, sizeof(dst_p->grav_x));
+    grav_y = unpack_right_shift_u32(src_p[8], 0u, 0xffu);
+    grav_y |= unpack_left_shift_u32(src_p[9], 8u, 0xffu);
+    grav_y |= unpack_left_shift_u32(src_p[10], 16u, 0xffu);
+    grav_y |= unpack_left_shift_u32(src_p[11], 24u, 0xffu);
+    memcpy(&dst_p->grav_y, &grav_y, sizeof(dst_p->grav_y));
+    grav_z = unpack_right_shift_u32(src_p[12], 0u, 0xffu);
+    grav_z |= unpack_left_shift_u32(src_p[13], 8u, 0xffu);
+    grav_z |= unpack_left_shift_u32(src_p[14], 16u, 0xffu);
+    grav_z |= unpack_left_shift_u32(src_p[15], 24u, 0xffu);
+    memcpy(&dst_p->grav_z, &grav_z, sizeof(dst_p->grav_z));
+    lin_x = unpack_right_shift_u32(src_p[16], 0u, 0xffu);
+    lin_x |= unpack_left_shift_u32(src_p[17], 8u, 0xffu);
+    lin_x |= unpack_left_shift_u32(src_p[18], 16u, 0xffu);
+    lin_x |= unpack_left_shift_u32(src_p[19], 24u, 0xffu);
+    memcpy(&dst_p->lin_x, &lin_x, sizeof(dst_p->lin_x));
+    lin_y = unpack_right_shift_u32(src_p[20], 0u, 0xffu);
+    lin_y |= unpack_left_shift_u32(src_p[21], 8u, 0xffu);
+    lin_y |= unpack_left_shift_u32(src_p[22], 16u, 0xffu);
+    lin_y |= unpack_left_shift_u32(src_p[23], 24u, 0xffu);
+    memcpy(&dst_p->lin_y, &lin_y, sizeof(dst_p->lin_y));
+    lin_z = unpack_right_shift_u32(src_p[24], 0u, 0xffu);
+    lin_z |= unpack_left_shift_u32(src_p[25], 8u, 0xffu);
+    lin_z |= unpack_left_shift_u32(src_p[26], 16u, 0xffu);
+    lin_z |= unpack_left_shift_u32(src_p[27], 24u, 0xffu);
+    memcpy(&dst_p->lin_z, &lin_z, sizeof(dst_p->lin_z));
+    earth_x = unpack_right_shift_u32(src_p[28], 0u, 0xffu);
+    earth_x |= unpack_left_shift_u32(src_p[29], 8u, 0xffu);
+    earth_x |= unpack_left_shift_u32(src_p[30], 16u, 0xffu);
+    earth_x |= unpack_left_shift_u32(src_p[31], 24u, 0xffu);
+    memcpy(&dst_p->earth_x, &earth_x, sizeof(dst_p->earth_x));
+    earth_y = unpack_right_shift_u32(src_p[32], 0u, 0xffu);
+    earth_y |= unpack_left_shift_u32(src_p[33], 8u, 0xffu);
+    earth_y |= unpack_left_shift_u32(src_p[34], 16u, 0xffu);
+    earth_y |= unpack_left_shift_u32(src_p[35], 24u, 0xffu);
+    memcpy(&dst_p->earth_y, &earth_y, sizeof(dst_p->earth_y));
+    earth_z = unpack_right_shift_u32(src_p[36], 0u, 0xffu);
+    earth_z |= unpack_left_shift_u32(src_p[37], 8u, 0xffu);
+    earth_z |= unpack_left_shift_u32(src_p[38], 16u, 0xffu);
+    earth_z |= unpack_left_shift_u32(src_p[39], 24u, 0xffu);
+    memcpy(&dst_p->earth_z, &earth_z, sizeof(dst_p->earth_z));
+
+    return (0);
+}
+
+int att_can_db_att_accel_fd_init(struct att_can_db_att_accel_fd_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_accel_fd_t));
+
+    return 0;
+}
+
+bool att_can_db_att_accel_fd_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_accel_fd_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_accel_fd_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_accel_fd_valid_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_valid_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_accel_fd_grav_x_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_grav_x_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_grav_y_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_grav_y_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_grav_z_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_grav_z_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_x_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_x_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_y_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_y_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_z_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_lin_z_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_x_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_x_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_y_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_y_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_z_is_in_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_accel_fd_earth_z_is_in_phys_range(float value)
+{
+    (void)value;
+
+    return (true);
+}
+
 int att_can_db_cmd_pack(
     uint8_t *dst_p,
     const struct att_can_db_cmd_t *src_p,

@@ -57,6 +57,10 @@ extern "C" {
 #define ATT_CAN_DB_ATT_STATUS_FRAME_ID (0x205u)
 #define ATT_CAN_DB_ATT_DIAG_FRAME_ID (0x206u)
 #define ATT_CAN_DB_ATT_OUT_FD_FRAME_ID (0x210u)
+#define ATT_CAN_DB_ATT_LIN_ACC_FRAME_ID (0x207u)
+#define ATT_CAN_DB_ATT_EARTH_ACC_FRAME_ID (0x208u)
+#define ATT_CAN_DB_ATT_CAL_ACK_FRAME_ID (0x209u)
+#define ATT_CAN_DB_ATT_ACCEL_FD_FRAME_ID (0x211u)
 #define ATT_CAN_DB_CMD_FRAME_ID (0x300u)
 
 /* Frame lengths in bytes. */
@@ -72,6 +76,10 @@ extern "C" {
 #define ATT_CAN_DB_ATT_STATUS_LENGTH (8u)
 #define ATT_CAN_DB_ATT_DIAG_LENGTH (8u)
 #define ATT_CAN_DB_ATT_OUT_FD_LENGTH (64u)
+#define ATT_CAN_DB_ATT_LIN_ACC_LENGTH (8u)
+#define ATT_CAN_DB_ATT_EARTH_ACC_LENGTH (8u)
+#define ATT_CAN_DB_ATT_CAL_ACK_LENGTH (8u)
+#define ATT_CAN_DB_ATT_ACCEL_FD_LENGTH (64u)
 #define ATT_CAN_DB_CMD_LENGTH (8u)
 
 /* Extended or standard frame types. */
@@ -87,6 +95,10 @@ extern "C" {
 #define ATT_CAN_DB_ATT_STATUS_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_DIAG_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_OUT_FD_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_LIN_ACC_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_EARTH_ACC_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_CAL_ACK_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_ACCEL_FD_IS_EXTENDED (0)
 #define ATT_CAN_DB_CMD_IS_EXTENDED (0)
 
 /* Frame cycle times in milliseconds. */
@@ -149,9 +161,27 @@ extern "C" {
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_TILT_CHOICE (6u)
 #define ATT_CAN_DB_ATT_OUT_FD_KIND_MEKF_CHOICE (7u)
 
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_X_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_Y_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_Z_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_X_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_Y_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_Z_NA_CHOICE (-32768)
+
 #define ATT_CAN_DB_CMD_CMD_SELECT_FILTER_CHOICE (1u)
 #define ATT_CAN_DB_CMD_CMD_RESET_CHOICE (2u)
 #define ATT_CAN_DB_CMD_CMD_SET_GAIN_CHOICE (3u)
+#define ATT_CAN_DB_CMD_CMD_CAL_BEGIN_CHOICE (4u)
+#define ATT_CAN_DB_CMD_CMD_CAL_SET_CHOICE (5u)
+#define ATT_CAN_DB_CMD_CMD_CAL_COMMIT_CHOICE (6u)
+#define ATT_CAN_DB_CMD_CMD_CAL_ABORT_CHOICE (7u)
+#define ATT_CAN_DB_CMD_CMD_SET_CONVENTION_CHOICE (8u)
+#define ATT_CAN_DB_CMD_CMD_SET_REMAP_CHOICE (9u)
 
 /* Frame Names. */
 #define ATT_CAN_DB_IMU_GYRO_NAME "IMU_GYRO"
@@ -166,6 +196,10 @@ extern "C" {
 #define ATT_CAN_DB_ATT_STATUS_NAME "ATT_STATUS"
 #define ATT_CAN_DB_ATT_DIAG_NAME "ATT_DIAG"
 #define ATT_CAN_DB_ATT_OUT_FD_NAME "ATT_OUT_FD"
+#define ATT_CAN_DB_ATT_LIN_ACC_NAME "ATT_LIN_ACC"
+#define ATT_CAN_DB_ATT_EARTH_ACC_NAME "ATT_EARTH_ACC"
+#define ATT_CAN_DB_ATT_CAL_ACK_NAME "ATT_CAL_ACK"
+#define ATT_CAN_DB_ATT_ACCEL_FD_NAME "ATT_ACCEL_FD"
 #define ATT_CAN_DB_CMD_NAME "CMD"
 
 /* Signal Names. */
@@ -247,6 +281,36 @@ extern "C" {
 #define ATT_CAN_DB_ATT_OUT_FD_COV_1_NAME "cov_1"
 #define ATT_CAN_DB_ATT_OUT_FD_COV_2_NAME "cov_2"
 #define ATT_CAN_DB_ATT_OUT_FD_COV_3_NAME "cov_3"
+#define ATT_CAN_DB_ATT_LIN_ACC_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_LIN_ACC_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_X_NAME "lin_x"
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_Y_NAME "lin_y"
+#define ATT_CAN_DB_ATT_LIN_ACC_LIN_Z_NAME "lin_z"
+#define ATT_CAN_DB_ATT_EARTH_ACC_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_EARTH_ACC_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_X_NAME "earth_x"
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_Y_NAME "earth_y"
+#define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_Z_NAME "earth_z"
+#define ATT_CAN_DB_ATT_CAL_ACK_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_CAL_ACK_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_CAL_ACK_CMD_NAME "cmd"
+#define ATT_CAN_DB_ATT_CAL_ACK_RESULT_NAME "result"
+#define ATT_CAN_DB_ATT_CAL_ACK_REASON_NAME "reason"
+#define ATT_CAN_DB_ATT_CAL_ACK_INDEX_NAME "index"
+#define ATT_CAN_DB_ATT_CAL_ACK_PERSISTED_NAME "persisted"
+#define ATT_CAN_DB_ATT_CAL_ACK_SESSION_NAME "session"
+#define ATT_CAN_DB_ATT_ACCEL_FD_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_ACCEL_FD_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_ACCEL_FD_VALID_NAME "valid"
+#define ATT_CAN_DB_ATT_ACCEL_FD_GRAV_X_NAME "grav_x"
+#define ATT_CAN_DB_ATT_ACCEL_FD_GRAV_Y_NAME "grav_y"
+#define ATT_CAN_DB_ATT_ACCEL_FD_GRAV_Z_NAME "grav_z"
+#define ATT_CAN_DB_ATT_ACCEL_FD_LIN_X_NAME "lin_x"
+#define ATT_CAN_DB_ATT_ACCEL_FD_LIN_Y_NAME "lin_y"
+#define ATT_CAN_DB_ATT_ACCEL_FD_LIN_Z_NAME "lin_z"
+#define ATT_CAN_DB_ATT_ACCEL_FD_EARTH_X_NAME "earth_x"
+#define ATT_CAN_DB_ATT_ACCEL_FD_EARTH_Y_NAME "earth_y"
+#define ATT_CAN_DB_ATT_ACCEL_FD_EARTH_Z_NAME "earth_z"
 #define ATT_CAN_DB_CMD_CRC_NAME "crc"
 #define ATT_CAN_DB_CMD_COUNTER_NAME "counter"
 #define ATT_CAN_DB_CMD_CMD_NAME "cmd"
@@ -1004,6 +1068,290 @@ struct att_can_db_att_out_fd_t {
 };
 
 /**
+ * Signals in message ATT_LIN_ACC.
+ *
+ * Linear acceleration (accel minus gravity), body frame, after each output set when the node's accel_out is on (classic mode).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_lin_acc_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C07 and bytes 1..7.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * Output set counter of the set it follows.
+     *
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * Linear acceleration x, body frame, m/s^2; raw * 2^-8; -32768 = NA.
+     *
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t lin_x;
+
+    /**
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t lin_y;
+
+    /**
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t lin_z;
+};
+
+/**
+ * Signals in message ATT_EARTH_ACC.
+ *
+ * Earth-frame acceleration without gravity (frame of the output convention: ENU, NED or NWU), after each output set when accel_out is on (classic mode).
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_earth_acc_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C08 and bytes 1..7.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * Earth-frame acceleration x, m/s^2; raw * 2^-8; -32768 = NA.
+     *
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t earth_x;
+
+    /**
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t earth_y;
+
+    /**
+     * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
+     * Scale: 0.00390625
+     * Offset: 0
+     */
+    int16_t earth_z;
+};
+
+/**
+ * Signals in message ATT_CAL_ACK.
+ *
+ * Answer to a calibration command (CMD 4..9), instead of an ATT_STATUS.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_cal_ack_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C09 and bytes 1..7.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * The command's counter.
+     *
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * The command code answered.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t cmd;
+
+    /**
+     * 0 ok, 1 unknown command, 2 bad argument (field index, no open session), 3 refused (settings invalid: see reason; nothing applied).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t result;
+
+    /**
+     * att_calib_error_t of a refused commit (0 ok, 2..14 the first invalid field group, att_calib.h).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t reason;
+
+    /**
+     * CAL_SET: the field index written; CAL_COMMIT: the number of fields set in the session.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t index;
+
+    /**
+     * 0 no persistence hook, 1 saved by the port hook, 2 the hook failed (the configuration is applied anyway).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t persisted;
+
+    /**
+     * 1 while a calibration session (shadow copy) is open.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t session;
+};
+
+/**
+ * Signals in message ATT_ACCEL_FD.
+ *
+ * Acceleration outputs in one CAN FD frame (64 bytes, bit rate switch), after each ATT_OUT_FD when accel_out is on. Bytes 3, 40..63 zero.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_accel_fd_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C11 and bytes 1..63.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * Output set counter.
+     *
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * 1 when the fields hold values (ATT_OUT_ACCEL), 0 before the first step.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t valid;
+
+    /**
+     * Gravity (specific force at rest, +g up) x, body frame, m/s^2, float32.
+     *
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float grav_x;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float grav_y;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float grav_z;
+
+    /**
+     * Linear acceleration x, body frame, m/s^2, float32.
+     *
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float lin_x;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float lin_y;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float lin_z;
+
+    /**
+     * Earth-frame acceleration without gravity x (output convention), m/s^2, float32.
+     *
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float earth_x;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float earth_y;
+
+    /**
+     * Range: -
+     * Scale: 1
+     * Offset: 0
+     */
+    float earth_z;
+};
+
+/**
  * Signals in message CMD.
  *
  * Command to the node; answered by an ATT_STATUS frame with ack bit 7 set and the command's counter.
@@ -1030,7 +1378,7 @@ struct att_can_db_cmd_t {
     uint8_t counter;
 
     /**
-     * 1 = select filter (arg = kind), 2 = reset, 3 = set gain (arg = parameter, value).
+     * 1 = select filter (arg = kind), 2 = reset, 3 = set gain (arg = parameter, value); calibration (answered by ATT_CAL_ACK): 4 = begin session (arg 0: shadow = the applied configuration, 1: identity), 5 = set field (arg = field index 0..49 of att_calib_field_set, value), 6 = commit (validate the shadow and apply it atomically, then persist), 7 = abort, 8 = set convention (arg = 0 ENU, 1 NED, 2 NWU; atomic), 9 = set mounting remap (arg = 0 quaternion identity, 1..24 remap; atomic).
      *
      * Range: 0..255 (0..255 -)
      * Scale: 1
@@ -1048,7 +1396,7 @@ struct att_can_db_cmd_t {
     uint8_t arg;
 
     /**
-     * set gain: the new value (float32, s or variance).
+     * set gain: the new value (float32, s or variance); set field: the field's value (float32; integer fields as exact integers).
      *
      * Range: -
      * Scale: 1
@@ -3216,6 +3564,814 @@ bool att_can_db_att_out_fd_cov_3_is_in_range(float value);
  * @return true if in range, false otherwise.
  */
 bool att_can_db_att_out_fd_cov_3_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_LIN_ACC.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_lin_acc_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_lin_acc_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_LIN_ACC.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_lin_acc_unpack(
+    struct att_can_db_att_lin_acc_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_LIN_ACC.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_lin_acc_init(struct att_can_db_att_lin_acc_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_x_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_y_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_z_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_lin_acc_lin_z_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_EARTH_ACC.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_earth_acc_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_earth_acc_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_EARTH_ACC.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_earth_acc_unpack(
+    struct att_can_db_att_earth_acc_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_EARTH_ACC.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_earth_acc_init(struct att_can_db_att_earth_acc_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_x_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_y_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_z_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_earth_acc_earth_z_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_CAL_ACK.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_cal_ack_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_cal_ack_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_CAL_ACK.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_cal_ack_unpack(
+    struct att_can_db_att_cal_ack_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_CAL_ACK.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_cal_ack_init(struct att_can_db_att_cal_ack_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_cmd_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_cmd_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_result_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_result_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_reason_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_reason_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_index_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_index_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_persisted_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_persisted_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_session_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_cal_ack_session_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_ACCEL_FD.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_accel_fd_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_accel_fd_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_ACCEL_FD.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_accel_fd_unpack(
+    struct att_can_db_att_accel_fd_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_ACCEL_FD.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_accel_fd_init(struct att_can_db_att_accel_fd_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_valid_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_valid_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_x_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_y_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_z_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_grav_z_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_x_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_y_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_z_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_lin_z_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_x_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_y_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_z_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_accel_fd_earth_z_is_in_phys_range(float value);
 
 /**
  * Pack message CMD.

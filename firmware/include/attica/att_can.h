@@ -41,6 +41,10 @@ enum {
     ATT_CAN_ID_STATUS = 0x205,     /**< node -> host: kind, flags, steps, errors, command answer */
     ATT_CAN_ID_DIAG = 0x206,       /**< node -> host: rx error counters */
     ATT_CAN_ID_OUT_FD = 0x210,     /**< node -> host: whole output set, CAN FD 64 B */
+    ATT_CAN_ID_LIN_ACC = 0x207,    /**< node -> host: linear acceleration, body, int16 2^-8 m/s^2 */
+    ATT_CAN_ID_EARTH_ACC = 0x208,  /**< node -> host: earth-frame acceleration, int16 2^-8 m/s^2 */
+    ATT_CAN_ID_CAL_ACK = 0x209,    /**< node -> host: answer to a calibration command */
+    ATT_CAN_ID_ACCEL_FD = 0x211,   /**< node -> host: gravity, linear, earth acceleration, CAN FD 64 B */
     ATT_CAN_ID_CMD = 0x300,        /**< host -> node: command */
     ATT_CAN_DATA_ID_BASE = 0x0A00, /**< E2E data ID = base + CAN ID */
     ATT_CAN_CLASSIC_LEN = 8,       /**< length of every classic attica frame */
@@ -57,6 +61,15 @@ enum {
     ATT_CAN_CMD_SELECT = 1,        /**< command: select filter, arg = att_filter_kind_t */
     ATT_CAN_CMD_RESET = 2,         /**< command: reset the filter */
     ATT_CAN_CMD_SET_GAIN = 3,      /**< command: set gain, arg = ATT_CAN_GAIN_*, value */
+    ATT_CAN_CMD_CAL_BEGIN = 4,     /**< calibration session: shadow = applied (arg 0) or identity (arg 1) */
+    ATT_CAN_CMD_CAL_SET = 5,       /**< shadow field arg (att_calib_field_set index) = value */
+    ATT_CAN_CMD_CAL_COMMIT = 6,    /**< validate the shadow, apply it atomically, persist */
+    ATT_CAN_CMD_CAL_ABORT = 7,     /**< drop the shadow */
+    ATT_CAN_CMD_SET_CONVENTION = 8, /**< arg = att_convention_t, applied atomically */
+    ATT_CAN_CMD_SET_REMAP = 9,     /**< arg = mounting remap 0 .. 24, applied atomically */
+    ATT_CAN_PERSIST_NONE = 0,      /**< ATT_CAL_ACK.persisted: no hook registered */
+    ATT_CAN_PERSIST_OK = 1,        /**< the port hook saved the configuration */
+    ATT_CAN_PERSIST_FAILED = 2,    /**< the hook failed (the configuration is applied all the same) */
     ATT_CAN_GAIN_TAU_ACC = 1,      /**< accel correction time constant: ars.tau, mars.tau_acc (s) */
     ATT_CAN_GAIN_TAU_MAG = 2,      /**< mag correction time constant: mars.tau_mag (s) */
     ATT_CAN_GAIN_KF_R = 3,         /**< KF measurement noise r_noise */
@@ -102,6 +115,17 @@ typedef struct {
     float value;     /**< set gain: the new value */
 } att_can_cmd_t;
 
+/** Fields of an ATT_CAL_ACK frame (the answer to CMD 4..9). */
+typedef struct {
+    uint8_t counter;   /**< the command's counter */
+    uint8_t cmd;       /**< the command answered */
+    uint8_t result;    /**< ATT_CAN_ACK_OK / _UNKNOWN_CMD / _BAD_ARG / _REFUSED */
+    uint8_t reason;    /**< att_calib_error_t of a refusal (0 otherwise) */
+    uint8_t index;     /**< CAL_SET: the field index; CAL_COMMIT: the fields set in the session */
+    uint8_t persisted; /**< ATT_CAN_PERSIST_* */
+    uint8_t session;   /**< 1 while a session is open */
+} att_can_cal_ack_t;
+
 /** Fields of an ATT_STATUS frame. */
 typedef struct {
     uint8_t counter;     /**< set counter, or the command's counter in an answer */
@@ -144,6 +168,18 @@ uint8_t att_can_counter(const att_can_frame_t *f);
 void att_can_encode_imu(const att_sample_t *in, uint8_t counter, att_can_frame_t out[3]);
 /** Encode a sample as one IMU_FD frame (float32, exact), sealed. */
 void att_can_encode_imu_fd(const att_sample_t *in, uint8_t counter, att_can_frame_t *out);
+/** Encode ATT_LIN_ACC and ATT_EARTH_ACC (out[0], out[1]) of the acceleration outputs a, sealed. */
+void att_can_encode_accel(const att_accel_t *a, uint8_t counter, att_can_frame_t out[2]);
+/** Encode ATT_ACCEL_FD (float32, exact) of the acceleration outputs a, sealed. */
+void att_can_encode_accel_fd(const att_accel_t *a, uint8_t counter, att_can_frame_t *out);
+/** The acceleration outputs of an ATT_ACCEL_FD frame (no CRC check); valid = ATT_OUT_ACCEL or 0. */
+bool att_can_decode_accel_fd(const att_can_frame_t *f, att_accel_t *out);
+/** The 3 dequantised values of an ATT_LIN_ACC / ATT_EARTH_ACC frame (no CRC check). */
+bool att_can_decode_accel_part(const att_can_frame_t *f, att_vec3_t *v);
+/** Encode an ATT_CAL_ACK, sealed. */
+void att_can_encode_cal_ack(const att_can_cal_ack_t *a, att_can_frame_t *out);
+/** The fields of an ATT_CAL_ACK frame (no CRC check). */
+bool att_can_decode_cal_ack(const att_can_frame_t *f, att_can_cal_ack_t *out);
 /** The 3 dequantised values of an IMU_GYRO/ACC/MAG frame (no CRC check: att_can_check first). */
 bool att_can_decode_imu_part(const att_can_frame_t *f, att_vec3_t *v);
 /** The sample in an IMU_FD frame (no CRC check). */

@@ -17,6 +17,7 @@
 #define ATT_FILTER_H
 
 #include "attica/att_ars.h"
+#include "attica/att_calib.h"
 #include "attica/att_ekf.h"
 #include "attica/att_gyro.h"
 #include "attica/att_kf.h"
@@ -55,7 +56,8 @@ enum {
     ATT_OUT_EULER = 0x2u, /**< euler */
     ATT_OUT_BIAS = 0x4u,  /**< gyro_bias */
     ATT_OUT_COV = 0x8u,   /**< cov */
-    ATT_OUT_ALL = 0xFu    /**< every field (att_filter_output) */
+    ATT_OUT_ALL = 0xFu,   /**< every field (att_filter_output) */
+    ATT_OUT_ACCEL = 0x10u /**< att_accel_t.valid: the acceleration outputs (att_filter_accel) */
 };
 
 /**
@@ -114,6 +116,7 @@ typedef union {
 typedef struct {
     att_filter_kind_t kind; /**< which member of u is live; ATT_FILTER_NONE before init */
     att_filter_state_t u;   /**< the filter state */
+    att_calib_t cal;        /**< input and output stages (att_filter_calibrate; identity after init) */
 } att_filter_t;
 
 /** Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind. */
@@ -133,7 +136,7 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
  * att_filter_init and att_filter_retune accept exactly the settings this accepts.
  */
 att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filter_settings_t *settings);
-/** Initialise f as the given kind; on error f is unchanged. */
+/** Initialise f as the given kind, with identity input/output stages (ENU); on error f is unchanged. */
 att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings);
 /**
  * New settings for a running filter of the same kind, keeping its state (attitude, bias, filter
@@ -150,6 +153,38 @@ void att_filter_reset(att_filter_t *f);
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out);
 /** The whole output record of the current state (flags and steps of the last step), valid = ATT_OUT_ALL. */
 void att_filter_output(const att_filter_t *f, att_output_t *out);
+/**
+ * Apply calibration, mounting and output convention (att_calib.h) to a running filter: from the next
+ * step on, att_filter_step feeds the kind's step the calibrated body-frame sample and reports q (and
+ * euler) in the convention's earth frame; att_filter_output likewise. The filter state is kept (it is
+ * the attitude of the body frame in ENU). ATT_ERR_KIND when f is not initialised; ATT_ERR_SETTINGS
+ * (att_calib_settings_check says why) / ATT_ERR_NULL leave f unchanged. Survives reset and retune.
+ */
+att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s);
+/**
+ * The acceleration outputs of the last step (calibration accel_outputs must be on): gravity and
+ * linear acceleration in the body frame, earth-frame acceleration without gravity in the convention's
+ * frame, m/s^2. out->valid = ATT_OUT_ACCEL, or 0 with zero fields when accel_outputs is off, no step
+ * was taken since init/reset/calibrate, or f is NULL / not initialised.
+ */
+void att_filter_accel(const att_filter_t *f, att_accel_t *out);
+/**
+ * Set the heading: keep the tilt, replace the yaw by heading (rad, the yaw of the output convention:
+ * ENU counter-clockwise from east, NED / NWU from north, NED clockwise), |heading| <= 8192. The
+ * earth-frame memories (accel low-passes, the 9-axis filter's reference field) turn with the attitude.
+ * ATT_ERR_KIND for the tilt baseline (no heading) or an uninitialised f, ATT_ERR_STATE before the
+ * filter's first valid sample (ATT_FLAG_NOT_READY: the attitude is not set yet), ATT_ERR_SETTINGS for
+ * a non-finite or too large heading; on error f is unchanged.
+ */
+att_status_t att_filter_set_heading(att_filter_t *f, float heading);
+/**
+ * External heading update (GNSS course, compass) for the filters without a magnetometer (ars, kf,
+ * ekf, gyro, and mekf with use_mag false): with valid true, turn the yaw by gain * wrap(heading - yaw), gain in [0, 1] per update
+ * (1 = set heading), heading as for att_filter_set_heading; valid false does nothing (ATT_OK). The
+ * covariance is left as it is. ATT_ERR_KIND for mars, a 9-axis mekf, tilt or an uninitialised f, ATT_ERR_STATE before
+ * the first valid sample, ATT_ERR_SETTINGS for a bad heading or gain; on error f is unchanged.
+ */
+att_status_t att_filter_heading_update(att_filter_t *f, float heading, float gain, bool valid);
 /** Short lower-case name of a kind ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"; "?" if unknown). */
 const char *att_filter_name(att_filter_kind_t kind);
 /** Upper-case name of one ATT_FLAG_* bit ("GYRO_INVALID", ...); NULL when flag is not exactly one known bit. */

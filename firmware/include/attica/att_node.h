@@ -37,6 +37,15 @@
  * (attitude, bias, covariance...) and only its settings and the gains derived from them change. Every
  * command with a good CRC is answered by an ATT_STATUS with ack = ATT_CAN_ACK_ANSWER | result << 4 |
  * cmd and the command's counter; a bad CRC is counted (crc_errors) and not answered.
+ *
+ * Calibration commands (answered by ATT_CAL_ACK instead): 4 CAL_BEGIN opens a session with a shadow
+ * copy (arg 0: of the applied calibration, 1: identity), 5 CAL_SET writes field arg of the shadow
+ * (att_calib_field_set; bad argument without a session or for an unknown field / non-integer value),
+ * 6 CAL_COMMIT validates the whole shadow (refused with the att_calib_error_t reason, nothing applied,
+ * the session stays open to be corrected) and applies it atomically to the running filter (its state
+ * is kept), closes the session and calls the persistence hook; 7 CAL_ABORT drops the shadow; 8
+ * SET_CONVENTION (arg) and 9 SET_REMAP (arg 0 .. 24) change one thing of the applied calibration
+ * atomically. Selecting another filter keeps the calibration. The shadow never touches the filter.
  */
 #ifndef ATT_NODE_H
 #define ATT_NODE_H
@@ -52,7 +61,15 @@ extern "C" {
 /* ATT_CDEF_BEGIN */
 #define ATT_NODE_RX_RING 64 /* frames in the receive ring (power of two) */
 #define ATT_NODE_TX_RING 64 /* frames in the transmit ring (power of two) */
-#define ATT_NODE_SET_MAX 8  /* most frames one rx frame can queue: 6 (set) + 1 (DIAG) + 1 (answer) */
+#define ATT_NODE_SET_MAX 10 /* most frames one rx frame can queue: 6 (set) + 2 (accel) + 1 (DIAG) + 1 (answer) */
+
+/**
+ * Port hook that persists the node's calibration (flash on a microcontroller, a file on Linux): called
+ * after every calibration change applied by a command, with the applied settings; returns true when
+ * saved. Register with att_node_set_persist; load the saved settings into att_node_settings_t.calib
+ * before att_node_init at start-up.
+ */
+typedef bool (*att_node_persist_fn)(void *ctx, const att_calib_settings_t *calib);
 
 /** Node settings. */
 typedef struct {
@@ -64,6 +81,8 @@ typedef struct {
     bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
     uint32_t output_divider;      /**< emit outputs every Nth step (1 = every step); 1 .. 65535 */
     uint32_t diag_divider;        /**< ATT_DIAG after every Nth emitted set (0 = never) */
+    att_calib_settings_t calib;   /**< calibration, mounting, convention (att_calib_settings_default) */
+    bool accel_out;               /**< ATT_LIN_ACC + ATT_EARTH_ACC (classic) or ATT_ACCEL_FD after each set */
 } att_node_settings_t;
 
 /** Node counters (uint32, wrap; ATT_DIAG/ATT_STATUS carry them saturated to 8 bits). */
@@ -104,6 +123,12 @@ typedef struct {
     att_can_frame_t rx[ATT_NODE_RX_RING];      /**< receive ring */
     att_can_frame_t tx[ATT_NODE_TX_RING];      /**< transmit ring */
     att_node_stats_t stats;                    /**< counters */
+    att_calib_settings_t cal;                  /**< the applied calibration (as given, before accel_out) */
+    att_calib_settings_t shadow;               /**< the calibration session's copy (CAL_BEGIN .. COMMIT) */
+    bool shadow_open;                          /**< a session is open */
+    uint8_t shadow_count;                      /**< CAL_SET commands in the session (saturates at 255) */
+    att_node_persist_fn persist;               /**< port hook (NULL: none) */
+    void *persist_ctx;                         /**< its context */
 } att_node_t;
 
 /** Defaults: the kind's default filter settings for 1/sample_rate, 500 kbit/s classic, every step, DIAG every 16th set. */
@@ -126,6 +151,8 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
 bool att_node_rx(att_node_t *n, const att_can_frame_t *f);
 /** Process queued rx frames: check, assemble, step, answer, queue tx. Returns the steps run. */
 size_t att_node_poll(att_node_t *n);
+/** Register (or with NULL remove) the persistence hook of the calibration. */
+void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx);
 /** Pop the next frame to send (false: none). */
 bool att_node_tx(att_node_t *n, att_can_frame_t *f);
 /** Frames waiting in the tx ring. */

@@ -44,7 +44,8 @@ typedef enum {
     ATT_OK = 0,            /**< success */
     ATT_ERR_NULL = -1,     /**< a required pointer argument was NULL */
     ATT_ERR_SETTINGS = -2, /**< a setting is out of range or not finite; nothing was changed */
-    ATT_ERR_KIND = -3      /**< unknown filter kind */
+    ATT_ERR_KIND = -3,     /**< unknown filter kind, or a call the kind does not support */
+    ATT_ERR_STATE = -4     /**< the filter's state does not allow the call yet (not initialised) */
 } att_status_t;
 
 /**

@@ -63,6 +63,8 @@ typedef struct {
     unsigned long long count; /* 0 = run until a signal */
     int rcvbuf;               /* socket receive buffer bytes, 0 = kernel default */
     int quiet;
+    const char *calib_file;   /* calibration loaded at start and saved by the persistence hook; NULL = none */
+    int accel_out;            /* linear / earth acceleration frames */
 } options_t;
 
 /** Frames and errors seen by the port itself (the core keeps its own counters). */
@@ -90,7 +92,7 @@ static void usage(FILE *to) {
     fprintf(to,
             "usage: " PROG " --channel IFACE [--filter KIND] [--rate HZ] [--fd] [--bitrate BIT/S]\n"
             "                   [--data-bitrate BIT/S] [--output-divider N] [--diag-divider N] [--count N]\n"
-            "                   [--rcvbuf BYTES] [--quiet]\n"
+            "                   [--rcvbuf BYTES] [--calib-file PATH] [--accel-out] [--quiet]\n"
             "\n"
             "Run an attica filter as a CAN node on a SocketCAN interface (vcan0, can0...).\n"
             "  --channel IFACE       SocketCAN interface (required)\n"
@@ -103,6 +105,9 @@ static void usage(FILE *to) {
             "  --diag-divider N      send ATT_DIAG every Nth output set, 0 = never (default 16)\n"
             "  --count N             stop after N filter steps (default: run until SIGINT/SIGTERM)\n"
             "  --rcvbuf BYTES        socket receive buffer (default 4194304; 0 = kernel default)\n"
+            "  --calib-file PATH     calibration file: loaded at start (if it exists), rewritten after every\n"
+            "                        calibration command (CMD 4..9); lines 'INDEX 0xBITS' (att_calib_field_set)\n"
+            "  --accel-out           send ATT_LIN_ACC + ATT_EARTH_ACC (or ATT_ACCEL_FD) after every set\n"
             "  --quiet               no start-up line\n");
 }
 
@@ -120,6 +125,71 @@ static int parse_ulong(const char *opt, const char *text, unsigned long long max
         return -1;
     }
     *out = v;
+    return 0;
+}
+
+/*
+ * The calibration file: one line per field, "INDEX 0xBITS" with the IEEE-754 bits of the float value
+ * (exact, no decimal conversion). Written to PATH.tmp and renamed over PATH, so a crash never leaves a
+ * half-written file.
+ */
+static bool calib_save(void *ctx, const att_calib_settings_t *c) {
+    const char *path = (const char *)ctx;
+    char tmp[4096];
+    FILE *f;
+    uint32_t i;
+    int ok = 1;
+    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp) return false;
+    f = fopen(tmp, "w");
+    if (f == NULL) return false;
+    ok = fprintf(f, "# attica calibration: field index and float32 bits (att_calib_field_set)\n") > 0;
+    for (i = 0; i < ATT_CALIB_FIELDS && ok; ++i) {
+        float v = 0.0f;
+        uint32_t bits;
+        (void)att_calib_field_get(c, i, &v);
+        memcpy(&bits, &v, sizeof bits);
+        ok = fprintf(f, "%u 0x%08x\n", (unsigned)i, (unsigned)bits) > 0;
+    }
+    if (fclose(f) != 0) ok = 0;
+    if (!ok || rename(tmp, path) != 0) {
+        (void)remove(tmp);
+        return false;
+    }
+    return true;
+}
+
+/* Load PATH into c (starting from c's values); 0 ok or no file, -1 with a message for a bad file. */
+static int calib_load(const char *path, att_calib_settings_t *c) {
+    char line[256];
+    unsigned long lineno = 0;
+    FILE *f = fopen(path, "r");
+    att_calib_error_t e;
+    if (f == NULL) return (errno == ENOENT) ? 0 : -1;
+    while (fgets(line, sizeof line, f) != NULL) {
+        unsigned idx;
+        unsigned bits;
+        float v;
+        ++lineno;
+        if (line[0] == '#' || line[0] == '\n') continue;
+        if (sscanf(line, "%u 0x%x", &idx, &bits) != 2 || idx >= ATT_CALIB_FIELDS) {
+            fprintf(stderr, PROG ": error: %s:%lu: expected 'INDEX 0xBITS' with INDEX < %d\n", path, lineno,
+                    ATT_CALIB_FIELDS);
+            fclose(f);
+            return -1;
+        }
+        memcpy(&v, &bits, sizeof v);
+        if (!att_calib_field_set(c, idx, v)) {
+            fprintf(stderr, PROG ": error: %s:%lu: field %u refuses that value\n", path, lineno, idx);
+            fclose(f);
+            return -1;
+        }
+    }
+    fclose(f);
+    e = att_calib_settings_check(c);
+    if (e != ATT_CALIB_OK) {
+        fprintf(stderr, PROG ": error: %s: invalid calibration: %s\n", path, att_calib_error_name(e));
+        return -1;
+    }
     return 0;
 }
 
@@ -142,6 +212,9 @@ static int parse_args(int argc, char **argv, options_t *o) {
         } else if (strcmp(a, "--fd") == 0) {
             o->fd = 1;
             continue;
+        } else if (strcmp(a, "--accel-out") == 0) {
+            o->accel_out = 1;
+            continue;
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
             o->quiet = 1;
             continue;
@@ -151,7 +224,9 @@ static int parse_args(int argc, char **argv, options_t *o) {
             fprintf(stderr, PROG ": (at '%s'; see --help)\n", a);
             return -1;
         }
-        if (strcmp(a, "--channel") == 0) {
+        if (strcmp(a, "--calib-file") == 0) {
+            o->calib_file = val;
+        } else if (strcmp(a, "--channel") == 0) {
             o->channel = val;
         } else if (strcmp(a, "--filter") == 0) {
             o->filter = val;
@@ -378,6 +453,11 @@ int main(int argc, char **argv) {
     ns.fd = o.fd != 0;
     ns.output_divider = (uint32_t)o.output_divider;
     ns.diag_divider = (uint32_t)o.diag_divider;
+    ns.accel_out = o.accel_out != 0;
+    if (o.calib_file != NULL && calib_load(o.calib_file, &ns.calib) != 0) {
+        fprintf(stderr, PROG ": error: cannot use calibration file '%s'\n", o.calib_file);
+        return 2;
+    }
     st = att_node_init(&g_node, &ns);
     if (st != ATT_OK) {
         float load = att_node_bus_load(&ns);
@@ -393,6 +473,7 @@ int main(int argc, char **argv) {
         return 2;
     }
 
+    if (o.calib_file != NULL) att_node_set_persist(&g_node, calib_save, (void *)o.calib_file);
     g_channel = o.channel;
     s = open_socket(&o);
     if (s < 0) return 1;

@@ -26,10 +26,13 @@ def bus_load(
     fd: bool = False,
     output_divider: int = 1,
     diag_divider: int = 16,
+    accel_out: bool = False,
 ) -> float:
     """Fraction of the bus time used by the node's outputs (mirror of ``att_node_bus_load``, in float64)."""
     t_classic = classic_bits(8) / bitrate
     t_set = fd_frame_time(64, bitrate, data_bitrate) if fd else 6 * t_classic
+    if accel_out:  # ATT_LIN_ACC + ATT_EARTH_ACC (classic) or ATT_ACCEL_FD after every set
+        t_set += fd_frame_time(64, bitrate, data_bitrate) if fd else 2 * t_classic
     if diag_divider:
         t_set += t_classic / diag_divider
     return sample_rate / output_divider * t_set
@@ -58,7 +61,7 @@ BUS_TABLE_COLUMNS = (
 """Bus configurations (name, nominal bit/s, data bit/s, fd) of the bus load table in docs/can.md."""
 
 
-def bus_load_table(with_inputs: bool = False) -> str:
+def bus_load_table(with_inputs: bool = False, accel_out: bool = False) -> str:
     """The markdown bus load table of docs/can.md (outputs only, or outputs + IMU inputs), DIAG every 16th."""
     head = "| output rate | " + " | ".join(name for name, *_ in BUS_TABLE_COLUMNS) + " |"
     rule = "|---|" + "---|" * len(BUS_TABLE_COLUMNS)
@@ -66,7 +69,7 @@ def bus_load_table(with_inputs: bool = False) -> str:
     for rate in BUS_TABLE_RATES:
         cells = []
         for _, br, dbr, fd in BUS_TABLE_COLUMNS:
-            out = bus_load(rate, br, dbr, fd)
+            out = bus_load(rate, br, dbr, fd, accel_out=accel_out)
             load = out + (input_bus_load(rate, br, dbr, fd) if with_inputs else 0.0)
             refused = " **refused**" if out > 1.0 else ""
             cells.append(f"{100 * load:.1f} %{refused}")

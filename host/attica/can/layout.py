@@ -30,6 +30,10 @@ ID_BIAS = 0x204
 ID_STATUS = 0x205
 ID_DIAG = 0x206
 ID_OUT_FD = 0x210
+ID_LIN_ACC = 0x207
+ID_EARTH_ACC = 0x208
+ID_CAL_ACK = 0x209
+ID_ACCEL_FD = 0x211
 ID_CMD = 0x300
 DATA_ID_BASE = 0x0A00
 
@@ -46,6 +50,10 @@ MSG_LEN = {
     ID_STATUS: 8,
     ID_DIAG: 8,
     ID_OUT_FD: 64,
+    ID_LIN_ACC: 8,
+    ID_EARTH_ACC: 8,
+    ID_CAL_ACK: 8,
+    ID_ACCEL_FD: 64,
     ID_CMD: 8,
 }
 """Length of every attica message (the CAN FD ones are 64)."""

@@ -49,6 +49,9 @@ class Node:
         Hz.
     bitrate, data_bitrate, fd, output_divider, diag_divider
         As in ``att_node_settings_t``.
+    calibration, accel_out
+        The node's calibration (a :class:`~attica.calibration.Calibration` or
+        :class:`~attica.calibration.stages.StageSettings`; None: identity, ENU) and its acceleration frames.
     **overrides
         Filter settings fields to change.
 
@@ -69,9 +72,13 @@ class Node:
         fd: bool = False,
         output_divider: int = 1,
         diag_divider: int = 16,
+        calibration: Any = None,
+        accel_out: bool = False,
         **overrides: Any,
     ) -> None:
         from attica import native
+        from attica.calibration.stages import fill_c
+        from attica.reference.calib import as_stage_settings
 
         self._native = native
         ffi, lib = native.ffi, native.lib
@@ -96,6 +103,8 @@ class Node:
         s.fd = fd
         s.output_divider = output_divider
         s.diag_divider = diag_divider
+        fill_c(s.calib, as_stage_settings(calibration, float(getattr(self.settings, "gravity", 9.80665))))
+        s.accel_out = accel_out
         self._s = s
         self.fd = fd
         self.bus_load = float(lib.att_node_bus_load(s))

@@ -9,8 +9,9 @@ from numpy.typing import NDArray
 
 from attica.checks import filter_settings, warn_units
 from attica.outputs import OUT_ALL, OUTPUT_DTYPE
+from attica.reference import calib as rc
 from attica.reference import detmath as dm
-from attica.reference._common import as_batch, c_state_values, load_c_state, stack, state_values
+from attica.reference._common import as_batch, c_state_values, load_c_state, split3, stack, state_values
 from attica.reference.ars import Ars
 from attica.reference.ekf import THIRD, Ekf
 from attica.reference.gyro import Gyro
@@ -47,6 +48,12 @@ class Filter:
         A settings dataclass for the kind (defaults when None).
     n
         Number of independent instances stepped in lockstep.
+    calibration
+        Input/output stages (att_filter_calibrate): a :class:`~attica.calibration.Calibration`, a
+        :class:`~attica.calibration.stages.StageSettings` or None (identity, ENU).
+    accel_outputs
+        Keep each step's accel for :meth:`accel` (g: the kind's ``gravity`` setting, else 9.80665),
+        when ``calibration`` is a Calibration or None.
     **overrides
         Settings fields to change.
 
@@ -58,10 +65,14 @@ class Filter:
         dt: Any = None,
         settings: Any = None,
         n: int = 1,
+        calibration: Any = None,
+        accel_outputs: bool = False,
         **overrides: Any,
     ) -> None:
         self.kind, self._settings = filter_settings(kind, dt, settings, overrides, "reference.Filter")
         self.n = n
+        g = float(getattr(self.settings, "gravity", 9.80665))
+        self.stages = rc.Stages(rc.as_stage_settings(calibration, g, accel_outputs))
         impl: Any
         if self.kind == FilterKind.ARS:
             impl = Ars(self.settings, n)
@@ -87,8 +98,27 @@ class Filter:
         return self._settings
 
     def reset(self) -> None:
-        """att_filter_reset."""
+        """att_filter_reset (the calibration is kept)."""
         self.impl.reset()
+        self.stages.acc_body = None
+
+    def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
+        """att_filter_calibrate: new input/output stages, the state kept (ValueError when refused)."""
+        self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
+
+    def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+        """att_filter_accel: (gravity, linear, earth) accelerations, each (n, 3), m/s^2."""
+        q = self.impl.quat if self.kind == FilterKind.EKF else self.impl.q
+        g, lin, e = self.stages.accel(tuple(q.T) if self.kind == FilterKind.EKF else q)
+        return stack(g), stack(lin), stack(e)
+
+    def set_heading(self, heading: float) -> None:
+        """att_filter_set_heading (rad, the output convention's yaw)."""
+        rc.set_heading(self.kind.label, self.impl, self.stages.convention, heading)
+
+    def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
+        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        rc.heading_update(self.kind.label, self.impl, self.stages.convention, heading, gain, valid)
 
     def retune(self, settings: Any = None, **overrides: Any) -> None:
         """att_filter_retune: new settings for every instance, the state kept (see each kind's retune).
@@ -160,6 +190,10 @@ class Filter:
         elif self.kind == FilterKind.MEKF:
             p = f.p  # packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20
             out["cov"] = stack((p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE))
+        if self.stages.convention != rc.ENU:
+            qc = rc.quat_to(tuple(out["q"].T), self.stages.convention)
+            out["q"] = stack(qc)
+            out["euler"] = stack(dm.quat_to_euler(qc))
         out["flags"] = f.flags
         out["steps"] = f.steps
         out["valid"] = np.uint32(OUT_ALL)
@@ -169,6 +203,12 @@ class Filter:
         """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records."""
         if mag is None:
             mag = np.zeros(3, np.float32)
+        st = self.stages
+        if st.active & (rc.ACTIVE_INPUT | rc.ACTIVE_ACC):
+            g3, a3, m3 = st.apply(split3(gyr, self.n), split3(acc, self.n), split3(mag, self.n))
+            gyr, acc, mag = stack(g3), stack(a3), stack(m3)
+            if st.active & rc.ACTIVE_ACC:
+                st.acc_body = a3
         self._step_impl(gyr, acc, mag)
         return self.output()
 
