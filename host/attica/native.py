@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from attica.checks import filter_settings, warn_units
 from attica.calibration.stages import fill_c
+from attica.checks import filter_settings, warn_units
 from attica.outputs import OUTPUT_DTYPE
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Preset, make_settings, to_dict
