@@ -25,8 +25,9 @@ sphere is not determined by it (see docs/calibration.md for the measured errors 
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -96,7 +97,7 @@ class MagFit:
     after_max: float
     hard_iron_std: tuple[float, float, float]
     iterations: int
-    inlier_mask: NDArray[np.bool_] = field(repr=False, compare=False)
+    inlier_mask: NDArray[np.bool_] = dataclasses.field(repr=False, compare=False)
 
     def record(self) -> dict[str, Any]:
         """What the calibration file's ``fit.mag`` keeps of this fit."""
@@ -211,7 +212,7 @@ def _gauss_newton(y: F64, s0: F64, h0: F64, w0: F64) -> tuple[F64, F64, F64, F64
         if float(np.max(np.abs(theta))) > 1e3:  # the data scaled to radius 1: the fit diverges
             raise CalibrationError(_not_ellipsoid())
         dof = max(1.0, float(np.sum(w > 0)) - 9.0)
-        cov_h = float(np.sum(w * r * r)) / dof * inv[6:, 6:]
+        cov_h = np.asarray(float(np.sum(w * r * r)) / dof * inv[6:, 6:], np.float64)
         if float(np.max(np.abs(step))) < 1e-10:
             break
     s, h = _sym(theta[:6]), theta[6:]

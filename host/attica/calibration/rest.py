@@ -117,7 +117,7 @@ def find_rest(
     if not (rate > 0.0 and window > 0.0 and min_duration >= 0.0):
         raise ValueError("rate and window must be > 0 and min_duration >= 0")
     w = max(5, int(round(window * rate)))
-    bad = ~(np.isfinite(g).all(axis=1) & np.isfinite(a).all(axis=1))
+    bad: NDArray[np.bool_] = np.asarray(~(np.isfinite(g).all(axis=1) & np.isfinite(a).all(axis=1)))
     g = np.where(bad[:, None], 0.0, g)
     a = np.where(bad[:, None], 0.0, a)
     g_mean, g_std = _moving(g, w)
@@ -135,7 +135,8 @@ def find_rest(
     if bad.any():
         near = np.convolve(bad.astype(np.float64), np.ones(w), mode="same") > 0
         still &= ~near
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+    flags = np.concatenate([[0], np.asarray(still, np.int8), [0]])
+    edges = np.flatnonzero(np.diff(flags))
     min_len = max(1, int(round(min_duration * rate)))
     segs = tuple((int(s), int(e)) for s, e in zip(edges[0::2], edges[1::2], strict=True) if e - s >= min_len)
     return RestPeriods(segs, g_thr, a_thr, rate)

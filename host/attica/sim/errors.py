@@ -124,7 +124,8 @@ def draw_errors(seed: int, sizes: ErrorSizes | None = None) -> Calibration:
     if z.mounting:
         q = rq.normal(size=4)
         q /= np.linalg.norm(q)
-        mounting = Mounting(quaternion=tuple(float(v) for v in (q if q[0] >= 0 else -q)))
+        q = q if q[0] >= 0 else -q
+        mounting = Mounting(quaternion=(float(q[0]), float(q[1]), float(q[2]), float(q[3])))
     return Calibration(gyro=gyro, accel=accel, mag=mag, mounting=mounting)
 
 
