@@ -5,7 +5,7 @@ golden angle in longitude, evenly in ``z``): they have equal area to within a fe
 shapes, unlike latitude-longitude bins. A direction belongs to the cell of its nearest lattice point;
 the *coverage* is the fraction of cells holding at least ``min_count`` directions (a lone glitch does not
 count). With ``CELLS = 100`` one cell is a cap of about 23 deg across; a flat turn on a table (a
-circle) visits about 10 % of the cells, a hemisphere about 50 %.
+circle) visits about 20 % of the cells, a hemisphere about 60 % (the cells along its edge count).
 """
 
 from __future__ import annotations
