@@ -4,13 +4,15 @@ Model (the firmware's, :class:`~attica.calibration.MagModel`): ``m = S (raw - h)
 for every sample of an undisturbed field, ``S`` symmetric positive definite (a rotation of the axes
 cannot be seen in the magnitudes: it belongs to the mounting), ``h`` the hard-iron offset in uT.
 
-The fit, on samples centred at their median and scaled by their median radius (for conditioning):
+The fit, on samples centred and scaled by a first sphere fit (for conditioning):
 
-1. initial weights: Tukey's bisquare of the distance to the median centre (``c = 4.685`` robust
-   standard deviations, from the MAD), which already drops gross spikes;
+1. a start: a sphere fit ``|x - c|^2 = R^2`` (linear least squares, exact for samples on a sphere
+   however unevenly they cover it), three rounds reweighted with Tukey's bisquare of the relative
+   radial residuals (scale at least 5 %, so a soft-iron distortion is not mistaken for outliers);
 2. algebraic least squares: the general quadric ``x^T A x + b^T x + c = 0`` minimising the weighted
    algebraic distance (the smallest right singular vector of the weighted design matrix). It must be
-   an ellipsoid (``A`` definite), else the samples are refused;
+   an ellipsoid (``A`` definite), else the samples are refused. Four rounds, each reweighting with
+   Tukey's bisquare of the radial residuals (``c = 4.685`` robust standard deviations, from the MAD);
 3. geometric refinement with iteratively reweighted Gauss-Newton on ``r_i = |S (x_i - h)| - 1`` over the
    nine parameters (``S`` symmetric, ``h``), the bisquare weights recomputed from the residuals each
    iteration (outliers get weight 0 and are reported);
@@ -54,6 +56,9 @@ MAX_AXIS_RATIO = 10.0
 """Largest ratio of the soft-iron matrix's eigenvalues accepted (beyond it the fit has failed)."""
 
 _ITERATIONS = 30
+_ALGEBRAIC_ROUNDS = 4
+_SPHERE_ROUNDS = 3
+_SPHERE_MIN_SCALE = 0.05
 _MAD = 1.4826  # MAD to standard deviation for normal noise
 
 
@@ -171,6 +176,27 @@ def _not_ellipsoid() -> str:
     )
 
 
+def _sphere_start(x: F64) -> tuple[F64, float, F64]:
+    """Robust sphere fit ``|x - c| = R`` (linear least squares, bisquare rounds); (c, R, weights)."""
+    w = np.ones(x.shape[0])
+    design = np.concatenate([2.0 * x, np.ones((x.shape[0], 1))], axis=1)
+    rhs = np.sum(x * x, axis=1)
+    c = np.median(x, axis=0)
+    radius = 0.0
+    for _ in range(_SPHERE_ROUNDS):
+        sw = np.sqrt(w)
+        sol, *_ = np.linalg.lstsq(design * sw[:, None], rhs * sw, rcond=None)
+        c = sol[:3]
+        r2 = float(sol[3] + c @ c)
+        if not (np.isfinite(r2) and r2 > 0.0):
+            raise CalibrationError(_not_ellipsoid())
+        radius = math.sqrt(r2)
+        rel = np.linalg.norm(x - c, axis=1) / radius - 1.0
+        # the soft iron alone makes radial residuals of 10-20 %: do not reject those
+        w = _bisquare(rel - np.median(rel[w > 0]), max(_robust_scale(rel, w), _SPHERE_MIN_SCALE))
+    return c, radius, w
+
+
 def _sym(p: F64) -> F64:
     return np.array([[p[0], p[3], p[4]], [p[3], p[1], p[5]], [p[4], p[5], p[2]]])
 
@@ -261,16 +287,14 @@ def fit_mag(
             f"{x.shape[0]} valid magnetometer samples; a fit needs at least {MIN_SAMPLES} "
             "(is the magnetometer recorded?)"
         )
-    centre = np.median(x, axis=0)
-    radius = np.linalg.norm(x - centre, axis=1)
-    k = float(np.median(radius))
-    if not k > 0.0:
-        raise CalibrationError("the magnetometer samples do not change: turn the sensor while recording")
+    centre, k, w0 = _sphere_start(x)
     y = (x - centre) / k
-    rr = radius / k - 1.0
-    w0 = _bisquare(rr - np.median(rr), max(_robust_scale(rr), 1e-3))
     try:
-        s0, h0 = _algebraic(y, w0)
+        for _ in range(_ALGEBRAIC_ROUNDS):
+            s0, h0 = _algebraic(y, w0)
+            r0 = np.linalg.norm((y - h0) @ s0, axis=1) - 1.0
+            scale = _robust_scale(r0, w0)
+            w0 = _bisquare(r0 - np.median(r0[w0 > 0]), scale) if scale > 0 else w0
         s_y, h_y, w, cov_h, iters = _gauss_newton(y, s0, h0, w0)
         ev = np.linalg.eigvalsh(s_y)
         if not (ev[0] > 0.0 and ev[-1] / ev[0] <= MAX_AXIS_RATIO):
