@@ -136,7 +136,7 @@ def grid_scores(
     progress: bool = True,
 ) -> GridResult:
     """Run every point of ``grid`` (overrides on the defaults of ``kind`` or of ``variant``) on ``recs``."""
-    from attica.evaluate import NINE_AXIS, VARIANTS, _progress, attica_method, run_methods
+    from attica.evaluate.core import NINE_AXIS, VARIANTS, _progress, attica_method, run_methods
 
     nine = VARIANTS[variant][2] if variant else kind in NINE_AXIS
     if variant:
