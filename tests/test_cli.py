@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import re
 from pathlib import Path
 
@@ -11,6 +12,8 @@ import pytest
 
 from attica.cli import build_parser, main
 from attica.data import load_recording
+
+from helpers import need
 
 
 def test_demo_reports_bit_exact(capsys: pytest.CaptureFixture[str]) -> None:
@@ -255,7 +258,10 @@ def test_eval_tables_fit_and_plots_are_wide(tmp_path: Path, capsys: pytest.Captu
     assert "part 2 of" in text  # 14 six-axis columns do not fit in one table
     wide = format_tables(report, wide=True)
     assert max(len(ln) for ln in wide.splitlines()) > 110 and "part 2" not in wide
-    pytest.importorskip("matplotlib")
+    need(
+        importlib.util.find_spec("matplotlib") is not None,
+        "matplotlib is not installed (pip install '.[eval]')",
+    )
     for path, draw in (
         (tmp_path / "trial.png", lambda p: plot_trial(report, recs[0], p)),
         (tmp_path / "groups.png", lambda p: plot_groups(report, p)),
