@@ -135,11 +135,13 @@ def test_node_and_verify_apply_the_calibration(
     verify without the calibration sees every set differ."""
     ch = _channel()
     codes: list[int] = []
-    argv = ["node", "-c", ch, "--filter", "mars", "--calibration", str(files["cal"]), "--idle-timeout", "3"]
+    steps = 2 * round(2 * RATE)  # two verify runs; --idle-timeout only ends the node if one fails
+    argv = ["node", "-c", ch, "--filter", "mars", "--calibration", str(files["cal"]), "--count", str(steps)]
+    argv += ["--idle-timeout", "30"]
     node = threading.Thread(target=lambda: codes.append(main(argv)))
     node.start()
     try:
-        time.sleep(0.5)
+        time.sleep(1.0)  # the node's start-up
         v = ["verify", "-c", ch, "--filter", "mars", "--duration", "2", "-q"]
         assert main([*v, "--calibration", str(files["cal"])]) == 0
         out = capsys.readouterr().out
@@ -147,7 +149,7 @@ def test_node_and_verify_apply_the_calibration(
         assert main(v) == 1
         assert "verdict: BIT-EXACT" not in capsys.readouterr().out
     finally:
-        node.join(15)
+        node.join(40)
     assert codes == [0]
 
 
