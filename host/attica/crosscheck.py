@@ -68,6 +68,7 @@ def crosscheck(
     settings: Any = None,
     segment: int = 1000,
     progress: Callable[[int, int], None] | None = None,
+    calibration: Any = None,
     **overrides: Any,
 ) -> CrossCheck:
     """Run C and reference over ``streams`` and compare every step.
@@ -84,6 +85,9 @@ def crosscheck(
         Steps per reference lockstep segment (smaller = more instances, fewer sequential steps).
     progress
         Called as ``progress(done, total)`` with reference steps done.
+    calibration
+        Input/output stages of both (a :class:`~attica.calibration.Calibration`, a
+        :class:`~attica.calibration.stages.StageSettings` or None: identity, ENU).
 
     """
     k = FilterKind.parse(kind)
@@ -93,7 +97,7 @@ def crosscheck(
     snapshots: list[Any] = []
     owners: list[Any] = []  # cffi arrays that own the snapshot memory: keep them alive
     for si, st in enumerate(streams):
-        c = native.Filter(k, s)
+        c = native.Filter(k, s, calibration=calibration)
         out, snaps = c.run(st.gyr, st.acc, st.mag, snapshot_every=segment)
         result.c_outputs.append(out)
         owners.append(snaps)
@@ -111,7 +115,7 @@ def crosscheck(
     segs = [(i, src) for i, src in enumerate(seg_src) if src[2] > 0]
     if not segs:
         return result
-    ref = RefFilter(k, s, n=len(segs))
+    ref = RefFilter(k, s, n=len(segs), calibration=calibration)
     ref.load_c_states([snapshots[i] for i, _ in segs])
     length = max(src[2] for _, src in segs)
     m = len(segs)

@@ -64,8 +64,11 @@ def expected_outputs(
     mag: NDArray[np.float32],
     settings: Any = None,
     progress: Callable[[int, int], None] | None = None,
+    calibration: Any = None,
 ) -> Expected:
     """Outputs of every step for the node input (the floats the node steps with).
+
+    ``calibration`` is the node's (a Calibration or StageSettings; None: identity, ENU).
 
     Runs :func:`attica.crosscheck.crosscheck`: the C filter and the numpy reference must agree bit for
     bit, else ``reference_ok`` is False and ``reference_detail`` says where.
@@ -79,7 +82,9 @@ def expected_outputs(
         return Expected(np.zeros(0, OUTPUT_DTYPE), True)
     # many short lockstep segments: the reference steps all of them at once (vectorised)
     segment = max(50, min(1000, int(gyr.shape[0]) // 400))
-    r = crosscheck(kind, [Stream(gyr, acc, mag, "can")], s, segment=segment, progress=progress)
+    r = crosscheck(
+        kind, [Stream(gyr, acc, mag, "can")], s, segment=segment, progress=progress, calibration=calibration
+    )
     detail = "" if r.ok else f"{r.mismatched_steps} steps differ; {r.first_mismatch}"
     return Expected(r.c_outputs[0], r.ok, detail)
 
@@ -431,6 +436,7 @@ def align_inputs(
     settings: Any = None,
     max_skip: int = 32,
     max_losses: int = 256,
+    calibration: Any = None,
 ) -> tuple[NDArray[np.int64], list[int]]:
     """Which sent samples the node stepped with, found from its outputs (output divider 1 only).
 
@@ -458,7 +464,7 @@ def align_inputs(
     start = 0  # steps before this are known to match
     for _ in range(max_losses):
         m = seq.shape[0]
-        f = native.Filter(kind, s)
+        f = native.Filter(kind, s, calibration=calibration)
         out = f.run(gyr[seq], acc[seq], mag[seq])
         want = codec.decode_outputs(codec.encode_outputs(out, kind, fd=fd)).sets
         sel = (steps_rx >= max(start, 1)) & (steps_rx <= m)
@@ -476,7 +482,7 @@ def align_inputs(
         bad_step = int(st[k])
         target = got[k : k + 1]
         # state just before the bad step
-        f = native.Filter(kind, s)
+        f = native.Filter(kind, s, calibration=calibration)
         if bad_step > 1:
             f.run(gyr[seq[: bad_step - 1]], acc[seq[: bad_step - 1]], mag[seq[: bad_step - 1]])
         snap = ffi.new("att_filter_t *")

@@ -140,6 +140,7 @@ def verify_live(
     drain_timeout: float = 1.0,
     reset: bool = True,
     settings: Any = None,
+    calibration: Any = None,
     tap: can.BusABC | None = None,
     progress: bool = False,
     on_message: Callable[[can.Message], None] | None = None,
@@ -166,6 +167,9 @@ def verify_live(
         Send CMD reset first and wait for the answer (needed when the node ran before).
     settings
         Filter settings of the node when not the defaults.
+    calibration
+        The node's calibration (a Calibration or StageSettings; None: identity, ENU), applied to the
+        reference too.
     tap
         A bus on the node's side of a lossy link: the node's input is reconstructed from what it shows
         (:func:`assemble`) instead of taken from what was sent.
@@ -256,9 +260,11 @@ def verify_live(
         gyr, acc, mag = input_values(stream, fd)
         faults = {}
         if output_divider == 1:
-            seq, skipped = align_inputs(kind, stream.rate, gyr, acc, mag, rx, fd, settings)
+            seq, skipped = align_inputs(
+                kind, stream.rate, gyr, acc, mag, rx, fd, settings, calibration=calibration
+            )
             gyr, acc, mag = gyr[seq], acc[seq], mag[seq]
-    exp = expected_outputs(kind, stream.rate, gyr, acc, mag, settings)
+    exp = expected_outputs(kind, stream.rate, gyr, acc, mag, settings, calibration=calibration)
     rep = compare(exp, kind, fd, rx, output_divider)
     rep.samples_sent = len(stream)
     rep.input_faults = faults
@@ -278,6 +284,7 @@ def verify_frames(
     fd: bool | None = None,
     output_divider: int = 1,
     settings: Any = None,
+    calibration: Any = None,
 ) -> VerifyReport:
     """Verify a recorded bus (both directions, e.g. a candump log): inputs rebuilt with :func:`assemble`.
 
@@ -296,7 +303,7 @@ def verify_frames(
     if fd is None:
         fd = bool((ids == codec.ID_OUT_FD).any())
     asm = assemble(inputs)
-    exp = expected_outputs(kind, rate, asm.gyr, asm.acc, asm.mag, settings)
+    exp = expected_outputs(kind, rate, asm.gyr, asm.acc, asm.mag, settings, calibration=calibration)
     rep = compare(exp, kind, fd, outputs, output_divider)
     rep.samples_sent = asm.started  # samples begun; whole samples missing show as counter_gaps
     rep.input_faults = asm.counters

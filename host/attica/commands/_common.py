@@ -316,3 +316,65 @@ def filter_settings(kind: FilterKind, rate: float, overrides: dict[str, Any], ba
     except native.NativeError as exc:
         raise CliError(f"{kind.label}: {exc}") from None
     return s
+
+
+# --- calibration ----------------------------------------------------------------------------------
+
+
+def add_calibration_argument(p: argparse.ArgumentParser, what: str = "the filters") -> None:
+    """``--calibration FILE``: a calibration file (JSON, ``attica calibrate``) applied to ``what``."""
+    p.add_argument(
+        "--calibration",
+        metavar="FILE",
+        help=f"calibration file (JSON from attica calibrate) applied to {what}: sensor models, mounting, "
+        "output convention",
+    )
+
+
+def load_calibration(args: argparse.Namespace) -> Any:
+    """The :class:`~attica.calibration.Calibration` of ``--calibration`` (None without it).
+
+    A missing, unreadable or invalid file is a CliError (call it before any work).
+    """
+    from attica.calibration import Calibration
+
+    name = getattr(args, "calibration", None)
+    if not name:
+        return None
+    path = Path(name)
+    if not path.exists():
+        raise CliError(f"--calibration {path}: no such calibration file")
+    if path.is_dir():
+        raise CliError(f"--calibration {path}: is a directory")
+    try:
+        cal = Calibration.load(path)
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        raise CliError(f"--calibration: {exc}") from None
+    from attica import native
+
+    try:  # the firmware's own checks (att_calib_settings_check), before any work
+        native.Filter("ars", dt=0.01, calibration=cal)
+    except native.NativeError as exc:
+        raise CliError(f"--calibration {path}: refused by the firmware: {exc}") from None
+    return cal
+
+
+def warn_calibrated_truth(cal: Any) -> None:
+    """Warn that errors against ground truth (sensor frame, ENU) mean little with a mounting or NED/NWU."""
+    if cal is not None and (not cal.mounting.identity or cal.convention != "enu"):
+        warn(
+            "the ground truth is the sensor's attitude in ENU; with this calibration's mounting or "
+            "convention the outputs are another frame's, so the errors against it are not accuracy figures"
+        )
+
+
+def describe_calibration(cal: Any, path: str) -> str:
+    """``calibration FILE applied: gyro, mag, mounting +x-z+y, convention ned`` (or nothing changed)."""
+    parts = [name for name in ("gyro", "accel", "mag") if not getattr(cal, name).identity]
+    if not cal.mounting.identity:
+        m = cal.mounting
+        parts.append(f"mounting {m.remap}" if m.remap is not None else "mounting quaternion")
+    if cal.convention != "enu":
+        parts.append(f"convention {cal.convention}")
+    what = ", ".join(parts) if parts else "identity (changes nothing)"
+    return f"calibration {path} applied: {what}"

@@ -1,4 +1,4 @@
-"""``attica calibrate mag|gyro|accel REC``: fit a sensor calibration from a recording.
+"""``attica calibrate mag|gyro|accel REC``: fit a sensor calibration; ``calibrate send FILE``: apply it.
 
 - ``mag``: hard- and soft-iron fit (robust ellipsoid fit) from a recording that turns the sensor
   through as many orientations as possible; refused when the samples cover too little of the sphere.
@@ -12,6 +12,9 @@ fitted section into an existing file (so gyro, accel and mag can be fitted from 
 ``--plot PNG`` draws the data before and after.
 
 Recordings: .npz (BROAD layout), .csv, BROAD .hdf5/.mat; units rad/s, m/s^2, uT.
+
+``send FILE`` applies a calibration file to a running node over CAN and with ``--verify`` proves the
+node's outputs bit-exact against the reference with the same calibration (:mod:`._calsend`).
 """
 
 from __future__ import annotations
@@ -26,15 +29,25 @@ import numpy as np
 from attica.commands._common import CliError, add_unit_check_argument, check_output_file, check_units
 
 NAME = "calibrate"
-HELP = "fit a magnetometer, gyro or accelerometer calibration from a recording (JSON file, plot)"
+HELP = "fit a magnetometer, gyro or accelerometer calibration (JSON file, plot); send one to a node"
 
 SENSORS = ("mag", "gyro", "accel")
+ACTIONS = (*SENSORS, "send")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``attica calibrate``."""
-    p.add_argument("sensor", choices=SENSORS, help="what to calibrate: mag, gyro or accel")
-    p.add_argument("recording", help="recording (.npz in BROAD layout, .csv, BROAD .hdf5/.mat)")
+    from attica.commands._calsend import add_send_arguments
+
+    p.add_argument(
+        "sensor",
+        choices=ACTIONS,
+        help="what to calibrate: mag, gyro or accel; or send (a calibration file to a node over CAN)",
+    )
+    p.add_argument(
+        "recording",
+        help="recording (.npz in BROAD layout, .csv, BROAD .hdf5/.mat); with send: the calibration file",
+    )
     p.add_argument("-o", "--output", help="write the calibration file (JSON) here")
     p.add_argument(
         "--update",
@@ -66,6 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("gyro")
     g.add_argument("--min-rest", type=float, metavar="S", help="still seconds needed (default 2)")
     add_unit_check_argument(p)
+    add_send_arguments(p)
 
 
 _ONLY = {
@@ -211,8 +225,12 @@ def _fit_accel(
 def run(args: argparse.Namespace) -> int:
     """``attica calibrate``."""
     from attica.calibration.errors import CalibrationError
+    from attica.commands._calsend import check_mixed, run_send
     from attica.data import load_recording
 
+    check_mixed(args)
+    if args.sensor == "send":
+        return run_send(args)
     rec_path, out, base, plot = _check_args(args)
     try:
         rec = load_recording(rec_path)

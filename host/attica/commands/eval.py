@@ -17,11 +17,15 @@ from typing import Any
 
 from attica.commands._common import (
     CliError,
+    add_calibration_argument,
     add_unit_check_argument,
     check_units,
+    describe_calibration,
+    load_calibration,
     parse_kinds,
     prepare_output_dir,
     warn,
+    warn_calibrated_truth,
 )
 from attica.settings import FilterKind, Preset, implemented_kinds
 
@@ -49,6 +53,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         const="all",
         help="also run other people's filters: all installed ones, or comma-separated names (vqf9,fusion9)",
     )
+    add_calibration_argument(p, "attica's filters (not with --peers or --grid)")
     p.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
     p.add_argument("--limit", type=int, help="only the first N trials")
     p.add_argument("--wide", action="store_true", help="one table per kind of method, however wide")
@@ -91,13 +96,17 @@ def run(args: argparse.Namespace) -> int:
 
     if args.limit is not None and args.limit < 1:
         raise CliError("--limit must be >= 1")
+    if args.calibration and (args.peers is not None or args.grid):
+        what = "--peers (the peers would not get the calibration)" if args.peers is not None else "--grid"
+        raise CliError(f"--calibration applies to attica's filters only; drop it or {what}")
+    cal = load_calibration(args)
     if args.grid:
         names = _grid_names(args.filter)
         methods: list[Any] = []
     else:
         names = _method_names(args.filter)
         presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
-        methods = [_attica(n, p) for p in presets for n in names] + _peers(args.peers)
+        methods = [_attica(n, p, cal) for p in presets for n in names] + _peers(args.peers)
     out = prepare_output_dir(Path(args.out)) if args.out else None
     plots = out is not None and not args.no_plots and not args.grid
     if plots:
@@ -115,6 +124,9 @@ def run(args: argparse.Namespace) -> int:
     if missing_truth:
         raise CliError(f"no ground truth (opt_quat / quat_* columns) in: {', '.join(missing_truth)}")
     print(f"{args.data}: {len(recs)} trials, {sum(len(r) for r in recs)} samples")
+    if cal is not None:
+        print(describe_calibration(cal, args.calibration))
+        warn_calibrated_truth(cal)
     for rec in recs:
         check_units(rec, args)
     if args.grid:
@@ -174,13 +186,13 @@ def _grid_names(spec: str) -> list[str]:
     return names
 
 
-def _attica(name: str, preset: Preset) -> Any:
-    """Attica's method for a kind or variant name."""
+def _attica(name: str, preset: Preset, calibration: Any = None) -> Any:
+    """Attica's method for a kind or variant name (with the calibration when given)."""
     from attica.evaluate import VARIANTS, attica_method
 
     if name in VARIANTS:
-        return attica_method(VARIANTS[name][0], preset, variant=name)
-    return attica_method(FilterKind.parse(name), preset)
+        return attica_method(VARIANTS[name][0], preset, variant=name, calibration=calibration)
+    return attica_method(FilterKind.parse(name), preset, calibration=calibration)
 
 
 def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None) -> int:

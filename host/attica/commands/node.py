@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from attica.commands._can import KINDS, StopSignals, add_bus_arguments, describe_bus, open_bus, parse_kind
-from attica.commands._common import CliError
+from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
 
 NAME = "node"
 HELP = "run the C node in-process on a CAN bus (virtual, udp_multicast, socketcan)"
@@ -23,6 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--output-divider", type=int, default=1, help="send outputs every Nth step (default 1)")
     p.add_argument("--diag-divider", type=int, default=16, help="ATT_DIAG every Nth output set (0 = never)")
+    add_calibration_argument(p, "the node from the start (CAN commands can change it later)")
     p.add_argument("--count", type=int, help="stop after N filter steps")
     p.add_argument("--idle-timeout", type=float, help="stop after this many seconds without a frame")
     p.add_argument("-q", "--quiet", action="store_true", help="no start-up line")
@@ -34,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from attica.can.runner import NodeRunner
 
     kind = parse_kind(args.filter)
+    cal = load_calibration(args)
     try:
         node = Node(
             kind,
@@ -43,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
             fd=args.fd,
             output_divider=args.output_divider,
             diag_divider=args.diag_divider,
+            calibration=cal,
         )
     except (NodeError, ValueError, TypeError) as exc:
         raise CliError(f"node settings refused: {exc}") from None
@@ -55,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
                 f"{100 * node.bus_load:.1f} % of {args.bitrate} bit/s: ready",
                 flush=True,
             )
+            if cal is not None:
+                print(f"attica node: {describe_calibration(cal, args.calibration)}", flush=True)
         with StopSignals() as stop:
             stats = runner.serve(stop=stop, count=args.count, idle_timeout=args.idle_timeout)
         print(f"attica node: stats: {stats.line(node.stats())}", flush=True)

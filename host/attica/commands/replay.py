@@ -21,7 +21,7 @@ from attica.commands._can import (
     open_bus,
     stream,
 )
-from attica.commands._common import CliError
+from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
 
 NAME = "replay"
 HELP = "send a simulated or recorded IMU stream as CAN frames (real time or as fast as the node goes)"
@@ -33,15 +33,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_stream_arguments(p)
     add_pacing_arguments(p)
     add_write_argument(p, "the frames sent and received")
+    add_calibration_argument(p, "the node first, over CAN (CAL_BEGIN, CAL_SET..., CAL_COMMIT)")
 
 
 def run(args: argparse.Namespace) -> int:
     """``attica replay``."""
+    from attica.can.calibration import CalibrationError, send_calibration
     from attica.can.logs import LogError, LogTee
     from attica.can.replay import replay
 
     check_stream_args(args)
     paths = log_paths(args)
+    cal = load_calibration(args)
     st = stream(args)
     try:
         tee = LogTee(paths, channel=args.channel or "can0")
@@ -49,6 +52,17 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     bus = open_bus(args)
     try:
+        if cal is not None:
+            try:
+                sent = send_calibration(
+                    bus,
+                    cal,
+                    on_send=tee.sent if tee else None,
+                    on_receive=tee.received if tee else None,
+                )
+            except CalibrationError as exc:
+                raise CliError(f"--calibration {args.calibration}: {exc}; nothing replayed") from None
+            print(f"{describe_calibration(cal, args.calibration)}: {sent.line()}", file=sys.stderr)
         if not args.quiet:
             how = "in real time" if args.realtime else "as fast as possible"
             print(

@@ -12,17 +12,21 @@ from numpy.typing import NDArray
 
 from attica.commands._common import (
     CliError,
+    add_calibration_argument,
     add_sim_arguments,
     add_unit_check_argument,
     check_data_or_sim,
     check_output_file,
     check_units,
+    describe_calibration,
     describe_source,
     filter_settings,
+    load_calibration,
     load_data,
     parse_kinds,
     plan_overrides,
     progress,
+    warn_calibrated_truth,
 )
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, describe_flags
@@ -50,17 +54,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         help="change a setting (repeatable; with several filters it applies to those that have it)",
     )
+    add_calibration_argument(p, "the C filters (and the reference with --check)")
     p.add_argument("--check", action="store_true", help="also run the numpy reference and compare the bits")
     p.add_argument("-o", "--output", help="write the outputs to this .npz (several filters: NAME_<kind>.npz)")
     add_unit_check_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
-def run_native(kind: FilterKind, rec: Any, settings: Any, show_progress: bool) -> NDArray[np.void]:
+def run_native(
+    kind: FilterKind, rec: Any, settings: Any, show_progress: bool, calibration: Any = None
+) -> NDArray[np.void]:
     """Run the C filter over a recording in chunks (for the progress bar); (N,) output records."""
     from attica import native
 
-    f = native.Filter(kind, settings=settings)
+    f = native.Filter(kind, settings=settings, calibration=calibration)
     out = np.zeros(len(rec.gyr), OUTPUT_DTYPE)
     with progress(len(rec.gyr), f"{kind.label} (C)", show_progress) as bar:
         for start in range(0, len(rec.gyr), CHUNK):
@@ -92,7 +99,9 @@ def error_line(kind: FilterKind, rec: Any, out: NDArray[np.void]) -> str:
     return f"{kind.label:>6}: RMSE inclination {e.inclination:6.2f} deg (6-axis: heading not observable)"
 
 
-def crosscheck_line(kind: FilterKind, rec: Any, settings: Any, show_progress: bool) -> tuple[bool, list[str]]:
+def crosscheck_line(
+    kind: FilterKind, rec: Any, settings: Any, show_progress: bool, calibration: Any = None
+) -> tuple[bool, list[str]]:
     """Run the numpy reference against the C filter; (bit-exact, report lines)."""
     import warnings
 
@@ -106,7 +115,8 @@ def crosscheck_line(kind: FilterKind, rec: Any, settings: Any, show_progress: bo
             bar.total = total
             bar.update(done - bar.n)
 
-        r = crosscheck(kind, [Stream(rec.gyr, rec.acc, rec.mag, rec.name)], settings, progress=step)
+        streams = [Stream(rec.gyr, rec.acc, rec.mag, rec.name)]
+        r = crosscheck(kind, streams, settings, progress=step, calibration=calibration)
     verdict = "bit-exact" if r.ok else "MISMATCH"
     lines = [
         f"        C vs numpy reference: {r.steps} steps compared, {r.mismatched_steps} differ: {verdict}"
@@ -132,19 +142,24 @@ def run(args: argparse.Namespace) -> int:
     check_data_or_sim(args)
     outputs = output_paths(Path(args.output), kinds) if args.output else {}
     overrides = plan_overrides(kinds, args.set or [])
+    cal = load_calibration(args)
     rec = load_data(args)
     settings = {k: filter_settings(k, rec.rate, overrides[k]) for k in kinds}  # all checked before running
     print(f"{describe_source(args)}: {len(rec.gyr)} samples at {rec.rate:g} Hz")
+    if cal is not None:
+        print(describe_calibration(cal, args.calibration))
+        if rec.quat_true is not None:
+            warn_calibrated_truth(cal)
     check_units(rec, args)
     status = 0
     for kind in kinds:
         t0 = time.perf_counter()
-        out = run_native(kind, rec, settings[kind], not args.quiet)
+        out = run_native(kind, rec, settings[kind], not args.quiet, cal)
         elapsed = time.perf_counter() - t0
         print(error_line(kind, rec, out))
         print(f"        {len(out)} steps in {elapsed * 1e3:.0f} ms; flags: {flag_summary(out['flags'])}")
         if args.check:
-            ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet)
+            ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet, cal)
             print("\n".join(lines))
             status = status or (0 if ok else 1)
         if kind in outputs:

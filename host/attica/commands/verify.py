@@ -25,7 +25,7 @@ from attica.commands._can import (
     parse_kind,
     stream,
 )
-from attica.commands._common import CliError
+from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
 
 NAME = "verify"
 HELP = "replay a stream to a node (or read a log) and check every output set bit for bit"
@@ -43,6 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--show", type=int, default=0, metavar="N", help="print the first N received frames, decoded"
     )
+    add_calibration_argument(p, "the reference: the node's calibration (and the --with-node node's)")
     p.add_argument("--log", help="verify a recorded log of both directions instead of a live bus")
     add_write_argument(p, "the frames sent and received (live)")
 
@@ -54,13 +55,18 @@ def _verify_log(args: argparse.Namespace) -> int:
     if args.write:
         raise CliError("--write logs a live session; with --log there is nothing new to write")
     kind = parse_kind(args.filter)
+    cal = load_calibration(args)
     rate = args.rate if args.rate is not None else 285.714
     try:
         frames = frames_of(read_log(args.log))
     except LogError as exc:
         raise CliError(str(exc)) from None
-    rep = verify_frames(frames, kind, rate, fd=True if args.fd else None, output_divider=args.output_divider)
+    rep = verify_frames(
+        frames, kind, rate, fd=True if args.fd else None, output_divider=args.output_divider, calibration=cal
+    )
     print(f"{args.log}: {rep.frames_received} frames")
+    if cal is not None:
+        print(f"  reference: {describe_calibration(cal, args.calibration)}")
     for line in rep.lines():
         print(line)
     return 0 if rep.ok else 1
@@ -81,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     kind = parse_kind(args.filter)
     check_stream_args(args)
     paths = log_paths(args)
+    cal = load_calibration(args)
     st = stream(args)
     node = None
     if args.with_node:
@@ -92,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
                 data_bitrate=args.data_bitrate if args.fd else 0,
                 fd=args.fd,
                 output_divider=args.output_divider,
+                calibration=cal,
             )
         except NodeError as exc:
             raise CliError(f"node settings refused: {exc}") from None
@@ -121,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
             f"on {describe_bus(args)}" + (" (node in this process)" if node is not None else ""),
             flush=True,
         )
+        if cal is not None:
+            print(f"  reference: {describe_calibration(cal, args.calibration)}", flush=True)
         try:
             rep = verify_live(
                 bus,
@@ -136,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
                 on_message=on_message if (mon is not None or tee) else None,
                 service=runner.service if runner is not None else None,
                 on_send=tee.sent if tee else None,
+                calibration=cal,
             )
         except (NodeNotAnsweringError, ValueError) as exc:
             raise CliError(str(exc)) from None

@@ -160,10 +160,12 @@ def attica_method(
     preset: str | Preset = Preset.DEFAULT,
     overrides: dict[str, Any] | None = None,
     variant: str = "",
+    calibration: Any = None,
 ) -> Method:
     """An attica C filter (through the cffi binding) with a preset and optional setting overrides.
 
     ``variant`` names an entry of :data:`VARIANTS` (its overrides apply first, its name and axes are used).
+    ``calibration`` (a :class:`~attica.calibration.Calibration`) sets the filter's input/output stages.
     """
     nine = kind in NINE_AXIS
     if variant:
@@ -178,7 +180,8 @@ def attica_method(
         settings = preset_settings(kind, p, dt=1.0 / rec.rate)
         if extra:  # a time constant set here takes over from the preset's per-sample gain
             settings = make_settings(kind, settings, **implied_gains(kind, settings, extra))
-        out = native.Filter(kind, settings=settings).run(rec.gyr, rec.acc, rec.mag, check_units=False)
+        f = native.Filter(kind, settings=settings, calibration=calibration)
+        out = f.run(rec.gyr, rec.acc, rec.mag, check_units=False)
         return np.asarray(out["q"], dtype=np.float64)
 
     label = variant or kind.label
@@ -186,7 +189,8 @@ def attica_method(
     shown = {k: v for k, v in extra.items() if not variant or k not in VARIANTS[variant][1]}
     if shown:
         name += "[" + ",".join(f"{k}={v}" for k, v in shown.items()) + "]"
-    return Method(name, "attica", nine, p.label, run, f"attica {label}, preset {p.label}")
+    note = f"attica {label}, preset {p.label}" + (", calibrated" if calibration is not None else "")
+    return Method(name, "attica", nine, p.label, run, note)
 
 
 def peer_methods(names: Sequence[str] | None = None) -> list[Method]:
