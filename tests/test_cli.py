@@ -138,7 +138,7 @@ def test_run_and_demo_agree(capsys: pytest.CaptureFixture[str]) -> None:
         (["run", "-o", "{tmp}"], "is a directory"),
         (
             ["run", "--filter", "all", "--set", "nosuch=1"],
-            "none of ars, mars, kf, ekf, gyro, tilt has no setting",
+            "none of ars, mars, kf, ekf, gyro, tilt, mekf has no setting",
         ),
         (["run", "--filter", "ars,"], None),
         (["run", "--filter", ",", "-q"], "empty filter selection"),
@@ -277,7 +277,7 @@ def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFix
     assert main(args) == 0
     cap = capsys.readouterr()
     assert (
-        "attica: note: --set tau=0.5 applies to ars only (mars, kf, ekf, gyro, tilt have no setting"
+        "attica: note: --set tau=0.5 applies to ars only (mars, kf, ekf, gyro, tilt, mekf have no setting"
         in cap.err
     )
     assert "attica: note: --set r_noise=0.02 applies to " in cap.err
