@@ -48,8 +48,8 @@ run: build
 	$(ATTICA) verify --with-node --duration 10 --show 7 -q
 
 lint: setup
-	$(VENV)/bin/ruff check host tools tests docs
-	$(VENV)/bin/ruff format --check host tools tests docs
+	$(VENV)/bin/ruff check host tools tests docs examples
+	$(VENV)/bin/ruff format --check host tools tests docs examples
 	$(VENV)/bin/mypy
 
 pytest: build

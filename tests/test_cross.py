@@ -458,7 +458,7 @@ def test_m4f_instruction_trace(tmp_path: Path) -> None:
 # --- library builds for users ----------------------------------------------------------------------------
 
 
-INTEGRATION = cross.TESTS_C / "integration"
+INTEGRATION = cross.ROOT / "examples" / "c"
 
 
 def _run_example(path: Path) -> str:
@@ -470,7 +470,7 @@ def _run_example(path: Path) -> str:
 
 @pytest.fixture(scope="module")
 def cmake_example(tmp_path_factory: pytest.TempPathFactory) -> str:
-    """tests/c/integration through firmware/CMakeLists.txt with the host compiler; the example's output."""
+    """examples/c through firmware/CMakeLists.txt with the host compiler; the example's output."""
     need_tools("cmake", "cc")
     build = tmp_path_factory.mktemp("cmake")
     subprocess.run(
@@ -493,7 +493,7 @@ def test_cmake_library(cmake_example: str) -> None:
 
 @pytest.fixture(scope="module")
 def make_example(tmp_path_factory: pytest.TempPathFactory) -> str:
-    """tests/c/integration through firmware/attica.mk with the host compiler; the example's output."""
+    """examples/c through firmware/attica.mk with the host compiler; the example's output."""
     need_tools("make", "cc")
     build = tmp_path_factory.mktemp("mk")
     proc = subprocess.run(

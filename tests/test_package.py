@@ -5,7 +5,7 @@ Smoke check in every venv: the C filter (the extension built by the wheel's buil
 the numpy reference, ``attica verify --with-node`` bit-exact, ``attica --version`` equal to
 att_version.h, the firmware package data found through importlib.resources (``attica paths``), nothing
 written into the installation by importing or running it. The wheel's installed firmware copy also
-builds and runs the C example of tests/c/integration with the flags it ships.
+builds and runs the C example of examples/c with the flags it ships.
 """
 
 from __future__ import annotations
@@ -174,6 +174,6 @@ def test_install_and_use_outside_the_checkout(dists: dict[str, Path], what: str,
             objs.append(str(away / (Path(src).stem + ".o")))
             _run([cc, *cflags, "-O2", "-I", inc, "-c", src, "-o", objs[-1]], away)
         exe = away / "example"
-        main = ROOT / "tests" / "c" / "integration" / "main.c"
+        main = ROOT / "examples" / "c" / "main.c"
         _run([cc, "-std=c99", "-O2", "-I", inc, str(main), *objs, "-o", str(exe)], away)
         assert _run([str(exe)], away).strip()

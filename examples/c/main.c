@@ -2,13 +2,18 @@
  * @file main.c
  * @brief The minimal main loop of docs/integration.md, with a simulated IMU so it runs on a PC.
  *
- * Built by tests/test_cross.py twice, through firmware/CMakeLists.txt (CMakeLists.txt here) and through
- * firmware/attica.mk (Makefile here): both must build with the host compiler and print the same bits.
+ * Three ways to build it (tests/test_cross.py and tests/test_examples.py build all three with the host
+ * compiler and require the same printed bits):
+ *
+ *     cmake -S examples/c -B build/example && cmake --build build/example     # add_subdirectory
+ *     cmake -S firmware -B build/fw && cmake --install build/fw --prefix /opt/attica
+ *     cmake -S examples/c -B build/ex2 -DATTICA_EXAMPLE_FIND_PACKAGE=ON -DCMAKE_PREFIX_PATH=/opt/attica
+ *     make -f examples/c/Makefile BUILD=build/example-mk                      # firmware/attica.mk
  */
 #include <stdio.h>
 #include <string.h>
 
-#include "attica/att_filter.h"
+#include "attica/attica.h"
 
 static att_filter_t filter; /* state: static (no heap in attica) */
 
