@@ -68,7 +68,7 @@ def _golden(target: cross.Target, work: Path, data: cross.MathData, cases: list[
     runner = target.build([golden.RUNNER_SOURCE], "-O1", "att_golden", work / target.name)
     (work / f"{target.name}-math").mkdir(exist_ok=True)
     res = cross.compare_math(runner, (), data, work / f"{target.name}-math")
-    want = {c.name: golden.reference_filter(c.kind, c.settings, *c.imu) for c in cases}
+    want = {c.name: cross.reference_case(c) for c in cases}
     (work / f"{target.name}-in").mkdir(exist_ok=True)
     (work / f"{target.name}-filters").mkdir(exist_ok=True)
     (work / f"{target.name}-math").mkdir(exist_ok=True)

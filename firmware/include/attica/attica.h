@@ -32,6 +32,8 @@
 #include "attica/att_ekf.h"
 #include "attica/att_gyro.h"
 #include "attica/att_tilt.h"
+#include "attica/att_mekf.h"
+#include "attica/att_calib.h"
 #include "attica/att_filter.h"
 #include "attica/att_can.h"
 #include "attica/att_node.h"
