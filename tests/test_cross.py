@@ -84,11 +84,7 @@ class CrossData:
         """The reference outputs of a case (waits for its worker)."""
         if case.name not in self.want:
             job = self.pending.pop(case.name, None)
-            self.want[case.name] = (
-                job.result()
-                if job is not None
-                else cross.reference_case(case)
-            )
+            self.want[case.name] = job.result() if job is not None else cross.reference_case(case)
         return self.want[case.name]
 
 
@@ -426,7 +422,12 @@ def test_m4f_stack_measured_within_call_graph(tmp_path: Path) -> None:
     checked = 0
     for (fn, kind), used in measured.stack.items():
         bound = footprint.worst_stack(graph, fn, ext)
-        assert not bound.unknown, f"{fn}: unknown callees {bound.unknown}"
+        # the node's persistence hook (att_node_set_persist) is the application's function: its stack is
+        # the application's to add; the measured runs set no hook
+        unknown = [
+            u for u in bound.unknown if not (fn.startswith("att_node") and u == "Indirect Call Placeholder")
+        ]
+        assert not unknown, f"{fn}: unknown callees {unknown}"
         assert used <= bound.bytes, f"{fn} ({kind}): measured {used} B > call-graph bound {bound.bytes} B"
         assert used > 0, f"{fn} ({kind}): nothing measured"
         checked += 1

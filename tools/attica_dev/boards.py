@@ -155,7 +155,7 @@ BOARDS: dict[str, CortexM] = {
         specs=("--specs=nano.specs", "--specs=rdimon.specs"),
         defines=("-DATT_SH_CMDLINE_BYTES=512u",),
         ldflags=("-lm",),
-        max_streams=20,
+        max_streams=10,
     ),
 }
 """Every Cortex-M board, by name."""
