@@ -360,4 +360,27 @@ static inline att_quat_t att_i_quat_from_euler(float phi, float theta, float psi
                       cr * cp * sy - sr * sp * cy);
 }
 
+/* The rotation matrix of q (row-major, m = R(q): earth = m * sensor); q assumed unit. */
+static ATT_ALWAYS_INLINE void att_i_quat_to_matrix(att_quat_t q, float m[9])
+{
+    const float xx = q.x * q.x;
+    const float yy = q.y * q.y;
+    const float zz = q.z * q.z;
+    const float xy = q.x * q.y;
+    const float xz = q.x * q.z;
+    const float yz = q.y * q.z;
+    const float wx = q.w * q.x;
+    const float wy = q.w * q.y;
+    const float wz = q.w * q.z;
+    m[0] = 1.0f - 2.0f * (yy + zz);
+    m[1] = 2.0f * (xy - wz);
+    m[2] = 2.0f * (xz + wy);
+    m[3] = 2.0f * (xy + wz);
+    m[4] = 1.0f - 2.0f * (xx + zz);
+    m[5] = 2.0f * (yz - wx);
+    m[6] = 2.0f * (xz - wy);
+    m[7] = 2.0f * (yz + wx);
+    m[8] = 1.0f - 2.0f * (xx + yy);
+}
+
 #endif /* ATT_INLINE_H */

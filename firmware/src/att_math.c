@@ -282,22 +282,5 @@ att_vec3_t att_quat_to_euler(att_quat_t q)
 
 void att_quat_to_matrix(att_quat_t q, float m[9])
 {
-    const float xx = q.x * q.x;
-    const float yy = q.y * q.y;
-    const float zz = q.z * q.z;
-    const float xy = q.x * q.y;
-    const float xz = q.x * q.z;
-    const float yz = q.y * q.z;
-    const float wx = q.w * q.x;
-    const float wy = q.w * q.y;
-    const float wz = q.w * q.z;
-    m[0] = 1.0f - 2.0f * (yy + zz);
-    m[1] = 2.0f * (xy - wz);
-    m[2] = 2.0f * (xz + wy);
-    m[3] = 2.0f * (xy + wz);
-    m[4] = 1.0f - 2.0f * (xx + zz);
-    m[5] = 2.0f * (yz - wx);
-    m[6] = 2.0f * (xz - wy);
-    m[7] = 2.0f * (yz + wx);
-    m[8] = 1.0f - 2.0f * (xx + yy);
+    att_i_quat_to_matrix(q, m);
 }

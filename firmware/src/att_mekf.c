@@ -785,26 +785,7 @@ static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf
 {
     const att_quat_t q = wk->q;
     float r[9];
-    {
-        const float xx = q.x * q.x;
-        const float yy = q.y * q.y;
-        const float zz = q.z * q.z;
-        const float xy = q.x * q.y;
-        const float xz = q.x * q.z;
-        const float yz = q.y * q.z;
-        const float wx = q.w * q.x;
-        const float wy = q.w * q.y;
-        const float wz = q.w * q.z;
-        r[0] = 1.0f - 2.0f * (yy + zz);
-        r[1] = 2.0f * (xy - wz);
-        r[2] = 2.0f * (xz + wy);
-        r[3] = 2.0f * (xy + wz);
-        r[4] = 1.0f - 2.0f * (xx + zz);
-        r[5] = 2.0f * (yz - wx);
-        r[6] = 2.0f * (xz - wy);
-        r[7] = 2.0f * (yz + wx);
-        r[8] = 1.0f - 2.0f * (xx + yy);
-    }
+    att_i_quat_to_matrix(q, r);
     att_mekf_predict(st->p, r, c->half_dt, c->dt, qa, c->qb);
     wk->v = att_i_vec3(r[0] * acc->x + r[1] * acc->y + r[2] * acc->z, r[3] * acc->x + r[4] * acc->y + r[5] * acc->z,
                        r[6] * acc->x + r[7] * acc->y + r[8] * acc->z);
