@@ -31,7 +31,7 @@ build: setup node
 # compiled with the strict firmware flags; the port needs -std=gnu99 for the socket headers.
 NODE_CFLAGS := $(shell cat firmware/cflags.txt) -O2
 NODE_SRC := $(wildcard firmware/src/*.c)
-NODE_HDR := $(wildcard firmware/include/attica/*.h) $(wildcard firmware/src/*.h) $(wildcard firmware/can/gen/*)
+NODE_HDR := $(wildcard firmware/include/attica/*.h) $(wildcard firmware/src/*.h)
 NODE_PORT := $(wildcard firmware/ports/linux/*.c)
 
 node: build/attica-node

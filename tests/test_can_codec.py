@@ -346,7 +346,8 @@ def test_generated_c_is_up_to_date_golden() -> None:
     committed = (gen.GEN / "att_can_db.c").read_text()
     need(
         f"cantools version {cantools.__version__}." in committed,
-        f"the committed firmware/can/gen was made by another cantools version than {cantools.__version__}",
+        "the committed firmware/src/att_can_db.{c,h} were made by another cantools version than "
+        f"{cantools.__version__}",
     )
     fresh = gen.generate()
     for name, text in fresh.items():

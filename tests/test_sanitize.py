@@ -45,8 +45,7 @@ ANALYSED = [
 ]
 """The files of this baseline. Over the rest of firmware/src the tools report only (docs/robustness.md):
 cppcheck uninitvar at att_kf.c:254/261 (false positive: y[n] and w[n] are read only for indices
-written earlier in the same loop) and clang-tidy bugprone-suspicious-include at att_can_db.c:11 (on
-purpose: it compiles the generated DBC code)."""
+written earlier in the same loop)."""
 
 
 def _have(*tools: str) -> None:

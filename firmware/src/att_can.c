@@ -9,7 +9,7 @@
 
 #include "attica/att_can.h"
 
-#include "../can/gen/att_can_db.h"
+#include "att_can_db.h"
 
 /** 1.5 * 2^23: adding and subtracting it rounds a float of magnitude < 2^22 to an integer, ties even. */
 #define ATT_CAN_ROUND_MAGIC 0x1.8p23f

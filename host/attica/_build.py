@@ -115,7 +115,6 @@ def inputs_digest() -> str:
         + headers()
         + sorted(CSRC.glob("*.c"))
         + sorted((FIRMWARE / "src").glob("*.h"))
-        + sorted((FIRMWARE / "can" / "gen").glob("*"))
     )
     for f in files + [FIRMWARE / "cflags.txt", Path(__file__)]:
         h.update(f.name.encode())

@@ -3,7 +3,7 @@
  * @brief attica CAN codec: frames, CRC-8 J1850 / E2E, int16 quantisation, frame set encoders/decoders.
  *
  * The frame layout is defined by firmware/can/attica.dbc (the single source of truth); the bit packing
- * is done by the code cantools generated from it (firmware/can/gen/att_can_db.c). This module adds the
+ * is done by the code cantools generated from it (firmware/src/att_can_db.c). This module adds the
  * parts a DBC cannot express: the E2E CRC, our quantisation and the grouping into frame sets. See
  * docs/can.md.
  *
