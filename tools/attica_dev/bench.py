@@ -98,30 +98,48 @@ leaves out the time the process waits for a core on a shared machine (every time
 single-threaded, attica's and the peers' alike)."""
 
 
+def chunk_slices(n: int, chunk: int) -> list[slice]:
+    """The timed calls of a repeat over n samples.
+
+    One call over all (``chunk`` <= 0 or >= n), or consecutive calls over ``chunk`` samples each (a
+    shorter tail is left out), the state carried on from call to call.
+    """
+    if chunk <= 0 or chunk >= n:
+        return [slice(0, n)]
+    return [slice(i, i + chunk) for i in range(0, n - chunk + 1, chunk)]
+
+
 def native_ns_per_step(
-    case: BenchCase, imu: Imu, repeat: int, dt: float = 0.01, clock: Callable[[], float] = time.perf_counter
+    case: BenchCase,
+    imu: Imu,
+    repeat: int,
+    dt: float = 0.01,
+    clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
 ) -> tuple[float, float]:
-    """Best-of-``repeat`` wall time per step (ns) of the native batch runs: (full records, lean q).
+    """Best ns per step of the native batch runs over ``repeat`` repeats: (full records, lean q).
 
     ``Filter.run`` (the whole att_filter_output record per step, the default) and ``Filter.run_q``
-    (quaternions only) alternate within each repeat, so that both see the same machine load; each
-    repeat starts from a new filter and allocates its outputs, as a user's call does. ``clock``: see
-    :data:`CLOCKS`.
+    (quaternions only) alternate call by call, so that both see the same machine load; each repeat
+    starts from new filters, and every call checks the units and allocates its outputs, as a user's
+    call does. ``clock``: see :data:`CLOCKS`; ``chunk``: see :func:`chunk_slices` (the best call counts).
     """
     from attica import native
 
     best_full = best_lean = float("inf")
     for _ in range(repeat):
-        f = native.Filter(case.kind, dt=dt, **case.overrides)
-        t0 = clock()
-        f.run(*imu)
-        best_full = min(best_full, clock() - t0)
-        f = native.Filter(case.kind, dt=dt, **case.overrides)
-        t0 = clock()
-        f.run_q(*imu)
-        best_lean = min(best_lean, clock() - t0)
-    n = imu[0].shape[0]
-    return float(best_full / n * 1e9), float(best_lean / n * 1e9)
+        full = native.Filter(case.kind, dt=dt, **case.overrides)
+        lean = native.Filter(case.kind, dt=dt, **case.overrides)
+        for sl in chunk_slices(imu[0].shape[0], chunk):
+            g, a, m = (x[sl] for x in imu)
+            steps = g.shape[0]
+            t0 = clock()
+            full.run(g, a, m)
+            best_full = min(best_full, (clock() - t0) / steps)
+            t0 = clock()
+            lean.run_q(g, a, m)
+            best_lean = min(best_lean, (clock() - t0) / steps)
+    return float(best_full * 1e9), float(best_lean * 1e9)
 
 
 def rate_cell(ns: float | None) -> str:
@@ -169,11 +187,17 @@ FUSION_SAMPLES = 20_000
 
 
 def peer_ns_per_step(
-    name: str, imu: Imu, repeat: int, dt: float = 0.01, clock: Callable[[], float] = time.perf_counter
+    name: str,
+    imu: Imu,
+    repeat: int,
+    dt: float = 0.01,
+    clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
 ) -> float:
-    """Best-of-``repeat`` ns per step of a peer through its Python binding (ImportError if missing).
+    """Best ns per step of a peer through its Python binding over ``repeat`` repeats.
 
-    ``clock``: see :data:`CLOCKS`.
+    ImportError when the package is missing. ``clock``: see :data:`CLOCKS`; ``chunk``: see
+    :func:`chunk_slices` (VQF's ``updateBatch`` only: imufusion is called once per sample anyway).
     """
     g, a, m = (np.ascontiguousarray(v, np.float64) for v in imu)
     best = float("inf")
@@ -182,10 +206,12 @@ def peer_ns_per_step(
 
         for _ in range(repeat):
             est = vqf.VQF(dt)
-            t0 = clock()
-            est.updateBatch(g, a, m) if name == "vqf9" else est.updateBatch(g, a)
-            best = min(best, clock() - t0)
-        return float(best / g.shape[0] * 1e9)
+            for sl in chunk_slices(g.shape[0], chunk):
+                gs, as_, ms = g[sl], a[sl], m[sl]
+                t0 = clock()
+                est.updateBatch(gs, as_, ms) if name == "vqf9" else est.updateBatch(gs, as_)
+                best = min(best, (clock() - t0) / gs.shape[0])
+        return float(best * 1e9)
     import imufusion
 
     n = min(FUSION_SAMPLES, g.shape[0])
@@ -277,6 +303,7 @@ def peer_rows(
     instr: dict[tuple[str, str], float | None],
     notes: list[str],
     clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
 ) -> list[list[str]]:
     """The peers' rows (ns/step through their bindings, callgrind of their C); fills ``ns`` and ``instr``."""
     from attica_dev import peer_sources
@@ -285,7 +312,7 @@ def peer_rows(
     progs: dict[tuple[str, str], Path | str] = {}
     for name, (lib, kind) in peer_sources.KINDS.items():
         try:
-            ns[name] = peer_ns_per_step(name, imu, repeat, clock=clock)
+            ns[name] = peer_ns_per_step(name, imu, repeat, clock=clock, chunk=chunk)
             cell = f"{ns[name]:.1f}"
         except ImportError as e:
             ns[name] = None
@@ -373,8 +400,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="wall",
         help="wall time (default) or the process's CPU time (steadier on a shared machine)",
     )
+    p.add_argument(
+        "--chunk",
+        type=int,
+        default=0,
+        help="time calls over consecutive chunks of this many samples and keep the best one (0: one "
+        "call over all samples, the default); short calls are rarely preempted on a shared machine",
+    )
     args = p.parse_args(argv)
     clock = CLOCKS[args.clock]
+    calls = f"calls of {args.chunk} samples" if 0 < args.chunk < args.samples else "one call per repeat"
 
     imu = simulated_inputs(args.samples)
     have_valgrind = shutil.which("valgrind") is not None
@@ -394,7 +429,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         lean: dict[str, float | None] = {}
         instr: dict[tuple[str, str], float | None] = {}
         for case in FILTERS:
-            full_ns, lean_ns = native_ns_per_step(case, imu, args.repeat, clock=clock)
+            full_ns, lean_ns = native_ns_per_step(case, imu, args.repeat, clock=clock, chunk=args.chunk)
             ns[case.label], lean[case.label] = full_ns, lean_ns
             row = [case.label, f"{full_ns:.1f}", f"{lean_ns:.1f}", rate_cell(lean_ns)]
             for (cc, opt), prog in programs.items():
@@ -410,9 +445,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows.append(row)
         notes: list[str] = []
         if not args.no_peers:
-            rows += peer_rows(imu, args.repeat, list(programs), Path(tmp), ns, instr, notes, clock)
+            rows += peer_rows(
+                imu, args.repeat, list(programs), Path(tmp), ns, instr, notes, clock, args.chunk
+            )
         print(
-            f"Filters ({args.samples} simulated samples at 100 Hz, best of {args.repeat}, "
+            f"Filters ({args.samples} simulated samples at 100 Hz, best of {args.repeat} repeats, {calls}, "
             f"{args.clock} clock; ns/step: attica "
             "native.Filter.run (batch in C, -O2, the full output record per step), ns/step run_q: "
             "native.Filter.run_q (the same steps, quaternions only), M steps/s: of run_q for attica, of the "
