@@ -57,8 +57,9 @@ pytest: build
 
 test: deps build fuzz-deps lint pytest
 
+# `make bench BENCH_ARGS="--clock cpu --repeat 15"`: options of python -m attica_dev.bench --help
 bench: deps build
-	$(DEV) -m attica_dev.bench
+	$(DEV) -m attica_dev.bench $(BENCH_ARGS)
 
 # Cortex-M (firmware/ports/cortex_m: M4F, M7, M33, M0+ under QEMU), attica beside Fusion and VQF (built
 # from their sdists into build/peers), the figures of docs/performance.md. `make cycles PROFILE=ars,mars`

@@ -5,6 +5,7 @@ The user API at the top level::
     import attica
     rec = attica.simulate(attica.SimConfig(duration=60, rate=100.0))
     out = attica.Filter("ars", 1 / rec.rate).run(rec.gyr, rec.acc)   # the C filter (cffi)
+    q = attica.Filter("ars", 1 / rec.rate).run_q(rec.gyr, rec.acc)   # quaternions only (throughput)
     print(out)                                                       # labelled table
     attica.describe_flags(int(out["flags"][-1]))                     # "AT_REST|BIAS_UPDATED"
 

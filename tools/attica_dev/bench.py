@@ -2,8 +2,10 @@
 
 Prints, per filter of :data:`FILTERS` and per peer configuration (Fusion 6/9-axis, VQF 6D/9D):
 
-- ns/step through Python, in one run: attica's native batch run (:meth:`attica.native.Filter.run`,
-  firmware built with the strict flags at -O2), VQF's ``updateBatch`` (the vqf package from PyPI:
+- ns/step through Python, in one run: attica's native batch runs, both the full output record per
+  step (:meth:`attica.native.Filter.run`) and the lean path that returns only the quaternions
+  (:meth:`attica.native.Filter.run_q`), firmware built with the strict flags at -O2, each with its
+  default unit check; VQF's ``updateBatch`` (the vqf package from PyPI:
   its C++ in double precision, a batch loop in C++) and imufusion (PyPI: Fusion's C, one
   ``update`` call per sample from Python, since it has no batch call), all over the same simulated
   samples, best of several repeats;
@@ -11,7 +13,9 @@ Prints, per filter of :data:`FILTERS` and per peer configuration (Fusion 6/9-axi
   of tests/c/att_bench.c, and in ``att_peer_step`` of the peers' drivers built from their sdists
   (:mod:`attica_dev.peer_sources`, VQF in single precision), as (I(N2) - I(N1)) / (N2 - N1) so
   start-up and initialisation cancel;
-- the ratios attica / peer of both, for the filters with the same inputs;
+- the ratios attica / peer of both (ns/step for the full and the lean run), for the filters with the
+  same inputs, and the issue-9 host goal: the ARS through ``run_q`` at >= 10 M steps/s and faster
+  than VQF 6D ``updateBatch`` in the same run;
 
 and the .text size of every firmware object at -O2 and -Os. Numbers only, no pass/fail.
 """
@@ -25,7 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -88,17 +92,86 @@ def simulated_inputs(
 Imu = tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
 
 
-def native_ns_per_step(case: BenchCase, imu: Imu, repeat: int, dt: float = 0.01) -> float:
-    """Best-of-``repeat`` wall time per step of the native batch run, in ns."""
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+"""Timers of ``--clock``: wall time (what a user waits; the default), or the process's CPU time, which
+leaves out the time the process waits for a core on a shared machine (every timed call is
+single-threaded, attica's and the peers' alike)."""
+
+
+def chunk_slices(n: int, chunk: int) -> list[slice]:
+    """The timed calls of a repeat over n samples.
+
+    One call over all (``chunk`` <= 0 or >= n), or consecutive calls over ``chunk`` samples each (a
+    shorter tail is left out), the state carried on from call to call.
+    """
+    if chunk <= 0 or chunk >= n:
+        return [slice(0, n)]
+    return [slice(i, i + chunk) for i in range(0, n - chunk + 1, chunk)]
+
+
+def native_ns_per_step(
+    case: BenchCase,
+    imu: Imu,
+    repeat: int,
+    dt: float = 0.01,
+    clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
+) -> tuple[float, float]:
+    """Best ns per step of the native batch runs over ``repeat`` repeats: (full records, lean q).
+
+    ``Filter.run`` (the whole att_filter_output record per step, the default) and ``Filter.run_q``
+    (quaternions only) alternate call by call, so that both see the same machine load; each repeat
+    starts from new filters, and every call checks the units and allocates its outputs, as a user's
+    call does. ``clock``: see :data:`CLOCKS`; ``chunk``: see :func:`chunk_slices` (the best call counts).
+    """
     from attica import native
 
-    best = float("inf")
+    best_full = best_lean = float("inf")
     for _ in range(repeat):
-        f = native.Filter(case.kind, dt=dt, **case.overrides)
-        t0 = time.perf_counter()
-        f.run(*imu)
-        best = min(best, time.perf_counter() - t0)
-    return float(best / imu[0].shape[0] * 1e9)
+        full = native.Filter(case.kind, dt=dt, **case.overrides)
+        lean = native.Filter(case.kind, dt=dt, **case.overrides)
+        for sl in chunk_slices(imu[0].shape[0], chunk):
+            g, a, m = (x[sl] for x in imu)
+            steps = g.shape[0]
+            t0 = clock()
+            full.run(g, a, m)
+            best_full = min(best_full, (clock() - t0) / steps)
+            t0 = clock()
+            lean.run_q(g, a, m)
+            best_lean = min(best_lean, (clock() - t0) / steps)
+    return float(best_full * 1e9), float(best_lean * 1e9)
+
+
+def rate_cell(ns: float | None) -> str:
+    """M steps/s of a ns/step figure ("n/a" when there is none)."""
+    return "n/a" if ns is None or ns <= 0 else f"{1e3 / ns:.2f}"
+
+
+HOST_GOAL_STEPS_PER_S = 10e6
+"""Issue 9, host part: the ARS through the batch binding (``run_q``) at >= 10 M steps/s ..."""
+HOST_GOAL_PEER = "vqf6"
+"""... and faster than VQF 6D ``updateBatch`` in the same run."""
+
+
+def host_goal_line(lean: dict[str, float | None], ns: dict[str, float | None]) -> str:
+    """The issue-9 host goal for the ARS, judged on this run's figures."""
+    ars = lean.get("ars")
+    peer = ns.get(HOST_GOAL_PEER)
+    if ars is None:
+        return "goal ars run_q >= 10 M steps/s and < vqf6 updateBatch: not measured"
+    rate = 1e9 / ars
+    parts = [
+        f"{rate / 1e6:.2f} M steps/s ({ars:.1f} ns/step): "
+        + ("met" if rate >= HOST_GOAL_STEPS_PER_S else "missed")
+    ]
+    if peer is None:
+        parts.append("vqf6 not measured")
+    else:
+        parts.append(
+            f"{ars / peer:.2f} x vqf6 updateBatch ({peer:.1f} ns/step): "
+            + ("met" if ars < peer else "missed")
+        )
+    return "goal ars run_q >= 10 M steps/s and faster than vqf6 updateBatch: " + "; ".join(parts)
 
 
 PEER_HOST: dict[str, str] = {
@@ -113,8 +186,19 @@ FUSION_SAMPLES = 20_000
 """Samples of the imufusion timing (a Python call per sample: the first ones of the same inputs)."""
 
 
-def peer_ns_per_step(name: str, imu: Imu, repeat: int, dt: float = 0.01) -> float:
-    """Best-of-``repeat`` ns per step of a peer through its Python binding (ImportError if missing)."""
+def peer_ns_per_step(
+    name: str,
+    imu: Imu,
+    repeat: int,
+    dt: float = 0.01,
+    clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
+) -> float:
+    """Best ns per step of a peer through its Python binding over ``repeat`` repeats.
+
+    ImportError when the package is missing. ``clock``: see :data:`CLOCKS`; ``chunk``: see
+    :func:`chunk_slices` (VQF's ``updateBatch`` only: imufusion is called once per sample anyway).
+    """
     g, a, m = (np.ascontiguousarray(v, np.float64) for v in imu)
     best = float("inf")
     if name.startswith("vqf"):
@@ -122,10 +206,12 @@ def peer_ns_per_step(name: str, imu: Imu, repeat: int, dt: float = 0.01) -> floa
 
         for _ in range(repeat):
             est = vqf.VQF(dt)
-            t0 = time.perf_counter()
-            est.updateBatch(g, a, m) if name == "vqf9" else est.updateBatch(g, a)
-            best = min(best, time.perf_counter() - t0)
-        return float(best / g.shape[0] * 1e9)
+            for sl in chunk_slices(g.shape[0], chunk):
+                gs, as_, ms = g[sl], a[sl], m[sl]
+                t0 = clock()
+                est.updateBatch(gs, as_, ms) if name == "vqf9" else est.updateBatch(gs, as_)
+                best = min(best, (clock() - t0) / gs.shape[0])
+        return float(best * 1e9)
     import imufusion
 
     n = min(FUSION_SAMPLES, g.shape[0])
@@ -138,7 +224,7 @@ def peer_ns_per_step(name: str, imu: Imu, repeat: int, dt: float = 0.01) -> floa
         settings.sample_rate = 1.0 / dt
         ahrs = imufusion.Ahrs()
         ahrs.set_settings(settings)
-        t0 = time.perf_counter()
+        t0 = clock()
         if name == "fusion9":
             for i in range(n):
                 ahrs.update(gd[i], ag[i], mu[i])
@@ -147,7 +233,7 @@ def peer_ns_per_step(name: str, imu: Imu, repeat: int, dt: float = 0.01) -> floa
             for i in range(n):
                 ahrs.update_no_magnetometer(gd[i], ag[i])
                 ahrs.get_quaternion()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return float(best / n * 1e9)
 
 
@@ -216,6 +302,8 @@ def peer_rows(
     ns: dict[str, float | None],
     instr: dict[tuple[str, str], float | None],
     notes: list[str],
+    clock: Callable[[], float] = time.perf_counter,
+    chunk: int = 0,
 ) -> list[list[str]]:
     """The peers' rows (ns/step through their bindings, callgrind of their C); fills ``ns`` and ``instr``."""
     from attica_dev import peer_sources
@@ -224,7 +312,7 @@ def peer_rows(
     progs: dict[tuple[str, str], Path | str] = {}
     for name, (lib, kind) in peer_sources.KINDS.items():
         try:
-            ns[name] = peer_ns_per_step(name, imu, repeat)
+            ns[name] = peer_ns_per_step(name, imu, repeat, clock=clock, chunk=chunk)
             cell = f"{ns[name]:.1f}"
         except ImportError as e:
             ns[name] = None
@@ -232,7 +320,7 @@ def peer_rows(
             notes.append(
                 f"{name}: the Python package {lib.package} is not installed ({e}): pip install '.[peers]'"
             )
-        row = [f"{name} ({lib.label} {kind.call})", cell]
+        row = [f"{name} ({lib.label} {kind.call})", cell, "-", rate_cell(ns[name])]
         for cc, opt in configs:
             key = (cc, lib.name)
             if key not in progs:
@@ -257,17 +345,25 @@ def ratio_table(
     configs: Sequence[tuple[str, str]],
     ns: dict[str, float | None],
     instr: dict[tuple[str, str], float | None],
+    lean: dict[str, float | None] | None = None,
 ) -> str:
-    """Ratios attica / peer for the filters with the same inputs: ns/step and callgrind instructions."""
+    """Ratios attica / peer for the filters with the same inputs.
+
+    ns/step of the full ``run`` (and of the lean ``run_q`` when ``lean`` is given) and callgrind
+    instructions.
+    """
     from attica_dev import cycles
 
     def r(a: float | None, b: float | None) -> str:
         return "n/a" if a is None or b is None or b == 0 else f"{a / b:.2f}"
 
-    headers = ["attica / peer", "ns/step (Python)"] + [f"instr ({cc} {opt})" for cc, opt in configs]
+    headers = ["attica / peer", "ns/step (Python)"]
+    headers += ["ns/step run_q"] if lean is not None else []
+    headers += [f"instr ({cc} {opt})" for cc, opt in configs]
     rows = []
     for a, p in cycles.pairs([*cycles.attica_rows(), *cycles.peer_rows()]):
         row = [f"{a.label} / {p.label}", r(ns.get(a.label), ns.get(p.label))]
+        row += [r(lean.get(a.label), ns.get(p.label))] if lean is not None else []
         row += [
             r(instr.get((f"{cc} {opt}", a.label)), instr.get((f"{cc} {opt}", p.label))) for cc, opt in configs
         ]
@@ -296,9 +392,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m attica_dev.bench", description=__doc__.split("\n")[0] if __doc__ else ""
     )
     p.add_argument("--samples", type=int, default=200_000, help="samples for the native timing (200000)")
-    p.add_argument("--repeat", type=int, default=3, help="repeats of the native timing, best taken (3)")
+    p.add_argument("--repeat", type=int, default=7, help="repeats of every timing, best taken (7)")
     p.add_argument("--no-peers", action="store_true", help="attica only")
+    p.add_argument(
+        "--clock",
+        choices=sorted(CLOCKS),
+        default="wall",
+        help="wall time (default) or the process's CPU time (steadier on a shared machine)",
+    )
+    p.add_argument(
+        "--chunk",
+        type=int,
+        default=0,
+        help="time calls over consecutive chunks of this many samples and keep the best one (0: one "
+        "call over all samples, the default); short calls are rarely preempted on a shared machine",
+    )
     args = p.parse_args(argv)
+    clock = CLOCKS[args.clock]
+    calls = f"calls of {args.chunk} samples" if 0 < args.chunk < args.samples else "one call per repeat"
 
     imu = simulated_inputs(args.samples)
     have_valgrind = shutil.which("valgrind") is not None
@@ -310,15 +421,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                 programs[(cc, opt)] = golden.build_program(
                     [BENCH_SOURCE], cc, opt, name="att_bench", out_dir=Path(tmp) / f"{cc}{opt}"
                 )
-        headers = ["filter", "ns/step (Python)"]
+        headers = ["filter", "ns/step (Python)", "ns/step run_q", "M steps/s"]
         if have_valgrind:
             headers += [f"instr/step ({cc} {opt})" for cc, opt in programs]
         rows = []
         ns: dict[str, float | None] = {}
+        lean: dict[str, float | None] = {}
         instr: dict[tuple[str, str], float | None] = {}
         for case in FILTERS:
-            ns[case.label] = native_ns_per_step(case, imu, args.repeat)
-            row = [case.label, f"{ns[case.label]:.1f}"]
+            full_ns, lean_ns = native_ns_per_step(case, imu, args.repeat, clock=clock, chunk=args.chunk)
+            ns[case.label], lean[case.label] = full_ns, lean_ns
+            row = [case.label, f"{full_ns:.1f}", f"{lean_ns:.1f}", rate_cell(lean_ns)]
             for (cc, opt), prog in programs.items():
                 if case.overrides:
                     row.append("n/a")
@@ -332,10 +445,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows.append(row)
         notes: list[str] = []
         if not args.no_peers:
-            rows += peer_rows(imu, args.repeat, list(programs), Path(tmp), ns, instr, notes)
+            rows += peer_rows(
+                imu, args.repeat, list(programs), Path(tmp), ns, instr, notes, clock, args.chunk
+            )
         print(
-            f"Filters ({args.samples} simulated samples at 100 Hz, best of {args.repeat}; ns/step: attica "
-            "native.Filter.run (batch in C, -O2), peers through their PyPI bindings: "
+            f"Filters ({args.samples} simulated samples at 100 Hz, best of {args.repeat} repeats, {calls}, "
+            f"{args.clock} clock; ns/step: attica "
+            "native.Filter.run (batch in C, -O2, the full output record per step), ns/step run_q: "
+            "native.Filter.run_q (the same steps, quaternions only), M steps/s: of run_q for attica, of the "
+            "peer's call for the peers; peers through their PyPI bindings: "
             + "; ".join(f"{k}: {v}" for k, v in PEER_HOST.items())
             + f" (imufusion over the first {FUSION_SAMPLES} samples); callgrind: att_filter_step / "
             "att_peer_step and callees, default settings, (I(12000) - I(2000)) / 10000, peers from their "
@@ -345,7 +463,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.no_peers:
             print()
             print("attica / peer, same run (< 1: attica faster or fewer instructions):")
-            print(ratio_table(list(programs), ns, instr))
+            print(ratio_table(list(programs), ns, instr, lean))
+            print()
+            print(host_goal_line(lean, ns))
         for n in notes:
             print(f"note: {n}")
         if not have_valgrind:

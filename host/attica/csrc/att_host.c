@@ -10,6 +10,12 @@
 
 #include "attica/att_sensor.h"
 
+#if defined(__GNUC__)
+#define ATT_HOST_INLINE inline __attribute__((always_inline))
+#else
+#define ATT_HOST_INLINE inline
+#endif
+
 static att_vec3_t att_host_v3(const float *p)
 {
     att_vec3_t v;
@@ -143,6 +149,50 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
     return 0;
 }
 
+/* The sample buffer of a batch loop: mag zero (absent) unless the loop reads a mag array. */
+static void att_host_sample_clear(att_sample_t *in)
+{
+    in->gyr.x = 0.0f;
+    in->gyr.y = 0.0f;
+    in->gyr.z = 0.0f;
+    in->acc = in->gyr;
+    in->mag = in->gyr;
+}
+
+/* Row i of the input arrays into in, in place (mag NULL: in->mag is left as it is, zero). */
+static ATT_HOST_INLINE void att_host_sample_load(att_sample_t *in, const float *gyr, const float *acc,
+                                                 const float *mag, size_t i)
+{
+    const float *g = gyr + 3u * i;
+    const float *a = acc + 3u * i;
+    in->gyr.x = g[0];
+    in->gyr.y = g[1];
+    in->gyr.z = g[2];
+    in->acc.x = a[0];
+    in->acc.y = a[1];
+    in->acc.z = a[2];
+    if (mag != NULL) {
+        const float *m = mag + 3u * i;
+        in->mag.x = m[0];
+        in->mag.y = m[1];
+        in->mag.z = m[2];
+    }
+}
+
+/* Steps i0 .. i1 - 1 into the records out[i0 .. i1 - 1]. */
+static void att_host_run_records(att_filter_t *f, att_sample_t *in, const float *gyr, const float *acc,
+                                 const float *mag, size_t i0, size_t i1, att_output_t *out, int full)
+{
+    size_t i;
+    for (i = i0; i < i1; i++) {
+        att_host_sample_load(in, gyr, acc, mag, i);
+        (void)att_filter_step(f, in, out + i);
+        if (full != 0) {
+            att_filter_output(f, out + i);
+        }
+    }
+}
+
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
                            att_output_t *out, int full, size_t every, att_filter_t *snaps)
 {
@@ -151,21 +201,44 @@ size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, 
     if (f == NULL || gyr == NULL || acc == NULL || out == NULL) {
         return 0u;
     }
-    in.mag.x = 0.0f;
-    in.mag.y = 0.0f;
-    in.mag.z = 0.0f;
-    for (i = 0; i < n; i++) {
-        if (snaps != NULL && every > 0u && i % every == 0u) {
-            snaps[i / every] = *f;
+    att_host_sample_clear(&in);
+    if (snaps == NULL || every == 0u) {
+        att_host_run_records(f, &in, gyr, acc, mag, 0u, n, out, full);
+        return n;
+    }
+    /* a snapshot, then a run of every steps without a test per step */
+    for (i = 0u; i < n; i += every) {
+        const size_t end = (n - i > every) ? i + every : n;
+        snaps[i / every] = *f;
+        att_host_run_records(f, &in, gyr, acc, mag, i, end, out, full);
+    }
+    return n;
+}
+
+size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
+                             float *q, uint32_t *flags)
+{
+    size_t i;
+    att_sample_t in;
+    att_output_t o;
+    if (f == NULL || gyr == NULL || acc == NULL || q == NULL) {
+        return 0u;
+    }
+    att_host_sample_clear(&in);
+    for (i = 0u; i < n; i++) {
+        float *qi = q + 4u * i;
+        att_host_sample_load(&in, gyr, acc, mag, i);
+        (void)att_filter_step(f, &in, &o);
+        if ((o.valid & ATT_OUT_Q) == 0u) {
+            /* the Euler-state EKF: q on request, exactly as att_filter_output derives it */
+            o.q = att_quat_from_euler(o.euler.x, o.euler.y, o.euler.z);
         }
-        in.gyr = att_host_v3(gyr + 3u * i);
-        in.acc = att_host_v3(acc + 3u * i);
-        if (mag != NULL) {
-            in.mag = att_host_v3(mag + 3u * i);
-        }
-        (void)att_filter_step(f, &in, out + i);
-        if (full != 0) {
-            att_filter_output(f, out + i);
+        qi[0] = o.q.w;
+        qi[1] = o.q.x;
+        qi[2] = o.q.y;
+        qi[3] = o.q.z;
+        if (flags != NULL) {
+            flags[i] = o.flags;
         }
     }
     return n;

@@ -48,6 +48,15 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
  */
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
                            att_output_t *out, int full, size_t every, att_filter_t *snaps);
+/**
+ * n steps of any filter, the lean batch: gyr, acc (n x 3); mag (n x 3) or NULL (absent). q (n x 4)
+ * gets the attitude after each step (w, x, y, z: the q of att_filter_output, bit for bit; the
+ * Euler-state EKF's q is derived from its angles as att_filter_output does) and flags (n, or NULL)
+ * the ATT_FLAG_* of each step. No output record is written. Returns n, or 0 when f, gyr, acc or q is
+ * NULL (nothing done).
+ */
+size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
+                             float *q, uint32_t *flags);
 /* ATT_CDEF_END */
 
 #endif /* ATT_HOST_H */
