@@ -251,12 +251,16 @@ static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p)
     return flipped;
 }
 
-/* The sum of the 21 elements is finite (then every element is) and every variance is > 0. */
-static ATT_ALWAYS_INLINE bool att_ekf_p_usable(const float *p)
+/*
+ * The angles e and the 21 elements of P are finite and every variance is > 0: one sum of them all is
+ * finite exactly when each is (a finite sum of P below FLT_MAX stays finite when the canonical angles,
+ * |e_i| <= pi, are added: far below half an ulp there), so one test covers both.
+ */
+static ATT_ALWAYS_INLINE bool att_ekf_usable(att_vec3_t e, const float *p)
 {
-    const float sum = ((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) + p[8]) +
-                                    p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
-                         p[18]) + p[19]) + p[20]);
+    const float sum = (((((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) +
+                      p[8]) + p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
+                      p[18]) + p[19]) + p[20]) + e.x) + e.y) + e.z);
     return att_i_isfinitef(sum) && p[0] > 0.0f && p[6] > 0.0f && p[11] > 0.0f && p[15] > 0.0f && p[18] > 0.0f &&
            p[20] > 0.0f;
 }
@@ -559,7 +563,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
     P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
     flipped = att_ekf_canon(&e, pn);
-    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+    if (!att_ekf_usable(e, pn)) {
         att_ekf_p_copy(pn, p);
         *tr = t0;
         return flags | ATT_FLAG_NUMERIC; /* prediction discarded */
@@ -751,7 +755,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         eps.z = dpsi - dphi * sth;
     }
     (void)att_ekf_canon(&e, pn);
-    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+    if (!att_ekf_usable(e, pn)) {
         att_ekf_p_copy(st->p, p);
         return ATT_FLAG_NUMERIC; /* update discarded */
     }
