@@ -476,7 +476,8 @@ def test_increment_bound_bit_exact() -> None:
     assert_state_matches(fs, ref, "increment bound: final state")
     inc = np.abs(gyr[0, :, 0] * dt)
     small = inc <= F32(1 / 16)
-    print(f"\nroll increments {inc.min():.6f} .. {inc.max():.6f}: {int(small.sum())} within 1/16, {int((~small).sum())} beyond")
+    n_in, n_out = int(small.sum()), int((~small).sum())
+    print(f"\nroll increments {inc.min():.6f} .. {inc.max():.6f}: {n_in} within 1/16, {n_out} beyond")
     assert small.sum() > m // 4 and (~small).sum() > m // 4
 
 

@@ -69,7 +69,10 @@ def _sincos_step(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
 
 
 def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any], Any]:
-    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped; (e, P, flipped)."""
+    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped.
+
+    Returns (e, P, flipped).
+    """
     ex, ey, ez = e
     ey = _wrap(ey)
     flip = (ey > PIO2) | (ey < -PIO2)
@@ -382,8 +385,10 @@ class Ekf:
     def _update(
         self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
     ) -> tuple[Any, Any, tuple[Any, ...]]:
-        """att_ekf_update: (applied, flags, new state parts) of the update at the current state, whose
-        roll and pitch have the sin/cos ``trig`` (sphi, cphi, sth, cth) from the prediction."""
+        """att_ekf_update: (applied, flags, new state parts) of the update at the current state.
+
+        ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction.
+        """
         p = self.p
         ex0, ey0, ez0 = self.euler
         with np.errstate(all="ignore"):
@@ -537,7 +542,9 @@ class Ekf:
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
-            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(a, e2, self.lp_ready, trig)
+            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
+                a, e2, self.lp_ready, trig
+            )
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
