@@ -270,20 +270,27 @@ def motion(
 def check_cov(cov: np.ndarray, what: str) -> tuple[float, float]:
     """Every P (..., 21 packed) finite and positive definite as a full 6x6 matrix (float64 eigenvalues).
 
+    Positive definiteness is tested on the correlation matrix D^-1/2 P D^-1/2 (D = diag P, variances
+    > 0), which is positive definite exactly when P is: its eigenvalues lie in (0, 6] and float64 gets
+    them to ~1e-15, while those of P itself carry an error of ~1e-16 times its largest variance (P
+    spans 1e-12 (bias) to 1e4 (yaw) at once, so a positive definite P can show a -1e-14 eigenvalue).
     Returns the smallest eigenvalue and the smallest eigenvalue relative to the largest variance of its
     matrix. P is stored as its upper triangle, so it is symmetric by construction.
     """
     flat = cov.reshape(-1, 21)
     assert np.isfinite(flat).all(), f"{what}: P not finite"
+    assert (flat[:, list(DIAG)] > 0).all(), f"{what}: a variance not > 0"
     lo = np.inf
     rel = np.inf
     for start in range(0, flat.shape[0], 100_000):
         p = unpack(flat[start : start + 100_000]).astype(np.float64)
         eig = np.linalg.eigvalsh(p)
-        bad = eig[:, 0] <= 0
+        d = 1.0 / np.sqrt(p[:, range(6), range(6)])
+        corr = np.linalg.eigvalsh(p * d[:, :, None] * d[:, None, :])
+        bad = corr[:, 0] <= 0
         assert not bad.any(), (
             f"{what}: {int(bad.sum())} matrices not positive definite; first {start + int(np.argmax(bad))}, "
-            f"smallest eigenvalue {eig[:, 0].min()}"
+            f"smallest eigenvalue of the correlation matrix {corr[:, 0].min()}"
         )
         lo = min(lo, float(eig[:, 0].min()))
         rel = min(rel, float((eig[:, 0] / p[:, range(6), range(6)].max(axis=1)).min()))

@@ -426,6 +426,61 @@ def test_bit_exact_adversarial_1e6_steps() -> None:
         assert counts.get(flag.name, 0) > 0, flag.name
 
 
+def test_sincos_step_series_at_the_bound() -> None:
+    """att_ekf_sincos_step (reference/ekf._sincos_step): the angle addition with the series holds for
+    |d| <= 1/16 and gives sin/cos of a0 + d as accurately as att_sinf/att_cosf of the rounded a0 + d
+    (measured 1.3e-7 and 1.5e-7, 4000 points with the bound itself; the series' truncation is < 1e-10
+    there, the rest the rounding of s0, c0 and of the addition); beyond the bound (the next float above
+    1/16) it is att_sinf / att_cosf of a itself, bit for bit."""
+    from attica.reference.ekf import INC_MAX, _sincos_step
+
+    rng = np.random.default_rng(5)
+    a0 = rng.uniform(-np.pi, np.pi, 4000).astype(F32)
+    edge = np.array([INC_MAX, -INC_MAX, np.nextafter(INC_MAX, F32(0))], F32)
+    d = np.concatenate([rng.uniform(-INC_MAX, INC_MAX, 4000 - 3).astype(F32), edge])
+    s0, c0 = dm.sinf(a0), dm.cosf(a0)
+    a = (a0 + d).astype(F32)
+    s, c = _sincos_step(a, d, s0, c0)
+    exact = a0.astype(np.float64) + d.astype(np.float64)
+    err = max(np.abs(s - np.sin(exact)).max(), np.abs(c - np.cos(exact)).max())
+    direct = max(np.abs(dm.sinf(a) - np.sin(exact)).max(), np.abs(dm.cosf(a) - np.cos(exact)).max())
+    print(f"\nangle addition for |d| <= 1/16: max error {err:.3g}; att_sinf/att_cosf of a0 + d: {direct:.3g}")
+    assert err < 2.0**-22 and err <= direct + 2.0**-24
+    above = np.full(a0.shape, np.nextafter(INC_MAX, F32(1)), F32) * np.where(np.arange(4000) % 2 == 0, 1, -1)
+    a = (a0 + above).astype(F32)
+    s, c = _sincos_step(a, above.astype(F32), s0, c0)
+    assert_same_bits(s, dm.sinf(a), "sin beyond the bound")
+    assert_same_bits(c, dm.cosf(a), "cos beyond the bound")
+
+
+def test_increment_bound_bit_exact() -> None:
+    """Roll and pitch increments of a step across the 1/16 rad bound of the angle addition (both sides
+    and the floats next to it): C and reference bit-identical, both paths taken (start level, bias
+    states at 0, so the first step's roll increment is w_x dt and the pitch increment w_y dt)."""
+    m, dt = 2048, F32(0.01)
+    lim = float(F32(1 / 16) / dt)
+    i = np.arange(m)
+    wx = np.where(i % 2 == 0, 1.0, -1.0) * (lim + (i // 2 - m // 4) * 2e-7 * np.where(i % 4 < 2, 1.0, 2e3))
+    wy = np.roll(wx, 7)
+    s = ekf_default(dt=float(dt), init_from_accel=False)
+    gyr = np.zeros((4, m, 3), F32)
+    gyr[:, :, 0] = wx
+    gyr[:, :, 1] = wy
+    acc = np.zeros((4, m, 3), F32)
+    acc[:, :, 2] = G
+    fs = c_filters(s, m)
+    c = run_c(fs, gyr, acc)
+    ref = Ekf(s, m)
+    r = run_ref(ref, gyr, acc)
+    compare(c, r, "increment bound")
+    assert_state_matches(fs, ref, "increment bound: final state")
+    inc = np.abs(gyr[0, :, 0] * dt)
+    small = inc <= F32(1 / 16)
+    n_in, n_out = int(small.sum()), int((~small).sum())
+    print(f"\nroll increments {inc.min():.6f} .. {inc.max():.6f}: {n_in} within 1/16, {n_out} beyond")
+    assert small.sum() > m // 4 and (~small).sum() > m // 4
+
+
 # --- covariance ----------------------------------------------------------------------------------
 
 

@@ -24,6 +24,11 @@
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
 #define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
+/* Increments of an angle up to which sin/cos follow by angle addition (att_ekf_sincos_step) */
+#define ATT_EKF_INC_MAX 0x1p-4f    /* 1/16 rad */
+#define ATT_EKF_INC_S3 (-0x1.555556p-3f) /* -1/6 */
+#define ATT_EKF_INC_S5 0x1.111112p-7f    /* 1/120 */
+#define ATT_EKF_INC_C4 0x1.555556p-5f    /* 1/24 */
 
 static const uint8_t att_ekf_ix[6][6] = {
     {0u, 1u, 2u, 3u, 4u, 5u},     {1u, 6u, 7u, 8u, 9u, 10u},    {2u, 7u, 11u, 12u, 13u, 14u},
@@ -193,8 +198,10 @@ static ATT_NOINLINE float att_ekf_wrap_slow(float a)
 {
     if (a > ATT_EKF_PI_F) {
         a = (a - 0x1.921fb6p+2f) - (-0x1.777a5cp-23f);
-    } else {
+    } else if (a <= -ATT_EKF_PI_F) {
         a = (a + 0x1.921fb6p+2f) + (-0x1.777a5cp-23f);
+    } else {
+        return a; /* a == pi: within (-pi, pi] */
     }
     if (a > ATT_EKF_PI_F || a <= -ATT_EKF_PI_F) {
         a = att_wrap_pi(a);
@@ -205,11 +212,13 @@ static ATT_NOINLINE float att_ekf_wrap_slow(float a)
 /* Wrap a to (-pi, pi] (angles of a step: within it but for the small excursions of a step). */
 static ATT_ALWAYS_INLINE float att_ekf_wrap(float a)
 {
-    return (a > ATT_EKF_PI_F || a <= -ATT_EKF_PI_F) ? att_ekf_wrap_slow(a) : a;
+    /* one test for both ends: |a| >= pi (a == pi is within, the slow path returns it) */
+    return (att_i_absf(a) >= ATT_EKF_PI_F) ? att_ekf_wrap_slow(a) : a;
 }
 
-/* theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi, psi wrapped. */
-static ATT_ALWAYS_INLINE void att_ekf_canon(att_vec3_t *e, float *p)
+/* theta beyond [-pi/2, pi/2] (or NaN): wrapped, and beyond pi/2 the equivalent attitude (phi + pi,
+ * +-pi - theta, psi + pi; P's theta row and column change sign); phi, psi are wrapped by the caller. */
+static ATT_NOINLINE bool att_ekf_flip(att_vec3_t *e, float *p)
 {
     e->y = att_ekf_wrap(e->y);
     if (e->y > ATT_EKF_PIO2_F || e->y < -ATT_EKF_PIO2_F) {
@@ -221,17 +230,37 @@ static ATT_ALWAYS_INLINE void att_ekf_canon(att_vec3_t *e, float *p)
         p[8] = -p[8]; /* P(1,3) */
         p[9] = -p[9]; /* P(1,4) */
         p[10] = -p[10]; /* P(1,5) */
+        return true;
+    }
+    return false;
+}
+
+/*
+ * theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi, psi
+ * wrapped. Returns true when the attitude was flipped. |theta| <= pi/2 needs neither the wrap nor the
+ * flip: one test (att_ekf_flip does both otherwise).
+ */
+static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p)
+{
+    bool flipped = false;
+    if (!(att_i_absf(e->y) <= ATT_EKF_PIO2_F)) {
+        flipped = att_ekf_flip(e, p);
     }
     e->x = att_ekf_wrap(e->x);
     e->z = att_ekf_wrap(e->z);
+    return flipped;
 }
 
-/* The sum of the 21 elements is finite (then every element is) and every variance is > 0. */
-static ATT_ALWAYS_INLINE bool att_ekf_p_usable(const float *p)
+/*
+ * The angles e and the 21 elements of P are finite and every variance is > 0: one sum of them all is
+ * finite exactly when each is (a finite sum of P below FLT_MAX stays finite when the canonical angles,
+ * |e_i| <= pi, are added: far below half an ulp there), so one test covers both.
+ */
+static ATT_ALWAYS_INLINE bool att_ekf_usable(att_vec3_t e, const float *p)
 {
-    const float sum = ((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) + p[8]) +
-                                    p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
-                         p[18]) + p[19]) + p[20]);
+    const float sum = (((((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) +
+                      p[8]) + p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
+                      p[18]) + p[19]) + p[20]) + e.x) + e.y) + e.z);
     return att_i_isfinitef(sum) && p[0] > 0.0f && p[6] > 0.0f && p[11] > 0.0f && p[15] > 0.0f && p[18] > 0.0f &&
            p[20] > 0.0f;
 }
@@ -322,18 +351,48 @@ static void att_ekf_p_copy(float *dst, const float *src)
     }
 }
 
-/*
- * The motion of a step with usable rates: the angles into *eo, F P F^T into pn (Q not yet added);
- * returns ATT_FLAG_GIMBAL when the cos(theta) guard was used.
- */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
-                                                    att_vec3_t w, float *pn, att_vec3_t *eo)
-{
-    const float dt = c->dt;
+/* sin and cos of roll and pitch (cos(theta) not guarded): of the state, or of the prediction */
+typedef struct {
     float sphi;
     float cphi;
     float sth;
     float cth;
+} att_ekf_trig_t;
+
+/*
+ * sin(a) and cos(a) of a = a0 + d (as rounded) from s0 = sin(a0), c0 = cos(a0): for |d| <=
+ * ATT_EKF_INC_MAX (1/16 rad) by angle addition with the series sin(d) = d + d^3 (-1/6 + d^2 / 120),
+ * cos(d) = 1 - d^2 (1/2 - d^2 / 24) (the next terms, d^7 / 5040 < 4e-12 and d^6 / 720 < 9e-11, are far
+ * below half an ulp of 1), else att_i_sincosf(a). The increments of a step are dt times the Euler
+ * rates: within 1/16 rad up to 6.25 rad/s at 100 Hz (the midpoint up to 12.5 rad/s).
+ */
+static ATT_ALWAYS_INLINE void att_ekf_sincos_step(float a, float d, float s0, float c0, float *s, float *c)
+{
+    if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
+        const float z = d * d;
+        const float sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
+        const float cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
+        *s = s0 * cd + c0 * sd;
+        *c = c0 * cd - s0 * sd;
+        return;
+    }
+    att_i_sincosf(a, s, c);
+}
+
+/*
+ * The motion of a step with usable rates: the angles into *eo, F P F^T into pn (Q not yet added), the
+ * roll and pitch increments into *dd; returns ATT_FLAG_GIMBAL when the cos(theta) guard was used.
+ * tr holds sin/cos of the state's roll and pitch.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
+                                                    att_vec3_t w, const att_ekf_trig_t *tr, float *pn,
+                                                    att_vec3_t *eo, float dd[2])
+{
+    const float dt = c->dt;
+    const float sphi = tr->sphi;
+    const float cphi = tr->cphi;
+    const float sth = tr->sth;
+    float cth = tr->cth;
     float tth;
     float sec;
     float u;
@@ -361,8 +420,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
     uint32_t flags = 0u;
     int i;
     int j;
-    att_i_sincosf(st->euler.x, &sphi, &cphi);
-    att_i_sincosf(st->euler.y, &sth, &cth);
     if (att_i_absf(cth) < c->cos_min) {
         cth = (cth < 0.0f) ? -c->cos_min : c->cos_min;
         flags = ATT_FLAG_GIMBAL;
@@ -370,7 +427,8 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
     tth = sth / cth;
     sec = 1.0f / cth;
     /* the kinematics by the midpoint rule: rates at the start give the midpoint angles, the rates
-     * there the step (second order: first-order Euler steps drift at the rates of fast rotation) */
+     * there the step (second order: first-order Euler steps drift at the rates of fast rotation); the
+     * midpoint's sin/cos by angle addition from the start's (att_ekf_sincos_step) */
     {
         float sm;
         float cm;
@@ -379,15 +437,19 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
         float ttm;
         float secm;
         const float hdt = dt * 0.5f;
-        att_i_sincosf(st->euler.x + (w.x + sphi * tth * w.y + cphi * tth * w.z) * hdt, &sm, &cm);
-        att_i_sincosf(st->euler.y + (cphi * w.y - sphi * w.z) * hdt, &stm, &ctm);
+        const float dxh = (w.x + sphi * tth * w.y + cphi * tth * w.z) * hdt;
+        const float dyh = (cphi * w.y - sphi * w.z) * hdt;
+        att_ekf_sincos_step(st->euler.x + dxh, dxh, sphi, cphi, &sm, &cm);
+        att_ekf_sincos_step(st->euler.y + dyh, dyh, sth, tr->cth, &stm, &ctm);
         if (att_i_absf(ctm) < c->cos_min) {
             ctm = (ctm < 0.0f) ? -c->cos_min : c->cos_min;
         }
         ttm = stm / ctm;
         secm = 1.0f / ctm;
-        e.x = st->euler.x + (w.x + sm * ttm * w.y + cm * ttm * w.z) * dt;
-        e.y = st->euler.y + (cm * w.y - sm * w.z) * dt;
+        dd[0] = (w.x + sm * ttm * w.y + cm * ttm * w.z) * dt;
+        dd[1] = (cm * w.y - sm * w.z) * dt;
+        e.x = st->euler.x + dd[0];
+        e.y = st->euler.y + dd[1];
         e.z = st->euler.z + (sm * secm * w.y + cm * secm * w.z) * dt;
     }
     u = sphi * w.y + cphi * w.z;
@@ -478,13 +540,18 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
  * bias did not enter the prediction): P := P + Q.
  */
 static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
-                                                  bool gyro_ok, float *pn)
+                                                  bool gyro_ok, float *pn, att_ekf_trig_t *tr)
 {
     const float *p = st->p;
     att_vec3_t e;
     uint32_t flags = 0u;
+    float dd[2] = {0.0f, 0.0f};
+    att_ekf_trig_t t0;
+    bool flipped;
+    att_i_sincosf(st->euler.x, &t0.sphi, &t0.cphi);
+    att_i_sincosf(st->euler.y, &t0.sth, &t0.cth);
     if (gyro_ok) {
-        flags = att_ekf_propagate(c, st, w, pn, &e);
+        flags = att_ekf_propagate(c, st, w, &t0, pn, &e, dd);
     } else {
         att_ekf_p_copy(pn, p);
         e = st->euler;
@@ -495,10 +562,20 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
     P_(pn, 3, 3) = P_(pn, 3, 3) + c->q_step[3];
     P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
-    att_ekf_canon(&e, pn);
-    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+    flipped = att_ekf_canon(&e, pn);
+    if (!att_ekf_usable(e, pn)) {
         att_ekf_p_copy(pn, p);
+        *tr = t0;
         return flags | ATT_FLAG_NUMERIC; /* prediction discarded */
+    }
+    /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
+     * (as wrapped: the same sin/cos), directly after a flip to the equivalent attitude */
+    if (flipped) {
+        att_i_sincosf(e.x, &tr->sphi, &tr->cphi);
+        att_i_sincosf(e.y, &tr->sth, &tr->cth);
+    } else {
+        att_ekf_sincos_step(e.x, dd[0], t0.sphi, t0.cphi, &tr->sphi, &tr->cphi);
+        att_ekf_sincos_step(e.y, dd[1], t0.sth, t0.cth, &tr->sth, &tr->cth);
     }
     st->euler = e;
     return flags;
@@ -509,12 +586,12 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
  * st->p; returns its flags. Whenever it is not applied, st->p = p (the prediction).
  */
 static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
-                                                 float e2, const float *p)
+                                                 float e2, const float *p, const att_ekf_trig_t *tr)
 {
-    float sphi;
-    float cphi;
-    float sth;
-    float cth;
+    const float sphi = tr->sphi;
+    const float cphi = tr->cphi;
+    const float sth = tr->sth;
+    const float cth = tr->cth;
     float spsi;
     float cpsi;
     float cg;
@@ -555,8 +632,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     att_vec3_t va;
     att_vec3_t e;
     att_vec3_t eps;
-    att_i_sincosf(st->euler.x, &sphi, &cphi);
-    att_i_sincosf(st->euler.y, &sth, &cth);
     att_i_sincosf(st->euler.z, &spsi, &cpsi);
     /* the specific force in the earth frame of the prediction: R(phi, theta, psi) a */
     vv.x = (cpsi * cth) * acc.x + ((cpsi * sth) * sphi - spsi * cphi) * acc.y +
@@ -679,8 +754,8 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         eps.y = (dphi * cth) * spsi + dth * cpsi;
         eps.z = dpsi - dphi * sth;
     }
-    att_ekf_canon(&e, pn);
-    if (!att_i_vec3_isfinite(e) || !att_ekf_p_usable(pn)) {
+    (void)att_ekf_canon(&e, pn);
+    if (!att_ekf_usable(e, pn)) {
         att_ekf_p_copy(st->p, p);
         return ATT_FLAG_NUMERIC; /* update discarded */
     }
@@ -726,6 +801,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
     bool accel_ok;
     att_vec3_t w;
     float pa[21];
+    att_ekf_trig_t tr;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
     }
@@ -758,9 +834,9 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
         st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's earth frame) are stale */
     }
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
-    flags |= att_ekf_predict(c, st, w, gyro_ok, pa);
+    flags |= att_ekf_predict(c, st, w, gyro_ok, pa, &tr);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_ekf_update(c, st, acc, e2, pa);
+        flags |= att_ekf_update(c, st, acc, e2, pa, &tr);
     } else {
         att_ekf_p_copy(st->p, pa);
     }

@@ -16,6 +16,10 @@
  *           [ 0           I    ]          [ -u      0           0 ]   v = cos(phi) q - sin(phi) r
  *                                         [ v sec   u sec tan   0 ]   tan = tan(theta), sec = 1/cos(theta)
  *     evaluated at the state before the step, written out block by block for the sparsity of F.
+ *     sin/cos of phi and theta are evaluated once per step, at its start; the midpoint's and the
+ *     predicted angles' (for the update) follow by angle addition from the increments d of the step
+ *     (series of sin d, cos d to d^5, d^4 for |d| <= 1/16 rad; a larger d, or a flip to the
+ *     equivalent attitude, evaluates them directly); psi's once, in the update.
  *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and the
  *     Jacobians: the singularity of the representation, where the estimate is unreliable but finite.
  *     An unusable gyro sample gives w = 0: the state is kept, P := P + Q.

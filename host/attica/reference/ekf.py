@@ -28,6 +28,10 @@ THIRD = dm.c("0x1.555556p-2")
 SETTLED = dm.c("0x1.47ae14p-7")
 BIAS_SOFT = dm.c("0x1p-4")
 COND_MASK = np.uint32(15)
+INC_MAX = dm.c("0x1p-4")
+INC_S3 = dm.c("-0x1.555556p-3")
+INC_S5 = dm.c("0x1.111112p-7")
+INC_C4 = dm.c("0x1.555556p-5")
 
 _IX = [
     [0, 1, 2, 3, 4, 5],
@@ -52,8 +56,23 @@ def _wrap(a: Any) -> Any:
         return np.where(far, dm.wrap_pi(a), a).astype(np.float32)
 
 
-def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any]]:
-    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped."""
+def _sincos_step(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
+    """att_ekf_sincos_step: sin/cos of a = a0 + d by angle addition for |d| <= 1/16, else directly."""
+    with np.errstate(all="ignore"):
+        z = d * d
+        sd = d + (d * z) * (INC_S3 + z * INC_S5)
+        cd = dm.ONE - z * (dm.HALF - z * INC_C4)
+        small = dm.absf(d) <= INC_MAX
+        s = np.where(small, s0 * cd + c0 * sd, dm.sinf(a)).astype(np.float32)
+        c = np.where(small, c0 * cd - s0 * sd, dm.cosf(a)).astype(np.float32)
+        return s, c
+
+
+def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any], Any]:
+    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped.
+
+    Returns (e, P, flipped).
+    """
     ex, ey, ez = e
     ey = _wrap(ey)
     flip = (ey > PIO2) | (ey < -PIO2)
@@ -65,7 +84,7 @@ def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any]]:
         if k != 1:
             i = _IX[1][k]
             p[i] = np.where(flip, -p[i], p[i])
-    return (_wrap(ex), ey.astype(np.float32), _wrap(ez)), p
+    return (_wrap(ex), ey.astype(np.float32), _wrap(ez)), p, flip
 
 
 def _usable(p: list[Any]) -> Any:
@@ -248,8 +267,8 @@ class Ekf:
         small = dm.absf(c) < self.cos_min
         return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
 
-    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, dm.Vec3, list[Any], Any]:
-        """att_ekf_predict: (ok, angles, P, flags) of the prediction."""
+    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, dm.Vec3, list[Any], Any, tuple[Any, ...]]:
+        """att_ekf_predict: (ok, angles, P, flags, sin/cos of the roll and pitch for the update)."""
         dt = self.dt
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -258,22 +277,24 @@ class Ekf:
             sphi = dm.sinf(ex0)
             cphi = dm.cosf(ex0)
             sth = dm.sinf(ey0)
-            cth, gim = self._guard(dm.cosf(ey0))
+            cth0 = dm.cosf(ey0)
+            cth, gim = self._guard(cth0)
             flags = np.where(gim & gyro_ok, _u(Flag.GIMBAL), _U0)
             tth = sth / cth
             sec = dm.ONE / cth
             hdt = dt * dm.HALF
-            xm = ex0 + (wx + sphi * tth * wy + cphi * tth * wz) * hdt
-            ym = ey0 + (cphi * wy - sphi * wz) * hdt
-            sm = dm.sinf(xm)
-            cm = dm.cosf(xm)
-            stm = dm.sinf(ym)
-            ctm, _ = self._guard(dm.cosf(ym))
+            dxh = (wx + sphi * tth * wy + cphi * tth * wz) * hdt
+            dyh = (cphi * wy - sphi * wz) * hdt
+            sm, cm = _sincos_step(ex0 + dxh, dxh, sphi, cphi)
+            stm, ctm0 = _sincos_step(ey0 + dyh, dyh, sth, cth0)
+            ctm, _ = self._guard(ctm0)
             ttm = stm / ctm
             secm = dm.ONE / ctm
+            dx = (wx + sm * ttm * wy + cm * ttm * wz) * dt
+            dy = (cm * wy - sm * wz) * dt
             e = (
-                ex0 + (wx + sm * ttm * wy + cm * ttm * wz) * dt,
-                ey0 + (cm * wy - sm * wz) * dt,
+                ex0 + dx,
+                ey0 + dy,
                 ez0 + (sm * secm * wy + cm * secm * wz) * dt,
             )
             u = sphi * wy + cphi * wz
@@ -341,19 +362,37 @@ class Ekf:
             # without usable rates F = I and the angles are kept
             pn = [np.where(gyro_ok, pn[k], p[k]).astype(np.float32) for k in range(21)]
             e = dm.vec3_where(gyro_ok, e, self.euler)
+            dx = np.where(gyro_ok, dx, dm.ZERO).astype(np.float32)
+            dy = np.where(gyro_ok, dy, dm.ZERO).astype(np.float32)
             for i, qi in ((0, 0), (1, 1), (2, 2), (3, 3), (4, 3), (5, 3)):
                 pn[_IX[i][i]] = pn[_IX[i][i]] + self.q_step[qi]
-            e, pn = _canon(e, pn)
+            e, pn, flip = _canon(e, pn)
             ok = dm.vec3_isfinite(e) & _usable(pn)
-        return ok, e, pn, flags
+            # sin/cos of the predicted roll and pitch: by angle addition, directly after a flip
+            s1, c1 = _sincos_step(e[0], dx, sphi, cphi)
+            s2, c2 = _sincos_step(e[1], dy, sth, cth0)
+            s1 = np.where(flip, dm.sinf(e[0]), s1)
+            c1 = np.where(flip, dm.cosf(e[0]), c1)
+            s2 = np.where(flip, dm.sinf(e[1]), s2)
+            c2 = np.where(flip, dm.cosf(e[1]), c2)
+            # a discarded prediction keeps the state's angles and their sin/cos
+            trig = tuple(
+                np.where(ok, new, old).astype(np.float32)
+                for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
+            )
+        return ok, e, pn, flags, trig
 
-    def _update(self, a: dm.Vec3, e2: Any, lp_ready: Any) -> tuple[Any, Any, tuple[Any, ...]]:
-        """att_ekf_update: (applied, flags, new state parts) of the update at the current state."""
+    def _update(
+        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
+    ) -> tuple[Any, Any, tuple[Any, ...]]:
+        """att_ekf_update: (applied, flags, new state parts) of the update at the current state.
+
+        ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction.
+        """
         p = self.p
         ex0, ey0, ez0 = self.euler
         with np.errstate(all="ignore"):
-            sphi, cphi = dm.sinf(ex0), dm.cosf(ex0)
-            sth, cth = dm.sinf(ey0), dm.cosf(ey0)
+            sphi, cphi, sth, cth = trig
             spsi, cpsi = dm.sinf(ez0), dm.cosf(ez0)
             ax, ay, az = a
             va = (
@@ -439,7 +478,7 @@ class Ekf:
             dth = e[1] - ey0
             dpsi = e[2] - ez0
             eps = ((dphi * cth) * cpsi - dth * spsi, (dphi * cth) * spsi + dth * cpsi, dpsi - dphi * sth)
-            e, pn = _canon(e, pn)
+            e, pn, _ = _canon(e, pn)
             ok_u = dm.vec3_isfinite(e) & _usable(pn)
             bias = (
                 self.bias[0] + (k0[3] * yb0 + k1[3] * yb1) * fb,
@@ -495,7 +534,7 @@ class Ekf:
             )
             run = ~waiting
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
-            ok_p, e_p, p_p, fl_p = self._predict(w, gyro_ok)
+            ok_p, e_p, p_p, fl_p, trig = self._predict(w, gyro_ok)
             take_p = run & ok_p
             flags = flags | np.where(run, fl_p, _U0) | np.where(run & ~ok_p, _u(Flag.NUMERIC), _U0)
             self.euler = dm.vec3_where(take_p, e_p, self.euler)
@@ -503,7 +542,9 @@ class Ekf:
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
-            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(a, e2, self.lp_ready)
+            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
+                a, e2, self.lp_ready, trig
+            )
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
