@@ -28,6 +28,8 @@
 #define ATT_MEKF_PIVOT_MIN 0x1p-16f /* relative pivot margin of the positive definiteness test */
 #define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
+#define ATT_MEKF_SQRT2 0x1.6a09e6p+0f /* sqrt(2): the Butterworth low-pass */
+#define ATT_MEKF_BW_Q 0x1.a8279ap-2f  /* sqrt(2) - 1: its damping feedback (2 zeta - 1, zeta = 1 / sqrt(2)) */
 
 /* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants), not
  * when optimising for size (-Os); no effect on results. */
@@ -69,7 +71,7 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->mag_range = 1000.0f;
     settings->mag_norm_reject = 0.2f;
     settings->mag_dip_reject = 0.5f; /* about 29 deg */
-    settings->tau_acc_lp = 1.5f;
+    settings->tau_acc_lp = 1.25f;     /* s: Butterworth low-pass, a lag of 2.5 s (docs/accuracy.md) */
     settings->rest_noise = 1e-3f; /* rad/s/sqrt(Hz): gyro noise and tremor at rest */
     settings->rest_gyro = 0.05f;
     settings->rest_accel = 0.5f;
@@ -138,7 +140,7 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->mag_range = s->mag_range;
     c->mag_norm_reject = s->mag_norm_reject;
     c->mag_dip_reject = s->mag_dip_reject;
-    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (s->tau_acc_lp + s->dt) : 0.0f;
+    c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (ATT_MEKF_SQRT2 * s->tau_acc_lp + s->dt) : 0.0f;
     c->n_recover = att_sensor_samples(s->gate_recover, s->dt);
     c->r_rest = (s->rest_noise * s->rest_noise) / s->dt;
     c->rest_gyro2 = s->rest_gyro * s->rest_gyro;
@@ -791,6 +793,22 @@ static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf
                        r[6] * acc->x + r[7] * acc->y + r[8] * acc->z);
 }
 
+/*
+ * The accel low-pass (see att_mekf.h): a second-order Butterworth section on the earth-frame specific
+ * force u, natural frequency 1 / (sqrt(2) tau_acc_lp) and damping 1 / sqrt(2), in two states with lp2 the
+ * output: lp1 := lp1 + (k (u - lp2) - kq (lp1 - lp2)), lp2 := lp2 + k (lp1 - lp2), kq = (sqrt(2) - 1) k.
+ * Its lag at low frequencies (2 tau_acc_lp) is that of two cascaded first-order stages of time constant
+ * tau_acc_lp, its attenuation of faster linear accelerations twice theirs. Stable for every k in (0, 1].
+ */
+static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t *lp1, att_vec3_t *lp2)
+{
+    const float kq = ATT_MEKF_BW_Q * k;
+    const att_vec3_t d = att_i_vec3_sub(*lp1, *lp2);
+    const att_vec3_t e = att_i_vec3_sub(u, *lp2);
+    *lp1 = att_i_vec3_add(*lp1, att_i_vec3_sub(att_i_vec3_scale(e, k), att_i_vec3_scale(d, kq)));
+    *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k));
+}
+
 /* Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. */
 static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk)
 {
@@ -811,7 +829,7 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp1 = u; /* the first sample starts the low-pass */
             lp2 = u;
         }
-        att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
+        att_mekf_lowpass(u, c->k_lp, &lp1, &lp2);
         u = lp2;
     }
     if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {

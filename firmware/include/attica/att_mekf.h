@@ -19,12 +19,18 @@
  *     with H = B - (dt / 2) R C (which is Phi P Phi^T + Q exactly, written out for the structure).
  *     An unusable gyro sample leaves q (the covariance is still predicted).
  *  2. accelerometer update (skipped for an unusable sample or ||a|/g - 1| > accel_reject): the specific
- *     force in the earth frame of the prediction, v = R a, low-passed by two cascaded first-order stages
- *     lp1, lp2 (gain dt / (tau_acc_lp + dt) each, as att_ars.h; tau_acc_lp = 0: v itself) is the
- *     measured up direction u. The residual is the horizontal part of the shortest rotation taking u
- *     to z = (0, 0, 1) in half-angle form, y = 2 (c_x, c_y) with (c_w, c_x, c_y, 0) = att_i_align_up(u):
- *     to first order u = z - dtheta x z, so y = (dtheta_x, dtheta_y), H = [I2 0]; unlike the raw
- *     (u_x, u_y) it grows monotonically up to a half turn (|y| = 2 sin(angle / 2)).
+ *     force in the earth frame of the prediction, v = R a, low-passed by a second-order Butterworth
+ *     section (natural frequency 1 / (sqrt(2) tau_acc_lp), damping 1 / sqrt(2); tau_acc_lp = 0: v
+ *     itself) is the measured up direction u. In its two states, with k = dt / (sqrt(2) tau_acc_lp + dt):
+ *       lp1 := lp1 + (k (v - lp2) - (sqrt(2) - 1) k (lp1 - lp2)),  lp2 := lp2 + k (lp1 - lp2),  u = lp2.
+ *     Its lag at low frequencies is 2 tau_acc_lp, as two cascaded first-order stages of time constant
+ *     tau_acc_lp (att_ars.h), and it attenuates faster linear accelerations twice as much: during
+ *     motion the estimate's tilt follows u closely, so the lag (the gyro errors u cannot follow) and the
+ *     linear acceleration left in u are the two errors traded. The residual is the horizontal part of
+ *     the shortest rotation taking u to z = (0, 0, 1) in half-angle form, y = 2 (c_x, c_y) with
+ *     (c_w, c_x, c_y, 0) = att_i_align_up(u): to first order u = z - dtheta x z, so y = (dtheta_x,
+ *     dtheta_y), H = [I2 0]; unlike the raw (u_x, u_y) it grows monotonically up to a half turn
+ *     (|y| = 2 sin(angle / 2)).
  *     Noise r = r_acc (1 + r_accel (|a|/g - 1)^2) per axis, r_acc = accel_noise^2 / dt; S = A_xy + r I2.
  *     Chi-square gate on d^2 = y^T S^-1 y (2 degrees of freedom): d^2 > gate rejects the update
  *     (ATT_FLAG_ACCEL_REJECTED, nothing applied, the sample not entered into the low-pass); above gate / 4
@@ -64,7 +70,7 @@
  * heading variance and its correlations are then reset to p0_att, 0 (ATT_FLAG_INITIALISED).
  * Without init_from_sensors the attitude is q_init from the start and m0 = m0_init, or when m0_init
  * is zero the first usable mag sample in the earth frame of q (its yaw is trusted). P starts as
- * diag(p0_att I3, p0_bias I3), b as bias_init. The low-pass stages start from the first usable sample
+ * diag(p0_att I3, p0_bias I3), b as bias_init. The low-pass states start from the first usable sample
  * (q a q*), never from a prior: a fictitious history would tell the filter its tilt is right.
  *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
@@ -118,7 +124,7 @@ typedef struct {
     float mag_range;       /**< |m| above this: sample invalid, uT; (0, 1e5] */
     float mag_norm_reject; /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
-    float tau_acc_lp;      /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    float tau_acc_lp;      /**< earth-frame accel low-pass (Butterworth, lag 2 tau_acc_lp), s, [0, 1e4]; 0 = off */
     float rest_noise;      /**< zero-rate pseudo-measurement noise density at rest, rad/s/sqrt(Hz); [1e-7, 1] */
     float rest_gyro;       /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range]; 0 = no rest updates ... */
     float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
@@ -155,7 +161,7 @@ typedef struct {
     float mag_range;       /**< validity limit of |m|, uT */
     float mag_norm_reject; /**< ||m|/|m0| - 1| limit (0 = never) */
     float mag_dip_reject;  /**< dip deviation limit, rad (0 = never) */
-    float k_lp;            /**< per-sample gain of each accel low-pass stage (0 = off) */
+    float k_lp;            /**< per-sample gain of the accel low-pass, dt / (sqrt(2) tau_acc_lp + dt) (0 = off) */
     uint32_t n_recover;    /**< consecutive gate rejections before the recovery (0 = never) */
     float r_rest;          /**< zero-rate noise per sample and axis, rest_noise^2 / dt, (rad/s)^2 */
     float rest_gyro2;      /**< rest_gyro^2, (rad/s)^2 */
@@ -176,8 +182,8 @@ typedef struct {
     att_quat_t q;          /**< nominal attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t bias;       /**< gyro bias estimate b, rad/s, sensor frame */
     float p[21];           /**< covariance of (dtheta (earth, rad), db (rad/s)), packed upper triangle */
-    att_vec3_t lp1;        /**< first accel low-pass stage, m/s^2, earth frame */
-    att_vec3_t lp2;        /**< second accel low-pass stage (the measured up direction), m/s^2, earth */
+    att_vec3_t lp1;        /**< inner state of the accel low-pass, m/s^2, earth frame */
+    att_vec3_t lp2;        /**< output of the accel low-pass (the measured up direction), m/s^2, earth */
     att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
     att_vec3_t m0_ref;     /**< unit horizontal direction of m0 (z = 0), earth */
     float mag_hx;          /**< H entry of dtheta_x in the heading innovation, -c r_x (c = m0_z / |m0_xy|) */

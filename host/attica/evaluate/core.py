@@ -115,7 +115,7 @@ VARIANT_GRIDS: dict[str, dict[str, list[Any]]] = {
     "mekf6": {
         "accel_noise": [0.001, 0.003, 0.01],
         "gyro_rate_noise": [0.003, 0.01, 0.03],
-        "tau_acc_lp": [1.0, 1.5, 2.5],
+        "tau_acc_lp": [1.0, 1.25, 1.6],
     },
 }
 """The grid of a variant (the MEKF's 6-axis noise densities: the 9-axis grid tunes the mag on top)."""

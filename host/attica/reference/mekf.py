@@ -22,6 +22,9 @@ _U0 = np.uint32(0)
 PIO2 = dm.c("0x1.921fb6p+0")
 QUARTER = dm.c("0x1p-2")
 GATED_MAX = np.uint32(0xFFFFFFFF)
+SQRT2 = dm.c("0x1.6a09e6p+0")
+BW_Q = dm.c("0x1.a8279ap-2")
+"""sqrt(2) and sqrt(2) - 1: the Butterworth accel low-pass (ATT_MEKF_SQRT2, ATT_MEKF_BW_Q)."""
 
 _M0Parts = tuple[dm.Vec3, dm.Vec3, Any, Any, Any, Any, Any, Any]
 """(m0, m0_ref, mag_hx, mag_hy, m0_lo, m0_hi, dip_lo, dip_hi) as att_mekf_set_m0 stores them."""
@@ -125,7 +128,8 @@ class Mekf:
             self.r_mag = (mn * mn) / self.dt
             self.r_rest = (rn * rn) / self.dt
             tau_lp = f(s.tau_acc_lp, n)
-            self.k_lp = np.where(tau_lp > dm.ZERO, self.dt / (tau_lp + self.dt), dm.ZERO).astype(np.float32)
+            k_lp = np.where(tau_lp > dm.ZERO, self.dt / (SQRT2 * tau_lp + self.dt), dm.ZERO)
+            self.k_lp = k_lp.astype(np.float32)
         self.r_accel = f(s.r_accel, n)
         self.gate = f(s.gate, n)
         self.soft = self.gate * QUARTER
@@ -332,8 +336,7 @@ class Mekf:
             start_lp = ~self.lp_valid
             l1 = dm.vec3_where(start_lp, u, lp1)
             l2 = dm.vec3_where(start_lp, u, lp2)
-            l1 = dm.vec3_add(l1, dm.vec3_scale(dm.vec3_sub(u, l1), self.k_lp))
-            l2 = dm.vec3_add(l2, dm.vec3_scale(dm.vec3_sub(l1, l2), self.k_lp))
+            l1, l2 = _lowpass(u, self.k_lp, l1, l2)
             u = dm.vec3_where(self.lp_on, l2, u)
             ok_u, (_, cx, cy), _ = align_up(u)
             y0 = dm.TWO * cx
@@ -451,6 +454,16 @@ class Mekf:
         if mag is None:
             mag = np.zeros_like(np.asarray(gyr, np.float32))
         return run_steps(self, gyr, acc, mag)
+
+
+def _lowpass(u: dm.Vec3, k: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, dm.Vec3]:
+    """att_mekf_lowpass: the second-order Butterworth section, (lp1, lp2) after the sample u."""
+    kq = BW_Q * k
+    d = dm.vec3_sub(lp1, lp2)
+    e = dm.vec3_sub(u, lp2)
+    lp1 = dm.vec3_add(lp1, dm.vec3_sub(dm.vec3_scale(e, k), dm.vec3_scale(d, kq)))
+    lp2 = dm.vec3_add(lp2, dm.vec3_scale(dm.vec3_sub(lp1, lp2), k))
+    return lp1, lp2
 
 
 def _matrix(q: dm.Quat) -> list[Any]:
