@@ -353,7 +353,7 @@ static uint32_t att_filter_bad_arg(att_output_t *out)
     return ATT_FLAG_BAD_ARG;
 }
 
-/* The kinds with a step_out entry (att_step.h): a tail call each; false in *done for the others. */
+/* The kinds with a step_out entry (att_step.h): a tail call each. */
 #define ATT_FILTER_STEP_OUT_CASES(f, in, out)                                                                 \
     case ATT_FILTER_ARS:                                                                                     \
         return att_ars_step_out(&(f)->u.ars, (in), (out));                                                   \
@@ -366,25 +366,28 @@ static uint32_t att_filter_bad_arg(att_output_t *out)
     case ATT_FILTER_EKF:                                                                                     \
         return att_ekf_step_out(&(f)->u.ekf, (in), (out))
 
-/* The kind's step on in (the sample after the input stage). */
-static uint32_t att_filter_dispatch(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+/* The baseline kinds (gyro, tilt): their step, then the per-step fields from the state. */
+static ATT_NOINLINE uint32_t att_filter_step_basic(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
-    uint32_t flags;
-    switch (f->kind) {
-        ATT_FILTER_STEP_OUT_CASES(f, in, out);
-    case ATT_FILTER_GYRO:
-        flags = att_gyro_step(&f->u.gyro, in->gyr);
-        break;
-    case ATT_FILTER_TILT:
-        flags = att_tilt_step(&f->u.tilt, in->acc);
-        break;
-    default:
-        return att_filter_bad_arg(out);
-    }
+    const uint32_t flags =
+        (f->kind == ATT_FILTER_GYRO) ? att_gyro_step(&f->u.gyro, in->gyr) : att_tilt_step(&f->u.tilt, in->acc);
     if (out != NULL) {
         (void)att_filter_basic(f, out);
     }
     return flags;
+}
+
+/* The kind's step on in (the sample after the input stage). */
+static uint32_t att_filter_dispatch(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    switch (f->kind) {
+        ATT_FILTER_STEP_OUT_CASES(f, in, out);
+    case ATT_FILTER_GYRO:
+    case ATT_FILTER_TILT:
+        return att_filter_step_basic(f, in, out);
+    default:
+        return att_filter_bad_arg(out);
+    }
 }
 
 /*
@@ -424,8 +427,7 @@ static uint32_t att_filter_step_cal(att_filter_t *f, const att_sample_t *in, att
 }
 
 /*
- * Everything but the fast path of att_filter_step: NULL arguments, an active stage, the baseline
- * kinds (gyro, tilt), unknown kinds. The same arguments as att_filter_step, so that its calls here
+ * Everything but the fast path of att_filter_step: NULL arguments, an active stage, unknown kinds. The same arguments as att_filter_step, so that its calls here
  * are tail calls that leave the registers as they are.
  */
 static ATT_NOINLINE uint32_t att_filter_step_slow(att_filter_t *f, const att_sample_t *in, att_output_t *out)
@@ -441,10 +443,13 @@ static ATT_NOINLINE uint32_t att_filter_step_slow(att_filter_t *f, const att_sam
 
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
-    /* the fast path: no stage active (one test), a kind with a step_out entry: a tail call */
+    /* the fast path: no stage active (one test), a known kind: a tail call */
     if (f != NULL && in != NULL && f->cal.active == 0u) {
         switch (f->kind) {
             ATT_FILTER_STEP_OUT_CASES(f, in, out);
+        case ATT_FILTER_GYRO:
+        case ATT_FILTER_TILT:
+            return att_filter_step_basic(f, in, out);
         default:
             break;
         }
