@@ -406,6 +406,30 @@ def test_m4f_stack_gate_can_fail(tmp_path: Path) -> None:
         )
 
 
+def test_m4f_call_graph_tail_calls(tmp_path: Path) -> None:
+    """A callee reached only by a branch after the epilogue (a tail call) runs on the caller's caller's
+    stack: the call-graph bound takes the larger of the two, not their sum; a call (BL) nests."""
+    need_tools("arm-none-eabi-gcc", "arm-none-eabi-objdump")
+    src = tmp_path / "tail.c"
+    src.write_text(
+        "int g(int x);\nint h(int x);\nint f(int x);\n"
+        "int f(int x) { if (x > 3) { return g(x + 1); } return h(x) * 3 + 1; }\n"
+    )
+    obj = tmp_path / "tail.o"
+    target = Target("m4f", "", "arm-none-eabi-gcc", cross.M4F_CPU)
+    cross.compile_object(target, src, obj, "-O2", list(cross.M4F_SECTIONS))
+    assert footprint.tail_calls(obj) == {("f", "g")}
+    g = footprint.CallGraph(
+        frame={"f": 100, "g": 50, "h": 20},
+        calls={"f": {"g", "h"}},
+        names={"f": "f", "g": "g", "h": "h"},
+        tail={("f", "g")},
+    )
+    assert footprint.worst_stack(g, "f", {}).bytes == 120  # max(100 + h, g)
+    g.tail = set()
+    assert footprint.worst_stack(g, "f", {}).bytes == 150  # every edge nests
+
+
 def test_m4f_stack_measured_within_call_graph(tmp_path: Path) -> None:
     """The call-graph worst case bounds the stack measured on the target (QEMU, painted stack)."""
     need_target(TARGETS["m4f"])

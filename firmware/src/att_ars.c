@@ -121,84 +121,75 @@ void att_ars_reset(att_ars_t *f)
     f->st.initialised = !f->c.init_from_accel;
 }
 
-/* The ZYX Euler quaternion of the increments (KITECH literal; out of the hot path). */
-static ATT_NOINLINE att_quat_t att_ars_increment_euler(att_vec3_t rv)
+/*
+ * *q = att_quat_from_euler(phi, theta, psi) (the same operations), the result through a pointer: GCC 12
+ * for the Cortex-M gives a quaternion result in FPU registers a home on the stack of every function
+ * along the call path. Shared by the start and the Euler increments.
+ */
+static ATT_NOINLINE void att_ars_quat_from_euler(float phi, float theta, float psi, att_quat_t *q)
 {
-    return att_quat_from_euler(rv.x, rv.y, rv.z);
+    *q = att_i_quat_from_euler(phi, theta, psi);
 }
+
 
 /* The attitude increment of the rotation (w - w_m) dt. */
 static ATT_ALWAYS_INLINE att_quat_t att_ars_increment(const att_ars_coeffs_t *c, att_vec3_t rate)
 {
     const att_vec3_t rv = att_i_vec3_scale(rate, c->dt);
     if (c->integration == (uint8_t)ATT_INTEGRATE_EULER) {
-        return att_ars_increment_euler(rv);
+        att_quat_t q; /* the ZYX Euler quaternion of the increments (KITECH literal; out of the hot path) */
+        att_ars_quat_from_euler(rv.x, rv.y, rv.z, &q);
+        return q;
     }
     return att_i_quat_from_rotvec_fast(rv);
 }
 
-/* The corrected attitude and low-pass stages (the general correction returns them by value). */
-typedef struct {
-    att_quat_t q;
-    att_vec3_t lp1;
-    att_vec3_t lp2;
-} att_ars_corr_t;
-
 /*
- * General correction (K_a < 1) of q with the earth-frame specific force v: the low-pass stages of st
- * are updated with v (when on), then q is rotated by the fraction K_a of the angle between the
- * low-passed vector (or v) and z about their common horizontal axis, and the stages with it. st is
- * not changed: the caller commits the result.
+ * The rotation *qc of the general correction (K_a < 1) for the earth-frame specific force v (or its
+ * low-passed value; as scalars, and the result through a pointer: GCC 12 for the Cortex-M gives every
+ * struct argument or result in FPU registers a home on the stack): the fraction K_a of the angle
+ * between v and z about their common horizontal axis, K_a = k / (1 + c (|a|/g - 1)^2) with norm = |a|.
  */
-static ATT_NOINLINE att_ars_corr_t att_ars_correct_partial(const att_ars_coeffs_t *c, const att_ars_state_t *st,
-                                                           const att_quat_t *qp, att_vec3_t v, float norm)
+static ATT_NOINLINE void att_ars_tilt_rotation(const att_ars_coeffs_t *c, float vx, float vy, float vz, float norm,
+                                               att_quat_t *qc)
 {
-    const att_quat_t q = *qp;
-    float axy;
-    float angle;
-    float e;
-    float ka;
+    const float axy = att_i_sqrtf(vx * vx + vy * vy);
+    const float angle = att_atan2f(axy, vz);
+    const float e = norm / c->gravity - 1.0f;
+    const float ka = c->k / (1.0f + c->gain_c * e * e);
     att_vec3_t axis;
-    att_quat_t qc;
-    att_ars_corr_t r;
-    r.lp1 = st->lp1;
-    r.lp2 = st->lp2;
-    if (c->lp_on) {
-        att_i_lowpass2(v, c->k_lp, &r.lp1, &r.lp2);
-        v = r.lp2;
-    }
-    axy = att_i_sqrtf(v.x * v.x + v.y * v.y);
-    angle = att_atan2f(axy, v.z);
-    e = norm / c->gravity - 1.0f;
-    ka = c->k / (1.0f + c->gain_c * e * e);
     if (axy > 0.0f) {
-        axis.x = v.y / axy;
-        axis.y = -v.x / axy;
+        axis.x = vy / axy;
+        axis.y = -vx / axy;
     } else {
         axis.x = 1.0f;
         axis.y = 0.0f;
     }
     axis.z = 0.0f;
-    qc = att_quat_from_axis_angle(axis, ka * angle);
-    if (c->lp_on) {
-        r.lp1 = att_i_quat_rotate(qc, r.lp1);
-        r.lp2 = att_i_quat_rotate(qc, r.lp2);
-    }
-    r.q = att_i_quat_mul(qc, q);
-    return r;
+    *qc = att_i_quat_from_axis_angle(axis, ka * angle);
 }
 
-/* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
+/*
+ * First valid accel sample: roll and pitch from it (att_sensor_tilt: the same operations inline), yaw 0;
+ * the low-pass stages start from it.
+ */
 static ATT_NOINLINE void att_ars_start(att_ars_state_t *st, const att_vec3_t *acc)
 {
-    const att_vec3_t t = att_sensor_tilt(*acc);
-    (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &st->q);
+    const float roll = att_atan2f(acc->y, acc->z);
+    const float pitch = att_atan2f(-acc->x, att_i_sqrtf(acc->y * acc->y + acc->z * acc->z));
+    att_quat_t q;
+    att_ars_quat_from_euler(roll, pitch, 0.0f, &q);
+    (void)att_i_quat_normalize_bounded(q, &st->q);
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
     st->initialised = true;
 }
 
-static ATT_ALWAYS_INLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in)
+/*
+ * One step (att_ars_step, f not NULL; att_ars_step_out adds the output fields). The general correction
+ * (K_a < 1) shares the low-pass update with the full alignment and takes only its rotation out of line.
+ */
+static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in)
 {
     const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
     const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
@@ -213,9 +204,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t 
     att_quat_t q;
     att_quat_t qn;
     att_vec3_t d;
-    if (f == NULL) {
-        return ATT_FLAG_BAD_ARG;
-    }
     c = &f->c;
     st = &f->st;
     flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
@@ -254,18 +242,18 @@ static ATT_ALWAYS_INLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t 
     }
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         const att_vec3_t v = att_i_quat_rotate(q, acc);
+        att_vec3_t lp1 = st->lp1;
+        att_vec3_t lp2 = st->lp2;
+        att_vec3_t u = v;
+        if (c->lp_on) {
+            att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
+            u = lp2;
+        }
         if (c->full) {
-            att_vec3_t lp1 = st->lp1;
-            att_vec3_t lp2 = st->lp2;
-            att_vec3_t u = v;
             float qw;
             float qx;
             float qy;
             float n;
-            if (c->lp_on) {
-                att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
-                u = lp2;
-            }
             /* full alignment of u with z; lp2 becomes (0, 0, |lp2|), lp1 is rotated with q */
             if (att_i_align_up(u, &qw, &qx, &qy, &n) &&
                 att_i_quat_normalize_bounded(att_i_quat_mul_hz(qw, qx, qy, q), &qn)) {
@@ -278,11 +266,16 @@ static ATT_ALWAYS_INLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t 
                 flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before */
             }
         } else {
-            const att_ars_corr_t r = att_ars_correct_partial(c, st, &q, v, norm);
-            if (att_i_quat_normalize_bounded(r.q, &qn)) {
+            att_quat_t qc;
+            att_ars_tilt_rotation(c, u.x, u.y, u.z, norm, &qc);
+            if (c->lp_on) {
+                lp1 = att_i_quat_rotate(qc, lp1);
+                lp2 = att_i_quat_rotate(qc, lp2);
+            }
+            if (att_i_quat_normalize_bounded(att_i_quat_mul(qc, q), &qn)) {
                 st->q = qn;
-                st->lp1 = r.lp1;
-                st->lp2 = r.lp2;
+                st->lp1 = lp1;
+                st->lp2 = lp2;
             } else {
                 flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before */
             }
@@ -299,11 +292,10 @@ static ATT_ALWAYS_INLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t 
 
 uint32_t att_ars_step(att_ars_t *f, att_vec3_t gyr, att_vec3_t acc)
 {
-    att_sample_t in;
-    in.gyr = gyr;
-    in.acc = acc;
-    in.mag = att_i_vec3(0.0f, 0.0f, 0.0f);
-    return att_ars_step_out(f, &in, NULL);
+    if (f == NULL) {
+        return ATT_FLAG_BAD_ARG;
+    }
+    return att_ars_update(f, &gyr, &acc);
 }
 
 uint32_t att_ars_step_out(att_ars_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)

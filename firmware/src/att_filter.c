@@ -343,51 +343,67 @@ void att_filter_output(const att_filter_t *f, att_output_t *out)
     out->valid = ATT_OUT_ALL;
 }
 
-/* The kind's step on in (the sample after the input stage). */
-static ATT_ALWAYS_INLINE uint32_t att_filter_dispatch(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+/* The result of a step that was refused (f or in NULL, unknown kind): BAD_ARG, out cleared. */
+static uint32_t att_filter_bad_arg(att_output_t *out)
 {
-    uint32_t flags;
-    switch (f->kind) {
-    case ATT_FILTER_ARS:
-        return att_ars_step_out(&f->u.ars, in, out);
-    case ATT_FILTER_MARS:
-        return att_mars_step_out(&f->u.mars, in, out);
-    case ATT_FILTER_KF:
-        return att_kf_step_out(&f->u.kf, in, out);
-    case ATT_FILTER_MEKF:
-        return att_mekf_step_out(&f->u.mekf, in, out);
-    case ATT_FILTER_EKF:
-        return att_ekf_step_out(&f->u.ekf, in, out);
-    case ATT_FILTER_GYRO:
-        flags = att_gyro_step(&f->u.gyro, in->gyr);
-        break;
-    case ATT_FILTER_TILT:
-        flags = att_tilt_step(&f->u.tilt, in->acc);
-        break;
-    default:
-        if (out != NULL) {
-            att_filter_clear(out);
-            out->flags = ATT_FLAG_BAD_ARG;
-        }
-        return ATT_FLAG_BAD_ARG;
+    if (out != NULL) {
+        att_filter_clear(out);
+        out->flags = ATT_FLAG_BAD_ARG;
     }
+    return ATT_FLAG_BAD_ARG;
+}
+
+/* The kinds with a step_out entry (att_step.h): a tail call each. */
+#define ATT_FILTER_STEP_OUT_CASES(f, in, out)                                                                 \
+    case ATT_FILTER_ARS:                                                                                     \
+        return att_ars_step_out(&(f)->u.ars, (in), (out));                                                   \
+    case ATT_FILTER_MARS:                                                                                    \
+        return att_mars_step_out(&(f)->u.mars, (in), (out));                                                 \
+    case ATT_FILTER_KF:                                                                                      \
+        return att_kf_step_out(&(f)->u.kf, (in), (out));                                                     \
+    case ATT_FILTER_MEKF:                                                                                    \
+        return att_mekf_step_out(&(f)->u.mekf, (in), (out));                                                 \
+    case ATT_FILTER_EKF:                                                                                     \
+        return att_ekf_step_out(&(f)->u.ekf, (in), (out))
+
+/* The baseline kinds (gyro, tilt): their step, then the per-step fields from the state. */
+static ATT_NOINLINE uint32_t att_filter_step_basic(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    const uint32_t flags =
+        (f->kind == ATT_FILTER_GYRO) ? att_gyro_step(&f->u.gyro, in->gyr) : att_tilt_step(&f->u.tilt, in->acc);
     if (out != NULL) {
         (void)att_filter_basic(f, out);
     }
     return flags;
 }
 
+/* The kind's step on in (the sample after the input stage). */
+static uint32_t att_filter_dispatch(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    switch (f->kind) {
+        ATT_FILTER_STEP_OUT_CASES(f, in, out);
+    case ATT_FILTER_GYRO:
+    case ATT_FILTER_TILT:
+        return att_filter_step_basic(f, in, out);
+    default:
+        return att_filter_bad_arg(out);
+    }
+}
+
 /*
  * att_filter_step with some stage active: the input stage on a copy of the sample, the kind's step,
  * then the per-step fields in the convention's frame (q, and euler when the kind reports it; the
- * Euler-state kinds also get q). Out of line: the identity case pays one test in att_filter_step.
+ * Euler-state kinds also get q). An uninitialised filter (kind NONE) is refused before any stage.
  */
-static ATT_NOINLINE uint32_t att_filter_step_cal(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+static uint32_t att_filter_step_cal(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
     att_sample_t s;
     const att_sample_t *src = in;
     uint32_t flags;
     const uint32_t active = f->cal.active;
+    if (f->kind == ATT_FILTER_NONE) {
+        return att_filter_bad_arg(out);
+    }
     if ((active & ATT_CALIB_ACTIVE_INPUT) != 0u) {
         att_i_calib_apply(&f->cal, &in->gyr, &in->acc, &in->mag, &s.gyr, &s.acc, &s.mag);
         src = &s;
@@ -410,19 +426,35 @@ static ATT_NOINLINE uint32_t att_filter_step_cal(att_filter_t *f, const att_samp
     return flags;
 }
 
-uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+/*
+ * Everything but the fast path of att_filter_step: NULL arguments, an active stage, unknown kinds. The same arguments as att_filter_step, so that its calls here
+ * are tail calls that leave the registers as they are.
+ */
+static ATT_NOINLINE uint32_t att_filter_step_slow(att_filter_t *f, const att_sample_t *in, att_output_t *out)
 {
     if (f == NULL || in == NULL) {
-        if (out != NULL) {
-            att_filter_clear(out);
-            out->flags = ATT_FLAG_BAD_ARG;
-        }
-        return ATT_FLAG_BAD_ARG;
+        return att_filter_bad_arg(out);
     }
-    if (f->cal.active != 0u && f->kind != ATT_FILTER_NONE) {
+    if (f->cal.active != 0u) {
         return att_filter_step_cal(f, in, out);
     }
     return att_filter_dispatch(f, in, out);
+}
+
+uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out)
+{
+    /* the fast path: no stage active (one test), a known kind: a tail call */
+    if (f != NULL && in != NULL && f->cal.active == 0u) {
+        switch (f->kind) {
+            ATT_FILTER_STEP_OUT_CASES(f, in, out);
+        case ATT_FILTER_GYRO:
+        case ATT_FILTER_TILT:
+            return att_filter_step_basic(f, in, out);
+        default:
+            break;
+        }
+    }
+    return att_filter_step_slow(f, in, out);
 }
 
 att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s)

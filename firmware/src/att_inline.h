@@ -137,12 +137,17 @@ void att_sincosf_reduced(float x, float *s, float *c);
  */
 static inline void att_i_sincosf(float x, float *s, float *c)
 {
+#if defined(__OPTIMIZE_SIZE__)
+    /* -Os: the one shared copy (the reduction is the identity up to ATT_SMALL_ANGLE_MAX: the same bits) */
+    att_sincosf_reduced(x, s, c);
+#else
     if (att_i_absf(x) <= ATT_SMALL_ANGLE_MAX) {
         *s = att_i_sin_poly(x);
         *c = att_i_cos_poly(x);
         return;
     }
     att_sincosf_reduced(x, s, c);
+#endif
 }
 
 static inline att_vec3_t att_i_vec3(float x, float y, float z)

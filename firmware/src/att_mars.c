@@ -152,23 +152,27 @@ static void att_mars_m0_limits(const att_mars_coeffs_t *c, att_mars_state_t *st)
         const float dip = att_mars_dip(st->m0);
         const float lo = dip - c->mag_dip_reject;
         const float hi = dip + c->mag_dip_reject;
+        float sn;
+        float cs;
         if (lo > -ATT_MARS_PIO2_F) {
-            st->dip_lo = att_sinf(lo);
+            att_i_sincosf(lo, &sn, &cs); /* att_sinf */
+            st->dip_lo = sn;
         }
         if (hi < ATT_MARS_PIO2_F) {
-            st->dip_hi = att_sinf(hi);
+            att_i_sincosf(hi, &sn, &cs);
+            st->dip_hi = sn;
         }
     }
 }
 
 /* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
-static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t m0)
+static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, const att_vec3_t *m0)
 {
     att_vec3_t unit;
-    if (!att_i_vec3_normalize(m0, &unit)) {
+    if (!att_i_vec3_normalize(*m0, &unit)) {
         return false;
     }
-    st->m0 = m0;
+    st->m0 = *m0;
     st->m0_valid = true;
     att_mars_m0_limits(c, st);
     return true;
@@ -234,51 +238,88 @@ void att_mars_reset(att_mars_t *f)
     st->m0_valid = false;
     st->initialised = !f->c.init_from_sensors;
     if (!att_mars_vec3_is_zero(f->c.m0_init)) {
-        (void)att_mars_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
+        (void)att_mars_set_m0(&f->c, st, &f->c.m0_init); /* succeeds: checked by the settings validation */
     }
 }
 
+/*
+ * The out-of-line helpers of the step below take and return vectors and quaternions through pointers:
+ * GCC 12 for the Cortex-M gives every struct argument and result passed by value in FPU registers a
+ * home on the stack (tens of bytes per function along the call path); the values are the same.
+ */
+
 /* First-order quaternion integration q + (0.5 q (x) (0, w)) dt (not normalised). */
-static ATT_NOINLINE att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
+static inline att_quat_t att_mars_integrate(att_quat_t q, att_vec3_t w, float dt)
 {
     const att_quat_t p = att_i_quat_mul(q, att_i_quat(0.0f, w.x, w.y, w.z));
-    return att_i_quat(q.w + p.w * 0.5f * dt, q.x + p.x * 0.5f * dt, q.y + p.y * 0.5f * dt,
-                      q.z + p.z * 0.5f * dt);
+    return att_i_quat(q.w + p.w * 0.5f * dt, q.x + p.x * 0.5f * dt, q.y + p.y * 0.5f * dt, q.z + p.z * 0.5f * dt);
+}
+
+/* att_quat_from_rotvec (the large angles of att_mars_rotvec), the vector as scalars. */
+static ATT_NOINLINE void att_mars_rotvec_large(float x, float y, float z, att_quat_t *out)
+{
+    *out = att_i_quat_from_rotvec(att_i_vec3(x, y, z));
 }
 
 /*
- * Rotate q in the earth frame so that the unit vector v moves toward the unit reference r by the
- * fraction gain of the angle between them: q := Q(gain * angle, axis) * q with axis = v x r / |v x r|
- * and angle = atan2(|v x r|, v . r). When v x r cannot be normalised, the axis is fallback.
+ * att_i_quat_from_rotvec_fast (att_core.h: the same series, the same operations) with the large angles
+ * through att_mars_rotvec_large: no struct argument of the hot path needs a stack home for them.
  */
-static att_quat_t att_mars_rotation_toward(att_vec3_t v, att_vec3_t r, att_vec3_t fallback, float gain)
+static ATT_ALWAYS_INLINE att_quat_t att_mars_rotvec(att_vec3_t rv)
 {
+    const float z = att_i_vec3_dot(rv, rv);
+    att_quat_t q;
+    float k;
+    if (z <= ATT_ROTVEC_Z_SMALL) {
+        k = ATT_ROTVEC_S0 + z * (ATT_ROTVEC_S1 + z * ATT_ROTVEC_S2);
+        return att_i_quat(1.0f + z * (ATT_ROTVEC_C1 + z * ATT_ROTVEC_C2), rv.x * k, rv.y * k, rv.z * k);
+    }
+    att_mars_rotvec_large(rv.x, rv.y, rv.z, &q);
+    return q;
+}
+
+/* The earth z axis (up) and x axis (the fallback axis of the accel correction). */
+static const att_vec3_t att_mars_up = {0.0f, 0.0f, 1.0f};
+static const att_vec3_t att_mars_xaxis = {1.0f, 0.0f, 0.0f};
+
+/*
+ * The rotation *qc in the earth frame that moves the unit vector v toward the unit reference r by the
+ * fraction gain of the angle between them: Q(gain * angle, axis) with axis = v x r / |v x r| and
+ * angle = atan2(|v x r|, v . r) (q := *qc * q). When v x r cannot be normalised, the axis is fallback.
+ */
+static ATT_NOINLINE void att_mars_rotation_toward(float vx, float vy, float vz, const att_vec3_t *rp,
+                                                  const att_vec3_t *fallback, float gain, att_quat_t *qc)
+{
+    const att_vec3_t v = att_i_vec3(vx, vy, vz);
+    const att_vec3_t r = *rp;
     const att_vec3_t c = att_i_vec3_cross(v, r);
     const float angle = att_atan2f(att_i_vec3_norm(c), att_i_vec3_dot(v, r));
     att_vec3_t axis;
     if (!att_i_vec3_normalize(c, &axis)) {
-        axis = fallback;
+        axis = *fallback;
     }
-    return att_quat_from_axis_angle(axis, gain * angle);
+    *qc = att_i_quat_from_axis_angle(axis, gain * angle);
 }
 
 /*
  * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points north
  * (+y); *m0 = (0, |m_e,xy|, m_e,z) for the aligned attitude. Returns false when mag has no direction.
  */
-static bool att_mars_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
+static ATT_NOINLINE bool att_mars_align(float qw, float qx, float qy, float qz, const att_vec3_t *mag,
+                                        att_quat_t *q_out, att_vec3_t *m0)
 {
-    att_vec3_t me = att_i_quat_rotate(q, mag);
+    const att_quat_t q = att_i_quat(qw, qx, qy, qz);
+    att_vec3_t me = att_i_quat_rotate(q, *mag);
     att_vec3_t unit;
     att_quat_t qa;
     if (!att_i_vec3_normalize(me, &unit)) {
         return false;
     }
-    qa = att_i_quat_mul(att_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
+    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_mars_up, att_atan2f(me.x, me.y)), q);
     if (!att_i_quat_normalize_bounded(qa, &qa)) {
         return false;
     }
-    me = att_i_quat_rotate(qa, mag);
+    me = att_i_quat_rotate(qa, *mag);
     *m0 = att_i_vec3(0.0f, att_i_sqrtf(me.x * me.x + me.y * me.y), me.z);
     *q_out = qa;
     return true;
@@ -298,6 +339,7 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
                                                          att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags)
 {
     att_vec3_t unit;
+    att_quat_t qc;
     float h2;
     float hn;
     float a;
@@ -313,7 +355,8 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
             *flags |= ATT_FLAG_MAG_REJECTED;
             return q;
         }
-        return att_i_quat_mul(att_mars_rotation_toward(unit, st->m0_ref, st->m0_perp, c->k_mag), q);
+        att_mars_rotation_toward(unit.x, unit.y, unit.z, &st->m0_ref, &st->m0_perp, c->k_mag, &qc);
+        return att_i_quat_mul(qc, q);
     }
     h2 = me.x * me.x + me.y * me.y;
     if (!(h2 >= ATT_NORM2_MIN)) {
@@ -334,97 +377,73 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
     return att_i_quat_mul_z(qw, qz, q);
 }
 
-/* The attitude and flags after a mag sample taken before the reference field is known. */
-typedef struct {
-    att_quat_t q;
-    uint32_t flags;
-} att_mars_first_t;
-
-/* A usable mag sample before the reference field is known: yaw alignment, or m0 from it. */
-static ATT_NOINLINE att_mars_first_t att_mars_mag_first(const att_mars_coeffs_t *c, att_mars_state_t *st,
-                                                        att_quat_t q, const att_vec3_t *mag)
+/*
+ * A usable mag sample before the reference field is known: yaw alignment of q (returns true with the
+ * aligned attitude in *qa), or m0 from it (returns false: q stays). The flags of the sample are added
+ * to st->flags (which holds the step's flags so far: the step writes its final flags there).
+ */
+static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars_state_t *st, float qw, float qx,
+                                            float qy, float qz, const att_vec3_t *mag, att_quat_t *qa)
 {
-    att_mars_first_t r;
-    att_quat_t qa;
     att_vec3_t m0;
-    r.q = q;
-    r.flags = 0u;
     if (c->init_from_sensors) {
-        if (att_mars_align(q, *mag, &qa, &m0) && att_mars_set_m0(c, st, m0)) {
-            r.q = qa;
-            r.flags = ATT_FLAG_INITIALISED;
-        } else {
-            r.flags = ATT_FLAG_MAG_REJECTED;
+        if (att_mars_align(qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
+            st->flags |= ATT_FLAG_INITIALISED;
+            return true;
         }
-    } else if (!att_mars_set_m0(c, st, att_i_quat_rotate(q, *mag))) {
-        r.flags = ATT_FLAG_MAG_REJECTED;
+        st->flags |= ATT_FLAG_MAG_REJECTED;
+        return false;
     }
-    return r;
+    m0 = att_i_quat_rotate(att_i_quat(qw, qx, qy, qz), *mag);
+    if (!att_mars_set_m0(c, st, &m0)) {
+        st->flags |= ATT_FLAG_MAG_REJECTED;
+    }
+    return false;
 }
 
-/* First valid accel sample: roll and pitch from it, yaw from the mag sample when usable. */
-static ATT_NOINLINE uint32_t att_mars_start(const att_mars_coeffs_t *c, att_mars_state_t *st,
-                                            const att_vec3_t *acc, const att_vec3_t *mag, bool mag_ok)
+/*
+ * The rest of the first step with a valid accel sample, after att_mars_update (which left the sample's
+ * flags in st->flags): roll and pitch from the sample (att_sensor_tilt, att_quat_from_euler: the same
+ * operations inline), yaw from the mag sample when usable. Returns the step's flags.
+ */
+static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc, const att_vec3_t *mag)
 {
-    const att_vec3_t t = att_sensor_tilt(*acc);
-    uint32_t flags = ATT_FLAG_INITIALISED;
-    att_quat_t q;
+    const float roll = att_atan2f(acc->y, acc->z);
+    const float pitch = att_atan2f(-acc->x, att_i_sqrtf(acc->y * acc->y + acc->z * acc->z));
+    att_mars_state_t *st = &f->st;
+    uint32_t flags = st->flags | ATT_FLAG_INITIALISED;
+    const bool mag_ok = (flags & (ATT_FLAG_MAG_INVALID | ATT_FLAG_MAG_ABSENT)) == 0u;
     att_quat_t qa;
     att_vec3_t m0;
-    (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &q);
+    (void)att_i_quat_normalize_bounded(att_i_quat_from_euler(roll, pitch, 0.0f), &st->q);
     if (mag_ok) {
-        if (att_mars_align(q, *mag, &qa, &m0) && att_mars_set_m0(c, st, m0)) {
-            q = qa;
+        if (att_mars_align(st->q.w, st->q.x, st->q.y, st->q.z, mag, &qa, &m0) && att_mars_set_m0(&f->c, st, &m0)) {
+            st->q = qa;
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
     }
-    st->q = q;
-    st->lp1 = att_i_quat_rotate(q, *acc);
+    st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
     st->initialised = true;
+    st->steps = st->steps + 1u;
+    st->flags = flags;
     return flags;
 }
 
-/* The corrected attitude and low-pass stages (the general accel correction returns them by value). */
-typedef struct {
-    att_quat_t q;
-    att_vec3_t lp1;
-    att_vec3_t lp2;
-} att_mars_corr_t;
+/*
+ * att_mars_update's result when the filter waits for its first sample and this one has a valid accel:
+ * the step goes on in att_mars_start (called after att_mars_update returned, so that their frames do
+ * not nest). Not a flag (the flags are bits 0..15).
+ */
+#define ATT_MARS_START_PENDING 0x80000000u
 
 /*
- * General accel correction (k_acc < 1) with the earth-frame specific force v: the low-pass stages of
- * st updated with v (when on), then q rotated toward z by the fraction k_acc of the angle (the stages
- * with it). st is not changed: the caller commits the result.
+ * One step (att_mars_step, f not NULL; att_mars_step_out adds the output fields). The general accel correction (k_acc < 1) shares the
+ * low-pass update with the full alignment and takes only the rotation toward z out of line.
  */
-static ATT_NOINLINE att_mars_corr_t att_mars_accel_partial(const att_mars_coeffs_t *c, const att_mars_state_t *st,
-                                                           att_quat_t q, att_vec3_t v)
-{
-    att_mars_corr_t r;
-    att_vec3_t unit;
-    r.q = q;
-    r.lp1 = st->lp1;
-    r.lp2 = st->lp2;
-    if (c->lp_on) {
-        att_i_lowpass2(v, c->k_lp, &r.lp1, &r.lp2);
-        v = r.lp2;
-    }
-    if (att_i_vec3_normalize(v, &unit)) {
-        const att_quat_t qc = att_mars_rotation_toward(unit, att_i_vec3(0.0f, 0.0f, 1.0f),
-                                                       att_i_vec3(1.0f, 0.0f, 0.0f), c->k_acc);
-        r.q = att_i_quat_mul(qc, q);
-        if (c->lp_on) {
-            /* keep the low-pass states in the corrected earth frame */
-            r.lp1 = att_i_quat_rotate(qc, r.lp1);
-            r.lp2 = att_i_quat_rotate(qc, r.lp2);
-        }
-    }
-    return r;
-}
-
-static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
-                                                  const att_vec3_t *mag_in)
+static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
+                                             const att_vec3_t *mag_in)
 {
     const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
     const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
@@ -445,9 +464,6 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_
     att_vec3_t lp1;
     att_vec3_t lp2;
     att_vec3_t me;
-    if (f == NULL) {
-        return ATT_FLAG_BAD_ARG;
-    }
     c = &f->c;
     st = &f->st;
     flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
@@ -467,10 +483,13 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_
     flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
 
     if (!st->initialised) {
-        flags |= accel_ok ? att_mars_start(c, st, acc_in, mag_in, mag_ok) : ATT_FLAG_NOT_READY;
-        st->steps = st->steps + 1u;
         st->flags = flags;
-        return flags;
+        if (accel_ok) {
+            return ATT_MARS_START_PENDING; /* att_mars_step_in finishes the step with att_mars_start */
+        }
+        st->steps = st->steps + 1u;
+        st->flags = flags | ATT_FLAG_NOT_READY;
+        return st->flags;
     }
 
     q = st->q;
@@ -481,26 +500,28 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_
             d = att_i_vec3_sub(gyr, st->bias);
         }
         if (c->integration == (uint8_t)ATT_INTEGRATE_ROTVEC) {
-            q = att_i_quat_mul(q, att_i_quat_from_rotvec_fast(att_i_vec3_scale(d, c->dt)));
-        } else if (att_i_quat_normalize_bounded(att_mars_integrate(q, d, c->dt), &qn)) {
-            q = qn;
+            q = att_i_quat_mul(q, att_mars_rotvec(att_i_vec3_scale(d, c->dt)));
         } else {
-            flags |= ATT_FLAG_NUMERIC; /* first-order step overflowed: integration skipped */
+            if (att_i_quat_normalize_bounded(att_mars_integrate(q, d, c->dt), &qn)) {
+                q = qn;
+            } else {
+                flags |= ATT_FLAG_NUMERIC; /* first-order step overflowed: integration skipped */
+            }
         }
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         const att_vec3_t v = att_i_quat_rotate(q, acc);
+        att_vec3_t u = v;
+        if (c->lp_on) {
+            att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
+            u = lp2;
+        }
         if (c->full) {
-            att_vec3_t u = v;
             float qw;
             float qx;
             float qy;
             float n;
-            if (c->lp_on) {
-                att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
-                u = lp2;
-            }
             if (att_i_align_up(u, &qw, &qx, &qy, &n)) {
                 q = att_i_quat_mul_hz(qw, qx, qy, q);
                 if (c->lp_on) {
@@ -509,19 +530,30 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_
                 }
             }
         } else {
-            const att_mars_corr_t r = att_mars_accel_partial(c, st, q, v);
-            q = r.q;
-            lp1 = r.lp1;
-            lp2 = r.lp2;
+            /* general correction: q rotated toward z by the fraction k_acc of the angle, the stages with it */
+            att_vec3_t unit;
+            att_quat_t qc;
+            if (att_i_vec3_normalize(u, &unit)) {
+                att_mars_rotation_toward(unit.x, unit.y, unit.z, &att_mars_up, &att_mars_xaxis, c->k_acc, &qc);
+                q = att_i_quat_mul(qc, q);
+                if (c->lp_on) {
+                    /* keep the low-pass states in the corrected earth frame */
+                    lp1 = att_i_quat_rotate(qc, lp1);
+                    lp2 = att_i_quat_rotate(qc, lp2);
+                }
+            }
         }
     }
     if (mag_ok) {
         if (st->m0_valid) {
             q = att_mars_mag_correct(c, st, q, me, mnorm, &flags);
         } else {
-            const att_mars_first_t r = att_mars_mag_first(c, st, q, mag_in);
-            q = r.q;
-            flags |= r.flags;
+            att_quat_t qa;
+            st->flags = flags;
+            if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
+                q = qa;
+            }
+            flags = st->flags;
         }
     }
     if (att_i_quat_normalize_bounded(q, &qn)) {
@@ -536,18 +568,25 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_
     return flags;
 }
 
+/* One step: att_mars_update, then att_mars_start for the first usable sample. */
+static ATT_ALWAYS_INLINE uint32_t att_mars_step_in(att_mars_t *f, const att_vec3_t *gyr, const att_vec3_t *acc,
+                                                   const att_vec3_t *mag)
+{
+    const uint32_t flags = att_mars_update(f, gyr, acc, mag);
+    return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, mag) : flags;
+}
+
 uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
 {
-    att_sample_t in;
-    in.gyr = gyr;
-    in.acc = acc;
-    in.mag = mag;
-    return att_mars_step_out(f, &in, NULL);
+    if (f == NULL) {
+        return ATT_FLAG_BAD_ARG;
+    }
+    return att_mars_step_in(f, &gyr, &acc, &mag);
 }
 
 uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
 {
-    const uint32_t flags = att_mars_update(f, &in->gyr, &in->acc, &in->mag);
+    const uint32_t flags = att_mars_step_in(f, &in->gyr, &in->acc, &in->mag);
     if (out != NULL) {
         out->q = f->st.q;
         out->gyro_bias = f->st.bias;

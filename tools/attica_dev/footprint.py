@@ -11,8 +11,10 @@ Footprint (``python -m attica_dev.footprint footprint``):
 - state sizes (sizeof att_<kind>_t, att_filter_t, att_node_t) and measured stack high-water marks
   on the target (tests/c/att_m4f_stack.c under QEMU);
 - worst-case stack depth from the call graph: -fstack-usage frames (.su) summed along the deepest
-  path of -fcallgraph-info (.ci) from each entry point; library leaf functions (memcpy, memset) from
-  their prologues in the linked image.
+  path of -fcallgraph-info (.ci) from each entry point; a tail call (a callee reached from a function
+  only by branches, R_ARM_THM_JUMP24/JUMP19 relocations, after its frame is released) runs on the
+  caller's caller's stack and does not add the caller's frame; library leaf functions (memcpy, memset)
+  from their prologues in the linked image.
 
 Instructions (``python -m attica_dev.footprint cycles``):
 
@@ -265,6 +267,8 @@ class CallGraph:
     calls: dict[str, set[str]] = field(default_factory=dict)
     names: dict[str, str] = field(default_factory=dict)
     """Title -> plain function name."""
+    tail: set[tuple[str, str]] = field(default_factory=set)
+    """(caller, callee) plain names where the caller reaches the callee only by tail calls."""
 
     def by_name(self, name: str) -> str | None:
         """The title of a defined function with plain name ``name``."""
@@ -278,10 +282,43 @@ _NODE = re.compile(r'^node: \{ title: "([^"]+)" label: "([^"]*)"')
 _EDGE = re.compile(r'^edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"')
 
 
-def call_graph(objs: Sequence[Path]) -> CallGraph:
-    """Read the .ci files (gcc -fcallgraph-info=su) next to ``objs``."""
+_FUNC = re.compile(r"^[0-9a-f]+ <([^>]+)>:$")
+_RELOC = re.compile(
+    r"^\s+[0-9a-f]+: (R_ARM_THM_CALL|R_ARM_THM_JUMP24|R_ARM_THM_JUMP19|R_ARM_CALL|R_ARM_JUMP24)\s+(\S+)"
+)
+
+
+def tail_calls(obj: Path) -> set[tuple[str, str]]:
+    """(caller, callee) pairs of an ARM object where every reference is a branch, not a call (BL).
+
+    GCC emits a tail call (sibling call) as ``b.w callee`` after the epilogue has released the caller's
+    frame: the callee then runs on the stack of the caller's caller. The branch relocations
+    (R_ARM_THM_JUMP24 / JUMP19) of each function section are those tail calls; a callee that is also
+    reached by BL from the same caller counts as an ordinary call (its frame nests).
+    """
+    dis = subprocess.run(
+        [_tool("arm-none-eabi-objdump"), "-dr", str(obj)], capture_output=True, text=True, check=True
+    ).stdout
+    calls: set[tuple[str, str]] = set()
+    jumps: set[tuple[str, str]] = set()
+    func = ""
+    for line in dis.splitlines():
+        m = _FUNC.match(line)
+        if m:
+            func = m.group(1)
+            continue
+        r = _RELOC.match(line)
+        if r and func:
+            (calls if r.group(1) in ("R_ARM_THM_CALL", "R_ARM_CALL") else jumps).add((func, r.group(2)))
+    return jumps - calls
+
+
+def call_graph(objs: Sequence[Path], tail: bool = True) -> CallGraph:
+    """Read the .ci files (gcc -fcallgraph-info=su) next to ``objs``; with ``tail``, their tail calls."""
     g = CallGraph()
     for obj in objs:
+        if tail:
+            g.tail |= tail_calls(obj)
         ci = obj.with_suffix(".ci")
         if not ci.exists():
             raise FootprintError(f"{ci} missing (compile with -fcallgraph-info=su)")
@@ -366,13 +403,18 @@ def worst_stack(g: CallGraph, entry: str, externals: dict[str, int]) -> StackPat
             unknown.add(name)
             return 0, [f"{name} (unknown)"]
         stack.add(t)
-        best: tuple[int, list[str]] = (0, [])
+        here = f"{name} ({g.frame[t]})"
+        best: tuple[int, list[str]] = (g.frame[t], [here])
         for callee in sorted(g.calls.get(t, ())):
             r = visit(callee)
-            if r[0] > best[0]:
-                best = r
+            if (name, g.names.get(callee, callee)) in g.tail:
+                cand = (r[0], [f"{name} ({g.frame[t]}, tail call)", *r[1]])  # the frame is released first
+            else:
+                cand = (g.frame[t] + r[0], [here, *r[1]])
+            if cand[0] > best[0]:
+                best = cand
         stack.discard(t)
-        memo[t] = (g.frame[t] + best[0], [f"{name} ({g.frame[t]})", *best[1]])
+        memo[t] = best
         return memo[t]
 
     total, path = visit(title)
