@@ -110,12 +110,7 @@ def cdef_text() -> str:
 def inputs_digest() -> str:
     """Hash over everything the extension is built from (sources, headers, flags, this file)."""
     h = hashlib.sha256()
-    files = (
-        firmware_sources()
-        + headers()
-        + sorted(CSRC.glob("*.c"))
-        + sorted((FIRMWARE / "src").glob("*.h"))
-    )
+    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + sorted((FIRMWARE / "src").glob("*.h"))
     for f in files + [FIRMWARE / "cflags.txt", Path(__file__)]:
         h.update(f.name.encode())
         h.update(f.read_bytes())
