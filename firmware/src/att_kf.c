@@ -148,7 +148,7 @@ static ATT_NOINLINE void att_kf_start(att_kf_state_t *st, const att_vec3_t *acc)
     st->initialised = true;
 }
 
-static ATT_ALWAYS_INLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in)
+static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in)
 {
     const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
     const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
@@ -286,9 +286,5 @@ uint32_t att_kf_step_out(att_kf_t *restrict f, const att_sample_t *restrict in, 
 
 uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
 {
-    att_sample_t in;
-    in.gyr = gyr;
-    in.acc = acc;
-    in.mag = att_i_vec3(0.0f, 0.0f, 0.0f);
-    return att_kf_step_out(f, &in, NULL);
+    return att_kf_update(f, &gyr, &acc);
 }
