@@ -707,6 +707,18 @@ static ATT_ALWAYS_INLINE bool att_mekf_heading(const att_mekf_state_t *st, att_v
     return true;
 }
 
+/* The attitude correction of the rest update (rotation vector dth, rad) applied to *q and the low-pass stages. */
+static ATT_NOINLINE void att_mekf_rest_apply(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q, float dth0,
+                                             float dth1, float dth2)
+{
+    const att_quat_t dq = att_mekf_exp(att_i_vec3(dth0, dth1, dth2));
+    *q = att_i_quat_mul(dq, *q);
+    if (c->lp_on) {
+        st->lp1 = att_i_quat_rotate(dq, st->lp1);
+        st->lp2 = att_i_quat_rotate(dq, st->lp2);
+    }
+}
+
 /*
  * The zero-rate pseudo-measurement at rest: w_k = b_k + noise (r_rest) for k = 0, 1, 2, H = [0 e_k], as
  * three sequential scalar updates (exact for the diagonal noise): g = P e_(3+k), s = g_(3+k) + r_rest,
@@ -721,7 +733,6 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
     float b[3];
     float w[3];
     float g[6];
-    att_quat_t dq;
     uint32_t i;
     uint32_t j;
     uint32_t k;
@@ -756,12 +767,7 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
         }
     }
     st->bias = att_i_vec3(b[0], b[1], b[2]);
-    dq = att_mekf_exp(att_i_vec3(dth[0], dth[1], dth[2]));
-    *q = att_i_quat_mul(dq, *q);
-    if (c->lp_on) {
-        st->lp1 = att_i_quat_rotate(dq, st->lp1);
-        st->lp2 = att_i_quat_rotate(dq, st->lp2);
-    }
+    att_mekf_rest_apply(c, st, q, dth[0], dth[1], dth[2]); /* a tail call: its frame replaces this one */
 }
 
 /* What the phases of a step pass on (in memory: nothing float stays in registers across the calls). */
@@ -891,7 +897,7 @@ static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_s
  * One step: the sample checks, then the phases (each its own leaf function, so that the stack holds one
  * phase's frame at a time): rest update, propagation, accel update, mag update, conditioning.
  */
-static ATT_ALWAYS_INLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
+static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
                                                   const att_vec3_t *mag_in)
 {
     const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
@@ -990,15 +996,5 @@ uint32_t att_mekf_step_out(att_mekf_t *restrict f, const att_sample_t *restrict 
 
 uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
 {
-    att_sample_t in; /* member by member: no temporary copies of the vectors on the stack */
-    in.gyr.x = gyr.x;
-    in.gyr.y = gyr.y;
-    in.gyr.z = gyr.z;
-    in.acc.x = acc.x;
-    in.acc.y = acc.y;
-    in.acc.z = acc.z;
-    in.mag.x = mag.x;
-    in.mag.y = mag.y;
-    in.mag.z = mag.z;
-    return att_mekf_step_out(f, &in, NULL);
+    return att_mekf_update(f, &gyr, &acc, &mag);
 }
