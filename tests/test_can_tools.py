@@ -237,3 +237,15 @@ def test_candump_io_is_python_cans(tmp_path: Path) -> None:
     assert logs.CanutilsLogReader is can.CanutilsLogReader
     (m,) = read_log(tmp_path / "x.log")
     assert (m.arbitration_id, bytes(m.data), m.is_rx) == (0x100, b"\x01\x02", True)
+
+
+def test_log_reader_fd_flags_come_from_the_frame_field(tmp_path: Path) -> None:
+    # Found by the candump fuzzer (tests/fuzz/fuzz_host.py): a "##" inside the channel name made the
+    # flags digit be read from the wrong field (a ValueError escaped read_log). The flags digit is the
+    # one after the frame field's "##", where python-can reads it.
+    path = tmp_path / "x.log"
+    path.write_bytes(b"(1.5) vc\x00\x00na\x00\x0000## 110##6AA\n(2.0) can0 110##5AA\n")
+    frames = list(read_log(path))
+    assert [f.arbitration_id for f in frames] == [0x110, 0x110]
+    assert all(f.is_fd and bytes(f.data) == b"\xaa" for f in frames)
+    assert getattr(frames[0], "fd_flags", None) == 6 and getattr(frames[1], "fd_flags", None) == 5

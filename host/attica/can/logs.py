@@ -57,8 +57,11 @@ class LogMessage(can.Message):
 
 def _with_fd_flags(msg: can.Message, line: str) -> can.Message:
     """``msg`` as a :class:`LogMessage` when its line's flags digit says more than BRS and ESI."""
-    _, sep, rest = line.partition("##")
-    if not sep or not rest:
+    fields = line.split()  # "(timestamp) channel id##<flags><data>", as python-can splits it
+    if len(fields) < 3:
+        return msg
+    _, sep, rest = fields[2].partition("##")
+    if not sep or not rest or rest[0] not in "0123456789abcdefABCDEF":
         return msg
     flags = int(rest[0], 16)
     if flags == (1 if msg.bitrate_switch else 0) | (2 if msg.error_state_indicator else 0):
