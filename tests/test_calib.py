@@ -148,10 +148,10 @@ def test_settings_refused_with_reason(settings: StageSettings, problem: str) -> 
     assert lib.att_calib_settings_validate(cs) == lib.ATT_ERR_SETTINGS
     f = native.Filter("ars", dt=0.01)
     f.step((0.1, 0.0, 0.0), (0.0, 0.0, 9.8))
-    before = bytes(ffi.buffer(f.state))
+    before = bytes(f.state)
     with pytest.raises(native.NativeError, match=r"att_filter_calibrate"):
         f.calibrate(settings)
-    assert bytes(ffi.buffer(f.state)) == before  # never half-applied
+    assert bytes(f.state) == before  # never half-applied
     with pytest.raises(ValueError, match=problem):
         rc.Stages(settings)
 
@@ -248,7 +248,7 @@ def test_filter_bit_exact_with_calibration(kind: str) -> None:
             accel = np.zeros((STEPS, 10), np.float32)
             g, a, m = (np.ascontiguousarray(x[:, j]) for x in (gyr, acc, mag))
             lib.att_host_filter_run_accel(
-                f.state,
+                f.state.ptr,
                 ffi.from_buffer("float[]", g),
                 ffi.from_buffer("float[]", a),
                 ffi.from_buffer("float[]", m),
@@ -360,7 +360,7 @@ def test_conventions_for_every_remap_against_truth(name: str, sim: Any) -> None:
         out = np.zeros(len(rec.gyr), OUTPUT_DTYPE)
         accel = np.zeros((len(rec.gyr), 10), np.float32)
         lib.att_host_filter_run_accel(
-            f.state,
+            f.state.ptr,
             ffi.from_buffer("float[]", rec.gyr),
             ffi.from_buffer("float[]", rec.acc),
             ffi.from_buffer("float[]", rec.mag),
@@ -371,7 +371,7 @@ def test_conventions_for_every_remap_against_truth(name: str, sim: Any) -> None:
         want = _qmul(np.broadcast_to(C_CONV[conv], q_body.shape), q_body)
         err = np.degrees(_angle(out["q"].astype(np.float64), want))[moving]
         assert np.sqrt(np.mean(err**2)) < 3.0, (name, conv, np.sqrt(np.mean(err**2)))
-        results[conv] = (out, accel, bytes(ffi.buffer(ffi.addressof(f.state[0], "u"))))
+        results[conv] = (out, accel, bytes(f.state.u))
     enu_out, enu_acc, enu_state = results["enu"]
     for conv in ("ned", "nwu"):
         out, accel, state = results[conv]
@@ -429,7 +429,7 @@ def test_heading_refusals() -> None:
     with pytest.raises(native.NativeError, match="not initialised"):
         fresh.set_heading(0.5)
     fresh.step((0, 0, 0), (0, 0, 9.8))
-    before = bytes(ffi.buffer(fresh.state))
+    before = bytes(fresh.state)
     for bad in (float("nan"), float("inf"), 1e5):
         with pytest.raises(native.NativeError, match="out of range"):
             fresh.set_heading(bad)
@@ -438,7 +438,7 @@ def test_heading_refusals() -> None:
     with pytest.raises(native.NativeError, match="out of range"):
         fresh.heading_update(0.1, float("nan"))
     fresh.heading_update(1.0, 0.5, valid=False)
-    assert bytes(ffi.buffer(fresh.state)) == before
+    assert bytes(fresh.state) == before
     mars = native.Filter("mars", dt=0.01)
     mars.step((0, 0, 0), (0, 0, 9.8), (0, 20, -40))
     with pytest.raises(native.NativeError, match="not supported"):

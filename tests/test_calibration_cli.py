@@ -60,7 +60,7 @@ def _node_fields(node: Node) -> list[float]:
     v = ffi.new("float *")
     out = []
     for i in range(lib.ATT_CALIB_FIELDS):
-        assert lib.att_calib_field_get(ffi.addressof(node.state, "cal"), i, v)
+        assert lib.att_calib_field_get(node.state.cal.ptr, i, v)
         out.append(float(v[0]))
     return out
 

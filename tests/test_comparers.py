@@ -141,10 +141,9 @@ def _missed_state_fields(monkeypatch: pytest.MonkeyPatch, kind: str, derived: bo
 
             @property
             def state(self) -> Any:
-                s = ffi.new("att_filter_t *")
-                s[0] = super().state[0]
+                s = super().state.copy()  # a snapshot with one bit flipped
                 k = type(self).at
-                ffi.buffer(s)[k] = bytes([ffi.buffer(s)[k][0] ^ 1])
+                ffi.buffer(s.ptr)[k] = bytes([ffi.buffer(s.ptr)[k][0] ^ 1])
                 return s
 
         monkeypatch.setattr(native, "Filter", FlipState)

@@ -117,12 +117,12 @@ def test_retune_keeps_the_state(kind: str) -> None:
     ref = RefFilter(k, dt=1 / RATE)
     first = f.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
     ref.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
-    before = bytes(ffi.buffer(f.state))
-    assert lib.att_filter_retune(f.state, _c_settings(k)) == lib.ATT_OK
-    assert bytes(ffi.buffer(f.state)) == before
+    before = bytes(f.state)
+    assert lib.att_filter_retune(f.state.ptr, _c_settings(k)) == lib.ATT_OK
+    assert bytes(f.state) == before
     changes = RETUNE_CHANGES[kind]
     c_changes = {n: v for n, v in changes.items()}
-    assert lib.att_filter_retune(f.state, _c_settings(k, **c_changes)) == lib.ATT_OK
+    assert lib.att_filter_retune(f.state.ptr, _c_settings(k, **c_changes)) == lib.ATT_OK
     ref.retune(**changes)
     assert ref.state_matches(0, f.state[0]), "state after the retune"
     out = f.run(rec.gyr[half:], rec.acc[half:], rec.mag[half:])
@@ -141,12 +141,12 @@ def test_retune_refuses_bad_settings_and_leaves_the_filter(kind: str) -> None:
     f = native.Filter(k, dt=1 / RATE)
     rec = _sim(2.0)
     f.run(rec.gyr, rec.acc, rec.mag)
-    before = bytes(ffi.buffer(f.state))
+    before = bytes(f.state)
     field = "gravity" if kind == "tilt" else "dt"
     bad = _c_settings(k, **{field: float("nan")})
     assert lib.att_filter_settings_validate(int(k), bad) == lib.ATT_ERR_SETTINGS
-    assert lib.att_filter_retune(f.state, bad) == lib.ATT_ERR_SETTINGS
-    assert bytes(ffi.buffer(f.state)) == before
+    assert lib.att_filter_retune(f.state.ptr, bad) == lib.ATT_ERR_SETTINGS
+    assert bytes(f.state) == before
     assert lib.att_filter_retune(ffi.NULL, bad) == lib.ATT_ERR_NULL
     fresh = ffi.new("att_filter_t *")
     assert lib.att_filter_retune(fresh, _c_settings(k)) == lib.ATT_ERR_KIND

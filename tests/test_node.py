@@ -306,7 +306,7 @@ def test_rx_overflow_and_tx_backpressure() -> None:
     assert node.stats()["rx_overflows"] == 100 - lib.ATT_NODE_RX_RING
     # the rx ring holds 21 whole samples = 126+ output frames: poll stops while the tx ring is short of room
     first = node.poll()
-    assert 0 < first < 21 and int(lib.att_node_tx_pending(node.state)) <= lib.ATT_NODE_TX_RING
+    assert 0 < first < 21 and int(lib.att_node_tx_pending(node.state.ptr)) <= lib.ATT_NODE_TX_RING
     assert node.rx_pending() > 0
     out = [node.pop()]
     tail, k = node.flush()
@@ -328,7 +328,7 @@ def test_counters_saturate_on_the_bus() -> None:
     node = c.Node("ars", sample_rate=RATE, diag_divider=1)
     node.state.stats.crc_errors = 300
     node.state.stats.duplicates = 70000
-    assert lib.att_node_error_count(node.state) == 255
+    assert lib.att_node_error_count(node.state.ptr) == 255
     gyr, acc, mag = _recording(3, 11)
     out, _ = node.run(c.encode_imu(gyr, acc, mag))
     dec = c.decode_outputs(out)
@@ -338,9 +338,9 @@ def test_counters_saturate_on_the_bus() -> None:
     node = c.Node("ars", sample_rate=RATE)
     node.state.stats.crc_errors = 200
     node.state.stats.stale_partials = 55
-    assert lib.att_node_error_count(node.state) == 255
+    assert lib.att_node_error_count(node.state.ptr) == 255
     node.state.stats.stale_partials = 54
-    assert lib.att_node_error_count(node.state) == 254
+    assert lib.att_node_error_count(node.state.ptr) == 254
 
 
 def test_either_input_form_in_either_output_mode() -> None:
@@ -442,7 +442,7 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
     node = c.Node("ars", sample_rate=RATE)
     gyr, acc, mag = _recording(50, 6)
     node.run(c.encode_imu(gyr, acc, mag))
-    before = bytes(ffi.buffer(node.state))
+    before = bytes(node.state)
     bad = [
         _settings(rate=1000.0),  # bus load 165 %
         _settings(rate=0.0),
@@ -468,8 +468,8 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
         assert lib.att_filter_settings_default(s.kind, 0.01, ffi.addressof(s[0], "filter")) == lib.ATT_OK
         bad.append(s)
     for i, s in enumerate(bad):
-        assert lib.att_node_init(node.state, s) == lib.ATT_ERR_SETTINGS, i
-    assert bytes(ffi.buffer(node.state)) == before
+        assert lib.att_node_init(node.state.ptr, s) == lib.ATT_ERR_SETTINGS, i
+    assert bytes(node.state) == before
     with pytest.raises(c.NodeError, match="does not match sample_rate"):
         c.Node("ars", sample_rate=RATE, dt=0.01)
     with pytest.raises(c.NodeError, match="does not match sample_rate"):
@@ -478,8 +478,8 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
     c.Node("tilt", sample_rate=RATE)  # no dt to match
     s = _settings()
     s.kind = 9
-    assert lib.att_node_init(node.state, s) == lib.ATT_ERR_KIND
-    assert bytes(ffi.buffer(node.state)) == before
+    assert lib.att_node_init(node.state.ptr, s) == lib.ATT_ERR_KIND
+    assert bytes(node.state) == before
 
 
 # --- commands -------------------------------------------------------------------------------------
@@ -591,7 +591,7 @@ def test_refused_commands_are_answered_and_change_nothing(
     frames = c.encode_imu(gyr, acc, mag)
     node = c.Node(kind, sample_rate=RATE)
     node.run(frames[:90])
-    before = bytes(ffi.buffer(ffi.addressof(node.state, "f")))
+    before = bytes(node.state.f)
     out, _ = node.run(c.encode_cmd(cmd, arg, value, counter=11))
     (ans,) = _answers(out)
     assert (ans.cmd, ans.result, ans.counter, ans.kind, ans.steps, ans.crc_ok) == (
@@ -602,7 +602,7 @@ def test_refused_commands_are_answered_and_change_nothing(
         30,
         True,
     )
-    assert bytes(ffi.buffer(ffi.addressof(node.state, "f"))) == before
+    assert bytes(node.state.f) == before
     name, sig = c.decode(out[0])
     assert name == "ATT_STATUS" and sig["ack"] == 0x80 | (int(result) << 4) | (cmd & 0xF)
     # the stream goes on as if nothing happened

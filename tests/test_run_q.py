@@ -65,7 +65,7 @@ def _leaves(t: Any, offset: int = 0) -> list[tuple[int, int]]:
 
 def _state_bytes(f: native.Filter) -> list[bytes]:
     """The live part of the C state, field by field: kind, the kind's union member, calibration stages."""
-    raw = bytes(ffi.buffer(f.state))
+    raw = bytes(f.state)
     ft = ffi.typeof("att_filter_t")
     fields = dict(ft.fields)
     u = fields["u"].offset
@@ -233,7 +233,7 @@ def test_run_snapshots_from_the_chunked_loop(every: int) -> None:
     assert len(snaps) == count
     probe = native.Filter("mekf", dt=1 / RATE)
     for j in sorted({0, 1, count // 2, count - 1} & set(range(count))):
-        ffi.memmove(probe.state, ffi.addressof(snaps, j), ffi.sizeof("att_filter_t"))
+        probe.state[0] = snaps[j]  # a whole att_filter_t copied in
         want = native.Filter("mekf", dt=1 / RATE)
         if j:
             want.run(g[: j * every], a[: j * every], m[: j * every])

@@ -95,22 +95,17 @@ def crosscheck(
     result = CrossCheck(kind=k)
     seg_src: list[tuple[int, int, int]] = []  # (stream, start, length)
     snapshots: list[Any] = []
-    owners: list[Any] = []  # cffi arrays that own the snapshot memory: keep them alive
     for si, st in enumerate(streams):
         c = native.Filter(k, s, calibration=calibration)
         out, snaps = c.run(st.gyr, st.acc, st.mag, snapshot_every=segment)
         result.c_outputs.append(out)
-        owners.append(snaps)
         n = len(out)
         for j, start in enumerate(range(0, n, segment)):
             seg_src.append((si, start, min(segment, n - start)))
             snapshots.append(snaps[j])
         # the final C state, to check the end of the last segment
-        final = native.ffi.new("att_filter_t *")
-        final[0] = c.state[0]
-        owners.append(final)
         seg_src.append((si, n, 0))
-        snapshots.append(final[0])
+        snapshots.append(c.state.copy()[0])
     # lockstep reference over all non-empty segments
     segs = [(i, src) for i, src in enumerate(seg_src) if src[2] > 0]
     if not segs:

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from attica.calibration.stages import fill_c
 from attica.checks import filter_settings, imu_arrays, warn_units
+from attica.cview import CView
 from attica.outputs import OUTPUT_DTYPE
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Preset, make_settings, to_dict
@@ -336,9 +337,17 @@ class Filter:
         self._settings = new
 
     @property
-    def state(self) -> Any:
-        """The C state (``att_filter_t *``; live, not a copy)."""
-        return self._f
+    def state(self) -> CView:
+        """The C state: a live :class:`~attica.cview.CView` of this filter's ``att_filter_t *``.
+
+        Live, not a copy: it shows the state as it is now (later steps are seen) and writing through
+        it changes the filter. It keeps the filter's C memory alive, and so does everything taken
+        from it (``f.state.u.mekf.c``, ``f.state[0]``, ``f.state.ptr``), even after the Filter itself
+        is gone: ``Filter("mekf", 0.01).state.u.mekf.c`` stays valid. For C calls pass
+        ``f.state.ptr`` (the ``att_filter_t *``); ``f.state.copy()`` is a snapshot (new memory),
+        ``bytes(f.state)`` its bytes, and ``f.state[0] = saved[0]`` restores one.
+        """
+        return CView(self._f, self._f, ffi)
 
     def run(
         self,
@@ -359,8 +368,9 @@ class Filter:
         gyr, acc, mag
             (N, 3): rad/s, m/s^2, uT (``mag`` None, or NaN / zero rows: no mag sample).
         snapshot_every
-            > 0: return ``(records, snapshots)`` where snapshots is a cffi array of ``att_filter_t``
-            holding the state just before steps 0, k, 2k, ...
+            > 0: return ``(records, snapshots)``: snapshots is a :class:`~attica.cview.CView` of a
+            new ``att_filter_t[]`` (copies, not live: ``snapshots[j]`` is the state just before step
+            ``j * k``), whose elements and members keep that array's memory alive.
         full
             True (default): every record is the whole att_filter_output after its step (Euler angles,
             covariance); False keeps only what att_filter_step fills (q, gyro_bias, flags, steps; see
@@ -396,7 +406,7 @@ class Filter:
             snaps,
         )
         if every:
-            return as_outputs(out), snaps
+            return as_outputs(out), CView(snaps, snaps, ffi)
         return as_outputs(out)
 
     @overload

@@ -459,7 +459,6 @@ def align_inputs(
         by_step.setdefault(int(st), i)
     steps_rx = np.array(sorted(by_step), np.int64)
     rows = np.array([by_step[int(k)] for k in steps_rx], np.int64)
-    ffi = native.ffi
     offset: int | None = None
     start = 0  # steps before this are known to match
     for _ in range(max_losses):
@@ -485,8 +484,7 @@ def align_inputs(
         f = native.Filter(kind, s, calibration=calibration)
         if bad_step > 1:
             f.run(gyr[seq[: bad_step - 1]], acc[seq[: bad_step - 1]], mag[seq[: bad_step - 1]])
-        snap = ffi.new("att_filter_t *")
-        snap[0] = f.state[0]
+        snap = f.state.copy()
         fixed = False
         for d in range(1, max_skip + 1):
             if bad_step - 1 + d >= m:

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from attica.can.layout import FRAME_DTYPE, frames
 from attica.checks import check_gains, implied_gains
+from attica.cview import CView
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, make_settings, to_dict
 
@@ -121,9 +122,14 @@ class Node:
         self._one = ffi.new("att_can_frame_t *")
 
     @property
-    def state(self) -> Any:
-        """The C node (``att_node_t *``; live)."""
-        return self._n
+    def state(self) -> CView:
+        """The C node: a live :class:`~attica.cview.CView` of this node's ``att_node_t *``.
+
+        Live, not a copy (writing through it changes the node); it and everything taken from it
+        (``node.state.stats``, ``node.state.f.u``) keep the node's C memory alive. For C calls pass
+        ``node.state.ptr``; ``node.state.copy()`` is a snapshot.
+        """
+        return CView(self._n, self._n, self._native.ffi)
 
     def stats(self) -> dict[str, int]:
         """The node counters."""
