@@ -520,12 +520,9 @@ def test_defaults_are_physical() -> None:
     coefficients scale with dt as densities must."""
     a = make_settings(KIND, dt=0.01)
     b = replace(a, dt=0.001)
-    # Keep both filters alive: a cffi struct member (state.u.mekf.c) does not own its memory, and a
-    # temporary Filter's att_filter_t is freed at once, so a second ffi.new may reuse it (both views
-    # then read the same coefficients: the failure seen in -n 2 runs, which depends on the allocator).
-    filt_a = native.Filter(KIND, a)
-    filt_b = native.Filter(KIND, b)
-    fa = filt_a.state.u.mekf.c
-    fb = filt_b.state.u.mekf.c
+    # Temporary filters: their state views keep the C memory alive (tests/test_lifetime.py; a raw
+    # cffi member once read the second filter's coefficients here when the first's block was reused).
+    fa = native.Filter(KIND, a).state.u.mekf.c
+    fb = native.Filter(KIND, b).state.u.mekf.c
     assert np.isclose(fa.qa / fb.qa, 10.0, rtol=1e-5) and np.isclose(fb.r_acc / fa.r_acc, 10.0, rtol=1e-5)
     assert 1e-5 <= a.gyro_noise <= 1e-2 and 1e-6 <= a.bias_noise <= 1e-3
