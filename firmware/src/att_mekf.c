@@ -340,6 +340,21 @@ static ATT_ALWAYS_INLINE bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_q
     return true;
 }
 
+/*
+ * The estimate's earth frame was turned about z by the unit quaternion (w, 0, 0, z) (a heading correction
+ * or the yaw alignment): the low-pass stages, which live in that frame, are turned with it, as the accel
+ * and rest corrections turn them. cz = 1 - 2 z^2 and sz = 2 w z are the cosine and sine of the angle.
+ */
+static ATT_ALWAYS_INLINE void att_mekf_lp_turn(att_mekf_state_t *st, float w, float z)
+{
+    const float cz = 1.0f - 2.0f * (z * z);
+    const float sz = 2.0f * (w * z);
+    const att_vec3_t l1 = st->lp1;
+    const att_vec3_t l2 = st->lp2;
+    st->lp1 = att_i_vec3(cz * l1.x - sz * l1.y, sz * l1.x + cz * l1.y, l1.z);
+    st->lp2 = att_i_vec3(cz * l2.x - sz * l2.y, sz * l2.x + cz * l2.y, l2.z);
+}
+
 /* The heading was aligned: its variance back to p0_att, its correlations to zero (P stays PD). */
 static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, float *p)
 {
@@ -379,7 +394,10 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     return flags;
 }
 
-/* A usable mag sample before the reference field is known: yaw alignment of *q, or m0 from it; flags. */
+/*
+ * A usable mag sample before the reference field is known: yaw alignment of *q (the low-pass stages turned
+ * with it), or m0 from it; flags.
+ */
 static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
                                                 const att_vec3_t *mag)
 {
@@ -387,6 +405,13 @@ static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_
     att_vec3_t m0;
     if (c->init_from_sensors) {
         if (att_mekf_align(*q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+            if (c->lp_on) {
+                /* the turn applied, qa q* = (w, 0, 0, z) (its x, y are rounding: dropped) */
+                const att_quat_t q0 = *q;
+                const float tw = qa.w * q0.w + qa.x * q0.x + qa.y * q0.y + qa.z * q0.z;
+                const float tz = qa.z * q0.w - qa.w * q0.z + qa.y * q0.x - qa.x * q0.y;
+                att_mekf_lp_turn(st, tw, tz);
+            }
             *q = qa;
             att_mekf_yaw_reset(c, st->p);
             return ATT_FLAG_INITIALISED;
@@ -875,7 +900,11 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
     return flags;
 }
 
-/* Step 3: the heading update with a usable mag sample of norm mnorm (m0 known); returns its flags. */
+/*
+ * Step 3: the heading update with a usable mag sample of norm mnorm (m0 known); returns its flags. The
+ * heading correction turns the estimate's earth frame about z, so the low-pass stages are turned with it
+ * (att_mekf_lp_turn).
+ */
 static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
                                           const att_vec3_t *mag, float mnorm)
 {
@@ -890,6 +919,9 @@ static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_s
     dq = att_mekf_exp(att_i_vec3(0.0f, 0.0f, dz));
     *q = att_i_quat_mul_z(dq.w, dq.z, *q);
     st->bias = att_i_vec3_add(st->bias, db);
+    if (c->lp_on) {
+        att_mekf_lp_turn(st, dq.w, dq.z);
+    }
     return ATT_FLAG_BIAS_UPDATED;
 }
 

@@ -54,6 +54,9 @@
  *     mag_gate). The gain K = P H^T / s has its dtheta_x, dtheta_y entries set to zero, so the field
  *     can change only the heading (and the bias), never the tilt; P takes the Joseph form for that
  *     suboptimal gain, (I - K H) P (I - K H)^T + K r K^T (the tilt block is left unchanged).
+ *     q := exp((0, 0, dtheta_z)) (x) q, b := b + db, and lp1, lp2 are turned about z by the same
+ *     rotation: like every correction (accel, rest, the yaw alignment) it turns the estimate's earth
+ *     frame, in which the low-pass stages live.
  *     Heading is relative to magnetic north (m0 = (0, |m_xy|, m_z) after the yaw alignment).
  *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
  *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
@@ -67,7 +70,8 @@
  * Initialisation (init_from_sensors, default): at the first usable accel sample, roll and pitch from
  * att_sensor_tilt(a), yaw 0, lp1 = lp2 = q a q*. With use_mag, the first usable mag sample (at that
  * step or later) aligns the yaw with north as att_mars.h does and sets m0 = (0, |m_xy|, m_z); the
- * heading variance and its correlations are then reset to p0_att, 0 (ATT_FLAG_INITIALISED).
+ * heading variance and its correlations are then reset to p0_att, 0 (ATT_FLAG_INITIALISED), and
+ * lp1, lp2 are turned with the alignment's rotation about z.
  * Without init_from_sensors the attitude is q_init from the start and m0 = m0_init, or when m0_init
  * is zero the first usable mag sample in the earth frame of q (its yaw is trusted). P starts as
  * diag(p0_att I3, p0_bias I3), b as bias_init. The low-pass states start from the first usable sample

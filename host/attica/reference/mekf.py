@@ -381,6 +381,7 @@ class Mekf:
             dqz = dm.quat_from_rotvec_fast((self._zeros, self._zeros, dz))
             q = dm.quat_where(mag_apply, dm.quat_mul_z(dqz[0], dqz[3], q), q)
             bias = dm.vec3_where(mag_apply, dm.vec3_add(bias, (db[0], db[1], db[2])), bias)
+            lp1, lp2 = _lp_turn(mag_apply & self.lp_on, dqz[0], dqz[3], lp1, lp2)
             flags = flags | w(mag_apply, _u(Flag.BIAS_UPDATED), _U0)
             flags = flags | w(use_corr & ~mag_apply, _u(Flag.MAG_REJECTED), _U0)
             # the first mag sample (att_mekf_mag_first)
@@ -391,6 +392,10 @@ class Mekf:
             good_l = use_align & ok_al & ok_dl
             ok_ds, parts_s = self._derive_m0(dm.quat_rotate(q, m))
             use_set = first & ~self.init_from_sensors
+            # the turn applied, q_al q* = (w, 0, 0, z) (its x, y are rounding: dropped)
+            tw = q_al[0] * q[0] + q_al[1] * q[1] + q_al[2] * q[2] + q_al[3] * q[3]
+            tz = q_al[3] * q[0] - q_al[0] * q[3] + q_al[2] * q[1] - q_al[1] * q[2]
+            lp1, lp2 = _lp_turn(good_l & self.lp_on, tw, tz, lp1, lp2)
             q = dm.quat_where(good_l, q_al, q)
             p = cv.where(good_l, cv.yaw_reset(p, self.p0_att), p)
             flags = flags | w(good_l, _u(Flag.INITIALISED), _U0)
@@ -464,6 +469,15 @@ def _lowpass(u: dm.Vec3, k: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, d
     lp1 = dm.vec3_add(lp1, dm.vec3_sub(dm.vec3_scale(e, k), dm.vec3_scale(d, kq)))
     lp2 = dm.vec3_add(lp2, dm.vec3_scale(dm.vec3_sub(lp1, lp2), k))
     return lp1, lp2
+
+
+def _lp_turn(cond: Any, qw: Any, qz: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, dm.Vec3]:
+    """att_mekf_lp_turn where ``cond``: lp1, lp2 turned about the earth z axis by (qw, 0, 0, qz)."""
+    cz = dm.ONE - dm.TWO * (qz * qz)
+    sz = dm.TWO * (qw * qz)
+    t1 = (cz * lp1[0] - sz * lp1[1], sz * lp1[0] + cz * lp1[1], lp1[2])
+    t2 = (cz * lp2[0] - sz * lp2[1], sz * lp2[0] + cz * lp2[1], lp2[2])
+    return dm.vec3_where(cond, t1, lp1), dm.vec3_where(cond, t2, lp2)
 
 
 def _matrix(q: dm.Quat) -> list[Any]:
