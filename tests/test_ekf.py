@@ -5,6 +5,7 @@ health (6x6 positive definite), the variance cap and repair, bad input. The filt
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from typing import Any
 
@@ -705,6 +706,36 @@ def test_numeric_guard_keeps_the_prediction() -> None:
     assert fl & Flag.NUMERIC
     step_both(f2, ref2, g, (NAN, NAN, NAN))
     assert core_bytes(f) == core_bytes(f2)
+
+
+def test_unusable_update_restarts_the_covariance() -> None:
+    """P is predicted and updated in place (no copy of it on the stack), so an update whose result
+    cannot be used is discarded by restarting P at its start values (p0, p0_bias: att_ekf_reset's),
+    with NUMERIC: the predicted angles and the bias are kept, as by a twin that only predicted (accel
+    sample NaN), and C equals the reference bit for bit. Reached here with a gyro bias at the gyro range
+    (rates of 35 rad/s after its removal): step 29's update is not usable. (Before the in-place
+    covariance, P was the prediction's there.)"""
+    s = ekf_seed(init_from_accel=False, bias_init=(34.906586, -34.906586, 0.0))
+    f, ref = pair(s)
+    gyr, acc, _ = motion(1, 40, 0.01, seed=4, acc_noise=0.3)
+    hit = 0
+    for k in range(40):
+        twin, twin_ref = pair(s)
+        twin[0].st = f[0].st  # the state before the step, into a twin
+        twin_ref = copy.deepcopy(ref)
+        fl = step_both(f, ref, gyr[k, 0], acc[k, 0])
+        if not fl & Flag.NUMERIC:
+            continue
+        hit += 1
+        step_both(twin, twin_ref, gyr[k, 0], (NAN, NAN, NAN))
+        e, b, p = state(f)
+        te, tb, _ = state(twin)
+        assert e == te and b == tb  # the prediction's angles, the bias from before the step
+        start = np.zeros(21, np.float32)
+        start[[0, 6, 11]] = s.p0
+        start[[15, 18, 20]] = s.p0_bias
+        assert_same_bits(np.asarray(p, np.float32), start, "restarted P")
+    assert hit >= 1
 
 
 def test_largest_accepted_samples_keep_the_state_finite() -> None:

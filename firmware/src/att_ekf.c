@@ -341,14 +341,15 @@ static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
     return ATT_FLAG_CLAMPED;
 }
 
-/* Copy of the 21 elements of P. */
-static void att_ekf_p_copy(float *dst, const float *src)
+/*
+ * P after a step whose covariance cannot be used (not finite, or a variance not positive: only from
+ * adversarial states and settings; P is predicted and updated in place, so the one before is gone):
+ * the start values, as att_ekf_reset. Returns ATT_FLAG_NUMERIC.
+ */
+static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float *p)
 {
-    int i;
-    ATT_EKF_UNROLL
-    for (i = 0; i < 21; i++) {
-        dst[i] = src[i];
-    }
+    att_ekf_p_diag(p, c->p0, c->p0_bias);
+    return ATT_FLAG_NUMERIC;
 }
 
 /* sin and cos of roll and pitch (cos(theta) not guarded): of the state, or of the prediction */
@@ -380,13 +381,27 @@ static ATT_ALWAYS_INLINE void att_ekf_sincos_step(float a, float d, float s0, fl
 }
 
 /*
- * The motion of a step with usable rates: the angles into *eo, F P F^T into pn (Q not yet added), the
- * roll and pitch increments into *dd; returns ATT_FLAG_GIMBAL when the cos(theta) guard was used.
- * tr holds sin/cos of the state's roll and pitch.
+ * att_ekf_sincos_step's angle addition alone: for |d| <= ATT_EKF_INC_MAX into *s, *c (true), else
+ * nothing (false: the caller evaluates sin/cos of the angle itself, as att_ekf_sincos_step does).
  */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
-                                                    att_vec3_t w, const att_ekf_trig_t *tr, float *pn,
-                                                    att_vec3_t *eo, float dd[2])
+static ATT_ALWAYS_INLINE bool att_ekf_sincos_add(float d, float s0, float c0, float *s, float *c)
+{
+    if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
+        att_ekf_sincos_step(0.0f, d, s0, c0, s, c);
+        return true;
+    }
+    return false;
+}
+
+/*
+ * The motion of a step with usable rates: the angles into *eo, P := F P F^T in place (Q not yet added;
+ * every element of P is read before the first is written; Pbb does not change), the roll and pitch
+ * increments into *dd; returns ATT_FLAG_GIMBAL when the cos(theta) guard was used. tr holds sin/cos of
+ * the state's roll and pitch.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
+                                                    const att_ekf_trig_t *tr, att_vec3_t *eo, float dd[2],
+                                                    att_ekf_trig_t *tp, bool *added)
 {
     const float dt = c->dt;
     const float sphi = tr->sphi;
@@ -410,11 +425,8 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
     float b21;
     float b22;
     float uu[3][3];
-    float vv[3][3];
     float ww[3][3];
-    float nn[3][3];
-    float x[3][3];
-    float y[3][3];
+    float *pn = st->p;
     const float *p = st->p;
     att_vec3_t e;
     uint32_t flags = 0u;
@@ -452,6 +464,10 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
         e.y = st->euler.y + dd[1];
         e.z = st->euler.z + (sm * secm * w.y + cm * secm * w.z) * dt;
     }
+    /* sin/cos of the predicted roll and pitch by angle addition (before P: fewer values live across
+     * it); an increment beyond 1/16 rad leaves them to att_ekf_predict (from the wrapped angle) */
+    *added = att_ekf_sincos_add(dd[0], sphi, cphi, &tp->sphi, &tp->cphi) &&
+             att_ekf_sincos_add(dd[1], sth, tr->cth, &tp->sth, &tp->cth);
     u = sphi * w.y + cphi * w.z;
     v = cphi * w.y - sphi * w.z;
     /* A = I + dt J (A00 = 1 + a00, A11 = A22 = 1, A02 = A12 = 0) */
@@ -468,6 +484,17 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
     b12 = dt * sphi;
     b21 = -(dt * (sphi * sec));
     b22 = -(dt * (cphi * sec));
+    /* W = A Paa (read before any element of P is written) */
+    ATT_EKF_UNROLL
+    for (j = 0; j < 3; j++) {
+        const float r0j = P_(p, 0, j);
+        const float r1j = P_(p, 1, j);
+        const float r2j = P_(p, 2, j);
+        ww[0][j] = a00 * r0j + a01 * r1j;
+        ww[1][j] = a10 * r0j + r1j;
+        ww[2][j] = (a20 * r0j + a21 * r1j) + r2j;
+    }
+    /* U = A Pab, V = B Pbb, the new Pab N = U + V, column by column in place */
     ATT_EKF_UNROLL
     for (j = 0; j < 3; j++) {
         const float p0j = P_(p, 0, 3 + j);
@@ -476,85 +503,82 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, c
         const float q0j = P_(p, 3, 3 + j);
         const float q1j = P_(p, 4, 3 + j);
         const float q2j = P_(p, 5, 3 + j);
-        const float r0j = P_(p, 0, j);
-        const float r1j = P_(p, 1, j);
-        const float r2j = P_(p, 2, j);
-        /* U = A Pab, V = B Pbb, W = A Paa */
         uu[0][j] = a00 * p0j + a01 * p1j;
         uu[1][j] = a10 * p0j + p1j;
         uu[2][j] = (a20 * p0j + a21 * p1j) + p2j;
-        vv[0][j] = (b00 * q0j + b01 * q1j) + b02 * q2j;
-        vv[1][j] = b11 * q1j + b12 * q2j;
-        vv[2][j] = b21 * q1j + b22 * q2j;
-        ww[0][j] = a00 * r0j + a01 * r1j;
-        ww[1][j] = a10 * r0j + r1j;
-        ww[2][j] = (a20 * r0j + a21 * r1j) + r2j;
+        P_(pn, 0, 3 + j) = uu[0][j] + ((b00 * q0j + b01 * q1j) + b02 * q2j);
+        P_(pn, 1, 3 + j) = uu[1][j] + (b11 * q1j + b12 * q2j);
+        P_(pn, 2, 3 + j) = uu[2][j] + (b21 * q1j + b22 * q2j);
     }
+    /* the new Paa = A Paa A^T (row i of W A^T) + N B^T (X) + (U B^T)^T (Y), element (i, j >= i) */
     ATT_EKF_UNROLL
     for (i = 0; i < 3; i++) {
-        ATT_EKF_UNROLL
-        for (j = 0; j < 3; j++) {
-            nn[i][j] = uu[i][j] + vv[i][j];
-        }
-        /* X = N B^T, Y = U B^T (row i) */
-        x[i][0] = (nn[i][0] * b00 + nn[i][1] * b01) + nn[i][2] * b02;
-        x[i][1] = nn[i][1] * b11 + nn[i][2] * b12;
-        x[i][2] = nn[i][1] * b21 + nn[i][2] * b22;
-        y[i][0] = (uu[i][0] * b00 + uu[i][1] * b01) + uu[i][2] * b02;
-        y[i][1] = uu[i][1] * b11 + uu[i][2] * b12;
-        y[i][2] = uu[i][1] * b21 + uu[i][2] * b22;
-    }
-    ATT_EKF_UNROLL
-    for (i = 0; i < 3; i++) {
-        /* A Paa A^T (row i, columns j >= i) + N B^T + (U B^T)^T */
         const float w0 = ww[i][0];
         const float w1 = ww[i][1];
         const float w2 = ww[i][2];
+        const float n0 = P_(pn, i, 3);
+        const float n1 = P_(pn, i, 4);
+        const float n2 = P_(pn, i, 5);
         float t[3];
+        float x[3];
         t[0] = w0 * a00 + w1 * a01;
         t[1] = w0 * a10 + w1;
         t[2] = (w0 * a20 + w1 * a21) + w2;
+        x[0] = (n0 * b00 + n1 * b01) + n2 * b02;
+        x[1] = n1 * b11 + n2 * b12;
+        x[2] = n1 * b21 + n2 * b22;
         ATT_EKF_UNROLL
         for (j = i; j < 3; j++) {
-            P_(pn, i, j) = (t[j] + x[i][j]) + y[j][i];
-        }
-        ATT_EKF_UNROLL
-        for (j = 0; j < 3; j++) {
-            P_(pn, i, 3 + j) = nn[i][j];
-        }
-    }
-    ATT_EKF_UNROLL
-    for (i = 3; i < 6; i++) {
-        ATT_EKF_UNROLL
-        for (j = i; j < 6; j++) {
-            P_(pn, i, j) = P_(p, i, j);
+            const float u1 = uu[j][1];
+            const float u2 = uu[j][2];
+            const float yji = (i == 0) ? ((uu[j][0] * b00 + u1 * b01) + u2 * b02)
+                                       : ((i == 1) ? (u1 * b11 + u2 * b12) : (u1 * b21 + u2 * b22));
+            P_(pn, i, j) = (t[j] + x[j]) + yji;
         }
     }
     *eo = e;
     return flags;
 }
 
-/*
- * Prediction of the angles (into st) and of P (into pn); returns its flags (ATT_FLAG_NUMERIC:
- * discarded, the angles kept and pn = P). Without usable rates the angles are kept and F = I (the
- * bias did not enter the prediction): P := P + Q.
- */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
-                                                  bool gyro_ok, float *pn, att_ekf_trig_t *tr)
+/* sin/cos of the predicted roll and pitch when att_ekf_propagate left them: directly after a flip, else
+ * as att_ekf_sincos_step (an increment beyond 1/16 rad: from the wrapped angle). */
+static ATT_ALWAYS_INLINE void att_ekf_predict_trig(att_vec3_t e, const float *dd, const att_ekf_trig_t *t0,
+                                              att_ekf_trig_t *tr, bool flipped)
 {
-    const float *p = st->p;
+    if (flipped) {
+        att_i_sincosf(e.x, &tr->sphi, &tr->cphi);
+        att_i_sincosf(e.y, &tr->sth, &tr->cth);
+    } else {
+        att_ekf_sincos_step(e.x, dd[0], t0->sphi, t0->cphi, &tr->sphi, &tr->cphi);
+        att_ekf_sincos_step(e.y, dd[1], t0->sth, t0->cth, &tr->sth, &tr->cth);
+    }
+}
+
+/*
+ * Prediction of the angles and of P, in place (out of line: its frame is not the update's); returns
+ * its flags. Without usable rates the angles are kept and F = I (the bias did not enter the
+ * prediction): P := P + Q. A prediction that cannot be used is discarded (ATT_FLAG_NUMERIC): the
+ * angles kept, P restarted (att_ekf_p_restart). tr: sin/cos of the roll and pitch for the update.
+ */
+static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
+                                             bool gyro_ok, att_ekf_trig_t *tr)
+{
+    float *pn = st->p;
     att_vec3_t e;
     uint32_t flags = 0u;
     float dd[2] = {0.0f, 0.0f};
     att_ekf_trig_t t0;
     bool flipped;
+    bool added = false;
     att_i_sincosf(st->euler.x, &t0.sphi, &t0.cphi);
     att_i_sincosf(st->euler.y, &t0.sth, &t0.cth);
     if (gyro_ok) {
-        flags = att_ekf_propagate(c, st, w, &t0, pn, &e, dd);
+        flags = att_ekf_propagate(c, st, w, &t0, &e, dd, tr, &added);
     } else {
-        att_ekf_p_copy(pn, p);
         e = st->euler;
+        att_ekf_sincos_step(e.x, 0.0f, t0.sphi, t0.cphi, &tr->sphi, &tr->cphi);
+        att_ekf_sincos_step(e.y, 0.0f, t0.sth, t0.cth, &tr->sth, &tr->cth);
+        added = true;
     }
     P_(pn, 0, 0) = P_(pn, 0, 0) + c->q_step[0];
     P_(pn, 1, 1) = P_(pn, 1, 1) + c->q_step[1];
@@ -564,30 +588,30 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
     flipped = att_ekf_canon(&e, pn);
     if (!att_ekf_usable(e, pn)) {
-        att_ekf_p_copy(pn, p);
-        *tr = t0;
-        return flags | ATT_FLAG_NUMERIC; /* prediction discarded */
+        att_i_sincosf(st->euler.x, &tr->sphi, &tr->cphi); /* the state's, as at the start */
+        att_i_sincosf(st->euler.y, &tr->sth, &tr->cth);
+        return flags | att_ekf_p_restart(c, pn); /* prediction discarded: the angles kept */
     }
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
-     * (as wrapped: the same sin/cos), directly after a flip to the equivalent attitude */
-    if (flipped) {
-        att_i_sincosf(e.x, &tr->sphi, &tr->cphi);
-        att_i_sincosf(e.y, &tr->sth, &tr->cth);
-    } else {
-        att_ekf_sincos_step(e.x, dd[0], t0.sphi, t0.cphi, &tr->sphi, &tr->cphi);
-        att_ekf_sincos_step(e.y, dd[1], t0.sth, t0.cth, &tr->sth, &tr->cth);
+     * (as wrapped: the same sin/cos; done in att_ekf_propagate), directly after a flip to the
+     * equivalent attitude or for an increment beyond 1/16 rad */
+    if (flipped || !added) {
+        att_ekf_predict_trig(e, dd, &t0, tr, flipped);
     }
     st->euler = e;
     return flags;
 }
 
 /*
- * Update with the roll and pitch of the low-passed gravity, from the predicted covariance p into
- * st->p; returns its flags. Whenever it is not applied, st->p = p (the prediction).
+ * Update with the roll and pitch of the low-passed gravity, P in place (out of line: its frame is not
+ * the prediction's); returns its flags. Not applied (no direction, det S not usable, outside the
+ * gate): the prediction kept. An update whose result cannot be used is discarded (ATT_FLAG_NUMERIC):
+ * the predicted angles and bias kept, P restarted (att_ekf_p_restart).
  */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
-                                                 float e2, const float *p, const att_ekf_trig_t *tr)
+static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
+                                            float e2, const att_ekf_trig_t *tr)
 {
+    const float *p = st->p;
     const float sphi = tr->sphi;
     const float cphi = tr->cphi;
     const float sth = tr->sth;
@@ -621,8 +645,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     float i11;
     float d2;
     float fk = 1.0f;
-    float k0[6];
-    float k1[6];
+    float db3[3];
     float *pn = st->p;
     int i;
     int j;
@@ -656,7 +679,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         vv = lp2;
     }
     if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
-        att_ekf_p_copy(st->p, p);
         return 0u; /* no direction: no update */
     }
     (void)cw;
@@ -691,8 +713,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     t1 = dp + r0 * P_(p, 1, 1);
     det = (t0 + r0 * P_(p, 1, 1)) + r0 * r1;
     if (!(det > 0.0f) || !att_i_isfinitef(det)) {
-        att_ekf_p_copy(st->p, p);
-        return ATT_FLAG_NUMERIC;
+        return ATT_FLAG_NUMERIC; /* not applied: the prediction kept */
     }
     inv = 1.0f / det;
     i00 = (P_(p, 1, 1) + r1) * inv;
@@ -701,7 +722,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1);
     if (c->gate > 0.0f) {
         if (d2 > c->gate) {
-            att_ekf_p_copy(st->p, p);
             return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
         }
         if (d2 > c->soft) {
@@ -712,38 +732,68 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
         const float db = yb0 * (i00 * yb0 + i01 * yb1) + yb1 * (i01 * yb0 + i11 * yb1);
         fb = (db > ATT_EKF_BIAS_SOFT) ? (ATT_EKF_BIAS_SOFT / db) * fk : fk;
     }
-    /* K = P H^T S^-1 (columns k0, k1) */
-    ATT_EKF_UNROLL
-    for (i = 0; i < 6; i++) {
-        k0[i] = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
-        k1[i] = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
-    }
-    e.x = st->euler.x + (k0[0] * y0 + k1[0] * y1) * fk;
-    e.y = st->euler.y + (k0[1] * y0 + k1[1] * y1) * fk;
-    e.z = st->euler.z + (k0[2] * y0 + k1[2] * y1) * fk;
-    /* P := P - K S K^T without cancellation in the rows of roll and pitch: (I - K H) P there is
+    /* K = P H^T S^-1 (columns k0, k1; row i: k0_i = P_i0 i00 + P_i1 i01, k1_i = P_i0 i01 + P_i1 i11).
+     * P := P - K S K^T without cancellation in the rows of roll and pitch: (I - K H) P there is
      * R S^-1 P (rows 0, 1), so P2 := R S^-1 P2 = [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0
-     * P11)] / det S (positive definite) and P(0:2, j) := R (K^T)(:, j); the rest P - K (H P) */
-    pn[0] = (r0 * inv) * t0;
-    pn[1] = ((r0 * r1) * inv) * P_(p, 0, 1);
-    pn[6] = (r1 * inv) * t1;
-    ATT_EKF_UNROLL
-    for (i = 2; i < 6; i++) {
-        P_(pn, 0, i) = r0 * k0[i];
-        P_(pn, 1, i) = r1 * k1[i];
-    }
-    ATT_EKF_UNROLL
-    for (i = 2; i < 6; i++) {
+     * P11)] / det S (positive definite) and P(0:2, j) := R (K^T)(:, j); the rest P - K (H P). In place,
+     * one row i = 2..5 of the gain at a time: row i of the block reads P_0j, P_1j for j >= i only, so
+     * P_0i, P_1i are written after it (soft: every element P + fk (P_update - P)). */
+    {
+        const bool soft = fk < 1.0f;
+        float kb0[3];
+        float kb1[3];
+        float n00;
+        float n01;
+        float n11;
+        float k00;
+        float k10;
+        float k01;
+        float k11;
+        float k02;
+        float k12;
+        k00 = P_(p, 0, 0) * i00 + P_(p, 0, 1) * i01;
+        k10 = P_(p, 0, 0) * i01 + P_(p, 0, 1) * i11;
+        k01 = P_(p, 1, 0) * i00 + P_(p, 1, 1) * i01;
+        k11 = P_(p, 1, 0) * i01 + P_(p, 1, 1) * i11;
+        e.x = st->euler.x + (k00 * y0 + k10 * y1) * fk;
+        e.y = st->euler.y + (k01 * y0 + k11 * y1) * fk;
         ATT_EKF_UNROLL
-        for (j = i; j < 6; j++) {
-            P_(pn, i, j) = P_(p, i, j) - (k0[i] * P_(p, 0, j) + k1[i] * P_(p, 1, j));
+        for (i = 2; i < 6; i++) {
+            const float k0 = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
+            const float k1 = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
+            const float o0 = P_(p, 0, i);
+            const float o1 = P_(p, 1, i);
+            if (i == 2) {
+                k02 = k0;
+                k12 = k1;
+            } else {
+                kb0[i - 3] = k0;
+                kb1[i - 3] = k1;
+            }
+            ATT_EKF_UNROLL
+            for (j = i; j < 6; j++) {
+                const float old = P_(pn, i, j);
+                const float nw = old - (k0 * P_(p, 0, j) + k1 * P_(p, 1, j));
+                P_(pn, i, j) = soft ? old + fk * (nw - old) : nw;
+            }
+            P_(pn, 0, i) = soft ? o0 + fk * (r0 * k0 - o0) : r0 * k0;
+            P_(pn, 1, i) = soft ? o1 + fk * (r1 * k1 - o1) : r1 * k1;
         }
-    }
-    if (fk < 1.0f) {
-        /* the soft limit: P - f K S K^T = P + f (P_update - P) */
-        for (i = 0; i < 21; i++) {
-            pn[i] = p[i] + fk * (pn[i] - p[i]);
+        e.z = st->euler.z + (k02 * y0 + k12 * y1) * fk;
+        n00 = (r0 * inv) * t0;
+        n01 = ((r0 * r1) * inv) * P_(p, 0, 1);
+        n11 = (r1 * inv) * t1;
+        if (soft) {
+            n00 = P_(p, 0, 0) + fk * (n00 - P_(p, 0, 0));
+            n01 = P_(p, 0, 1) + fk * (n01 - P_(p, 0, 1));
+            n11 = P_(p, 1, 1) + fk * (n11 - P_(p, 1, 1));
         }
+        pn[0] = n00;
+        pn[1] = n01;
+        pn[6] = n11;
+        db3[0] = (kb0[0] * yb0 + kb1[0] * yb1) * fb;
+        db3[1] = (kb0[1] * yb0 + kb1[1] * yb1) * fb;
+        db3[2] = (kb0[2] * yb0 + kb1[2] * yb1) * fb;
     }
     /* the earth-frame rotation of the correction, for the low-pass stages */
     {
@@ -756,13 +806,12 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_
     }
     (void)att_ekf_canon(&e, pn);
     if (!att_ekf_usable(e, pn)) {
-        att_ekf_p_copy(st->p, p);
-        return ATT_FLAG_NUMERIC; /* update discarded */
+        return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
     }
     st->euler = e;
-    st->bias.x = st->bias.x + (k0[3] * yb0 + k1[3] * yb1) * fb;
-    st->bias.y = st->bias.y + (k0[4] * yb0 + k1[4] * yb1) * fb;
-    st->bias.z = st->bias.z + (k0[5] * yb0 + k1[5] * yb1) * fb;
+    st->bias.x = st->bias.x + db3[0];
+    st->bias.y = st->bias.y + db3[1];
+    st->bias.z = st->bias.z + db3[2];
     if (c->lp_on) {
         st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
         st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
@@ -786,11 +835,9 @@ static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, const att_vec3_t *ac
     st->initialised = true;
 }
 
-static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_vec3_t *gyr_in,
-                                                      const att_vec3_t *acc_in)
+/* One step (out of line, as the prediction and the update below it: three frames, not one). */
+static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
 {
-    const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
-    const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
     const att_ekf_coeffs_t *c;
     att_ekf_state_t *st;
     uint32_t flags;
@@ -800,7 +847,6 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
     bool gyro_ok;
     bool accel_ok;
     att_vec3_t w;
-    float pa[21];
     att_ekf_trig_t tr;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
@@ -821,7 +867,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
     }
     if (!st->initialised) {
         if (accel_ok) {
-            att_ekf_start(st, acc_in);
+            att_ekf_start(st, &acc);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
@@ -834,11 +880,9 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
         st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's earth frame) are stale */
     }
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
-    flags |= att_ekf_predict(c, st, w, gyro_ok, pa, &tr);
+    flags |= att_ekf_predict(c, st, w, gyro_ok, &tr);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_ekf_update(c, st, acc, e2, pa, &tr);
-    } else {
-        att_ekf_p_copy(st->p, pa);
+        flags |= att_ekf_update(c, st, acc, e2, &tr);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */
@@ -851,7 +895,7 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_update_step(att_ekf_t *f, const att_ve
 
 uint32_t att_ekf_step_out(att_ekf_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
 {
-    const uint32_t flags = att_ekf_update_step(f, &in->gyr, &in->acc);
+    const uint32_t flags = att_ekf_update_step(f, in->gyr, in->acc);
     if (out != NULL) {
         out->euler = f->st.euler;
         out->gyro_bias = f->st.bias;
@@ -864,9 +908,8 @@ uint32_t att_ekf_step_out(att_ekf_t *restrict f, const att_sample_t *restrict in
 
 uint32_t att_ekf_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
 {
-    att_sample_t in;
-    in.gyr = gyr;
-    in.acc = acc;
-    in.mag = att_i_vec3(0.0f, 0.0f, 0.0f);
-    return att_ekf_step_out(f, &in, NULL);
+    if (f == NULL) {
+        return ATT_FLAG_BAD_ARG;
+    }
+    return att_ekf_update_step(f, gyr, acc);
 }

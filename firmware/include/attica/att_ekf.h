@@ -49,7 +49,8 @@
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
  *  (-pi, pi]. A stage whose state or P is not finite, or leaves a variance not > 0, is discarded
- *  (ATT_FLAG_NUMERIC). Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
+ *  (ATT_FLAG_NUMERIC): its angles and bias are not taken, and P (predicted and updated in place, so
+ *  that no copy of it is on the stack) restarts at its start values p0, p0_bias. Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
  *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
  *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).

@@ -244,17 +244,22 @@ class Ekf:
         self._zeros = np.zeros(n, np.float32)
         self.reset()
 
-    def reset(self) -> None:
-        """att_ekf_reset."""
+    def _p_start(self) -> list[Any]:
+        """att_ekf_p_diag(p0, p0_bias): P at reset, and after a step whose P cannot be used."""
         z = self._zeros
-        self.euler: dm.Vec3 = tuple(np.copy(v) for v in self.euler_init)  # type: ignore[assignment]
-        self.bias: dm.Vec3 = tuple(np.copy(v) for v in self.bias_init)  # type: ignore[assignment]
         p = [z.copy() for _ in range(21)]
         for i in (0, 6, 11):
             p[i] = self.p0.copy()
         for i in (15, 18, 20):
             p[i] = self.p0_bias.copy()
-        self.p: list[Any] = p
+        return p
+
+    def reset(self) -> None:
+        """att_ekf_reset."""
+        z = self._zeros
+        self.euler: dm.Vec3 = tuple(np.copy(v) for v in self.euler_init)  # type: ignore[assignment]
+        self.bias: dm.Vec3 = tuple(np.copy(v) for v in self.bias_init)  # type: ignore[assignment]
+        self.p: list[Any] = self._p_start()
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp_ready = np.zeros(self.n, np.bool_)
@@ -384,8 +389,10 @@ class Ekf:
 
     def _update(
         self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
-    ) -> tuple[Any, Any, tuple[Any, ...]]:
-        """att_ekf_update: (applied, flags, new state parts) of the update at the current state.
+    ) -> tuple[Any, Any, Any, tuple[Any, ...]]:
+        """att_ekf_update: (applied, discarded, flags, new state parts) of the update at the current state.
+
+        ``discarded``: computed but not usable (C updates P in place: P restarts, att_ekf_p_restart).
 
         ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction.
         """
@@ -489,12 +496,14 @@ class Ekf:
             lp2n = dm.vec3_add(lp2, dm.vec3_cross(eps, lp2))
         numeric = ok_a & (~ok_det | (~gated & ~ok_u))
         applied = ok_a & ok_det & ~gated & ok_u
+        discarded = ok_a & ok_det & ~gated & ~ok_u
         flags = np.where(
             numeric, _u(Flag.NUMERIC), np.where(ok_a & ok_det & gated, _u(Flag.ACCEL_REJECTED), _U0)
         )
         lp_apply = applied & lp_on
         return (
             applied,
+            discarded,
             flags,
             (
                 e,
@@ -538,18 +547,28 @@ class Ekf:
             take_p = run & ok_p
             flags = flags | np.where(run, fl_p, _U0) | np.where(run & ~ok_p, _u(Flag.NUMERIC), _U0)
             self.euler = dm.vec3_where(take_p, e_p, self.euler)
-            self.p = [np.where(take_p, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
+            # P is predicted in place: a discarded prediction restarts it (att_ekf_p_restart)
+            restart = self._p_start()
+            drop_p = run & ~ok_p
+            self.p = [
+                np.where(take_p, p_p[i], np.where(drop_p, restart[i], self.p[i])).astype(np.float32)
+                for i in range(21)
+            ]
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
-            applied, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
+            applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig
             )
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
+            drop_u = measure & discarded  # updated in place, then not usable: P restarted
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
             self.bias = dm.vec3_where(take_u, b_u, self.bias)
-            self.p = [np.where(take_u, p_u[i], self.p[i]).astype(np.float32) for i in range(21)]
+            self.p = [
+                np.where(take_u, p_u[i], np.where(drop_u, restart[i], self.p[i])).astype(np.float32)
+                for i in range(21)
+            ]
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
