@@ -218,7 +218,7 @@ static ATT_ALWAYS_INLINE float att_ekf_wrap(float a)
 
 /* theta beyond [-pi/2, pi/2] (or NaN): wrapped, and beyond pi/2 the equivalent attitude (phi + pi,
  * +-pi - theta, psi + pi; P's theta row and column change sign); phi, psi are wrapped by the caller. */
-static ATT_NOINLINE bool att_ekf_flip(att_vec3_t *e, float *p)
+static ATT_ALWAYS_INLINE bool att_ekf_flip(att_vec3_t *e, float *p)
 {
     e->y = att_ekf_wrap(e->y);
     if (e->y > ATT_EKF_PIO2_F || e->y < -ATT_EKF_PIO2_F) {
@@ -602,6 +602,12 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     return flags;
 }
 
+/* |a| / g - 1 of a usable accel sample (|a|^2 as att_i_sensor_check_accel2 computes it). */
+static ATT_ALWAYS_INLINE float att_ekf_norm_error(const att_ekf_coeffs_t *c, att_vec3_t acc)
+{
+    return att_i_sqrtf(att_i_vec3_dot(acc, acc)) / c->gravity - 1.0f;
+}
+
 /*
  * Update with the roll and pitch of the low-passed gravity, P in place (out of line: its frame is not
  * the prediction's); returns its flags. Not applied (no direction, det S not usable, outside the
@@ -609,8 +615,11 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
  * the predicted angles and bias kept, P restarted (att_ekf_p_restart).
  */
 static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
-                                            float e2, const att_ekf_trig_t *tr)
+                                            const att_ekf_trig_t *tr)
 {
+    /* (|a| / g - 1)^2 for the noise growth (computed here: no float lives across the prediction) */
+    const float er = c->need_norm ? att_ekf_norm_error(c, acc) : 0.0f;
+    const float e2 = c->need_norm ? er * er : 0.0f;
     const float *p = st->p;
     const float sphi = tr->sphi;
     const float cphi = tr->cphi;
@@ -822,13 +831,13 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
 }
 
 /* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
-static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, const att_vec3_t *acc)
+static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, att_vec3_t acc)
 {
-    const att_vec3_t t = att_sensor_tilt(*acc);
+    const att_vec3_t t = att_sensor_tilt(acc);
     att_quat_t q;
     st->euler = att_i_vec3(att_wrap_pi(t.x), t.y, 0.0f); /* atan2 may give -pi */
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(st->euler.x, st->euler.y, 0.0f), &q);
-    st->lp1 = att_i_quat_rotate(q, *acc);
+    st->lp1 = att_i_quat_rotate(q, acc);
     st->lp2 = st->lp1;
     st->lp_ready = true;
     st->converging = false;
@@ -843,7 +852,6 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     uint32_t flags;
     uint32_t accel_flags;
     float n2;
-    float e2 = 0.0f;
     bool gyro_ok;
     bool accel_ok;
     att_vec3_t w;
@@ -858,16 +866,12 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
-    if (accel_ok && c->need_norm) {
-        const float er = att_i_sqrtf(n2) / c->gravity - 1.0f;
-        e2 = er * er;
-        if (c->accel_reject > 0.0f && att_i_absf(er) > c->accel_reject) {
-            flags |= ATT_FLAG_ACCEL_REJECTED;
-        }
+    if (accel_ok && c->accel_reject > 0.0f && att_i_absf(att_ekf_norm_error(c, acc)) > c->accel_reject) {
+        flags |= ATT_FLAG_ACCEL_REJECTED;
     }
     if (!st->initialised) {
         if (accel_ok) {
-            att_ekf_start(st, &acc);
+            att_ekf_start(st, acc);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
@@ -882,7 +886,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
     flags |= att_ekf_predict(c, st, w, gyro_ok, &tr);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_ekf_update(c, st, acc, e2, &tr);
+        flags |= att_ekf_update(c, st, acc, &tr);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */
