@@ -766,16 +766,15 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         k11 = P_(p, 1, 0) * i01 + P_(p, 1, 1) * i11;
         e.x = st->euler.x + (k00 * y0 + k10 * y1) * fk;
         e.y = st->euler.y + (k01 * y0 + k11 * y1) * fk;
+        k02 = P_(p, 2, 0) * i00 + P_(p, 2, 1) * i01; /* row 2 (psi): for e.z after the loop */
+        k12 = P_(p, 2, 0) * i01 + P_(p, 2, 1) * i11;
         ATT_EKF_UNROLL
         for (i = 2; i < 6; i++) {
-            const float k0 = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
-            const float k1 = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
+            const float k0 = (i == 2) ? k02 : P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
+            const float k1 = (i == 2) ? k12 : P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
             const float o0 = P_(p, 0, i);
             const float o1 = P_(p, 1, i);
-            if (i == 2) {
-                k02 = k0;
-                k12 = k1;
-            } else {
+            if (i > 2) {
                 kb0[i - 3] = k0;
                 kb1[i - 3] = k1;
             }
