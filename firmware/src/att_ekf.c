@@ -226,7 +226,6 @@ static ATT_ALWAYS_INLINE bool att_ekf_flip(att_vec3_t *e, float *p)
         e->x = e->x + ATT_EKF_PI_F;
         e->z = e->z + ATT_EKF_PI_F;
         p[1] = -p[1]; /* P(0,1) */
-        p[7] = -p[7]; /* P(1,2) */
         p[8] = -p[8]; /* P(1,3) */
         p[9] = -p[9]; /* P(1,4) */
         p[10] = -p[10]; /* P(1,5) */
@@ -236,31 +235,37 @@ static ATT_ALWAYS_INLINE bool att_ekf_flip(att_vec3_t *e, float *p)
 }
 
 /*
- * theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi, psi
- * wrapped. Returns true when the attitude was flipped. |theta| <= pi/2 needs neither the wrap nor the
+ * theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi
+ * wrapped, psi wrapped when it moved (the prediction) or was flipped (the update leaves it as it was,
+ * canonical). Returns true when the attitude was flipped. |theta| <= pi/2 needs neither the wrap nor the
  * flip: one test (att_ekf_flip does both otherwise).
  */
-static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p)
+static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p, bool yaw_moved)
 {
     bool flipped = false;
     if (!(att_i_absf(e->y) <= ATT_EKF_PIO2_F)) {
         flipped = att_ekf_flip(e, p);
+        if (!yaw_moved) {
+            e->z = att_ekf_wrap(e->z); /* psi + pi */
+        }
     }
     e->x = att_ekf_wrap(e->x);
-    e->z = att_ekf_wrap(e->z);
+    if (yaw_moved) {
+        e->z = att_ekf_wrap(e->z);
+    }
     return flipped;
 }
 
 /*
- * The angles e and the 21 elements of P are finite and every variance is > 0: one sum of them all is
- * finite exactly when each is (a finite sum of P below FLT_MAX stays finite when the canonical angles,
- * |e_i| <= pi, are added: far below half an ulp there), so one test covers both.
+ * The angles e and the 16 carried elements of P (yaw's correlations, never written, are left to the
+ * conditioning) are finite and every variance is > 0: one sum of them all is finite exactly when each is
+ * (a finite sum of P below FLT_MAX stays finite when the canonical angles, |e_i| <= pi, are added: far
+ * below half an ulp there), so one test covers both.
  */
 static ATT_ALWAYS_INLINE bool att_ekf_usable(att_vec3_t e, const float *p)
 {
-    const float sum = (((((((((((((((((((((((p[0] + p[1]) + p[2]) + p[3]) + p[4]) + p[5]) + p[6]) + p[7]) +
-                      p[8]) + p[9]) + p[10]) + p[11]) + p[12]) + p[13]) + p[14]) + p[15]) + p[16]) + p[17]) +
-                      p[18]) + p[19]) + p[20]) + e.x) + e.y) + e.z);
+    const float sum = ((((((((((((((((((p[0] + p[1]) + p[3]) + p[4]) + p[5]) + p[6]) + p[8]) + p[9]) + p[10]) +
+                      p[11]) + p[15]) + p[16]) + p[17]) + p[18]) + p[19]) + p[20]) + e.x) + e.y) + e.z);
     return att_i_isfinitef(sum) && p[0] > 0.0f && p[6] > 0.0f && p[11] > 0.0f && p[15] > 0.0f && p[18] > 0.0f &&
            p[20] > 0.0f;
 }
@@ -352,6 +357,16 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
     return ATT_FLAG_NUMERIC;
 }
 
+/*
+ * The one test of a step, on the state it leaves (att_ekf_update tests its own result; this covers a
+ * step without an applied update): P that cannot be used restarts (att_ekf_p_restart). The predicted
+ * angles are finite whenever the state before was (|cos(theta)| >= cos_min, bounded rates and dt).
+ */
+static ATT_NOINLINE uint32_t att_ekf_check(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
+{
+    return att_ekf_usable(st->euler, st->p) ? 0u : att_ekf_p_restart(c, st->p);
+}
+
 /* sin and cos of roll and pitch (cos(theta) not guarded): of the state, or of the prediction */
 typedef struct {
     float sphi;
@@ -375,6 +390,21 @@ static ATT_ALWAYS_INLINE void att_ekf_sincos_step(float a, float d, float s0, fl
         const float cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
         *s = s0 * cd + c0 * sd;
         *c = c0 * cd - s0 * sd;
+        return;
+    }
+    att_i_sincosf(a, s, c);
+}
+
+/*
+ * sin(a) and cos(a) of the midpoint a = a0 + d to first order, s0 + c0 d and c0 - s0 d, for |d| <=
+ * ATT_EKF_INC_MAX (an error of at most d^2 / 2 in the midpoint's rates: O(dt^2), so the midpoint rule
+ * stays second order), else att_i_sincosf(a).
+ */
+static ATT_ALWAYS_INLINE void att_ekf_sincos_mid(float a, float d, float s0, float c0, float *s, float *c)
+{
+    if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
+        *s = s0 + c0 * d;
+        *c = c0 - s0 * d;
         return;
     }
     att_i_sincosf(a, s, c);
@@ -415,17 +445,13 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, a
     float a00;
     float a01;
     float a10;
-    float a20;
-    float a21;
     float b00;
     float b01;
     float b02;
     float b11;
     float b12;
-    float b21;
-    float b22;
-    float uu[3][3];
-    float ww[3][3];
+    float uu[2][3];
+    float ww[2][2];
     float *pn = st->p;
     const float *p = st->p;
     att_vec3_t e;
@@ -451,8 +477,8 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, a
         const float hdt = dt * 0.5f;
         const float dxh = (w.x + sphi * tth * w.y + cphi * tth * w.z) * hdt;
         const float dyh = (cphi * w.y - sphi * w.z) * hdt;
-        att_ekf_sincos_step(st->euler.x + dxh, dxh, sphi, cphi, &sm, &cm);
-        att_ekf_sincos_step(st->euler.y + dyh, dyh, sth, tr->cth, &stm, &ctm);
+        att_ekf_sincos_mid(st->euler.x + dxh, dxh, sphi, cphi, &sm, &cm);
+        att_ekf_sincos_mid(st->euler.y + dyh, dyh, sth, tr->cth, &stm, &ctm);
         if (att_i_absf(ctm) < c->cos_min) {
             ctm = (ctm < 0.0f) ? -c->cos_min : c->cos_min;
         }
@@ -470,69 +496,58 @@ static ATT_ALWAYS_INLINE uint32_t att_ekf_propagate(const att_ekf_coeffs_t *c, a
              att_ekf_sincos_add(dd[1], sth, tr->cth, &tp->sth, &tp->cth);
     u = sphi * w.y + cphi * w.z;
     v = cphi * w.y - sphi * w.z;
-    /* A = I + dt J (A00 = 1 + a00, A11 = A22 = 1, A02 = A12 = 0) */
+    /* A: the roll and pitch rows of I + dt J (A00 = a00, A11 = 1, A02 = A12 = 0) */
     a00 = 1.0f + dt * (v * tth);
     a01 = dt * (u * sec * sec);
     a10 = -(dt * u);
-    a20 = dt * (v * sec);
-    a21 = dt * (u * sec * tth);
-    /* B = -dt E */
+    /* B: the roll and pitch rows of -dt E */
     b00 = -dt;
     b01 = -(dt * (sphi * tth));
     b02 = -(dt * (cphi * tth));
     b11 = -(dt * cphi);
     b12 = dt * sphi;
-    b21 = -(dt * (sphi * sec));
-    b22 = -(dt * (cphi * sec));
-    /* W = A Paa (read before any element of P is written) */
+    /* W = A Paa over roll and pitch (read before any element of P is written); yaw's row of P is not
+     * carried (its correlations stay zero): F's yaw column is zero in the rows of roll and pitch and H
+     * does not see yaw, so that row never reaches roll, pitch or the bias */
     ATT_EKF_UNROLL
-    for (j = 0; j < 3; j++) {
+    for (j = 0; j < 2; j++) {
         const float r0j = P_(p, 0, j);
         const float r1j = P_(p, 1, j);
-        const float r2j = P_(p, 2, j);
         ww[0][j] = a00 * r0j + a01 * r1j;
         ww[1][j] = a10 * r0j + r1j;
-        ww[2][j] = (a20 * r0j + a21 * r1j) + r2j;
     }
-    /* U = A Pab, V = B Pbb, the new Pab N = U + V, column by column in place */
+    /* U = A Pab, V = B Pbb, the new Pab N = U + V, column by column in place (roll and pitch rows) */
     ATT_EKF_UNROLL
     for (j = 0; j < 3; j++) {
         const float p0j = P_(p, 0, 3 + j);
         const float p1j = P_(p, 1, 3 + j);
-        const float p2j = P_(p, 2, 3 + j);
         const float q0j = P_(p, 3, 3 + j);
         const float q1j = P_(p, 4, 3 + j);
         const float q2j = P_(p, 5, 3 + j);
         uu[0][j] = a00 * p0j + a01 * p1j;
         uu[1][j] = a10 * p0j + p1j;
-        uu[2][j] = (a20 * p0j + a21 * p1j) + p2j;
         P_(pn, 0, 3 + j) = uu[0][j] + ((b00 * q0j + b01 * q1j) + b02 * q2j);
         P_(pn, 1, 3 + j) = uu[1][j] + (b11 * q1j + b12 * q2j);
-        P_(pn, 2, 3 + j) = uu[2][j] + (b21 * q1j + b22 * q2j);
     }
-    /* the new Paa = A Paa A^T (row i of W A^T) + N B^T (X) + (U B^T)^T (Y), element (i, j >= i) */
+    /* the new roll/pitch block = A Paa A^T (row i of W A^T) + N B^T (X) + (U B^T)^T (Y), (i, j >= i) */
     ATT_EKF_UNROLL
-    for (i = 0; i < 3; i++) {
+    for (i = 0; i < 2; i++) {
         const float w0 = ww[i][0];
         const float w1 = ww[i][1];
-        const float w2 = ww[i][2];
         const float n0 = P_(pn, i, 3);
         const float n1 = P_(pn, i, 4);
         const float n2 = P_(pn, i, 5);
-        float t[3];
-        float x[3];
+        float t[2];
+        float x[2];
         t[0] = w0 * a00 + w1 * a01;
         t[1] = w0 * a10 + w1;
-        t[2] = (w0 * a20 + w1 * a21) + w2;
         x[0] = (n0 * b00 + n1 * b01) + n2 * b02;
         x[1] = n1 * b11 + n2 * b12;
-        x[2] = n1 * b21 + n2 * b22;
         ATT_EKF_UNROLL
-        for (j = i; j < 3; j++) {
+        for (j = i; j < 2; j++) {
             const float u1 = uu[j][1];
             const float u2 = uu[j][2];
-            const float yji = (i == 0) ? ((uu[j][0] * b00 + u1 * b01) + u2 * b02)
-                                       : ((i == 1) ? (u1 * b11 + u2 * b12) : (u1 * b21 + u2 * b22));
+            const float yji = (i == 0) ? ((uu[j][0] * b00 + u1 * b01) + u2 * b02) : (u1 * b11 + u2 * b12);
             P_(pn, i, j) = (t[j] + x[j]) + yji;
         }
     }
@@ -557,8 +572,8 @@ static ATT_ALWAYS_INLINE void att_ekf_predict_trig(att_vec3_t e, const float *dd
 /*
  * Prediction of the angles and of P, in place (out of line: its frame is not the update's); returns
  * its flags. Without usable rates the angles are kept and F = I (the bias did not enter the
- * prediction): P := P + Q. A prediction that cannot be used is discarded (ATT_FLAG_NUMERIC): the
- * angles kept, P restarted (att_ekf_p_restart). tr: sin/cos of the roll and pitch for the update.
+ * prediction): P := P + Q. Always taken; tested with the update's result, or by att_ekf_check when
+ * no update is applied. tr: sin/cos of the roll and pitch for the update.
  */
 static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
                                              bool gyro_ok, att_ekf_trig_t *tr)
@@ -586,12 +601,7 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 3, 3) = P_(pn, 3, 3) + c->q_step[3];
     P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
-    flipped = att_ekf_canon(&e, pn);
-    if (!att_ekf_usable(e, pn)) {
-        att_i_sincosf(st->euler.x, &tr->sphi, &tr->cphi); /* the state's, as at the start */
-        att_i_sincosf(st->euler.y, &tr->sth, &tr->cth);
-        return flags | att_ekf_p_restart(c, pn); /* prediction discarded: the angles kept */
-    }
+    flipped = att_ekf_canon(&e, pn, true);
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
      * (as wrapped: the same sin/cos; done in att_ekf_propagate), directly after a flip to the
      * equivalent attitude or for an increment beyond 1/16 rad */
@@ -688,7 +698,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         vv = lp2;
     }
     if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
-        return 0u; /* no direction: no update */
+        return att_ekf_check(c, st); /* no direction: no update */
     }
     (void)cw;
     /* the tilt error e (earth frame) and the roll and pitch that remove it */
@@ -722,7 +732,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     t1 = dp + r0 * P_(p, 1, 1);
     det = (t0 + r0 * P_(p, 1, 1)) + r0 * r1;
     if (!(det > 0.0f) || !att_i_isfinitef(det)) {
-        return ATT_FLAG_NUMERIC; /* not applied: the prediction kept */
+        return ATT_FLAG_NUMERIC | att_ekf_check(c, st); /* not applied: the prediction kept */
     }
     inv = 1.0f / det;
     i00 = (P_(p, 1, 1) + r1) * inv;
@@ -731,7 +741,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1);
     if (c->gate > 0.0f) {
         if (d2 > c->gate) {
-            return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
+            return ATT_FLAG_ACCEL_REJECTED | att_ekf_check(c, st); /* outside the gate: not applied */
         }
         if (d2 > c->soft) {
             fk = c->soft / d2; /* the innovation covariance inflated so that d^2 = gate / 4 */
@@ -758,26 +768,21 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         float k10;
         float k01;
         float k11;
-        float k02;
-        float k12;
         k00 = P_(p, 0, 0) * i00 + P_(p, 0, 1) * i01;
         k10 = P_(p, 0, 0) * i01 + P_(p, 0, 1) * i11;
         k01 = P_(p, 1, 0) * i00 + P_(p, 1, 1) * i01;
         k11 = P_(p, 1, 0) * i01 + P_(p, 1, 1) * i11;
         e.x = st->euler.x + (k00 * y0 + k10 * y1) * fk;
         e.y = st->euler.y + (k01 * y0 + k11 * y1) * fk;
-        k02 = P_(p, 2, 0) * i00 + P_(p, 2, 1) * i01; /* row 2 (psi): for e.z after the loop */
-        k12 = P_(p, 2, 0) * i01 + P_(p, 2, 1) * i11;
+        e.z = st->euler.z; /* yaw's row is not carried: no gain */
         ATT_EKF_UNROLL
-        for (i = 2; i < 6; i++) {
-            const float k0 = (i == 2) ? k02 : P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
-            const float k1 = (i == 2) ? k12 : P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
+        for (i = 3; i < 6; i++) {
+            const float k0 = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
+            const float k1 = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
             const float o0 = P_(p, 0, i);
             const float o1 = P_(p, 1, i);
-            if (i > 2) {
-                kb0[i - 3] = k0;
-                kb1[i - 3] = k1;
-            }
+            kb0[i - 3] = k0;
+            kb1[i - 3] = k1;
             ATT_EKF_UNROLL
             for (j = i; j < 6; j++) {
                 const float old = P_(pn, i, j);
@@ -787,7 +792,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
             P_(pn, 0, i) = soft ? o0 + fk * (r0 * k0 - o0) : r0 * k0;
             P_(pn, 1, i) = soft ? o1 + fk * (r1 * k1 - o1) : r1 * k1;
         }
-        e.z = st->euler.z + (k02 * y0 + k12 * y1) * fk;
         n00 = (r0 * inv) * t0;
         n01 = ((r0 * r1) * inv) * P_(p, 0, 1);
         n11 = (r1 * inv) * t1;
@@ -807,12 +811,11 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     {
         const float dphi = e.x - st->euler.x;
         const float dth = e.y - st->euler.y;
-        const float dpsi = e.z - st->euler.z;
         eps.x = (dphi * cth) * cpsi - dth * spsi;
         eps.y = (dphi * cth) * spsi + dth * cpsi;
-        eps.z = dpsi - dphi * sth;
+        eps.z = -(dphi * sth);
     }
-    (void)att_ekf_canon(&e, pn);
+    (void)att_ekf_canon(&e, pn, false); /* the update leaves yaw as it was */
     if (!att_ekf_usable(e, pn)) {
         return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
     }
@@ -885,7 +888,9 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
     flags |= att_ekf_predict(c, st, w, gyro_ok, &tr);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_ekf_update(c, st, acc, &tr);
+        flags |= att_ekf_update(c, st, acc, &tr); /* tests the state it leaves (att_ekf_check) */
+    } else {
+        flags |= att_ekf_check(c, st);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */

@@ -5,21 +5,26 @@
  *
  * State x = (phi, theta, psi, b_x, b_y, b_z): ZYX Euler angles in rad (roll, pitch, yaw;
  * sensor-to-earth, ENU) and the gyro bias in rad/s (sensor frame); covariance P (6x6, symmetric,
- * stored as its upper triangle). Per step, with w = (p, q, r) - b (rad/s, sensor frame), dt:
+ * stored as its upper triangle) with yaw's row not carried: its correlations stay zero and its variance
+ * is a random walk (q_psi). Yaw enters neither the roll/pitch kinematics nor the measurement, so that row
+ * never reaches roll, pitch or the bias; leaving it out costs only the yaw corrections the tilt would
+ * give through it (visible near gimbal lock, where roll and yaw are one rotation; docs/filters.md). Per step, with w = (p, q, r) - b (rad/s, sensor frame), dt:
  *
  *  1. prediction: angles := angles + dt E(phi, theta) w with the Euler kinematics
  *       phi'   = p + sin(phi) tan(theta) q + cos(phi) tan(theta) r
  *       theta' = cos(phi) q - sin(phi) r
  *       psi'   = sin(phi) / cos(theta) q + cos(phi) / cos(theta) r
- *     (as att_gyro.c), bias := bias (random walk), and P := F P F^T + Q with the discretised Jacobian
+ *     (as att_gyro.c), bias := bias (random walk), and P := F P F^T + Q (the rows of roll, pitch and the
+ *     bias; yaw's variance + q_psi) with the discretised Jacobian
  *       F = [ I + dt J   -dt E ]      J = [ v tan   u sec sec   0 ]   u = sin(phi) q + cos(phi) r
  *           [ 0           I    ]          [ -u      0           0 ]   v = cos(phi) q - sin(phi) r
  *                                         [ v sec   u sec tan   0 ]   tan = tan(theta), sec = 1/cos(theta)
  *     evaluated at the state before the step, written out block by block for the sparsity of F.
- *     sin/cos of phi and theta are evaluated once per step, at its start; the midpoint's and the
- *     predicted angles' (for the update) follow by angle addition from the increments d of the step
- *     (series of sin d, cos d to d^5, d^4 for |d| <= 1/16 rad; a larger d, or a flip to the
- *     equivalent attitude, evaluates them directly); psi's once, in the update.
+ *     sin/cos of phi and theta are evaluated once per step, at its start; the midpoint's follow to
+ *     first order from the half increments (s + c d, c - s d), the predicted angles' (for the update) by
+ *     angle addition from the increments d of the step (series of sin d, cos d to d^5, d^4), both for
+ *     |d| <= 1/16 rad (a larger d, or a flip to the equivalent attitude, evaluates them directly);
+ *     psi's once, in the update.
  *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and the
  *     Jacobians: the singularity of the representation, where the estimate is unreliable but finite.
  *     An unusable gyro sample gives w = 0: the state is kept, P := P + Q.
@@ -48,9 +53,11 @@
  *     in the estimate's earth frame.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
- *  (-pi, pi]. A stage whose state or P is not finite, or leaves a variance not > 0, is discarded
- *  (ATT_FLAG_NUMERIC): its angles and bias are not taken, and P (predicted and updated in place, so
- *  that no copy of it is on the stack) restarts at its start values p0, p0_bias. Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
+ *  (-pi, pi]. One test per step, on the state it leaves (the update tests its result; a step without
+ *  an applied update tests the prediction, which is always taken: its angles are finite whenever the
+ *  state's were): angles or P not finite, or a variance not > 0, give ATT_FLAG_NUMERIC and P (predicted
+ *  and updated in place, so that no copy of it is on the stack) restarts at its start values p0,
+ *  p0_bias; a failed update's angles and bias are not taken. Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
  *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
  *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
@@ -130,7 +137,8 @@ typedef struct {
 typedef struct {
     att_vec3_t euler;     /**< (phi, theta, psi), rad, ZYX sensor-to-earth (ENU) */
     att_vec3_t bias;      /**< gyro bias estimate, rad/s, sensor frame */
-    float p[21];          /**< covariance of (phi, theta, psi, b_x, b_y, b_z): upper triangle row by row */
+    float p[21];          /**< covariance of (phi, theta, psi, b_x, b_y, b_z): upper triangle row by row
+                               (yaw's correlations, p[2], p[7], p[12..14], not carried: zero) */
     att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
     att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */

@@ -43,6 +43,13 @@ _IX = [
 ]
 """att_ekf_ix: packed index of element (i, j) of the symmetric 6x6 P."""
 
+_UPDATED = frozenset(
+    [0, 1, 6]
+    + [_IX[r][i] for r in (0, 1) for i in range(3, 6)]
+    + [_IX[i][j] for i in range(3, 6) for j in range(i, 6)]
+)
+"""The elements of P the update writes (yaw's row is not carried)."""
+
 
 def _u(flag: Flag) -> np.uint32:
     return np.uint32(flag.value)
@@ -68,10 +75,19 @@ def _sincos_step(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
         return s, c
 
 
-def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any], Any]:
-    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude; phi, psi wrapped.
+def _sincos_mid(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
+    """att_ekf_sincos_mid: sin/cos of the midpoint a = a0 + d to first order for |d| <= 1/16."""
+    with np.errstate(all="ignore"):
+        small = dm.absf(d) <= INC_MAX
+        s = np.where(small, s0 + c0 * d, dm.sinf(a)).astype(np.float32)
+        c = np.where(small, c0 - s0 * d, dm.cosf(a)).astype(np.float32)
+        return s, c
 
-    Returns (e, P, flipped).
+
+def _canon(e: dm.Vec3, p: list[Any], yaw_moved: bool = True) -> tuple[dm.Vec3, list[Any], Any]:
+    """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude, phi and psi wrapped.
+
+    psi is wrapped when it moved (``yaw_moved``) or was flipped. Returns (e, P, flipped).
     """
     ex, ey, ez = e
     ey = _wrap(ey)
@@ -80,18 +96,19 @@ def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any], Any]:
     ex = np.where(flip, ex + PI, ex)
     ez = np.where(flip, ez + PI, ez)
     p = list(p)
-    for k in range(6):
+    for k in (0, 3, 4, 5):  # yaw's correlation (1, 2) is not carried
         if k != 1:
             i = _IX[1][k]
             p[i] = np.where(flip, -p[i], p[i])
-    return (_wrap(ex), ey.astype(np.float32), _wrap(ez)), p, flip
+    ez = _wrap(ez) if yaw_moved else np.where(flip, _wrap(ez), ez).astype(np.float32)
+    return (_wrap(ex), ey.astype(np.float32), ez), p, flip
 
 
 def _usable(p: list[Any]) -> Any:
     """att_ekf_p_usable: the sum of the 21 elements finite and every variance > 0."""
     with np.errstate(all="ignore"):
         s = p[0]
-        for i in range(1, 21):
+        for i in (1, 3, 4, 5, 6, 8, 9, 10, 11, 15, 16, 17, 18, 19, 20):  # the carried elements
             s = s + p[i]
         return (
             dm.isfinitef(s)
@@ -273,7 +290,11 @@ class Ekf:
         return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
 
     def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, dm.Vec3, list[Any], Any, tuple[Any, ...]]:
-        """att_ekf_predict: (ok, angles, P, flags, sin/cos of the roll and pitch for the update)."""
+        """att_ekf_predict: (usable, angles, P, flags, sin/cos of the roll and pitch for the update).
+
+        The prediction is always taken; ``usable`` is att_ekf_check's test of it (made when no update
+        is applied after it).
+        """
         dt = self.dt
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -290,8 +311,10 @@ class Ekf:
             hdt = dt * dm.HALF
             dxh = (wx + sphi * tth * wy + cphi * tth * wz) * hdt
             dyh = (cphi * wy - sphi * wz) * hdt
-            sm, cm = _sincos_step(ex0 + dxh, dxh, sphi, cphi)
-            stm, ctm0 = _sincos_step(ey0 + dyh, dyh, sth, cth0)
+            # the midpoint's sin/cos to first order (its error, O(dt^2) in the rates, keeps the rule
+            # second order)
+            sm, cm = _sincos_mid(ex0 + dxh, dxh, sphi, cphi)
+            stm, ctm0 = _sincos_mid(ey0 + dyh, dyh, sth, cth0)
             ctm, _ = self._guard(ctm0)
             ttm = stm / ctm
             secm = dm.ONE / ctm
@@ -307,63 +330,48 @@ class Ekf:
             a00 = dm.ONE + dt * (v * tth)
             a01 = dt * (u * sec * sec)
             a10 = -(dt * u)
-            a20 = dt * (v * sec)
-            a21 = dt * (u * sec * tth)
             b00 = -dt
             b01 = -(dt * (sphi * tth))
             b02 = -(dt * (cphi * tth))
             b11 = -(dt * cphi)
             b12 = dt * sphi
-            b21 = -(dt * (sphi * sec))
-            b22 = -(dt * (cphi * sec))
 
             def pp(i: int, j: int) -> Any:
                 return p[_IX[i][j]]
 
-            uu: list[list[Any]] = [[None] * 3 for _ in range(3)]
-            vv: list[list[Any]] = [[None] * 3 for _ in range(3)]
-            ww: list[list[Any]] = [[None] * 3 for _ in range(3)]
+            # yaw's row of P is not carried (its correlations stay as they are: zero): F's yaw column is
+            # zero in the rows of roll and pitch and H does not see yaw
+            uu: list[list[Any]] = [[None] * 3 for _ in range(2)]
+            vv: list[list[Any]] = [[None] * 3 for _ in range(2)]
+            ww: list[list[Any]] = [[None] * 2 for _ in range(2)]
             for j in range(3):
-                p0j, p1j, p2j = pp(0, 3 + j), pp(1, 3 + j), pp(2, 3 + j)
+                p0j, p1j = pp(0, 3 + j), pp(1, 3 + j)
                 q0j, q1j, q2j = pp(3, 3 + j), pp(4, 3 + j), pp(5, 3 + j)
-                r0j, r1j, r2j = pp(0, j), pp(1, j), pp(2, j)
                 uu[0][j] = a00 * p0j + a01 * p1j
                 uu[1][j] = a10 * p0j + p1j
-                uu[2][j] = (a20 * p0j + a21 * p1j) + p2j
                 vv[0][j] = (b00 * q0j + b01 * q1j) + b02 * q2j
                 vv[1][j] = b11 * q1j + b12 * q2j
-                vv[2][j] = b21 * q1j + b22 * q2j
+            for j in range(2):
+                r0j, r1j = pp(0, j), pp(1, j)
                 ww[0][j] = a00 * r0j + a01 * r1j
                 ww[1][j] = a10 * r0j + r1j
-                ww[2][j] = (a20 * r0j + a21 * r1j) + r2j
-            nn = [[uu[i][j] + vv[i][j] for j in range(3)] for i in range(3)]
+            nn = [[uu[i][j] + vv[i][j] for j in range(3)] for i in range(2)]
             x = [
-                [
-                    (nn[i][0] * b00 + nn[i][1] * b01) + nn[i][2] * b02,
-                    nn[i][1] * b11 + nn[i][2] * b12,
-                    nn[i][1] * b21 + nn[i][2] * b22,
-                ]
-                for i in range(3)
+                [(nn[i][0] * b00 + nn[i][1] * b01) + nn[i][2] * b02, nn[i][1] * b11 + nn[i][2] * b12]
+                for i in range(2)
             ]
             y = [
-                [
-                    (uu[i][0] * b00 + uu[i][1] * b01) + uu[i][2] * b02,
-                    uu[i][1] * b11 + uu[i][2] * b12,
-                    uu[i][1] * b21 + uu[i][2] * b22,
-                ]
-                for i in range(3)
+                [(uu[i][0] * b00 + uu[i][1] * b01) + uu[i][2] * b02, uu[i][1] * b11 + uu[i][2] * b12]
+                for i in range(2)
             ]
-            pn: list[Any] = [None] * 21
-            for i in range(3):
-                w0, w1, w2 = ww[i]
-                t = [w0 * a00 + w1 * a01, w0 * a10 + w1, (w0 * a20 + w1 * a21) + w2]
-                for j in range(i, 3):
+            pn: list[Any] = list(p)
+            for i in range(2):
+                w0, w1 = ww[i]
+                t = [w0 * a00 + w1 * a01, w0 * a10 + w1]
+                for j in range(i, 2):
                     pn[_IX[i][j]] = (t[j] + x[i][j]) + y[j][i]
                 for j in range(3):
                     pn[_IX[i][3 + j]] = nn[i][j]
-            for i in range(3, 6):
-                for j in range(i, 6):
-                    pn[_IX[i][j]] = pp(i, j)
             # without usable rates F = I and the angles are kept
             pn = [np.where(gyro_ok, pn[k], p[k]).astype(np.float32) for k in range(21)]
             e = dm.vec3_where(gyro_ok, e, self.euler)
@@ -380,11 +388,7 @@ class Ekf:
             c1 = np.where(flip, dm.cosf(e[0]), c1)
             s2 = np.where(flip, dm.sinf(e[1]), s2)
             c2 = np.where(flip, dm.cosf(e[1]), c2)
-            # a discarded prediction keeps the state's angles and their sin/cos
-            trig = tuple(
-                np.where(ok, new, old).astype(np.float32)
-                for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
-            )
+            trig = (s1, c1, s2, c2)
         return ok, e, pn, flags, trig
 
     def _update(
@@ -467,25 +471,29 @@ class Ekf:
             e = (
                 ex0 + (k0[0] * y0 + k1[0] * y1) * fk,
                 ey0 + (k0[1] * y0 + k1[1] * y1) * fk,
-                ez0 + (k0[2] * y0 + k1[2] * y1) * fk,
+                ez0,  # yaw's row is not carried: no gain
             )
-            pn: list[Any] = [None] * 21
+            pn: list[Any] = list(p)
             pn[0] = (r0 * inv) * t0
             pn[1] = ((r0 * r1) * inv) * p[1]
             pn[6] = (r1 * inv) * t1
-            for i in range(2, 6):
+            for i in range(3, 6):
                 pn[_IX[0][i]] = r0 * k0[i]
                 pn[_IX[1][i]] = r1 * k1[i]
-            for i in range(2, 6):
+            for i in range(3, 6):
                 for j in range(i, 6):
                     pn[_IX[i][j]] = p[_IX[i][j]] - (k0[i] * p[_IX[j][0]] + k1[i] * p[_IX[j][1]])
             soft = fk < dm.ONE
-            pn = [np.where(soft, p[k] + fk * (pn[k] - p[k]), pn[k]).astype(np.float32) for k in range(21)]
+            pn = [
+                np.where(soft, p[k] + fk * (pn[k] - p[k]), pn[k]).astype(np.float32)
+                if k in _UPDATED
+                else p[k]
+                for k in range(21)
+            ]
             dphi = e[0] - ex0
             dth = e[1] - ey0
-            dpsi = e[2] - ez0
-            eps = ((dphi * cth) * cpsi - dth * spsi, (dphi * cth) * spsi + dth * cpsi, dpsi - dphi * sth)
-            e, pn, _ = _canon(e, pn)
+            eps = ((dphi * cth) * cpsi - dth * spsi, (dphi * cth) * spsi + dth * cpsi, -(dphi * sth))
+            e, pn, _ = _canon(e, pn, yaw_moved=False)
             ok_u = dm.vec3_isfinite(e) & _usable(pn)
             bias = (
                 self.bias[0] + (k0[3] * yb0 + k1[3] * yb1) * fb,
@@ -544,16 +552,10 @@ class Ekf:
             run = ~waiting
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
             ok_p, e_p, p_p, fl_p, trig = self._predict(w, gyro_ok)
-            take_p = run & ok_p
-            flags = flags | np.where(run, fl_p, _U0) | np.where(run & ~ok_p, _u(Flag.NUMERIC), _U0)
-            self.euler = dm.vec3_where(take_p, e_p, self.euler)
-            # P is predicted in place: a discarded prediction restarts it (att_ekf_p_restart)
+            flags = flags | np.where(run, fl_p, _U0)
+            self.euler = dm.vec3_where(run, e_p, self.euler)
+            self.p = [np.where(run, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
             restart = self._p_start()
-            drop_p = run & ~ok_p
-            self.p = [
-                np.where(take_p, p_p[i], np.where(drop_p, restart[i], self.p[i])).astype(np.float32)
-                for i in range(21)
-            ]
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
@@ -562,7 +564,10 @@ class Ekf:
             )
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
-            drop_u = measure & discarded  # updated in place, then not usable: P restarted
+            # updated in place, then not usable: P restarted; a step without an applied update tests
+            # the prediction (att_ekf_check)
+            drop_u = (measure & discarded) | (run & ~(measure & (applied | discarded)) & ~ok_p)
+            flags = flags | np.where(drop_u, _u(Flag.NUMERIC), _U0)
             self.euler = dm.vec3_where(take_u, e_u, self.euler)
             self.bias = dm.vec3_where(take_u, b_u, self.bias)
             self.p = [
