@@ -745,6 +745,28 @@ def test_unusable_update_restarts_the_covariance() -> None:
     assert not step_both(f2, ref2, gyr[1, 0], acc[1, 0]) & Flag.NUMERIC
 
 
+def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
+    """The prediction is always taken, but for one case: an increment beyond the range of the angle wrap
+    (|angle| > 8192 rad; here dt = 1 s, a yaw rate of 35 rad/s / cos(theta) at 1e-4 rad from gimbal lock
+    with cos_min 1e-6: 3.6e5 rad in one step) would leave NaN angles for good. It is flagged NUMERIC, the
+    angles are kept and P restarts (p0, p0_bias); C equals the reference bit for bit, and the next
+    ordinary step proceeds from the kept angles."""
+    s = ekf_default(init_from_accel=False, dt=1.0, cos_min=1e-6, euler_init=(0.0, 1.5707, 0.0))
+    f, ref = pair(s)
+    before, _, _ = state(f)
+    fl = step_both(f, ref, (0.0, 0.0, 34.9), (NAN, NAN, NAN))
+    e, _, p = state(f)
+    assert fl & Flag.NUMERIC
+    assert e == before
+    start = np.zeros(21, np.float32)
+    start[[0, 6, 11]] = s.p0
+    start[[15, 18, 20]] = s.p0_bias
+    assert_same_bits(np.asarray(p, np.float32), start, "restarted P")
+    fl = step_both(f, ref, (0.0, 0.01, 0.0), (NAN, NAN, NAN))
+    e, _, p = state(f)
+    assert not fl & Flag.NUMERIC and np.isfinite(e).all() and e != before
+
+
 def test_largest_accepted_samples_keep_the_state_finite() -> None:
     """Samples beyond the (finite) ranges are skipped; the largest accepted ones keep the state finite."""
     s = ekf_seed(init_from_accel=False, gyro_range=1e3, accel_range=1e4, euler_init=(0.1, 0.2, 0.3))

@@ -235,24 +235,19 @@ static ATT_ALWAYS_INLINE bool att_ekf_flip(att_vec3_t *e, float *p)
 }
 
 /*
- * theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row and column change sign); phi
- * wrapped, psi wrapped when it moved (the prediction) or was flipped (the update leaves it as it was,
- * canonical). Returns true when the attitude was flipped. |theta| <= pi/2 needs neither the wrap nor the
- * flip: one test (att_ekf_flip does both otherwise).
+ * The prediction's angles canonical: theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row
+ * and column change sign), phi and psi wrapped. Returns true when the attitude was flipped. |theta| <=
+ * pi/2 needs neither the wrap nor the flip: one test (att_ekf_flip does both otherwise). The update
+ * does the same inline (yaw left as it was unless flipped; the stages turned with a flip).
  */
-static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p, bool yaw_moved)
+static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p)
 {
     bool flipped = false;
     if (!(att_i_absf(e->y) <= ATT_EKF_PIO2_F)) {
         flipped = att_ekf_flip(e, p);
-        if (!yaw_moved) {
-            e->z = att_ekf_wrap(e->z); /* psi + pi */
-        }
     }
     e->x = att_ekf_wrap(e->x);
-    if (yaw_moved) {
-        e->z = att_ekf_wrap(e->z);
-    }
+    e->z = att_ekf_wrap(e->z);
     return flipped;
 }
 
@@ -373,7 +368,36 @@ typedef struct {
     float cphi;
     float sth;
     float cth;
+    float dpsi; /* the step's change of the (canonical) yaw, rad: the heading frame's turn */
 } att_ekf_trig_t;
+
+/*
+ * The low-pass stages (heading frame: the earth frame turned about z by the estimate's yaw) turned with
+ * the step's change d of the yaw (rad, |d| < 2 pi): x := c x + s y, y := c y - s x with s = sin d,
+ * c = cos d (the series of att_ekf_sincos_step for |d| <= 1/16 rad, else att_i_sincosf).
+ */
+static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_coeffs_t *c, att_ekf_state_t *st, float d)
+{
+    float sd;
+    float cd;
+    float x;
+    if (!c->lp_on) {
+        return;
+    }
+    if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
+        const float z = d * d;
+        sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
+        cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
+    } else {
+        att_i_sincosf(d, &sd, &cd);
+    }
+    x = st->lp1.x;
+    st->lp1.x = cd * x + sd * st->lp1.y;
+    st->lp1.y = cd * st->lp1.y - sd * x;
+    x = st->lp2.x;
+    st->lp2.x = cd * x + sd * st->lp2.y;
+    st->lp2.y = cd * st->lp2.y - sd * x;
+}
 
 /*
  * sin(a) and cos(a) of a = a0 + d (as rounded) from s0 = sin(a0), c0 = cos(a0): for |d| <=
@@ -601,7 +625,14 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 3, 3) = P_(pn, 3, 3) + c->q_step[3];
     P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
-    flipped = att_ekf_canon(&e, pn, true);
+    flipped = att_ekf_canon(&e, pn);
+    if (!att_i_isfinitef((e.x + e.y) + e.z)) {
+        /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept */
+        *tr = t0;
+        tr->dpsi = 0.0f;
+        return flags | att_ekf_p_restart(c, pn);
+    }
+    tr->dpsi = e.z - st->euler.z;
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
      * (as wrapped: the same sin/cos; done in att_ekf_propagate), directly after a flip to the
      * equivalent attitude or for an increment beyond 1/16 rad */
@@ -635,8 +666,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     const float cphi = tr->cphi;
     const float sth = tr->sth;
     const float cth = tr->cth;
-    float spsi;
-    float cpsi;
     float cg;
     float cw;
     float cx;
@@ -668,20 +697,21 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     float *pn = st->p;
     int i;
     int j;
-    att_vec3_t lp1 = st->lp1;
-    att_vec3_t lp2 = st->lp2;
+    att_vec3_t lp1;
+    att_vec3_t lp2;
     att_vec3_t vv;
     att_vec3_t va;
     att_vec3_t e;
     att_vec3_t eps;
-    att_i_sincosf(st->euler.z, &spsi, &cpsi);
-    /* the specific force in the earth frame of the prediction: R(phi, theta, psi) a */
-    vv.x = (cpsi * cth) * acc.x + ((cpsi * sth) * sphi - spsi * cphi) * acc.y +
-           ((cpsi * sth) * cphi + spsi * sphi) * acc.z;
-    vv.y = (spsi * cth) * acc.x + ((spsi * sth) * sphi + cpsi * cphi) * acc.y +
-           ((spsi * sth) * cphi - cpsi * sphi) * acc.z;
+    /* the specific force in the heading frame of the prediction (the earth frame turned by its yaw):
+     * R_y(theta) R_x(phi) a */
+    vv.x = cth * acc.x + (sth * sphi) * acc.y + (sth * cphi) * acc.z;
+    vv.y = cphi * acc.y - sphi * acc.z;
     vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
     va = vv;
+    att_ekf_turn(c, st, tr->dpsi); /* the stages into the predicted heading frame (kept if not applied) */
+    lp1 = st->lp1;
+    lp2 = st->lp2;
     ready = st->lp_ready;
     if (c->lp_on) {
         if (!ready) {
@@ -709,16 +739,16 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         cg = (cg < 0.0f) ? -c->cos_min : c->cos_min;
     }
     sec = 1.0f / cg;
-    y0 = (cpsi * ex + spsi * ey) * sec;
-    y1 = cpsi * ey - spsi * ex;
+    y0 = ex * sec;
+    y1 = ey;
     /* the same for the raw sample, to first order (e = (v_y, -v_x) / |v|): the bias states measure
      * against it (their gain averages over minutes; the lag of the stages would hide the bias) */
     {
         const float in = 1.0f / n;
         const float ax = va.y * in;
         const float ay = -(va.x * in);
-        yb0 = (cpsi * ax + spsi * ay) * sec;
-        yb1 = cpsi * ay - spsi * ax;
+        yb0 = ax * sec;
+        yb1 = ay;
     }
     /* R: the tilt error has the same noise about both earth axes; its roll is (..) / cos(theta), so
      * the roll noise is r_phi / cos^2(theta) (roll is not observable at +-90 deg pitch) */
@@ -807,15 +837,28 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         db3[1] = (kb0[1] * yb0 + kb1[1] * yb1) * fb;
         db3[2] = (kb0[2] * yb0 + kb1[2] * yb1) * fb;
     }
-    /* the earth-frame rotation of the correction, for the low-pass stages */
+    /* the rotation of the correction in the heading frame, for the low-pass stages */
     {
         const float dphi = e.x - st->euler.x;
         const float dth = e.y - st->euler.y;
-        eps.x = (dphi * cth) * cpsi - dth * spsi;
-        eps.y = (dphi * cth) * spsi + dth * cpsi;
+        eps.x = dphi * cth;
+        eps.y = dth;
         eps.z = -(dphi * sth);
     }
-    (void)att_ekf_canon(&e, pn, false); /* the update leaves yaw as it was */
+    /* att_ekf_canon with yaw left as it was, unless the update flips to the equivalent attitude: then
+     * yaw moves by pi, the heading frame turns half a turn, and the stages and the correction with it
+     * (x, y negated: the stages' update below then gives the turned result of the unturned one) */
+    if (!(att_i_absf(e.y) <= ATT_EKF_PIO2_F)) {
+        (void)att_ekf_flip(&e, pn);
+        e.z = att_ekf_wrap(e.z);
+        lp1.x = -lp1.x;
+        lp1.y = -lp1.y;
+        lp2.x = -lp2.x;
+        lp2.y = -lp2.y;
+        eps.x = -eps.x;
+        eps.y = -eps.y;
+    }
+    e.x = att_ekf_wrap(e.x);
     if (!att_ekf_usable(e, pn)) {
         return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
     }
@@ -890,6 +933,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         flags |= att_ekf_update(c, st, acc, &tr); /* tests the state it leaves (att_ekf_check) */
     } else {
+        att_ekf_turn(c, st, tr.dpsi);
         flags |= att_ekf_check(c, st);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {

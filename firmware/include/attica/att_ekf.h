@@ -24,18 +24,18 @@
  *     first order from the half increments (s + c d, c - s d), the predicted angles' (for the update) by
  *     angle addition from the increments d of the step (series of sin d, cos d to d^5, d^4), both for
  *     |d| <= 1/16 rad (a larger d, or a flip to the equivalent attitude, evaluates them directly);
- *     psi's once, in the update.
+ *     psi's never (the update works in the heading frame).
  *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and the
  *     Jacobians: the singularity of the representation, where the estimate is unreliable but finite.
  *     An unusable gyro sample gives w = 0: the state is kept, P := P + Q.
  *  2. update (skipped when the accel sample is unusable or ||a|/g - 1| > accel_reject): the measured
- *     roll and pitch, H = [I2 0]. The measurement is taken, as in att_kf.h, from the specific force in
- *     the earth frame of the prediction, low-passed by two cascaded first-order stages (tau_acc_lp):
- *     C = (c_w, c_x, c_y, 0), the trig-free alignment of the low-passed vector with z (att_ars.h), is the
- *     tilt error of the prediction as an earth-frame rotation e = 2 (c_x, c_y, 0); the roll and pitch
- *     that remove it are, to first order (e = M d for Euler differences d, M the earth-frame axes of the
- *     three Euler rotations), y = ((cos(psi) e_x + sin(psi) e_y) / cos(theta), -sin(psi) e_x +
- *     cos(psi) e_y): the innovation. S = P[0:2,0:2] + R, R = diag(r_phi / cos^2(theta), r_theta) (1 + r_accel
+ *     roll and pitch, H = [I2 0]. The measurement is taken from the specific force in the heading frame
+ *     of the prediction (the earth frame turned about z by its yaw: R_y(theta) R_x(phi) a), low-passed by
+ *     two cascaded first-order stages (tau_acc_lp): C = (c_w, c_x, c_y, 0), the trig-free alignment of
+ *     the low-passed vector with z (att_ars.h), is the tilt error of the prediction as a heading-frame
+ *     rotation e = 2 (c_x, c_y, 0); the roll and pitch that remove it are, to first order (e = M d for
+ *     roll/pitch differences d, M d = (cos(theta) d_phi, d_theta, -sin(theta) d_phi)), y = (e_x /
+ *     cos(theta), e_y): the innovation. S = P[0:2,0:2] + R, R = diag(r_phi / cos^2(theta), r_theta) (1 + r_accel
  *     (|a|/g - 1)^2): the tilt error has the same noise about both earth axes, so roll (e / cos(theta)) is
  *     not observable at +-90 deg pitch (cos guarded as in the prediction); det S = det P2 + ... > 0 by construction;
  *     with the chi-square gate d^2 = y^T S^-1 y > gate the update is rejected (ATT_FLAG_ACCEL_REJECTED)
@@ -48,14 +48,16 @@
  *     unusable gyro sample (an unmeasured rotation makes them stale): a sample within 0.1 rad of the
  *     estimate's gravity (sin^2 of its tilt error < 0.01) starts them from that gravity (0, 0, g), so a
  *     right estimate is kept; otherwise the raw sample is the measurement (the convergence phase, state
- *     converging) until one is within 0.1 rad, which then starts them from itself. The earth-frame rotation
- *     of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), so they stay
- *     in the estimate's earth frame.
+ *     converging) until one is within 0.1 rad, which then starts them from itself. The heading-frame
+ *     rotation of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), and
+ *     at every step they are turned about z with the prediction's change of yaw (half a turn when the
+ *     update flips to the equivalent attitude), so they stay in the estimate's heading frame.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
  *  (-pi, pi]. One test per step, on the state it leaves (the update tests its result; a step without
- *  an applied update tests the prediction, which is always taken: its angles are finite whenever the
- *  state's were): angles or P not finite, or a variance not > 0, give ATT_FLAG_NUMERIC and P (predicted
+ *  an applied update tests the prediction, which is taken unless its angles leave the range of the
+ *  wrap, |angle| > 8192 rad, from adversarial rates, dt and cos_min: then the angles are kept): angles
+ *  or P not finite, or a variance not > 0, give ATT_FLAG_NUMERIC and P (predicted
  *  and updated in place, so that no copy of it is on the stack) restarts at its start values p0,
  *  p0_bias; a failed update's angles and bias are not taken. Every 16 steps, and at every step flagged GIMBAL, P is conditioned: variances
  *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
@@ -102,7 +104,7 @@ typedef struct {
     float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
     float gyro_range;      /**< any |w_i| above this: prediction with w = 0, rad/s; (0, 1e3] */
     float cos_min;         /**< guard on |cos(theta)|; (0, 1) */
-    float tau_acc_lp;      /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    float tau_acc_lp;      /**< low-pass time constant of the heading-frame accel, s, [0, 1e4]; 0 = off */
     bool init_from_accel;  /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_vec3_t euler_init; /**< start angles without init_from_accel, rad; |phi|, |psi| <= 8192, |theta| <= pi/2 */
     att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
@@ -139,8 +141,8 @@ typedef struct {
     att_vec3_t bias;      /**< gyro bias estimate, rad/s, sensor frame */
     float p[21];          /**< covariance of (phi, theta, psi, b_x, b_y, b_z): upper triangle row by row
                                (yaw's correlations, p[2], p[7], p[12..14], not carried: zero) */
-    att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, earth frame */
-    att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
+    att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, heading frame (earth turned by psi) */
+    att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, heading frame */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */

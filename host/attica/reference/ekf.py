@@ -84,6 +84,17 @@ def _sincos_mid(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
         return s, c
 
 
+def _turn(lp: dm.Vec3, d: Any) -> dm.Vec3:
+    """att_ekf_turn: a heading-frame vector turned with the yaw change d (x := c x + s y, y := c y - s x)."""
+    with np.errstate(all="ignore"):
+        z = d * d
+        small = dm.absf(d) <= INC_MAX
+        sd = np.where(small, d + (d * z) * (INC_S3 + z * INC_S5), dm.sinf(d)).astype(np.float32)
+        cd = np.where(small, dm.ONE - z * (dm.HALF - z * INC_C4), dm.cosf(d)).astype(np.float32)
+        x, y, zz = lp
+        return (cd * x + sd * y, cd * y - sd * x, zz)
+
+
 def _canon(e: dm.Vec3, p: list[Any], yaw_moved: bool = True) -> tuple[dm.Vec3, list[Any], Any]:
     """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude, phi and psi wrapped.
 
@@ -380,6 +391,14 @@ class Ekf:
             for i, qi in ((0, 0), (1, 1), (2, 2), (3, 3), (4, 3), (5, 3)):
                 pn[_IX[i][i]] = pn[_IX[i][i]] + self.q_step[qi]
             e, pn, flip = _canon(e, pn)
+            # increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept, P
+            # restarted
+            ok_e = dm.isfinitef((e[0] + e[1]) + e[2])
+            e = dm.vec3_where(ok_e, e, self.euler)
+            start = self._p_start()
+            pn = [np.where(ok_e, pn[k], start[k]).astype(np.float32) for k in range(21)]
+            flags = flags | np.where(ok_e, _U0, _u(Flag.NUMERIC))
+            dpsi = np.where(ok_e, e[2] - ez0, dm.ZERO).astype(np.float32)
             ok = dm.vec3_isfinite(e) & _usable(pn)
             # sin/cos of the predicted roll and pitch: by angle addition, directly after a flip
             s1, c1 = _sincos_step(e[0], dx, sphi, cphi)
@@ -388,7 +407,10 @@ class Ekf:
             c1 = np.where(flip, dm.cosf(e[0]), c1)
             s2 = np.where(flip, dm.sinf(e[1]), s2)
             c2 = np.where(flip, dm.cosf(e[1]), c2)
-            trig = (s1, c1, s2, c2)
+            trig = tuple(
+                np.where(ok_e, new, old).astype(np.float32)
+                for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
+            ) + (dpsi,)
         return ok, e, pn, flags, trig
 
     def _update(
@@ -403,16 +425,12 @@ class Ekf:
         p = self.p
         ex0, ey0, ez0 = self.euler
         with np.errstate(all="ignore"):
-            sphi, cphi, sth, cth = trig
-            spsi, cpsi = dm.sinf(ez0), dm.cosf(ez0)
+            sphi, cphi, sth, cth, _ = trig
             ax, ay, az = a
+            # the specific force in the heading frame of the prediction: R_y(theta) R_x(phi) a
             va = (
-                (cpsi * cth) * ax
-                + ((cpsi * sth) * sphi - spsi * cphi) * ay
-                + ((cpsi * sth) * cphi + spsi * sphi) * az,
-                (spsi * cth) * ax
-                + ((spsi * sth) * sphi + cpsi * cphi) * ay
-                + ((spsi * sth) * cphi - cpsi * sphi) * az,
+                cth * ax + (sth * sphi) * ay + (sth * cphi) * az,
+                cphi * ay - sphi * az,
                 (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
             )
             lp_on = self.k_lp > dm.ZERO
@@ -436,13 +454,13 @@ class Ekf:
             eyy = dm.TWO * cy
             cg, _ = self._guard(cth)
             sec = dm.ONE / cg
-            y0 = (cpsi * exx + spsi * eyy) * sec
-            y1 = cpsi * eyy - spsi * exx
+            y0 = exx * sec
+            y1 = eyy
             inn = dm.ONE / n
             bx = va[1] * inn
             by = -(va[0] * inn)
-            yb0 = (cpsi * bx + spsi * by) * sec
-            yb1 = cpsi * by - spsi * bx
+            yb0 = bx * sec
+            yb1 = by
             fa = dm.ONE + self.r_accel * e2
             r1 = self.r_step[1] * fa
             r0 = (self.r_step[0] * fa) * (sec * sec)
@@ -492,14 +510,18 @@ class Ekf:
             ]
             dphi = e[0] - ex0
             dth = e[1] - ey0
-            eps = ((dphi * cth) * cpsi - dth * spsi, (dphi * cth) * spsi + dth * cpsi, -(dphi * sth))
-            e, pn, _ = _canon(e, pn, yaw_moved=False)
+            eps = (dphi * cth, dth, -(dphi * sth))  # the correction's rotation in the heading frame
+            e, pn, flip_u = _canon(e, pn, yaw_moved=False)
             ok_u = dm.vec3_isfinite(e) & _usable(pn)
             bias = (
                 self.bias[0] + (k0[3] * yb0 + k1[3] * yb1) * fb,
                 self.bias[1] + (k0[4] * yb0 + k1[4] * yb1) * fb,
                 self.bias[2] + (k0[5] * yb0 + k1[5] * yb1) * fb,
             )
+            # a flip moves yaw by pi: the heading frame turns half a turn, the stages and eps with it
+            lp1 = dm.vec3_where(flip_u, (-lp1[0], -lp1[1], lp1[2]), lp1)
+            lp2 = dm.vec3_where(flip_u, (-lp2[0], -lp2[1], lp2[2]), lp2)
+            eps = dm.vec3_where(flip_u, (-eps[0], -eps[1], eps[2]), eps)
             lp1n = dm.vec3_add(lp1, dm.vec3_cross(eps, lp1))
             lp2n = dm.vec3_add(lp2, dm.vec3_cross(eps, lp2))
         numeric = ok_a & (~ok_det | (~gated & ~ok_u))
@@ -556,6 +578,10 @@ class Ekf:
             self.euler = dm.vec3_where(run, e_p, self.euler)
             self.p = [np.where(run, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
             restart = self._p_start()
+            # the low-pass stages (heading frame) turned with the step's change of yaw (att_ekf_turn)
+            turn = run & self.lp_on
+            self.lp1 = dm.vec3_where(turn, _turn(self.lp1, trig[4]), self.lp1)
+            self.lp2 = dm.vec3_where(turn, _turn(self.lp2, trig[4]), self.lp2)
             # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
