@@ -186,6 +186,7 @@ void att_ekf_reset(att_ekf_t *f)
     att_ekf_p_diag(f->st.p, f->c.p0, f->c.p0_bias);
     f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
     f->st.lp2 = f->st.lp1;
+    f->st.lp_psi = f->st.euler.z;
     f->st.lp_ready = false;
     f->st.converging = false;
     f->st.steps = 0u;
@@ -368,22 +369,22 @@ typedef struct {
     float cphi;
     float sth;
     float cth;
-    float dpsi; /* the step's change of the (canonical) yaw, rad: the heading frame's turn */
 } att_ekf_trig_t;
 
 /*
- * The low-pass stages (heading frame: the earth frame turned about z by the estimate's yaw) turned with
- * the step's change d of the yaw (rad, |d| < 2 pi): x := c x + s y, y := c y - s x with s = sin d,
- * c = cos d (the series of att_ekf_sincos_step for |d| <= 1/16 rad, else att_i_sincosf).
+ * The low-pass stages (heading frame: the earth frame turned about z by a yaw, lp_psi) turned into the
+ * estimate's heading frame, by d = psi - lp_psi (rad, |d| < 2 pi): x := c x + s y, y := c y - s x with
+ * s = sin d, c = cos d (the series of att_ekf_sincos_step for |d| <= 1/16 rad, else att_i_sincosf).
+ * Done at each update, into the update's copies (kept only when it is applied, with lp_psi := psi), not
+ * at each step: between updates (accel rejected or missing) the stages are not used, and one turn by
+ * the whole change keeps their norm (a turn per step would grow it by the rounding of c^2 + s^2, up to
+ * 2e-8 per step at 0.02 rad/s of yaw rate).
  */
-static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_coeffs_t *c, att_ekf_state_t *st, float d)
+static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_state_t *st, att_vec3_t *lp1, att_vec3_t *lp2)
 {
+    const float d = st->euler.z - st->lp_psi;
     float sd;
     float cd;
-    float x;
-    if (!c->lp_on) {
-        return;
-    }
     if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
         const float z = d * d;
         sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
@@ -391,12 +392,12 @@ static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_coeffs_t *c, att_ekf_st
     } else {
         att_i_sincosf(d, &sd, &cd);
     }
-    x = st->lp1.x;
-    st->lp1.x = cd * x + sd * st->lp1.y;
-    st->lp1.y = cd * st->lp1.y - sd * x;
-    x = st->lp2.x;
-    st->lp2.x = cd * x + sd * st->lp2.y;
-    st->lp2.y = cd * st->lp2.y - sd * x;
+    lp1->x = cd * st->lp1.x + sd * st->lp1.y;
+    lp1->y = cd * st->lp1.y - sd * st->lp1.x;
+    lp1->z = st->lp1.z;
+    lp2->x = cd * st->lp2.x + sd * st->lp2.y;
+    lp2->y = cd * st->lp2.y - sd * st->lp2.x;
+    lp2->z = st->lp2.z;
 }
 
 /*
@@ -629,10 +630,8 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
         /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept */
         *tr = t0;
-        tr->dpsi = 0.0f;
         return flags | att_ekf_p_restart(c, pn);
     }
-    tr->dpsi = e.z - st->euler.z;
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
      * (as wrapped: the same sin/cos; done in att_ekf_propagate), directly after a flip to the
      * equivalent attitude or for an increment beyond 1/16 rad */
@@ -697,8 +696,8 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     float *pn = st->p;
     int i;
     int j;
-    att_vec3_t lp1;
-    att_vec3_t lp2;
+    att_vec3_t lp1 = st->lp1; /* the update's copies of the stages (turned below when on) */
+    att_vec3_t lp2 = st->lp2;
     att_vec3_t vv;
     att_vec3_t va;
     att_vec3_t e;
@@ -709,11 +708,9 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     vv.y = cphi * acc.y - sphi * acc.z;
     vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
     va = vv;
-    att_ekf_turn(c, st, tr->dpsi); /* the stages into the predicted heading frame (kept if not applied) */
-    lp1 = st->lp1;
-    lp2 = st->lp2;
     ready = st->lp_ready;
     if (c->lp_on) {
+        att_ekf_turn(st, &lp1, &lp2); /* the stages in the predicted heading frame */
         if (!ready) {
             /* not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
              * that gravity (0, 0, g) after a reset or an unusable gyro sample (a right estimate kept: no
@@ -869,6 +866,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     if (c->lp_on) {
         st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
         st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
+        st->lp_psi = e.z; /* moved by pi with a flip */
         st->lp_ready = ready;
         st->converging = !ready;
     }
@@ -884,6 +882,7 @@ static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, att_vec3_t acc)
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(st->euler.x, st->euler.y, 0.0f), &q);
     st->lp1 = att_i_quat_rotate(q, acc);
     st->lp2 = st->lp1;
+    st->lp_psi = 0.0f;
     st->lp_ready = true;
     st->converging = false;
     st->initialised = true;
@@ -933,7 +932,6 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         flags |= att_ekf_update(c, st, acc, &tr); /* tests the state it leaves (att_ekf_check) */
     } else {
-        att_ekf_turn(c, st, tr.dpsi);
         flags |= att_ekf_check(c, st);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {

@@ -50,8 +50,9 @@
  *     right estimate is kept; otherwise the raw sample is the measurement (the convergence phase, state
  *     converging) until one is within 0.1 rad, which then starts them from itself. The heading-frame
  *     rotation of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), and
- *     at every step they are turned about z with the prediction's change of yaw (half a turn when the
- *     update flips to the equivalent attitude), so they stay in the estimate's heading frame.
+ *     at every update they are first turned about z by the estimate's change of yaw since the last one
+ *     (lp_psi; half a turn when the update flips to the equivalent attitude), so they are in the
+ *     estimate's heading frame whenever they are used.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
  *  (-pi, pi]. One test per step, on the state it leaves (the update tests its result; a step without
@@ -143,6 +144,8 @@ typedef struct {
                                (yaw's correlations, p[2], p[7], p[12..14], not carried: zero) */
     att_vec3_t lp1;       /**< first accel low-pass stage, m/s^2, heading frame (earth turned by psi) */
     att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, heading frame */
+    float lp_psi;         /**< yaw of the stages' heading frame, rad (they are turned to the estimate's at
+                               each update) */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */

@@ -85,7 +85,7 @@ def _sincos_mid(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
 
 
 def _turn(lp: dm.Vec3, d: Any) -> dm.Vec3:
-    """att_ekf_turn: a heading-frame vector turned with the yaw change d (x := c x + s y, y := c y - s x)."""
+    """att_ekf_turn: a heading-frame vector turned by the yaw change d (x := c x + s y, y := c y - s x)."""
     with np.errstate(all="ignore"):
         z = d * d
         small = dm.absf(d) <= INC_MAX
@@ -200,6 +200,7 @@ class Ekf:
         "st.p": "f32x21",
         "st.lp1": "vec3",
         "st.lp2": "vec3",
+        "st.lp_psi": "f32",
         "st.lp_ready": "bool",
         "st.converging": "bool",
         "st.steps": "u32",
@@ -290,6 +291,7 @@ class Ekf:
         self.p: list[Any] = self._p_start()
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
+        self.lp_psi = np.copy(self.euler[2])
         self.lp_ready = np.zeros(self.n, np.bool_)
         self.converging = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
@@ -398,7 +400,6 @@ class Ekf:
             start = self._p_start()
             pn = [np.where(ok_e, pn[k], start[k]).astype(np.float32) for k in range(21)]
             flags = flags | np.where(ok_e, _U0, _u(Flag.NUMERIC))
-            dpsi = np.where(ok_e, e[2] - ez0, dm.ZERO).astype(np.float32)
             ok = dm.vec3_isfinite(e) & _usable(pn)
             # sin/cos of the predicted roll and pitch: by angle addition, directly after a flip
             s1, c1 = _sincos_step(e[0], dx, sphi, cphi)
@@ -410,7 +411,7 @@ class Ekf:
             trig = tuple(
                 np.where(ok_e, new, old).astype(np.float32)
                 for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
-            ) + (dpsi,)
+            )
         return ok, e, pn, flags, trig
 
     def _update(
@@ -425,7 +426,7 @@ class Ekf:
         p = self.p
         ex0, ey0, ez0 = self.euler
         with np.errstate(all="ignore"):
-            sphi, cphi, sth, cth, _ = trig
+            sphi, cphi, sth, cth = trig
             ax, ay, az = a
             # the specific force in the heading frame of the prediction: R_y(theta) R_x(phi) a
             va = (
@@ -434,6 +435,10 @@ class Ekf:
                 (-sth) * ax + (cth * sphi) * ay + (cth * cphi) * az,
             )
             lp_on = self.k_lp > dm.ZERO
+            # the stages (heading frame of yaw lp_psi) turned into the predicted one (att_ekf_turn)
+            d_psi = ez0 - self.lp_psi
+            lp1t = _turn(self.lp1, d_psi)
+            lp2t = _turn(self.lp2, d_psi)
             # not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
             # (0, 0, g) after a reset or an unusable gyro sample, from the sample at the end of the
             # convergence phase; otherwise the raw sample is the measurement
@@ -442,8 +447,8 @@ class Ekf:
             ready = lp_ready | agrees
             up = (self._zeros, self._zeros, self.gravity)
             start = dm.vec3_where(agrees & ~self.converging, up, va)
-            b1 = dm.vec3_where(lp_ready, self.lp1, start)
-            b2 = dm.vec3_where(lp_ready, self.lp2, start)
+            b1 = dm.vec3_where(lp_ready, lp1t, start)
+            b2 = dm.vec3_where(lp_ready, lp2t, start)
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), self.k_lp))
             lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), self.k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
@@ -578,11 +583,7 @@ class Ekf:
             self.euler = dm.vec3_where(run, e_p, self.euler)
             self.p = [np.where(run, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
             restart = self._p_start()
-            # the low-pass stages (heading frame) turned with the step's change of yaw (att_ekf_turn)
-            turn = run & self.lp_on
-            self.lp1 = dm.vec3_where(turn, _turn(self.lp1, trig[4]), self.lp1)
-            self.lp2 = dm.vec3_where(turn, _turn(self.lp2, trig[4]), self.lp2)
-            # an unmeasured rotation: the low-pass stages (estimate's earth frame) are stale
+            # an unmeasured rotation: the low-pass stages (estimate's heading frame) are stale
             self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
             measure = run & accel_ok & ~rejected
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
@@ -602,6 +603,7 @@ class Ekf:
             ]
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
+            self.lp_psi = np.where(take_u & self.lp_on, e_u[2], self.lp_psi).astype(np.float32)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
@@ -612,6 +614,7 @@ class Ekf:
             self.euler = dm.vec3_where(init_now, start, self.euler)
             self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
             self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)
+            self.lp_psi = np.where(init_now, z, self.lp_psi).astype(np.float32)
             self.lp_ready = self.lp_ready | init_now
             self.converging = self.converging & ~init_now
         self.initialised = self.initialised | init_now
