@@ -375,7 +375,8 @@ typedef struct {
  * The low-pass stages (heading frame: the earth frame turned about z by a yaw, lp_psi) turned into the
  * estimate's heading frame, by d = psi - lp_psi (rad, |d| < 2 pi): x := c x + s y, y := c y - s x with
  * s = sin d, c = cos d (the series of att_ekf_sincos_step for |d| <= 1/16 rad, else att_i_sincosf).
- * Done at each update, into the update's copies (kept only when it is applied, with lp_psi := psi), not
+ * Done at each update, into the update's copies (kept only when it is applied; lp_psi := psi, the
+ * predicted yaw: the update's own change of yaw and a flip are turned by the next update), not
  * at each step: between updates (accel rejected or missing) the stages are not used, and one turn by
  * the whole change keeps their norm (a turn per step would grow it by the rounding of c^2 + s^2, up to
  * 2e-8 per step at 0.02 rad/s of yaw rate).
@@ -701,7 +702,8 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     att_vec3_t vv;
     att_vec3_t va;
     att_vec3_t e;
-    att_vec3_t eps;
+    float epx; /* the correction's rotation in the heading frame, rad: x, y (its z is 0) */
+    float epy;
     /* the specific force in the heading frame of the prediction (the earth frame turned by its yaw):
      * R_y(theta) R_x(phi) a */
     vv.x = cth * acc.x + (sth * sphi) * acc.y + (sth * cphi) * acc.z;
@@ -801,7 +803,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         k11 = P_(p, 1, 0) * i01 + P_(p, 1, 1) * i11;
         e.x = st->euler.x + (k00 * y0 + k10 * y1) * fk;
         e.y = st->euler.y + (k01 * y0 + k11 * y1) * fk;
-        e.z = st->euler.z; /* yaw's row is not carried: no gain */
         ATT_EKF_UNROLL
         for (i = 3; i < 6; i++) {
             const float k0 = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
@@ -834,42 +835,34 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         db3[1] = (kb0[1] * yb0 + kb1[1] * yb1) * fb;
         db3[2] = (kb0[2] * yb0 + kb1[2] * yb1) * fb;
     }
-    /* the rotation of the correction in the heading frame, for the low-pass stages */
+    /* The correction is a pure tilt rotation: the measurement carries no heading, so the change of the
+     * angles must not turn the estimate about the vertical. A change (dphi, dtheta, dpsi) rotates the
+     * heading frame by (cos(theta) dphi, dtheta, dpsi - sin(theta) dphi): yaw follows roll by
+     * dpsi = sin(theta) dphi (its row of P is not carried: no gain of its own), and the rotation of the
+     * correction in the heading frame, for the low-pass stages, is (cos(theta) dphi, dtheta, 0). */
     {
         const float dphi = e.x - st->euler.x;
-        const float dth = e.y - st->euler.y;
-        eps.x = dphi * cth;
-        eps.y = dth;
-        eps.z = -(dphi * sth);
+        epx = dphi * cth;
+        epy = e.y - st->euler.y;
+        e.z = st->euler.z + sth * dphi;
     }
-    /* att_ekf_canon with yaw left as it was, unless the update flips to the equivalent attitude: then
-     * yaw moves by pi, the heading frame turns half a turn, and the stages and the correction with it
-     * (x, y negated: the stages' update below then gives the turned result of the unturned one) */
-    if (!(att_i_absf(e.y) <= ATT_EKF_PIO2_F)) {
-        (void)att_ekf_flip(&e, pn);
-        e.z = att_ekf_wrap(e.z);
-        lp1.x = -lp1.x;
-        lp1.y = -lp1.y;
-        lp2.x = -lp2.x;
-        lp2.y = -lp2.y;
-        eps.x = -eps.x;
-        eps.y = -eps.y;
-    }
-    e.x = att_ekf_wrap(e.x);
+    (void)att_ekf_canon(&e, pn);
     if (!att_ekf_usable(e, pn)) {
         return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
+    }
+    if (c->lp_on) {
+        /* lp := lp + eps x lp with eps_z = 0, in the heading frame of the predicted yaw (lp_psi: the
+         * next update turns them on from there, through this one's change of yaw and any flip) */
+        st->lp1 = att_i_vec3(lp1.x + epy * lp1.z, lp1.y - epx * lp1.z, lp1.z + (epx * lp1.y - epy * lp1.x));
+        st->lp2 = att_i_vec3(lp2.x + epy * lp2.z, lp2.y - epx * lp2.z, lp2.z + (epx * lp2.y - epy * lp2.x));
+        st->lp_psi = st->euler.z;
+        st->lp_ready = ready;
+        st->converging = !ready;
     }
     st->euler = e;
     st->bias.x = st->bias.x + db3[0];
     st->bias.y = st->bias.y + db3[1];
     st->bias.z = st->bias.z + db3[2];
-    if (c->lp_on) {
-        st->lp1 = att_i_vec3_add(lp1, att_i_vec3_cross(eps, lp1));
-        st->lp2 = att_i_vec3_add(lp2, att_i_vec3_cross(eps, lp2));
-        st->lp_psi = e.z; /* moved by pi with a flip */
-        st->lp_ready = ready;
-        st->converging = !ready;
-    }
     return 0u;
 }
 

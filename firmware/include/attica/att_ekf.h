@@ -42,17 +42,18 @@
  *     and above gate / 4 the measurement noise is scaled so that d^2 = gate / 4 (a soft limit);
  *     K = P H^T S^-1, x := x + K y, P := P - K S K^T written without cancellation: the roll/pitch
  *     rows are R S^-1 P (their 2x2 block [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0 P11)] /
- *     det S, positive definite), the rest P - K H P. The bias states measure against the raw sample
+ *     det S, positive definite), the rest P - K H P. The correction is a pure tilt rotation (the
+ *     measurement carries no heading): yaw follows roll, psi += sin(theta) d_phi, so that it turns the
+ *     estimate by (cos(theta) d_phi, d_theta, 0) in the heading frame, about no vertical axis. The bias states measure against the raw sample
  *     (first order, e = (v_y, -v_x) / |v|; their gain averages over minutes, while the lag of the stages
  *     would hide a bias), weighted by min(1, (1/16) / d_raw^2). The stages restart after reset or an
  *     unusable gyro sample (an unmeasured rotation makes them stale): a sample within 0.1 rad of the
  *     estimate's gravity (sin^2 of its tilt error < 0.01) starts them from that gravity (0, 0, g), so a
  *     right estimate is kept; otherwise the raw sample is the measurement (the convergence phase, state
- *     converging) until one is within 0.1 rad, which then starts them from itself. The heading-frame
- *     rotation of the correction, M (K y)_angles, is applied to the low-pass stages (to first order), and
- *     at every update they are first turned about z by the estimate's change of yaw since the last one
- *     (lp_psi; half a turn when the update flips to the equivalent attitude), so they are in the
- *     estimate's heading frame whenever they are used.
+ *     converging) until one is within 0.1 rad, which then starts them from itself. The stages are kept in
+ *     the heading frame of yaw lp_psi: each update first turns them about z into the predicted one
+ *     (by psi - lp_psi: the yaw's change since, flips to the equivalent attitude included); an applied
+ *     update rotates them by its correction (to first order) and sets lp_psi to the predicted yaw.
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
  *  (-pi, pi]. One test per step, on the state it leaves (the update tests its result; a step without

@@ -95,10 +95,10 @@ def _turn(lp: dm.Vec3, d: Any) -> dm.Vec3:
         return (cd * x + sd * y, cd * y - sd * x, zz)
 
 
-def _canon(e: dm.Vec3, p: list[Any], yaw_moved: bool = True) -> tuple[dm.Vec3, list[Any], Any]:
+def _canon(e: dm.Vec3, p: list[Any]) -> tuple[dm.Vec3, list[Any], Any]:
     """att_ekf_canon: theta into [-pi/2, pi/2] by the equivalent attitude, phi and psi wrapped.
 
-    psi is wrapped when it moved (``yaw_moved``) or was flipped. Returns (e, P, flipped).
+    Returns (e, P, flipped).
     """
     ex, ey, ez = e
     ey = _wrap(ey)
@@ -111,7 +111,7 @@ def _canon(e: dm.Vec3, p: list[Any], yaw_moved: bool = True) -> tuple[dm.Vec3, l
         if k != 1:
             i = _IX[1][k]
             p[i] = np.where(flip, -p[i], p[i])
-    ez = _wrap(ez) if yaw_moved else np.where(flip, _wrap(ez), ez).astype(np.float32)
+    ez = _wrap(ez)
     return (_wrap(ex), ey.astype(np.float32), ez), p, flip
 
 
@@ -491,11 +491,8 @@ class Ekf:
                 pi0, pi1 = p[_IX[i][0]], p[_IX[i][1]]
                 k0.append(pi0 * i00 + pi1 * i01)
                 k1.append(pi0 * i01 + pi1 * i11)
-            e = (
-                ex0 + (k0[0] * y0 + k1[0] * y1) * fk,
-                ey0 + (k0[1] * y0 + k1[1] * y1) * fk,
-                ez0,  # yaw's row is not carried: no gain
-            )
+            ex = ex0 + (k0[0] * y0 + k1[0] * y1) * fk
+            ey = ey0 + (k0[1] * y0 + k1[1] * y1) * fk
             pn: list[Any] = list(p)
             pn[0] = (r0 * inv) * t0
             pn[1] = ((r0 * r1) * inv) * p[1]
@@ -513,22 +510,21 @@ class Ekf:
                 else p[k]
                 for k in range(21)
             ]
-            dphi = e[0] - ex0
-            dth = e[1] - ey0
-            eps = (dphi * cth, dth, -(dphi * sth))  # the correction's rotation in the heading frame
-            e, pn, flip_u = _canon(e, pn, yaw_moved=False)
+            # a pure tilt correction: yaw follows roll by sin(theta) dphi (no turn about the vertical);
+            # the correction's rotation in the heading frame is (cos(theta) dphi, dtheta, 0)
+            dphi = ex - ex0
+            epx = dphi * cth
+            epy = ey - ey0
+            e, pn, _ = _canon((ex, ey, ez0 + sth * dphi), pn)
             ok_u = dm.vec3_isfinite(e) & _usable(pn)
             bias = (
                 self.bias[0] + (k0[3] * yb0 + k1[3] * yb1) * fb,
                 self.bias[1] + (k0[4] * yb0 + k1[4] * yb1) * fb,
                 self.bias[2] + (k0[5] * yb0 + k1[5] * yb1) * fb,
             )
-            # a flip moves yaw by pi: the heading frame turns half a turn, the stages and eps with it
-            lp1 = dm.vec3_where(flip_u, (-lp1[0], -lp1[1], lp1[2]), lp1)
-            lp2 = dm.vec3_where(flip_u, (-lp2[0], -lp2[1], lp2[2]), lp2)
-            eps = dm.vec3_where(flip_u, (-eps[0], -eps[1], eps[2]), eps)
-            lp1n = dm.vec3_add(lp1, dm.vec3_cross(eps, lp1))
-            lp2n = dm.vec3_add(lp2, dm.vec3_cross(eps, lp2))
+            # lp + eps x lp with eps_z = 0, in the predicted heading frame (lp_psi := its yaw)
+            lp1n = (lp1[0] + epy * lp1[2], lp1[1] - epx * lp1[2], lp1[2] + (epx * lp1[1] - epy * lp1[0]))
+            lp2n = (lp2[0] + epy * lp2[2], lp2[1] - epx * lp2[2], lp2[2] + (epx * lp2[1] - epy * lp2[0]))
         numeric = ok_a & (~ok_det | (~gated & ~ok_u))
         applied = ok_a & ok_det & ~gated & ok_u
         discarded = ok_a & ok_det & ~gated & ~ok_u
@@ -603,7 +599,7 @@ class Ekf:
             ]
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
-            self.lp_psi = np.where(take_u & self.lp_on, e_u[2], self.lp_psi).astype(np.float32)
+            self.lp_psi = np.where(take_u & self.lp_on, e_p[2], self.lp_psi).astype(np.float32)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
