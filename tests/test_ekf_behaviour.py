@@ -621,14 +621,14 @@ def _rxry_t(e: tuple[float, ...], v: Any) -> np.ndarray:
 
 
 def test_lowpass_stages_stay_in_the_heading_frame_through_a_flip() -> None:
-    """The stages live in the estimate's heading frame (the earth frame turned by its yaw), so with zero
-    rates and a constant sample, once started from it, R_x(phi)^T R_y(theta)^T lp must stay the sample
-    whatever the updates do: here they pull the pitch from 80 deg through 90 (the truth: 92 deg pitch,
-    20 deg roll), and the update that crosses it flips to the equivalent attitude, yaw + pi, which turns
-    the heading frame half a turn. Measured: one flip, the stage 7e-4 m/s^2 off (the first-order turn of
-    the corrections, float32); without the half turn the mirrored stages pulled the estimate back and
-    forth across 90 deg (391 flips in 15 s) and the stage was 0.63 m/s^2 off. C and reference bit for
-    bit at every step."""
+    """The stages live in a heading frame (the earth frame turned by the yaw lp_psi), so with zero rates
+    and a constant sample, once started from it, R_x(phi)^T R_y(theta)^T R_z(psi - lp_psi) lp must stay
+    the sample whatever the updates do: here they pull the pitch from 80 deg through 90 (the truth: 92
+    deg pitch, 20 deg roll), and the update that crosses it flips to the equivalent attitude, yaw + pi,
+    which turns the heading frame half a turn (taken by the next update's turn). Measured: one flip, the
+    stage 7e-4 m/s^2 off (the first-order turn of the corrections, float32); when the flip's half turn
+    was missed, the mirrored stages pulled the estimate back and forth across 90 deg (391 flips in 15 s)
+    and the stage was 0.63 m/s^2 off. C and reference bit for bit at every step."""
     th, ph = np.deg2rad(92.0), np.deg2rad(20.0)
     a = (-np.sin(th) * G, np.sin(ph) * np.cos(th) * G, np.cos(ph) * np.cos(th) * G)
     a32 = np.array(a, np.float32)

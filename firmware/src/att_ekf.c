@@ -236,10 +236,9 @@ static ATT_ALWAYS_INLINE bool att_ekf_flip(att_vec3_t *e, float *p)
 }
 
 /*
- * The prediction's angles canonical: theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row
+ * The angles of a stage canonical: theta into [-pi/2, pi/2] by the equivalent attitude (P's theta row
  * and column change sign), phi and psi wrapped. Returns true when the attitude was flipped. |theta| <=
- * pi/2 needs neither the wrap nor the flip: one test (att_ekf_flip does both otherwise). The update
- * does the same inline (yaw left as it was unless flipped; the stages turned with a flip).
+ * pi/2 needs neither the wrap nor the flip: one test (att_ekf_flip does both otherwise).
  */
 static ATT_ALWAYS_INLINE bool att_ekf_canon(att_vec3_t *e, float *p)
 {
