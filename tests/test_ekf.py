@@ -753,11 +753,14 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
     ordinary step proceeds from the kept angles."""
     s = ekf_default(init_from_accel=False, dt=1.0, cos_min=1e-6, euler_init=(0.0, 1.5707, 0.0))
     f, ref = pair(s)
+    f[0].st.lp_ready = True  # stages as if started: the rotation not followed makes them stale
+    ref.lp_ready[:] = True
     before, _, _ = state(f)
     fl = step_both(f, ref, (0.0, 0.0, 34.9), (NAN, NAN, NAN))
     e, _, p = state(f)
     assert fl & Flag.NUMERIC
     assert e == before
+    assert not f[0].st.lp_ready
     start = np.zeros(21, np.float32)
     start[[0, 6, 11]] = s.p0
     start[[15, 18, 20]] = s.p0_bias
@@ -801,18 +804,20 @@ def test_stages_untouched_between_updates_and_turned_once_at_the_next() -> None:
     turns them once by the whole change (0.4 rad: att_i_sincosf): fed the same earth-frame acceleration
     as seen by the turned sensor, the stages keep it (measured: horizontal norm within 6e-5, direction
     within 6e-5 m/s^2, from the update's own small tilt correction; unturned they would be 0.5 m/s^2
-    off) and lp_psi is the estimate's yaw. C and reference bit for bit."""
+    off) and lp_psi is the yaw the update started from, the prediction's (the update's own change of yaw,
+    sin(theta) dphi, is turned by the next one). C and reference bit for bit."""
     s = ekf_default(
         init_from_accel=False, euler_init=(0.0, 0.0, 0.3), tau_acc_lp=0.05, r_phi=1e3, r_theta=1e3
     )
     f, ref = pair(s)
+    assert f[0].st.lp_psi == F32(0.3)  # reset: the frame of euler_init's yaw
     h = np.array([1.2, -0.5])
     step_both(f, ref, (0.0, 0.0, 0.0), (0.0, 0.0, G))  # starts the stages from (0, 0, g)
     for _ in range(200):
         step_both(f, ref, (0.0, 0.0, 0.0), (h[0], h[1], G))
     st = f[0].st
     assert st.lp_ready and np.abs(np.array([st.lp2.x, st.lp2.y]) - h).max() < 1e-2
-    assert st.lp_psi == st.euler.z
+    assert abs(st.lp_psi - st.euler.z) < 1e-6  # at zero rates the prediction keeps the yaw
     before = (st.lp1.x, st.lp1.y, st.lp1.z, st.lp2.x, st.lp2.y, st.lp2.z, st.lp_psi)
     for _ in range(2000):
         step_both(f, ref, (0.0, 0.0, 0.02), (NAN, NAN, NAN))
@@ -821,11 +826,16 @@ def test_stages_untouched_between_updates_and_turned_once_at_the_next() -> None:
     assert abs(turn - 0.4) < 1e-3
     c, sn = np.cos(turn), np.sin(turn)
     seen = (c * before[3] + sn * before[4], c * before[4] - sn * before[3])  # the sensor turned by +turn
+    yaw_predicted = st.euler.z  # zero rates, the bias states at ~0: the prediction keeps it
     step_both(f, ref, (0.0, 0.0, 0.0), (seen[0], seen[1], G))
-    assert st.lp_psi == st.euler.z
+    assert abs(st.lp_psi - yaw_predicted) < 1e-6
     got = np.array([st.lp2.x, st.lp2.y])
     print(f"\nstage after the outage: {got}, wanted {np.array(seen)}")
     ratio = np.hypot(*got) / np.hypot(before[3], before[4])
     print(f"norm ratio {ratio:.8f}, off by {np.abs(got - np.array(seen)).max():.2e} m/s^2")
     assert abs(ratio - 1.0) < 1e-3
     assert np.abs(got - np.array(seen)).max() < 1e-3
+    # the start from the first sample (yaw 0): the stages in the heading frame of yaw 0
+    f2, ref2 = pair(ekf_default(euler_init=(0.0, 0.0, 0.3)))
+    step_both(f2, ref2, (0.0, 0.0, 0.0), (0.5, 0.2, G))
+    assert f2[0].st.initialised and f2[0].st.lp_ready and f2[0].st.euler.z == 0.0 and f2[0].st.lp_psi == 0.0

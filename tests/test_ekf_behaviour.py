@@ -235,8 +235,7 @@ def test_gimbal_lock_hold_at_90(preset: str) -> None:
     step and the tilt exact; with noise (accel 0.1 m/s^2, gyro 0.003 rad/s) the tilt is kept.
 
     Measured with noise: default tilt error max 0.31 deg (final max 0.27 deg), seed 0.33 deg (final
-    0.045 deg); the bound leaves a factor of 5. (This docstring's figures from an earlier version of the
-    filter, default 18 deg and seed 170 deg after the very first update, are gone.)
+    0.045 deg); the bound leaves a factor of 5.
     """
     m, steps, dt = 20, 1000, 0.01
     base = ekf_seed if preset == "seed" else ekf_default
@@ -436,7 +435,7 @@ def test_gate_soft_limit_scales_the_correction(tilt_deg: float) -> None:
 @pytest.mark.parametrize("duration", [1.0, 2.0, 4.0])
 def test_low_pass_rejects_sustained_linear_acceleration(duration: float) -> None:
     """A sustained linear acceleration (2 m/s^2 along earth x, as a vehicle pulling away) tilts the raw
-    measured gravity by atan(2 / g) = 11.5 deg. The default low-pass (two 1.5 s stages of the earth-frame
+    measured gravity by atan(2 / g) = 11.5 deg. The default low-pass (two 1.5 s stages of the heading-frame
     accel) passes the fraction 1 - exp(-T / tau) (1 + T / tau) of a step lasting T: 14 % for 1 s, 38 % for
     2 s, 75 % for 4 s; the raw accel (tau_acc_lp = 0, other settings the defaults) passes it all.
 
@@ -622,7 +621,7 @@ def _rxry_t(e: tuple[float, ...], v: Any) -> np.ndarray:
 
 def test_lowpass_stages_stay_in_the_heading_frame_through_a_flip() -> None:
     """The stages live in a heading frame (the earth frame turned by the yaw lp_psi), so with zero rates
-    and a constant sample, once started from it, R_x(phi)^T R_y(theta)^T R_z(psi - lp_psi) lp must stay
+    and a constant sample, once started from it, R_x(phi)^T R_y(theta)^T R_z(lp_psi - psi) lp must stay
     the sample whatever the updates do: here they pull the pitch from 80 deg through 90 (the truth: 92
     deg pitch, 20 deg roll), and the update that crosses it flips to the equivalent attitude, yaw + pi,
     which turns the heading frame half a turn (taken by the next update's turn). Measured: one flip, the

@@ -166,7 +166,7 @@ static inline bool att_i_align_up(att_vec3_t v, float *qw, float *qx, float *qy,
 }
 
 /**
- * One update of the two cascaded first-order low-passes of the earth-frame specific force v (gain k
+ * One update of the two cascaded first-order low-passes of the specific force v (earth or heading frame) (gain k
  * each): lp1 += (v - lp1) k, lp2 += (lp1 - lp2) k.
  */
 static inline void att_i_lowpass2(att_vec3_t v, float k, att_vec3_t *lp1, att_vec3_t *lp2)

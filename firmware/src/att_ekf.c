@@ -355,7 +355,7 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
 /*
  * The one test of a step, on the state it leaves (att_ekf_update tests its own result; this covers a
  * step without an applied update): P that cannot be used restarts (att_ekf_p_restart). The predicted
- * angles are finite whenever the state before was (|cos(theta)| >= cos_min, bounded rates and dt).
+ * angles are finite (att_ekf_predict keeps them otherwise).
  */
 static ATT_NOINLINE uint32_t att_ekf_check(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
 {
@@ -597,8 +597,10 @@ static ATT_ALWAYS_INLINE void att_ekf_predict_trig(att_vec3_t e, const float *dd
 /*
  * Prediction of the angles and of P, in place (out of line: its frame is not the update's); returns
  * its flags. Without usable rates the angles are kept and F = I (the bias did not enter the
- * prediction): P := P + Q. Always taken; tested with the update's result, or by att_ekf_check when
- * no update is applied. tr: sin/cos of the roll and pitch for the update.
+ * prediction): P := P + Q. Taken unless its angles leave the wrap's range (adversarial rates, dt and
+ * cos_min: then the angles are kept, P restarts, the stages restart: an unmeasured rotation); tested
+ * with the update's result, or by att_ekf_check when no update is applied. tr: sin/cos of the roll and
+ * pitch for the update.
  */
 static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t w,
                                              bool gyro_ok, att_ekf_trig_t *tr)
@@ -628,8 +630,10 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
     flipped = att_ekf_canon(&e, pn);
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
-        /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept */
+        /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept, and
+         * the stages restart (the rotation was not followed) */
         *tr = t0;
+        st->lp_ready = false;
         return flags | att_ekf_p_restart(c, pn);
     }
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
@@ -729,7 +733,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         return att_ekf_check(c, st); /* no direction: no update */
     }
     (void)cw;
-    /* the tilt error e (earth frame) and the roll and pitch that remove it */
+    /* the tilt error e (heading frame) and the roll and pitch that remove it */
     ex = 2.0f * cx;
     ey = 2.0f * cy;
     cg = cth;
@@ -748,7 +752,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         yb0 = ax * sec;
         yb1 = ay;
     }
-    /* R: the tilt error has the same noise about both earth axes; its roll is (..) / cos(theta), so
+    /* R: the tilt error has the same noise about both horizontal axes; its roll is (..) / cos(theta), so
      * the roll noise is r_phi / cos^2(theta) (roll is not observable at +-90 deg pitch) */
     fa = 1.0f + c->r_accel * e2;
     r1 = c->r_step[1] * fa;
@@ -917,7 +921,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         return flags;
     }
     if (!gyro_ok) {
-        st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's earth frame) are stale */
+        st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's heading frame) are stale */
     }
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
     flags |= att_ekf_predict(c, st, w, gyro_ok, &tr);

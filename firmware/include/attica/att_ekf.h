@@ -7,8 +7,8 @@
  * sensor-to-earth, ENU) and the gyro bias in rad/s (sensor frame); covariance P (6x6, symmetric,
  * stored as its upper triangle) with yaw's row not carried: its correlations stay zero and its variance
  * is a random walk (q_psi). Yaw enters neither the roll/pitch kinematics nor the measurement, so that row
- * never reaches roll, pitch or the bias; leaving it out costs only the yaw corrections the tilt would
- * give through it (visible near gimbal lock, where roll and yaw are one rotation; docs/filters.md). Per step, with w = (p, q, r) - b (rad/s, sensor frame), dt:
+ * never reaches roll, pitch or the bias; the yaw share of a tilt correction comes from geometry
+ * instead (yaw follows roll, below; docs/filters.md). Per step, with w = (p, q, r) - b (rad/s, sensor frame), dt:
  *
  *  1. prediction: angles := angles + dt E(phi, theta) w with the Euler kinematics
  *       phi'   = p + sin(phi) tan(theta) q + cos(phi) tan(theta) r
@@ -24,7 +24,8 @@
  *     first order from the half increments (s + c d, c - s d), the predicted angles' (for the update) by
  *     angle addition from the increments d of the step (series of sin d, cos d to d^5, d^4), both for
  *     |d| <= 1/16 rad (a larger d, or a flip to the equivalent attitude, evaluates them directly);
- *     psi's never (the update works in the heading frame).
+ *     psi's never (the update works in the heading frame; the stages' turn by psi - lp_psi takes the
+ *     same series).
  *     |cos(theta)| below cos_min is clamped to +-cos_min (ATT_FLAG_GIMBAL) in the kinematics and the
  *     Jacobians: the singularity of the representation, where the estimate is unreliable but finite.
  *     An unusable gyro sample gives w = 0: the state is kept, P := P + Q.
@@ -36,7 +37,7 @@
  *     rotation e = 2 (c_x, c_y, 0); the roll and pitch that remove it are, to first order (e = M d for
  *     roll/pitch differences d, M d = (cos(theta) d_phi, d_theta, -sin(theta) d_phi)), y = (e_x /
  *     cos(theta), e_y): the innovation. S = P[0:2,0:2] + R, R = diag(r_phi / cos^2(theta), r_theta) (1 + r_accel
- *     (|a|/g - 1)^2): the tilt error has the same noise about both earth axes, so roll (e / cos(theta)) is
+ *     (|a|/g - 1)^2): the tilt error has the same noise about both horizontal axes, so roll (e / cos(theta)) is
  *     not observable at +-90 deg pitch (cos guarded as in the prediction); det S = det P2 + ... > 0 by construction;
  *     with the chi-square gate d^2 = y^T S^-1 y > gate the update is rejected (ATT_FLAG_ACCEL_REJECTED)
  *     and above gate / 4 the measurement noise is scaled so that d^2 = gate / 4 (a soft limit);

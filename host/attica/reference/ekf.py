@@ -302,11 +302,12 @@ class Ekf:
         small = dm.absf(c) < self.cos_min
         return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
 
-    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, dm.Vec3, list[Any], Any, tuple[Any, ...]]:
-        """att_ekf_predict: (usable, angles, P, flags, sin/cos of the roll and pitch for the update).
+    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, Any, dm.Vec3, list[Any], Any, tuple[Any, ...]]:
+        """att_ekf_predict: (usable, taken, angles, P, flags, sin/cos of roll and pitch for the update).
 
-        The prediction is always taken; ``usable`` is att_ekf_check's test of it (made when no update
-        is applied after it).
+        The prediction is taken unless its angles leave the wrap's range (then the angles are kept, P
+        restarts and the stages restart: ``ok_e`` false); ``usable`` is att_ekf_check's test of it
+        (made when no update is applied after it).
         """
         dt = self.dt
         p = self.p
@@ -412,7 +413,7 @@ class Ekf:
                 np.where(ok_e, new, old).astype(np.float32)
                 for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
             )
-        return ok, e, pn, flags, trig
+        return ok, ok_e, e, pn, flags, trig
 
     def _update(
         self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
@@ -574,13 +575,14 @@ class Ekf:
             )
             run = ~waiting
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
-            ok_p, e_p, p_p, fl_p, trig = self._predict(w, gyro_ok)
+            ok_p, taken_p, e_p, p_p, fl_p, trig = self._predict(w, gyro_ok)
             flags = flags | np.where(run, fl_p, _U0)
             self.euler = dm.vec3_where(run, e_p, self.euler)
             self.p = [np.where(run, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
             restart = self._p_start()
-            # an unmeasured rotation: the low-pass stages (estimate's heading frame) are stale
-            self.lp_ready = self.lp_ready & ~(run & ~gyro_ok)
+            # an unmeasured rotation (no usable rates, or a prediction not taken): the low-pass stages
+            # (estimate's heading frame) are stale
+            self.lp_ready = self.lp_ready & ~(run & (~gyro_ok | ~taken_p))
             measure = run & accel_ok & ~rejected
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig
