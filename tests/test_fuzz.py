@@ -121,6 +121,11 @@ FILTER_FINDINGS = {
     "filter-ars-lowpass-NaN.bin": "F6 ars: accel_range +Inf, accel 1e30 (x3): low-pass NaN, NUMERIC forever",
     "filter-ekf-gimbal-P_SPD.bin": "F7 ekf: pitch at +-90 deg (GIMBAL): F ~ 1/cos(theta) made P indefinite "
     "(P00 = P22 = 4.3e7) before the next conditioning step",
+    "filter-ekf-NUMERIC_KEPT-update.bin": "F8 ekf: an update discarded with NUMERIC (det S overflowing) kept "
+    "the prediction, so q changed (NUMERIC now keeps the attitude from before the step)",
+    "filter-ekf-P_SPD-increment.bin": "F9 ekf: seed preset, dt 1 s, rates to 35 rad/s: increments of radians "
+    "per step made P indefinite between the 16-step conditionings (P00 1.6e28; now conditioned after every "
+    "increment beyond 1/16 rad)",
 }
 
 

@@ -24,6 +24,7 @@
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
 #define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
+#define ATT_EKF_COND_NOW 0x80000000u         /* internal flag of the prediction: condition P this step */
 /* Increments of an angle up to which sin/cos follow by angle addition (att_ekf_sincos_step) */
 #define ATT_EKF_INC_MAX 0x1p-4f    /* 1/16 rad */
 #define ATT_EKF_INC_S3 (-0x1.555556p-3f) /* -1/6 */
@@ -298,7 +299,7 @@ static bool att_ekf_pd_ok(const float *p)
 }
 
 /*
- * Conditioning (every 16 steps, and at every step flagged GIMBAL): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
+ * Conditioning (every 16 steps, at every step flagged GIMBAL, after an increment beyond 1/16 rad): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
  * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
  * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
@@ -641,6 +642,11 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
      * equivalent attitude or for an increment beyond 1/16 rad */
     if (flipped || !added) {
         att_ekf_predict_trig(e, dd, &t0, tr, flipped);
+        if (!added) {
+            /* a roll or pitch increment beyond 1/16 rad: F is far from I (fast rotation, a long dt),
+             * and P may lose positive definiteness to rounding before the next 16th step */
+            flags |= ATT_EKF_COND_NOW;
+        }
     }
     st->euler = e;
     return flags;
@@ -895,6 +901,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     bool gyro_ok;
     bool accel_ok;
     att_vec3_t w;
+    att_vec3_t e0;
     att_ekf_trig_t tr;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
@@ -924,15 +931,20 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's heading frame) are stale */
     }
     w = gyro_ok ? att_i_vec3_sub(gyr, st->bias) : att_i_vec3(0.0f, 0.0f, 0.0f);
+    e0 = st->euler;
     flags |= att_ekf_predict(c, st, w, gyro_ok, &tr);
-    if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
+    if (accel_ok && (flags & (ATT_FLAG_ACCEL_REJECTED | ATT_FLAG_NUMERIC)) == 0u) {
         flags |= att_ekf_update(c, st, acc, &tr); /* tests the state it leaves (att_ekf_check) */
     } else {
         flags |= att_ekf_check(c, st);
     }
-    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & ATT_FLAG_GIMBAL) != 0u) {
-        /* near gimbal lock F grows as 1 / cos(theta): P is conditioned at once */
-        flags |= att_ekf_condition(st->p, c->p_max);
+    if ((flags & ATT_FLAG_NUMERIC) != 0u) {
+        st->euler = e0; /* NUMERIC: the attitude from before the step (P restarted if it was unusable) */
+    }
+    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
+        /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:
+         * P is conditioned at once */
+        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max);
     }
     st->steps = st->steps + 1u;
     st->flags = flags;

@@ -302,8 +302,10 @@ class Ekf:
         small = dm.absf(c) < self.cos_min
         return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
 
-    def _predict(self, w: dm.Vec3, gyro_ok: Any) -> tuple[Any, Any, dm.Vec3, list[Any], Any, tuple[Any, ...]]:
-        """att_ekf_predict: (usable, taken, angles, P, flags, sin/cos of roll and pitch for the update).
+    def _predict(
+        self, w: dm.Vec3, gyro_ok: Any
+    ) -> tuple[Any, Any, dm.Vec3, list[Any], Any, tuple[Any, ...], Any]:
+        """att_ekf_predict: (usable, taken, angles, P, flags, sin/cos of roll and pitch, condition now).
 
         The prediction is taken unless its angles leave the wrap's range (then the angles are kept, P
         restarts and the stages restart: ``ok_e`` false); ``usable`` is att_ekf_check's test of it
@@ -413,7 +415,9 @@ class Ekf:
                 np.where(ok_e, new, old).astype(np.float32)
                 for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
             )
-        return ok, ok_e, e, pn, flags, trig
+            # a roll or pitch increment beyond 1/16 rad: P conditioned this step (ATT_EKF_COND_NOW)
+            big = ok_e & ~((dm.absf(dx) <= INC_MAX) & (dm.absf(dy) <= INC_MAX))
+        return ok, ok_e, e, pn, flags, trig, big
 
     def _update(
         self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
@@ -575,15 +579,16 @@ class Ekf:
             )
             run = ~waiting
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
-            ok_p, taken_p, e_p, p_p, fl_p, trig = self._predict(w, gyro_ok)
+            ok_p, taken_p, e_p, p_p, fl_p, trig, big_p = self._predict(w, gyro_ok)
             flags = flags | np.where(run, fl_p, _U0)
+            e_before = self.euler
             self.euler = dm.vec3_where(run, e_p, self.euler)
             self.p = [np.where(run, p_p[i], self.p[i]).astype(np.float32) for i in range(21)]
             restart = self._p_start()
             # an unmeasured rotation (no usable rates, or a prediction not taken): the low-pass stages
             # (estimate's heading frame) are stale
             self.lp_ready = self.lp_ready & ~(run & (~gyro_ok | ~taken_p))
-            measure = run & accel_ok & ~rejected
+            measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig
             )
@@ -602,10 +607,12 @@ class Ekf:
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
             self.lp_psi = np.where(take_u & self.lp_on, e_p[2], self.lp_psi).astype(np.float32)
+            # NUMERIC: the attitude from before the step (P restarted if it was unusable)
+            self.euler = dm.vec3_where(run & ((flags & _u(Flag.NUMERIC)) != _U0), e_before, self.euler)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
-            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal)
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p)
             p_c, changed = _condition(self.p, self.p_max)
             self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
             flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)
