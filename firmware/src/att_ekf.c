@@ -372,9 +372,21 @@ typedef struct {
 } att_ekf_trig_t;
 
 /*
+ * sin(d) and cos(d) of a small angle, |d| <= ATT_EKF_INC_MAX (1/16 rad), by the series
+ * sin(d) = d + d^3 (-1/6 + d^2 / 120), cos(d) = 1 - d^2 (1/2 - d^2 / 24) (the next terms, d^7 / 5040 <
+ * 4e-12 and d^6 / 720 < 9e-11, are far below half an ulp of 1).
+ */
+static ATT_ALWAYS_INLINE void att_ekf_sincos_small(float d, float *sd, float *cd)
+{
+    const float z = d * d;
+    *sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
+    *cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
+}
+
+/*
  * The low-pass stages (heading frame: the earth frame turned about z by a yaw, lp_psi) turned into the
  * estimate's heading frame, by d = psi - lp_psi (rad, |d| < 2 pi): x := c x + s y, y := c y - s x with
- * s = sin d, c = cos d (the series of att_ekf_sincos_step for |d| <= 1/16 rad, else att_i_sincosf).
+ * s = sin d, c = cos d (att_ekf_sincos_small for |d| <= 1/16 rad, else att_i_sincosf).
  * Done at each update, into the update's copies (kept only when it is applied; lp_psi := psi, the
  * predicted yaw: the update's own change of yaw and a flip are turned by the next update), not
  * at each step: between updates (accel rejected or missing) the stages are not used, and one turn by
@@ -387,9 +399,7 @@ static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_state_t *st, att_vec3_t
     float sd;
     float cd;
     if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
-        const float z = d * d;
-        sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
-        cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
+        att_ekf_sincos_small(d, &sd, &cd);
     } else {
         att_i_sincosf(d, &sd, &cd);
     }
@@ -403,17 +413,15 @@ static ATT_ALWAYS_INLINE void att_ekf_turn(const att_ekf_state_t *st, att_vec3_t
 
 /*
  * sin(a) and cos(a) of a = a0 + d (as rounded) from s0 = sin(a0), c0 = cos(a0): for |d| <=
- * ATT_EKF_INC_MAX (1/16 rad) by angle addition with the series sin(d) = d + d^3 (-1/6 + d^2 / 120),
- * cos(d) = 1 - d^2 (1/2 - d^2 / 24) (the next terms, d^7 / 5040 < 4e-12 and d^6 / 720 < 9e-11, are far
- * below half an ulp of 1), else att_i_sincosf(a). The increments of a step are dt times the Euler
+ * ATT_EKF_INC_MAX (1/16 rad) by angle addition with att_ekf_sincos_small(d), else att_i_sincosf(a). The increments of a step are dt times the Euler
  * rates: within 1/16 rad up to 6.25 rad/s at 100 Hz (the midpoint up to 12.5 rad/s).
  */
 static ATT_ALWAYS_INLINE void att_ekf_sincos_step(float a, float d, float s0, float c0, float *s, float *c)
 {
     if (att_i_absf(d) <= ATT_EKF_INC_MAX) {
-        const float z = d * d;
-        const float sd = d + (d * z) * (ATT_EKF_INC_S3 + z * ATT_EKF_INC_S5);
-        const float cd = 1.0f - z * (0.5f - z * ATT_EKF_INC_C4);
+        float sd;
+        float cd;
+        att_ekf_sincos_small(d, &sd, &cd);
         *s = s0 * cd + c0 * sd;
         *c = c0 * cd - s0 * sd;
         return;
@@ -632,8 +640,7 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     flipped = att_ekf_canon(&e, pn);
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
         /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept, and
-         * the stages restart (the rotation was not followed) */
-        *tr = t0;
+         * the stages restart (the rotation was not followed); no update follows (tr unused) */
         st->lp_ready = false;
         return flags | att_ekf_p_restart(c, pn);
     }

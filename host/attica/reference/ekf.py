@@ -63,12 +63,17 @@ def _wrap(a: Any) -> Any:
         return np.where(far, dm.wrap_pi(a), a).astype(np.float32)
 
 
+def _sincos_small(d: Any) -> tuple[Any, Any]:
+    """att_ekf_sincos_small: sin(d), cos(d) by their series (valid for |d| <= 1/16)."""
+    with np.errstate(all="ignore"):
+        z = d * d
+        return d + (d * z) * (INC_S3 + z * INC_S5), dm.ONE - z * (dm.HALF - z * INC_C4)
+
+
 def _sincos_step(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
     """att_ekf_sincos_step: sin/cos of a = a0 + d by angle addition for |d| <= 1/16, else directly."""
     with np.errstate(all="ignore"):
-        z = d * d
-        sd = d + (d * z) * (INC_S3 + z * INC_S5)
-        cd = dm.ONE - z * (dm.HALF - z * INC_C4)
+        sd, cd = _sincos_small(d)
         small = dm.absf(d) <= INC_MAX
         s = np.where(small, s0 * cd + c0 * sd, dm.sinf(a)).astype(np.float32)
         c = np.where(small, c0 * cd - s0 * sd, dm.cosf(a)).astype(np.float32)
@@ -87,10 +92,10 @@ def _sincos_mid(a: Any, d: Any, s0: Any, c0: Any) -> tuple[Any, Any]:
 def _turn(lp: dm.Vec3, d: Any) -> dm.Vec3:
     """att_ekf_turn: a heading-frame vector turned by the yaw change d (x := c x + s y, y := c y - s x)."""
     with np.errstate(all="ignore"):
-        z = d * d
         small = dm.absf(d) <= INC_MAX
-        sd = np.where(small, d + (d * z) * (INC_S3 + z * INC_S5), dm.sinf(d)).astype(np.float32)
-        cd = np.where(small, dm.ONE - z * (dm.HALF - z * INC_C4), dm.cosf(d)).astype(np.float32)
+        s1, c1 = _sincos_small(d)
+        sd = np.where(small, s1, dm.sinf(d)).astype(np.float32)
+        cd = np.where(small, c1, dm.cosf(d)).astype(np.float32)
         x, y, zz = lp
         return (cd * x + sd * y, cd * y - sd * x, zz)
 
@@ -411,10 +416,7 @@ class Ekf:
             c1 = np.where(flip, dm.cosf(e[0]), c1)
             s2 = np.where(flip, dm.sinf(e[1]), s2)
             c2 = np.where(flip, dm.cosf(e[1]), c2)
-            trig = tuple(
-                np.where(ok_e, new, old).astype(np.float32)
-                for new, old in ((s1, sphi), (c1, cphi), (s2, sth), (c2, cth0))
-            )
+            trig = (s1, c1, s2, c2)  # not used after a prediction not taken (no update follows)
             # a roll or pitch increment beyond 1/16 rad: P conditioned this step (ATT_EKF_COND_NOW)
             big = ok_e & ~((dm.absf(dx) <= INC_MAX) & (dm.absf(dy) <= INC_MAX))
         return ok, ok_e, e, pn, flags, trig, big
