@@ -102,7 +102,14 @@ RETUNE_CHANGES: dict[str, dict[str, Any]] = {
     "ekf": {"r_phi": 2.0, "r_theta": 2.0},
     "gyro": {"cos_min": 0.01},
     "tilt": {"normalise": False},
-    "mekf": {"tau_acc_lp": 0.7, "gyro_noise": 0.01, "mag_norm_reject": 0.3, "rest_time": 0.01, "gate": 9.0},
+    "mekf": {
+        "tau_acc_lp": 0.7,
+        "gyro_noise": 0.01,
+        "mag_norm_reject": 0.3,
+        "rest_time": 0.01,
+        "gate": 9.0,
+        "gyro_scale_sd": 0.005,
+    },
 }
 
 

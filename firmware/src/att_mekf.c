@@ -76,6 +76,8 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->rest_gyro = 0.05f;
     settings->rest_accel = 0.5f;
     settings->rest_time = 0.5f;
+    settings->gyro_scale_sd = 0.003f; /* 0.3 %: a calibrated MEMS gyro's scale-factor error (docs/accuracy.md) */
+    settings->gyro_scale_init = 0.0f;
     settings->use_mag = true;
     settings->init_from_sensors = true;
     settings->q_init = att_i_quat_identity();
@@ -108,7 +110,8 @@ att_status_t att_mekf_settings_validate(const att_mekf_settings_t *s)
          att_i_in(s->mag_norm_reject, 0.0f, ATT_REJECT_MAX) && att_i_in(s->mag_dip_reject, 0.0f, ATT_MEKF_PI_F) &&
          att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_in(s->rest_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f) &&
          att_i_in(s->rest_gyro, 0.0f, s->gyro_range) && att_i_in(s->rest_accel, 0.0f, s->gravity) &&
-         att_i_in(s->rest_time, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->use_mag) &&
+         att_i_in(s->rest_time, 0.0f, ATT_TAU_MAX) && att_i_in(s->gyro_scale_sd, 0.0f, ATT_MEKF_SCALE_MAX) &&
+         att_i_in(s->gyro_scale_init, -ATT_MEKF_SCALE_MAX, ATT_MEKF_SCALE_MAX) && att_i_bool_ok(&s->use_mag) &&
          att_i_bool_ok(&s->init_from_sensors) && att_i_quat_init_ok(s->q_init) &&
          att_i_vec3_within(s->m0_init, s->mag_range) &&
          (att_mekf_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MEKF_M0_MIN) &&
@@ -151,6 +154,8 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
         c->acc2_hi = hi * hi;
     }
     c->rest_n = att_sensor_samples(s->rest_time, s->dt);
+    c->p0_scale = s->gyro_scale_sd * s->gyro_scale_sd;
+    c->scale_init = s->gyro_scale_init;
     (void)att_i_quat_normalize(s->q_init, &c->q_init);
     c->m0_init = s->init_from_sensors ? att_i_vec3(0.0f, 0.0f, 0.0f) : s->m0_init;
     c->bias_init = s->bias_init;
@@ -218,6 +223,15 @@ static ATT_ALWAYS_INLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_me
     return true;
 }
 
+/* The scale sensitivity V := 0 (nothing is correlated with the scale error yet). */
+static void att_mekf_scale_v_zero(att_mekf_state_t *st)
+{
+    uint32_t i;
+    for (i = 0u; i < 6u; i++) {
+        st->scale_v[i] = 0.0f;
+    }
+}
+
 /* P := diag(p0_att I3, p0_bias I3). */
 static void att_mekf_p_reset(const att_mekf_coeffs_t *c, float *p)
 {
@@ -259,6 +273,13 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
         return st;
     }
     att_mekf_coeffs(&f->c, settings);
+    if (!(f->c.p0_scale > 0.0f)) {
+        f->st.p_scale = 0.0f; /* no longer estimated: the estimate is kept, fixed */
+        att_mekf_scale_v_zero(&f->st);
+    } else if (!(f->st.p_scale > 0.0f)) {
+        f->st.p_scale = f->c.p0_scale; /* estimated from now on, from the estimate kept */
+        att_mekf_scale_v_zero(&f->st);
+    }
     if (f->st.m0_valid) {
         att_mekf_m0_limits(&f->c, &f->st);
     }
@@ -279,6 +300,9 @@ void att_mekf_reset(att_mekf_t *f)
     st->q = f->c.q_init;
     st->bias = f->c.bias_init;
     att_mekf_p_reset(&f->c, st->p);
+    st->scale = f->c.scale_init;
+    st->p_scale = f->c.p0_scale;
+    att_mekf_scale_v_zero(st);
     st->lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
     st->lp2 = st->lp1;
     st->m0 = zero;
@@ -355,9 +379,14 @@ static ATT_ALWAYS_INLINE void att_mekf_lp_turn(att_mekf_state_t *st, float w, fl
     st->lp2 = att_i_vec3(cz * l2.x - sz * l2.y, sz * l2.x + cz * l2.y, l2.z);
 }
 
-/* The heading was aligned: its variance back to p0_att, its correlations to zero (P stays PD). */
-static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, float *p)
+/*
+ * The heading was aligned: its variance back to p0_att, its correlations to zero (P stays PD), and its
+ * sensitivity to the scale error to zero.
+ */
+static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
 {
+    float *p = st->p;
+    st->scale_v[2] = 0.0f;
     p[ATT_MEKF_IX(0u, 2u)] = 0.0f;
     p[ATT_MEKF_IX(1u, 2u)] = 0.0f;
     p[ATT_MEKF_IX(2u, 2u)] = c->p0_att;
@@ -381,7 +410,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     if (mag_ok) {
         if (att_mekf_align(q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
             q = qa;
-            att_mekf_yaw_reset(c, st->p);
+            att_mekf_yaw_reset(c, st);
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
@@ -413,7 +442,7 @@ static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_
                 att_mekf_lp_turn(st, tw, tz);
             }
             *q = qa;
-            att_mekf_yaw_reset(c, st->p);
+            att_mekf_yaw_reset(c, st);
             return ATT_FLAG_INITIALISED;
         }
         return ATT_FLAG_MAG_REJECTED;
@@ -507,18 +536,41 @@ static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_recover(const att_mekf_coeffs
 }
 
 /*
- * Accel update with the residual y (H = [I2 0]) and the innovation v: P := P - K (lambda S) K^T with
- * K = G (lambda S)^-1, G = P H^T (the first two columns of P), the error estimate into dx.
+ * The scale-factor error as measured by a scalar update with sensitivity a = H V, innovation variance
+ * s0 (of the 6-state filter) and residual y: k_s = p_s a / (s0 + p_s a^2); *ps := p_s (1 - k_s a);
+ * returns ds = k_s y. With p_s = 0 (not estimated) ds = 0.
  */
-static ATT_ALWAYS_INLINE void att_mekf_accel_apply(const att_mekf_coeffs_t *c, float *p, att_mekf_innov_t v, float y0,
-                                                   float y1, float *dx)
+static ATT_ALWAYS_INLINE float att_mekf_scale_gain1(float *ps, float a, float s0, float y)
 {
+    const float p = *ps;
+    const float k = (p * a) / (s0 + p * (a * a));
+    *ps = p * (1.0f - k * a);
+    return k * y;
+}
+
+/*
+ * Accel update with the residual y (H = [I2 0]) and the innovation v: P := P - K (lambda S) K^T with
+ * K = G (lambda S)^-1, G = P H^T (the first two columns of P). The scale: with a = H V (before the
+ * update) and M = (lambda S)^-1 (the noise as the 6-state gain uses it: the split into two stages is
+ * exact only with the same), k_s = p_s a^T (lambda S + p_s a a^T)^-1 = p_s (M a)^T / (1 + p_s a^T M a)
+ * (Sherman-Morrison), so ds = r (M a)^T y and p_s := r with r = p_s / (1 + p_s a^T M a); then
+ * V := V - K a and the error estimate dx = K y + V ds with the updated V. Returns ds.
+ */
+static ATT_ALWAYS_INLINE float att_mekf_accel_apply(const att_mekf_coeffs_t *c, float *p, att_mekf_innov_t v, float y0,
+                                                    float y1, float *dx, float *sv, float *ps)
+{
+    const float sa0 = sv[0];
+    const float sa1 = sv[1];
     float g0[6];
     float g1[6];
     float ks;
     float a0;
     float a1;
     float a2;
+    float m0;
+    float m1;
+    float r;
+    float ds;
     uint32_t i;
     uint32_t j;
     ATT_MEKF_UNROLL
@@ -533,27 +585,39 @@ static ATT_ALWAYS_INLINE void att_mekf_accel_apply(const att_mekf_coeffs_t *c, f
     a0 = v.s11 * ks;
     a1 = -(v.s01 * ks);
     a2 = v.s00 * ks;
+    m0 = a0 * sa0 + a1 * sa1;
+    m1 = a1 * sa0 + a2 * sa1;
+    r = *ps / (1.0f + *ps * (sa0 * m0 + sa1 * m1));
+    ds = r * (m0 * y0 + m1 * y1);
+    *ps = r;
     ATT_MEKF_UNROLL
     for (i = 0u; i < 6u; i++) {
         const float k0 = g0[i] * a0 + g1[i] * a1;
         const float k1 = g0[i] * a1 + g1[i] * a2;
-        dx[i] = k0 * y0 + k1 * y1;
+        sv[i] = sv[i] - (k0 * sa0 + k1 * sa1);
+        dx[i] = (k0 * y0 + k1 * y1) + sv[i] * ds;
         ATT_MEKF_UNROLL
         for (j = i; j < 6u; j++) {
             p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - (k0 * g0[j] + k1 * g1[j]);
         }
     }
+    return ds;
 }
 
 /*
  * Heading update with innovation y and noise r: H = [hx, hy, 1, 0, 0, 0], g = P H^T, s = H g + r, the
  * gain K = g / (lambda s) with K_0 = K_1 = 0 and the Joseph form, which for that gain subtracts
  * k g_i g_j from every entry outside the tilt block (k = 1 / (lambda s)). Returns false (nothing
- * changed) when the gate rejects y; else dz (the heading correction) and db.
+ * changed) when the gate rejects y; else dz (the heading correction) and db. The scale sensitivity
+ * V := V - K a (a = H V; outside the tilt entries, as K). The heading update is not a measurement of
+ * the scale: with the tilt entries of K forced to zero the 6-state errors it leaves are correlated with
+ * the scale error unless the scale gain is zero (the two-stage split stays exact with ds = 0).
  */
-static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, const att_mekf_state_t *st, float *p,
-                                                 float y, float *dz, att_vec3_t *db)
+static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float *p, float y,
+                                                 float *dz, att_vec3_t *db)
 {
+    float *sv = st->scale_v;
+    float sa;
     const float hx = st->mag_hx;
     const float hy = st->mag_hy;
     float g[6];
@@ -586,6 +650,11 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, con
         for (j = (i < 2u) ? 2u : i; j < 6u; j++) {
             p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - kg[i] * g[j];
         }
+    }
+    sa = (sv[2] + hx * sv[0]) + hy * sv[1];
+    ATT_MEKF_UNROLL
+    for (i = 2u; i < 6u; i++) {
+        sv[i] = sv[i] - kg[i] * sa;
     }
     *dz = kg[2] * y;
     *db = att_i_vec3(kg[3] * y, kg[4] * y, kg[5] * y);
@@ -688,6 +757,55 @@ static ATT_NOINLINE uint32_t att_mekf_repair(const att_mekf_coeffs_t *c, float *
     return flags | ATT_FLAG_CLAMPED;
 }
 
+/*
+ * Step 4b, slow part: the scale estimate within +-ATT_MEKF_SCALE_MAX (ATT_FLAG_CLAMPED; NaN: 0), p_scale
+ * >= 0 (NaN or negative: 0, the estimation stops; ATT_FLAG_CLAMPED), and |V| <= ATT_MEKF_SENS_MAX (V
+ * scaled down: a normal condition in 6-axis use, where nothing corrects the heading's sensitivity while
+ * the sensor turns about the vertical, so not flagged; a NaN entry sets V to 0, flagged). n = |V|^2.
+ */
+static ATT_NOINLINE uint32_t att_mekf_scale_limit(att_mekf_state_t *st, float n)
+{
+    uint32_t flags = 0u;
+    uint32_t i;
+    float k = 1.0f;
+    if (st->scale > ATT_MEKF_SCALE_MAX) {
+        st->scale = ATT_MEKF_SCALE_MAX;
+        flags = ATT_FLAG_CLAMPED;
+    } else if (st->scale < -ATT_MEKF_SCALE_MAX) {
+        st->scale = -ATT_MEKF_SCALE_MAX;
+        flags = ATT_FLAG_CLAMPED;
+    } else if (!(st->scale == st->scale)) {
+        st->scale = 0.0f;
+        flags = ATT_FLAG_CLAMPED;
+    }
+    if (!(st->p_scale >= 0.0f)) {
+        st->p_scale = 0.0f;
+        flags = ATT_FLAG_CLAMPED;
+    }
+    if (!(n == n)) {
+        k = 0.0f;
+        flags = ATT_FLAG_CLAMPED;
+    } else if (n > ATT_MEKF_SENS_MAX * ATT_MEKF_SENS_MAX) {
+        k = ATT_MEKF_SENS_MAX / att_i_sqrtf(n);
+    }
+    for (i = 0u; i < 6u; i++) {
+        st->scale_v[i] = (k == 0.0f) ? 0.0f : st->scale_v[i] * k;
+    }
+    return flags;
+}
+
+/* Step 4b: the scale limits (att_mekf_scale_limit) when s, p_scale or |V| leave their range. */
+static ATT_ALWAYS_INLINE uint32_t att_mekf_scale_bound(att_mekf_state_t *st)
+{
+    const float *v = st->scale_v;
+    const float n = ((v[0] * v[0] + v[1] * v[1]) + (v[2] * v[2] + v[3] * v[3])) + (v[4] * v[4] + v[5] * v[5]);
+    if (n <= ATT_MEKF_SENS_MAX * ATT_MEKF_SENS_MAX && st->p_scale >= 0.0f && st->scale <= ATT_MEKF_SCALE_MAX &&
+        st->scale >= -ATT_MEKF_SCALE_MAX) {
+        return 0u;
+    }
+    return att_mekf_scale_limit(st, n);
+}
+
 /* Step 4: every variance in (0, cap] and P positive definite with margin, else the repair. */
 static ATT_ALWAYS_INLINE uint32_t att_mekf_condition(const att_mekf_coeffs_t *c, float *p)
 {
@@ -747,51 +865,61 @@ static ATT_NOINLINE void att_mekf_rest_apply(const att_mekf_coeffs_t *c, att_mek
 /*
  * The zero-rate pseudo-measurement at rest: w_k = b_k + noise (r_rest) for k = 0, 1, 2, H = [0 e_k], as
  * three sequential scalar updates (exact for the diagonal noise): g = P e_(3+k), s = g_(3+k) + r_rest,
- * dx = g (w_k - b_k) / s, P := P - g g^T / s. The attitude correction (through the correlations) is
- * applied to *q and the low-pass stages as in the accel update.
+ * V := V - g a / s with a = V_(3+k), dx = g (w_k - b_k) / s + V ds, P := P - g g^T / s (the scale's
+ * sensitivity; the measurement itself does not depend on the scale: w = b at rest). The attitude
+ * correction (through the correlations) is applied to *q and the low-pass stages as in the accel update.
  */
-static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
-                                              att_quat_t *q)
+/* One of the three scalar updates of att_mekf_rest_update (axis k, rate w_k): b, dth, P and the scale. */
+static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf_state_t *st, uint32_t k, float w_k,
+                                            float *dth)
 {
     float *p = st->p;
-    float dth[3] = {0.0f, 0.0f, 0.0f};
+    float *sv = st->scale_v;
+    const float sa = sv[3u + k];
     float b[3];
-    float w[3];
     float g[6];
+    float sk;
+    float ks;
+    float ds;
+    float y;
     uint32_t i;
     uint32_t j;
-    uint32_t k;
     b[0] = st->bias.x;
     b[1] = st->bias.y;
     b[2] = st->bias.z;
-    w[0] = gyr->x;
-    w[1] = gyr->y;
-    w[2] = gyr->z;
     ATT_MEKF_UNROLL
-    for (k = 0u; k < 3u; k++) {
-        float ks;
-        float y;
-        ATT_MEKF_UNROLL
-        for (i = 0u; i < 6u; i++) {
-            g[i] = p[ATT_MEKF_S(i, 3u + k)];
+    for (i = 0u; i < 6u; i++) {
+        g[i] = p[ATT_MEKF_S(i, 3u + k)];
+    }
+    sk = g[3u + k] + c->r_rest;
+    ks = 1.0f / sk;
+    y = w_k - b[k];
+    ds = att_mekf_scale_gain1(&st->p_scale, sa, sk, y);
+    st->scale = st->scale + ds;
+    ATT_MEKF_UNROLL
+    for (i = 0u; i < 6u; i++) {
+        const float gk = g[i] * ks;
+        sv[i] = sv[i] - gk * sa;
+        if (i < 3u) {
+            dth[i] = dth[i] + (gk * y + sv[i] * ds);
+        } else {
+            b[i - 3u] = b[i - 3u] + (gk * y + sv[i] * ds);
         }
-        ks = 1.0f / (g[3u + k] + c->r_rest);
-        y = w[k] - b[k];
         ATT_MEKF_UNROLL
-        for (i = 0u; i < 6u; i++) {
-            const float gk = g[i] * ks;
-            if (i < 3u) {
-                dth[i] = dth[i] + gk * y;
-            } else {
-                b[i - 3u] = b[i - 3u] + gk * y;
-            }
-            ATT_MEKF_UNROLL
-            for (j = i; j < 6u; j++) {
-                p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - gk * g[j];
-            }
+        for (j = i; j < 6u; j++) {
+            p[ATT_MEKF_IX(i, j)] = p[ATT_MEKF_IX(i, j)] - gk * g[j];
         }
     }
     st->bias = att_i_vec3(b[0], b[1], b[2]);
+}
+
+static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
+                                              att_quat_t *q)
+{
+    float dth[3] = {0.0f, 0.0f, 0.0f};
+    att_mekf_rest_axis(c, st, 0u, gyr->x, dth);
+    att_mekf_rest_axis(c, st, 1u, gyr->y, dth);
+    att_mekf_rest_axis(c, st, 2u, gyr->z, dth);
     att_mekf_rest_apply(c, st, q, dth[0], dth[1], dth[2]); /* a tail call: its frame replaces this one */
 }
 
@@ -803,23 +931,39 @@ typedef struct {
     float mnorm;  /**< |m| of a usable mag sample, uT */
 } att_mekf_work_t;
 
-/* Step 1a: integration of w - b; returns qa, the attitude process noise of the step. */
+/* Step 1a: integration of (1 + s)(w - b); returns qa, the attitude process noise of the step. */
 static ATT_NOINLINE float att_mekf_integrate(const att_mekf_coeffs_t *c, const att_mekf_state_t *st,
                                              const att_vec3_t *gyr, att_mekf_work_t *wk)
 {
-    const att_vec3_t w = att_i_vec3_sub(*gyr, st->bias);
+    const att_vec3_t w = att_i_vec3_scale(att_i_vec3_sub(*gyr, st->bias), 1.0f + st->scale);
     wk->q = att_i_quat_mul(wk->q, att_mekf_exp(att_i_vec3_scale(w, c->dt)));
     return c->qa + c->qw * att_i_vec3_dot(w, w);
 }
 
-/* Step 1b: the rotation matrix R of the prediction, P := Phi P Phi^T + Q, v = R a. */
+/*
+ * Step 1b: the rotation matrix R of the prediction, P := Phi P Phi^T + Q, the scale sensitivity
+ * V_theta := V_theta + dt R (u - V_b) (u = w - b of a usable gyro sample, else 0: no rotation was
+ * integrated), v = R a.
+ */
 static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *acc,
-                                            float qa, att_mekf_work_t *wk)
+                                            const att_vec3_t *gyr, float qa, att_mekf_work_t *wk)
 {
     const att_quat_t q = wk->q;
+    float *sv = st->scale_v;
     float r[9];
+    float ux = -sv[3];
+    float uy = -sv[4];
+    float uz = -sv[5];
     att_i_quat_to_matrix(q, r);
     att_mekf_predict(st->p, r, c->half_dt, c->dt, qa, c->qb);
+    if (gyr != NULL) {
+        ux = (gyr->x - st->bias.x) - sv[3];
+        uy = (gyr->y - st->bias.y) - sv[4];
+        uz = (gyr->z - st->bias.z) - sv[5];
+    }
+    sv[0] = sv[0] + c->dt * (r[0] * ux + r[1] * uy + r[2] * uz);
+    sv[1] = sv[1] + c->dt * (r[3] * ux + r[4] * uy + r[5] * uz);
+    sv[2] = sv[2] + c->dt * (r[6] * ux + r[7] * uy + r[8] * uz);
     wk->v = att_i_vec3(r[0] * acc->x + r[1] * acc->y + r[2] * acc->z, r[3] * acc->x + r[4] * acc->y + r[5] * acc->z,
                        r[6] * acc->x + r[7] * acc->y + r[8] * acc->z);
 }
@@ -885,8 +1029,10 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
     {
         float dx[6];
         att_quat_t dq;
+        float ds;
         st->gated = 0u;
-        att_mekf_accel_apply(c, st->p, v, y0, y1, dx);
+        ds = att_mekf_accel_apply(c, st->p, v, y0, y1, dx, st->scale_v, &st->p_scale);
+        st->scale = st->scale + ds;
         dq = att_mekf_exp(att_i_vec3(dx[0], dx[1], dx[2]));
         wk->q = att_i_quat_mul(dq, wk->q);
         st->bias = att_i_vec3(st->bias.x + dx[3], st->bias.y + dx[4], st->bias.z + dx[5]);
@@ -994,15 +1140,17 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
         }
     }
     /* 1. prediction, 2. accel update, 3. mag update */
-    att_mekf_propagate(c, st, acc_in, gyro_ok ? att_mekf_integrate(c, st, gyr_in, &wk) : c->qa, &wk);
+    att_mekf_propagate(c, st, acc_in, gyro_ok ? gyr_in : NULL,
+                       gyro_ok ? att_mekf_integrate(c, st, gyr_in, &wk) : c->qa, &wk);
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         flags |= att_mekf_accel(c, st, &wk);
     }
     if (mag_ok) {
         flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, wk.mnorm) : att_mekf_mag_first(c, st, &wk.q, mag_in);
     }
-    /* 4. conditioning of P, 5. normalisation */
+    /* 4. conditioning of P and the scale estimate, 5. normalisation */
     flags |= att_mekf_condition(c, st->p);
+    flags |= att_mekf_scale_bound(st);
     if (att_i_quat_normalize_bounded(wk.q, &wk.q)) {
         st->q = wk.q;
     } else {

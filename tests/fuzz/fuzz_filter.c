@@ -104,7 +104,8 @@ static const field_t f_mekf[] = {
     FF(mekf, mag_norm_reject, T_F32), FF(mekf, mag_dip_reject, T_F32), FF(mekf, tau_acc_lp, T_F32),
     FF(mekf, rest_noise, T_F32), FF(mekf, rest_gyro, T_F32), FF(mekf, rest_accel, T_F32),
     FF(mekf, rest_time, T_F32), FF(mekf, use_mag, T_BOOL), FF(mekf, init_from_sensors, T_BOOL),
-    FQ(mekf, q_init), FV(mekf, m0_init), FV(mekf, bias_init),
+    FQ(mekf, q_init), FV(mekf, m0_init), FV(mekf, bias_init), FF(mekf, gyro_scale_sd, T_F32),
+    FF(mekf, gyro_scale_init, T_F32),
 };
 static const field_t f_gyro[] = {
     FF(gyro, dt, T_F32), FF(gyro, gyro_range, T_F32), FF(gyro, cos_min, T_F32), FV(gyro, euler_init),
@@ -346,6 +347,27 @@ static void check_cov(ctx_t *c, const att_filter_t *f, const att_output_t *o)
     }
 }
 
+/* The MEKF's gyro scale estimate: |s| <= ATT_MEKF_SCALE_MAX, p_scale finite and >= 0, |V| finite and
+ * within ATT_MEKF_SENS_MAX (after each step's limits). */
+static void check_mekf_scale(ctx_t *c, const att_filter_t *f, const att_output_t *o)
+{
+    const att_mekf_state_t *st = &f->u.mekf.st;
+    double n2 = 0.0;
+    int i;
+    for (i = 0; i < 6; ++i) {
+        n2 += (double)st->scale_v[i] * st->scale_v[i];
+    }
+    if (!fz_finite(st->scale) || fabs((double)st->scale) > (double)ATT_MEKF_SCALE_MAX) {
+        FZ_VIOLATE(c, "SCALE_BOUND", "step %u: gyro scale %a", o->steps, (double)st->scale);
+    }
+    if (!fz_finite(st->p_scale) || st->p_scale < 0.0f) {
+        FZ_VIOLATE(c, "SCALE_VAR", "step %u: p_scale %a", o->steps, (double)st->p_scale);
+    }
+    if (!(sqrt(n2) <= (double)ATT_MEKF_SENS_MAX * (1.0 + 1e-5))) {
+        FZ_VIOLATE(c, "SENS_BOUND", "step %u: |V| = %g", o->steps, sqrt(n2));
+    }
+}
+
 static void check_valid_output(ctx_t *c, const att_filter_t *f, const att_output_t *o)
 {
     double n2;
@@ -385,6 +407,9 @@ static void check_valid_output(ctx_t *c, const att_filter_t *f, const att_output
     }
     if (c->kind == ATT_FILTER_KF || c->kind == ATT_FILTER_EKF || c->kind == ATT_FILTER_MEKF) {
         check_cov(c, f, o);
+    }
+    if (c->kind == ATT_FILTER_MEKF) {
+        check_mekf_scale(c, f, o);
     }
 }
 

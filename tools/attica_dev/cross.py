@@ -324,6 +324,7 @@ VARIANTS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
         FilterKind.MEKF,
         {"init_from_sensors": False, "q_init": (0.3, 0.9, -0.2, 0.1), "m0_init": (0.0, 20.0, -40.0)},
     ),
+    "mekf-scale": (FilterKind.MEKF, {"use_mag": False, "gyro_scale_sd": 0.05, "gyro_scale_init": 0.02}),
 }
 """Non-default settings compared besides the defaults of every kind (synthetic inputs)."""
 

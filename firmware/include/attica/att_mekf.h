@@ -86,6 +86,24 @@
  * (scale factor and misalignment errors, and the sampling of a rate that changes within a sample).
  * ATT_FLAG_BIAS_UPDATED when an update changed b.
  *
+ * Gyro scale factor (gyro_scale_sd > 0): the integrated rate is (1 + s)(w - b), with s the estimate of
+ * the gyro's scale-factor error (one for the three axes; a rate sampled against a clock that runs fast
+ * or slow scales the same way). An error ds of it rotates the estimate by ds (w - b) dt per step, a
+ * drift during motion that the low-passed accel measurement sees only with its lag. It is estimated by
+ * a two-stage Kalman filter beside the 6-state one (Friedland's separate-bias form, so P stays 6x6):
+ * the sensitivity V = d(dtheta, db)/ds (6 floats) is predicted as
+ *   V_theta := V_theta + dt R ((w - b) - V_b)      (V_b unchanged),
+ * and the accel and zero-rate updates of the 6-state filter (residual y, H, gain K, innovation
+ * covariance S as the gain uses it) are also measurements of s with sensitivity a = H V:
+ *   k_s = p_s a^T (S + p_s a a^T)^-1,  ds = k_s y,  p_s := p_s (1 - k_s a),
+ *   V := V - K a,  dx := K y + V ds (with that V),  s := s + ds.
+ * The heading update only takes V := V - K a: its gain has the tilt entries forced to zero, so the split
+ * into the two stages is exact only with k_s = 0 there (docs/filters.md). The variance p_s starts at
+ * gyro_scale_sd^2; s is kept within +-ATT_MEKF_SCALE_MAX (ATT_FLAG_CLAMPED when that limit acts) and
+ * |V| within ATT_MEKF_SENS_MAX (V scaled down, not flagged: in 6-axis use nothing corrects the heading's
+ * sensitivity while the sensor turns about the vertical). The scale is a constant: no process noise,
+ * the estimate settles as the motion excites it (rotations that tilt; heading turns in 9-axis use).
+ *
  * Units: rad/s, m/s^2, uT, s; variances rad^2 and (rad/s)^2. Frames: samples in the sensor frame,
  * q sensor-to-earth (ENU, z up), dtheta in the earth frame, b in the sensor frame. Mirrored bit for
  * bit by host/attica/reference/mekf.py.
@@ -98,6 +116,11 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/** Largest |gyro scale-factor error| estimated (and accepted as gyro_scale_init, gyro_scale_sd): 10 %. */
+#define ATT_MEKF_SCALE_MAX 0.1f
+/** Largest norm of the scale sensitivity V (rad per unit scale error, and rad/s for the bias rows). */
+#define ATT_MEKF_SENS_MAX 16.0f
 
 /* ATT_CDEF_BEGIN */
 /** Entries of the packed upper triangle of the 6x6 covariance (the length of att_mekf_state_t.p). */
@@ -133,6 +156,9 @@ typedef struct {
     float rest_gyro;       /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range]; 0 = no rest updates ... */
     float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;       /**< ... for at least rest_time, s, [0, 1e4] */
+    float gyro_scale_sd;   /**< prior standard deviation of the gyro scale-factor error, estimated online
+                                (1 = 100 %); [0, ATT_MEKF_SCALE_MAX]; 0 = not estimated */
+    float gyro_scale_init; /**< initial gyro scale-factor error (rate = (1 + s)(w - b)); [-0.1, 0.1] */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -172,6 +198,8 @@ typedef struct {
     float acc2_lo;         /**< (g - rest_accel)^2, (m/s^2)^2 */
     float acc2_hi;         /**< (g + rest_accel)^2, (m/s^2)^2 */
     uint32_t rest_n;       /**< rest_time in samples */
+    float p0_scale;        /**< initial variance of the scale-factor error, gyro_scale_sd^2 (0 = off) */
+    float scale_init;      /**< scale-factor error after reset */
     att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
     att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
     att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
@@ -186,6 +214,9 @@ typedef struct {
     att_quat_t q;          /**< nominal attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t bias;       /**< gyro bias estimate b, rad/s, sensor frame */
     float p[21];           /**< covariance of (dtheta (earth, rad), db (rad/s)), packed upper triangle */
+    float scale;           /**< gyro scale-factor error estimate s: the rate integrated is (1 + s)(w - b) */
+    float p_scale;         /**< variance of s (0: not estimated) */
+    float scale_v[6];      /**< sensitivity of (dtheta, db) to s: rad (earth frame), then rad/s (sensor) */
     att_vec3_t lp1;        /**< inner state of the accel low-pass, m/s^2, earth frame */
     att_vec3_t lp2;        /**< output of the accel low-pass (the measured up direction), m/s^2, earth */
     att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */

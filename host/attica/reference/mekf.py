@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import mekf_cov as cv
+from attica.reference import mekf_scale as msc
 from attica.reference import sensor
 from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
 from attica.reference.ars import A_MIN, align_up
@@ -50,6 +51,9 @@ class Mekf:
         "st.q": "quat",
         "st.bias": "vec3",
         "st.p": "f32x21",
+        "st.scale": "f32",
+        "st.p_scale": "f32",
+        "st.scale_v": "f32x6",
         "st.lp1": "vec3",
         "st.lp2": "vec3",
         "st.m0": "vec3",
@@ -87,6 +91,8 @@ class Mekf:
         "c.acc2_lo": "f32",
         "c.acc2_hi": "f32",
         "c.rest_n": "u32",
+        "c.p0_scale": "f32",
+        "c.scale_init": "f32",
         "c.q_init": "quat",
         "c.r_accel": "f32",
         "c.gate": "f32",
@@ -154,6 +160,9 @@ class Mekf:
         self.acc2_lo = lo * lo
         self.acc2_hi = hi * hi
         self.rest_n = sensor.samples(f(s.rest_time, n), self.dt)
+        scale_sd = f(s.gyro_scale_sd, n)
+        self.p0_scale = scale_sd * scale_sd
+        self.scale_init = f(s.gyro_scale_init, n)
         _, self.q_init = dm.quat_normalize(_split4(s.q_init, n))
         self.use_mag = f(s.use_mag, n, np.bool_)
         self.init_from_sensors = f(s.init_from_sensors, n, np.bool_)
@@ -173,6 +182,9 @@ class Mekf:
         self.q: dm.Quat = tuple(a.copy() for a in self.q_init)
         self.bias: dm.Vec3 = tuple(a.copy() for a in self.bias_init)
         self.p: cv.Cov = cv.diag(self.p0_att, self.p0_bias, n)
+        self.scale: Any = self.scale_init.copy()
+        self.p_scale: Any = self.p0_scale.copy()
+        self.scale_v: msc.Sens = msc.zeros(n)
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.m0: dm.Vec3 = (z.copy(), z.copy(), z.copy())
@@ -309,9 +321,14 @@ class Mekf:
             rest_count = w(run, count, self.rest_count).astype(np.uint32)
             at_rest = run & rest & (rest_count >= self.rest_n)
             flags = flags | w(at_rest, _u(Flag.AT_REST) | _u(Flag.BIAS_UPDATED), _U0)
-            p_r, dth_r, b_r = cv.rest_apply(self.p, self.r_rest, g, self.bias)
+            p_r, dth_r, b_r, sv_r, ps_r, sc_r = cv.rest_apply(
+                self.p, self.r_rest, g, self.bias, self.scale_v, self.p_scale, self.scale
+            )
             dq_r = dm.quat_from_rotvec_fast((dth_r[0], dth_r[1], dth_r[2]))
             p = cv.where(at_rest, p_r, self.p)
+            sv = msc.where(at_rest, sv_r, self.scale_v)
+            ps = w(at_rest, ps_r, self.p_scale).astype(np.float32)
+            scale = w(at_rest, sc_r, self.scale).astype(np.float32)
             bias = dm.vec3_where(at_rest, (b_r[0], b_r[1], b_r[2]), self.bias)
             q = dm.quat_where(at_rest, dm.quat_mul(dq_r, self.q), self.q)
             rot_r = at_rest & self.lp_on
@@ -320,11 +337,13 @@ class Mekf:
 
             # 1. prediction
             wr = dm.vec3_sub(g, bias)
-            q_int = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(wr, self.dt)))
+            ws = dm.vec3_scale(wr, dm.ONE + scale)
+            q_int = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(ws, self.dt)))
             q = dm.quat_where(gyro_ok, q_int, q)
-            qa = w(gyro_ok, self.qa + self.qw * dm.vec3_dot(wr, wr), self.qa).astype(np.float32)
+            qa = w(gyro_ok, self.qa + self.qw * dm.vec3_dot(ws, ws), self.qa).astype(np.float32)
             r = _matrix(q)
             p = cv.where(run, cv.predict(p, r, self.half_dt, self.dt, qa, self.qb), p)
+            sv = msc.where(run, msc.predict(sv, r, gyro_ok, wr, self.dt), sv)
 
             # 2. accelerometer update
             acc_try = run & accel_ok & ~rejected
@@ -358,8 +377,11 @@ class Mekf:
             flags = flags | w(want & ~det_ok, _u(Flag.NUMERIC), _U0)
             apply = want & det_ok
             self.gated = w(apply, _U0, gated).astype(np.uint32)
-            p_a, dx = cv.accel_apply(p, v, y0, y1, gate_on, self.soft)
+            p_a, dx, sv_a, ds_a, ps_a = cv.accel_apply(p, v, y0, y1, gate_on, self.soft, sv, ps)
             p = cv.where(apply, p_a, p)
+            sv = msc.where(apply, sv_a, sv)
+            ps = w(apply, ps_a, ps).astype(np.float32)
+            scale = w(apply, scale + ds_a, scale).astype(np.float32)
             dq = dm.quat_from_rotvec_fast((dx[0], dx[1], dx[2]))
             q = dm.quat_where(apply, dm.quat_mul(dq, q), q)
             bias = dm.vec3_where(apply, (bias[0] + dx[3], bias[1] + dx[4], bias[2] + dx[5]), bias)
@@ -373,11 +395,12 @@ class Mekf:
             use_corr = run & mag_ok & self.m0_valid
             me = dm.quat_rotate(q, m)
             ok_h, ym = self._heading(me, mnorm)
-            ok_g, p_m, dz, db = cv.mag_apply(
-                p, self.mag_hx, self.mag_hy, self.r_mag, self.mag_gate, self.mag_soft, ym
+            ok_g, p_m, dz, db, sv_m = cv.mag_apply(
+                p, self.mag_hx, self.mag_hy, self.r_mag, self.mag_gate, self.mag_soft, ym, sv
             )
             mag_apply = use_corr & ok_h & ok_g
             p = cv.where(mag_apply, p_m, p)
+            sv = msc.where(mag_apply, sv_m, sv)
             dqz = dm.quat_from_rotvec_fast((self._zeros, self._zeros, dz))
             q = dm.quat_where(mag_apply, dm.quat_mul_z(dqz[0], dqz[3], q), q)
             bias = dm.vec3_where(mag_apply, dm.vec3_add(bias, (db[0], db[1], db[2])), bias)
@@ -398,6 +421,7 @@ class Mekf:
             lp1, lp2 = _lp_turn(good_l & self.lp_on, tw, tz, lp1, lp2)
             q = dm.quat_where(good_l, q_al, q)
             p = cv.where(good_l, cv.yaw_reset(p, self.p0_att), p)
+            sv[2] = w(good_l, dm.ZERO, sv[2]).astype(np.float32)
             flags = flags | w(good_l, _u(Flag.INITIALISED), _U0)
             flags = flags | w((use_align & ~good_l) | (use_set & ~ok_ds), _u(Flag.MAG_REJECTED), _U0)
 
@@ -405,6 +429,8 @@ class Mekf:
             p_c, clamped = cv.condition(p, self.p_max, self.p0_bias)
             p = cv.where(run, p_c, p)
             flags = flags | w(run & clamped, _u(Flag.CLAMPED), _U0)
+            scale, ps, sv, clamped_s = msc.bound(scale, ps, sv)
+            flags = flags | w(run & clamped_s, _u(Flag.CLAMPED), _U0)
             ok_n, qn = dm.quat_normalize_bounded(q)
             flags = flags | w(run & ~ok_n, _u(Flag.NUMERIC), _U0)
 
@@ -415,6 +441,11 @@ class Mekf:
             p_start = cv.where(init_mag, cv.yaw_reset(self.p, self.p0_att), self.p)
             self.p = cv.where(waiting, p_start, p)
             self.bias = dm.vec3_where(run, bias, self.bias)
+            self.scale = w(run, scale, self.scale).astype(np.float32)
+            self.p_scale = w(run, ps, self.p_scale).astype(np.float32)
+            sv_wait = list(self.scale_v)
+            sv_wait[2] = w(init_mag, dm.ZERO, sv_wait[2]).astype(np.float32)
+            self.scale_v = msc.where(waiting, sv_wait, msc.where(run, sv, self.scale_v))
             self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(run, lp1, self.lp1))
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(run, lp2, self.lp2))
             self.lp_valid = self.lp_valid | init_now | (run & lp_valid)
@@ -434,6 +465,10 @@ class Mekf:
         ok, parts = new._derive_m0(new.m0)
         new._commit_m0(new.m0_valid & ok, parts)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)
+        off = ~(new.p0_scale > dm.ZERO)
+        restart = ~off & ~(new.p_scale > dm.ZERO)
+        new.p_scale = np.where(off, dm.ZERO, np.where(restart, new.p0_scale, new.p_scale)).astype(np.float32)
+        new.scale_v = msc.where(off | restart, msc.zeros(new.n), new.scale_v)
         self.__dict__.update(new.__dict__)
 
     @property
@@ -445,6 +480,11 @@ class Mekf:
     def gyro_bias(self) -> NDArray[np.float32]:
         """Gyro bias estimates (n, 3), rad/s, sensor frame."""
         return stack(self.bias)
+
+    @property
+    def gyro_scale(self) -> NDArray[np.float32]:
+        """Gyro scale-factor error estimates (n,): the rate integrated is (1 + s)(w - b)."""
+        return np.asarray(self.scale, np.float32).copy()
 
     @property
     def covariance(self) -> NDArray[np.float32]:

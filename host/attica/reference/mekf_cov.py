@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from attica.reference import detmath as dm
+from attica.reference import mekf_scale as msc
 
 P_LEN = 21
 PIVOT_MIN = dm.c("0x1p-16")
@@ -95,9 +96,16 @@ def recover(p: Cov, soft: Any, y0: Any, y1: Any) -> Cov:
 
 
 def accel_apply(
-    p: Cov, v: tuple[Any, Any, Any, Any, Any], y0: Any, y1: Any, gate_on: Any, soft: Any
-) -> tuple[Cov, list[Any]]:
-    """att_mekf_accel_apply: (P - K (lambda S) K^T, dx)."""
+    p: Cov,
+    v: tuple[Any, Any, Any, Any, Any],
+    y0: Any,
+    y1: Any,
+    gate_on: Any,
+    soft: Any,
+    sv: list[Any],
+    ps: Any,
+) -> tuple[Cov, list[Any], list[Any], Any, Any]:
+    """att_mekf_accel_apply: (P - K (lambda S) K^T, dx = K y + V' ds, V' = V - K H V, ds, p_scale)."""
     s00, s01, s11, det, dn = v
     g0 = [p[ix(0, i)] for i in range(6)]
     g1 = [p[sx(1, i)] for i in range(6)]
@@ -105,21 +113,28 @@ def accel_apply(
     a0 = s11 * ks
     a1 = -(s01 * ks)
     a2 = s00 * ks
+    sa0, sa1 = sv[0], sv[1]
+    m0 = a0 * sa0 + a1 * sa1
+    m1 = a1 * sa0 + a2 * sa1
+    r = ps / (dm.ONE + ps * (sa0 * m0 + sa1 * m1))
+    ds = r * (m0 * y0 + m1 * y1)
     out = list(p)
     dx = []
+    v_out = []
     for i in range(6):
         k0 = g0[i] * a0 + g1[i] * a1
         k1 = g0[i] * a1 + g1[i] * a2
-        dx.append(k0 * y0 + k1 * y1)
+        v_out.append(sv[i] - (k0 * sa0 + k1 * sa1))
+        dx.append((k0 * y0 + k1 * y1) + v_out[i] * ds)
         for j in range(i, 6):
             out[ix(i, j)] = p[ix(i, j)] - (k0 * g0[j] + k1 * g1[j])
-    return out, dx
+    return out, dx, v_out, ds, r
 
 
 def mag_apply(
-    p: Cov, hx: Any, hy: Any, r_mag: Any, gate: Any, soft: Any, y: Any
-) -> tuple[Any, Cov, Any, list[Any]]:
-    """att_mekf_mag_apply: (accepted, Joseph-form P, dz, db) of the heading update."""
+    p: Cov, hx: Any, hy: Any, r_mag: Any, gate: Any, soft: Any, y: Any, sv: list[Any]
+) -> tuple[Any, Cov, Any, list[Any], list[Any]]:
+    """att_mekf_mag_apply: (accepted, Joseph-form P, dz, db, V) of the heading update."""
     g = [p[sx(i, 2)] + hx * p[sx(i, 0)] + hy * p[sx(i, 1)] for i in range(6)]
     s = g[2] + hx * g[0] + hy * g[1] + r_mag
     y2 = y * y
@@ -131,30 +146,40 @@ def mag_apply(
     for i in range(6):
         for j in range(2 if i < 2 else i, 6):
             out[ix(i, j)] = p[ix(i, j)] - kg[i] * g[j]
-    return ok, out, kg[2] * y, [kg[3] * y, kg[4] * y, kg[5] * y]
+    sa = (sv[2] + hx * sv[0]) + hy * sv[1]
+    v_out = list(sv[:2]) + [sv[i] - kg[i] * sa for i in range(2, 6)]
+    return ok, out, kg[2] * y, [kg[3] * y, kg[4] * y, kg[5] * y], v_out
 
 
-def rest_apply(p: Cov, r_rest: Any, gyr: dm.Vec3, bias: dm.Vec3) -> tuple[Cov, list[Any], list[Any]]:
-    """att_mekf_rest_update's algebra: (P, dtheta (3), bias (3)) after the three scalar updates."""
+def rest_apply(
+    p: Cov, r_rest: Any, gyr: dm.Vec3, bias: dm.Vec3, sv: list[Any], ps: Any, scale: Any
+) -> tuple[Cov, list[Any], list[Any], list[Any], Any, Any]:
+    """att_mekf_rest_update's algebra: (P, dtheta, bias, V, p_scale, scale) after three scalar updates."""
     zero = np.zeros(np.shape(p[0]), np.float32)
     dth = [zero, zero, zero]
     b = list(bias)
+    v = list(sv)
     out = list(p)
     for k in range(3):
+        sa = v[3 + k]
         g = [out[sx(i, 3 + k)] for i in range(6)]
-        ks = dm.ONE / (g[3 + k] + r_rest)
+        sk = g[3 + k] + r_rest
+        ks = dm.ONE / sk
         y = gyr[k] - b[k]
+        ds, ps = msc.gain1(ps, sa, sk, y)
+        scale = scale + ds
         nxt = list(out)
         for i in range(6):
             gk = g[i] * ks
+            v[i] = v[i] - gk * sa
             if i < 3:
-                dth[i] = dth[i] + gk * y
+                dth[i] = dth[i] + (gk * y + v[i] * ds)
             else:
-                b[i - 3] = b[i - 3] + gk * y
+                b[i - 3] = b[i - 3] + (gk * y + v[i] * ds)
             for j in range(i, 6):
                 nxt[ix(i, j)] = out[ix(i, j)] - gk * g[j]
         out = nxt
-    return out, dth, b
+    return out, dth, b, v, ps, scale
 
 
 def yaw_reset(p: Cov, p0_att: Any) -> Cov:
