@@ -116,9 +116,11 @@ VARIANT_GRIDS: dict[str, dict[str, list[Any]]] = {
         "accel_noise": [0.001, 0.003, 0.01],
         "gyro_rate_noise": [0.003, 0.01, 0.03],
         "tau_acc_lp": [1.0, 1.25, 1.6],
+        "gyro_scale_sd": [0.0, 0.002, 0.003, 0.005],
     },
 }
-"""The grid of a variant (the MEKF's 6-axis noise densities: the 9-axis grid tunes the mag on top)."""
+"""The grid of a variant (the MEKF's 6-axis noise densities and gyro scale prior: the 9-axis grid tunes
+the mag on top)."""
 
 
 @dataclass(frozen=True)
