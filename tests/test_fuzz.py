@@ -126,6 +126,8 @@ FILTER_FINDINGS = {
     "filter-ekf-P_SPD-increment.bin": "F9 ekf: seed preset, dt 1 s, rates to 35 rad/s: increments of radians "
     "per step made P indefinite between the 16-step conditionings (P00 1.6e28; now conditioned after every "
     "increment beyond 1/16 rad)",
+    "filter-ekf-STUCK-bias-range.bin": "F10 ekf: q_bias 1e6, dt 0.1: the bias estimate ran to 157 rad/s "
+    "(range 34.9), every prediction then out of the wrap's range, NUMERIC forever (now limited to the range)",
 }
 
 

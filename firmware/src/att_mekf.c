@@ -862,13 +862,6 @@ static ATT_NOINLINE void att_mekf_rest_apply(const att_mekf_coeffs_t *c, att_mek
     }
 }
 
-/*
- * The zero-rate pseudo-measurement at rest: w_k = b_k + noise (r_rest) for k = 0, 1, 2, H = [0 e_k], as
- * three sequential scalar updates (exact for the diagonal noise): g = P e_(3+k), s = g_(3+k) + r_rest,
- * V := V - g a / s with a = V_(3+k), dx = g (w_k - b_k) / s + V ds, P := P - g g^T / s (the scale's
- * sensitivity; the measurement itself does not depend on the scale: w = b at rest). The attitude
- * correction (through the correlations) is applied to *q and the low-pass stages as in the accel update.
- */
 /* One of the three scalar updates of att_mekf_rest_update (axis k, rate w_k): b, dth, P and the scale. */
 static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf_state_t *st, uint32_t k, float w_k,
                                             float *dth)
@@ -913,6 +906,14 @@ static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf
     st->bias = att_i_vec3(b[0], b[1], b[2]);
 }
 
+/*
+ * The zero-rate pseudo-measurement at rest: w_k = b_k + noise (r_rest) for k = 0, 1, 2, H = [0 e_k], as
+ * three sequential scalar updates (exact for the diagonal noise): g = P e_(3+k), s = g_(3+k) + r_rest,
+ * a = V_(3+k) (the scale's sensitivity: the measurement itself does not depend on the scale, w = b at
+ * rest), ds from att_mekf_scale_gain1, V := V - g a / s, dx = g (w_k - b_k) / s + V ds, P := P - g g^T / s.
+ * One call per axis keeps the frame small (the phase is rare). The attitude correction (through the
+ * correlations) is applied to *q and the low-pass stages as in the accel update.
+ */
 static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
                                               att_quat_t *q)
 {
