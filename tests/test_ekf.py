@@ -759,17 +759,27 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
     """The prediction is always taken, but for one case: an increment beyond the range of the angle wrap
     (|angle| > 8192 rad; here dt = 1 s, a yaw rate of 35 rad/s / cos(theta) at 1e-4 rad from gimbal lock
     with cos_min 1e-6: 3.6e5 rad in one step) would leave NaN angles for good. It is flagged NUMERIC, the
-    angles are kept and P restarts (p0, p0_bias); C equals the reference bit for bit, and the next
-    ordinary step proceeds from the kept angles."""
-    s = ekf_default(init_from_accel=False, dt=1.0, cos_min=1e-6, euler_init=(0.0, 1.5707, 0.0))
+    angles are kept and P and the bias restart (p0, p0_bias; bias_init: a bias estimate run beyond any
+    gyro's range could keep every later prediction out of the wrap's range, docs/robustness.md F10); C
+    equals the reference bit for bit, and the next ordinary step proceeds from the kept angles."""
+    s = ekf_default(
+        init_from_accel=False,
+        dt=1.0,
+        cos_min=1e-6,
+        euler_init=(0.0, 1.5707, 0.0),
+        bias_init=(0.01, 0.0, -0.02),
+    )
     f, ref = pair(s)
     f[0].st.lp_ready = True  # stages as if started: the rotation not followed makes them stale
     ref.lp_ready[:] = True
+    f[0].st.bias.x = 0.3  # an estimate the prediction leaves behind (the reference alike)
+    ref.bias = (np.full(1, 0.3, np.float32), ref.bias[1].copy(), ref.bias[2].copy())
     before, _, _ = state(f)
     fl = step_both(f, ref, (0.0, 0.0, 34.9), (NAN, NAN, NAN))
-    e, _, p = state(f)
+    e, b, p = state(f)
     assert fl & Flag.NUMERIC
     assert e == before
+    assert b == tuple(float(np.float32(x)) for x in s.bias_init)
     assert not f[0].st.lp_ready
     start = np.zeros(21, np.float32)
     start[[0, 6, 11]] = s.p0

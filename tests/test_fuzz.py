@@ -127,7 +127,10 @@ FILTER_FINDINGS = {
     "per step made P indefinite between the 16-step conditionings (P00 1.6e28; now conditioned after every "
     "increment beyond 1/16 rad)",
     "filter-ekf-STUCK-bias-range.bin": "F10 ekf: q_bias 1e6, dt 0.1: the bias estimate ran to 157 rad/s "
-    "(range 34.9), every prediction then out of the wrap's range, NUMERIC forever (now limited to the range)",
+    "(range 34.9), every prediction then out of the wrap's range, NUMERIC forever (a prediction not taken "
+    "now restarts the bias)",
+    "filter-ekf-STUCK-bias-dt.bin": "F10 ekf: the same at dt 0.5 s with the bias limited to the range: still "
+    "17 rad per step (the fix of limiting the bias was not enough)",
 }
 
 

@@ -639,9 +639,12 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
     flipped = att_ekf_canon(&e, pn);
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
-        /* increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept, and
-         * the stages restart (the rotation was not followed); no update follows (tr unused) */
+        /* increments beyond the wrap's range (adversarial rates, dt, cos_min, or a bias estimate run
+         * beyond any gyro's range): the angles kept; P, the bias and the stages restart (the rotation was
+         * not followed, and a bias that left it could do so at every step: docs/robustness.md F10); no
+         * update follows (tr unused) */
         st->lp_ready = false;
+        st->bias = c->bias_init;
         return flags | att_ekf_p_restart(c, pn);
     }
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
@@ -882,25 +885,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     return 0u;
 }
 
-/*
- * After a NUMERIC step: the bias kept from before it, limited to +-gyro_range per axis (ATT_FLAG_CLAMPED
- * when that acts). A gyro cannot read a bias beyond its range; an estimate beyond it (only a bias
- * variance far beyond any gyro's, a fuzzed q_bias, gets there) kept every later prediction out of the
- * wrap's range, each step NUMERIC with nothing to correct the bias (docs/robustness.md F10). A NaN
- * component (nothing left of the estimate): bias_init.
- */
-static ATT_NOINLINE uint32_t att_ekf_bias_limit(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
-{
-    const float m = c->gyro_range;
-    const att_vec3_t b = st->bias;
-    att_vec3_t l = att_i_vec3(att_i_clampf(b.x, -m, m), att_i_clampf(b.y, -m, m), att_i_clampf(b.z, -m, m));
-    if (!att_i_isfinitef((l.x + l.y) + l.z)) {
-        l = c->bias_init; /* NaN: nothing left of the estimate */
-    }
-    st->bias = l;
-    return (l.x != b.x || l.y != b.y || l.z != b.z) ? ATT_FLAG_CLAMPED : 0u;
-}
-
 /* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
 static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, att_vec3_t acc)
 {
@@ -966,7 +950,6 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     }
     if ((flags & ATT_FLAG_NUMERIC) != 0u) {
         st->euler = e0; /* NUMERIC: the attitude from before the step (P restarted if it was unusable) */
-        flags |= att_ekf_bias_limit(c, st);
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:

@@ -62,9 +62,9 @@
  *  wrap, |angle| > 8192 rad, from adversarial rates, dt and cos_min: then the angles are kept): angles
  *  or P not finite, or a variance not > 0, give ATT_FLAG_NUMERIC and P (predicted
  *  and updated in place, so that no copy of it is on the stack) restarts at its start values p0,
- *  p0_bias; a step flagged NUMERIC keeps the angles and bias from before it, the bias limited to
- *  +-gyro_range per axis (a bias no gyro can have, which would keep every later prediction out of the
- *  wrap's range; ATT_FLAG_CLAMPED when the limit acts, a NaN component set to bias_init). Every 16 steps, at every
+ *  p0_bias; a step flagged NUMERIC keeps the angles and bias from before it, except after a prediction
+ *  not taken, which restarts the bias too (bias_init: a bias estimate run beyond any gyro's range would
+ *  keep every later prediction out of the wrap's range). Every 16 steps, at every
  *  step flagged GIMBAL and after a roll or pitch increment beyond 1/16 rad, P is conditioned: variances
  *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
  *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by

@@ -590,6 +590,9 @@ class Ekf:
             # an unmeasured rotation (no usable rates, or a prediction not taken): the low-pass stages
             # (estimate's heading frame) are stale
             self.lp_ready = self.lp_ready & ~(run & (~gyro_ok | ~taken_p))
+            # a prediction not taken also restarts the bias (a bias run beyond any gyro's range could
+            # keep every later prediction out of the wrap's range: docs/robustness.md F10)
+            self.bias = dm.vec3_where(run & ~taken_p, self.bias_init, self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig
@@ -610,16 +613,7 @@ class Ekf:
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
             self.lp_psi = np.where(take_u & self.lp_on, e_p[2], self.lp_psi).astype(np.float32)
             # NUMERIC: the attitude from before the step (P restarted if it was unusable)
-            numeric = run & ((flags & _u(Flag.NUMERIC)) != _U0)
-            self.euler = dm.vec3_where(numeric, e_before, self.euler)
-            # ... and the bias limited to +-gyro_range (att_ekf_bias_limit; NaN: bias_init)
-            rg = self.gyro_range
-            b = self.bias
-            lim = (dm.clampf(b[0], -rg, rg), dm.clampf(b[1], -rg, rg), dm.clampf(b[2], -rg, rg))
-            lim = dm.vec3_where(dm.isfinitef((lim[0] + lim[1]) + lim[2]), lim, self.bias_init)
-            moved = (lim[0] != b[0]) | (lim[1] != b[1]) | (lim[2] != b[2])
-            self.bias = dm.vec3_where(numeric, lim, b)
-            flags = flags | np.where(numeric & moved, _u(Flag.CLAMPED), _U0)
+            self.euler = dm.vec3_where(run & ((flags & _u(Flag.NUMERIC)) != _U0), e_before, self.euler)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
