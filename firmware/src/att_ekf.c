@@ -885,6 +885,28 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     return 0u;
 }
 
+/*
+ * With the conditioning of P (every 16 steps, GIMBAL, large increments): the bias estimate limited to
+ * +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts; NaN: bias_init). A gyro cannot read a bias
+ * beyond its range; a bias variance far beyond any gyro's (a fuzzed q_bias) could push the estimate
+ * there (docs/robustness.md F10). Off the normal step: at most 15 steps pass with such a bias.
+ */
+static ATT_NOINLINE uint32_t att_ekf_bias_limit(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
+{
+    const float m = c->gyro_range;
+    const att_vec3_t b = st->bias;
+    att_vec3_t l;
+    if ((att_i_absf(b.x) + att_i_absf(b.y)) + att_i_absf(b.z) <= m) {
+        return 0u; /* the usual case (NaN fails the test) */
+    }
+    l = att_i_vec3(att_i_clampf(b.x, -m, m), att_i_clampf(b.y, -m, m), att_i_clampf(b.z, -m, m));
+    if (!att_i_isfinitef((l.x + l.y) + l.z)) {
+        l = c->bias_init;
+    }
+    st->bias = l;
+    return (l.x != b.x || l.y != b.y || l.z != b.z) ? ATT_FLAG_CLAMPED : 0u;
+}
+
 /* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
 static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, att_vec3_t acc)
 {
@@ -954,7 +976,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:
          * P is conditioned at once */
-        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max);
+        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max) | att_ekf_bias_limit(c, st);
     }
     st->steps = st->steps + 1u;
     st->flags = flags;

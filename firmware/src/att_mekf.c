@@ -524,12 +524,16 @@ static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_innov(const float *p, float r
 }
 
 /*
- * The gate recovery: the tilt variances grow by |y|^2 / (gate / 4) (then d^2 <= gate / 4); returns the
- * new innovation covariance.
+ * The gate recovery: the tilt variances grow by |y|^2 / (gate / 4) (then d^2 <= gate / 4), by at most
+ * p_max (a gate so small that the growth overflows, or NaN: p_max, "unknown"); returns the new
+ * innovation covariance.
  */
 static ATT_ALWAYS_INLINE att_mekf_innov_t att_mekf_recover(const att_mekf_coeffs_t *c, float *p, float r, float y0, float y1)
 {
-    const float add = (y0 * y0 + y1 * y1) / c->soft;
+    float add = (y0 * y0 + y1 * y1) / c->soft;
+    if (!(add <= c->p_max)) {
+        add = c->p_max;
+    }
     p[ATT_MEKF_IX(0u, 0u)] = p[ATT_MEKF_IX(0u, 0u)] + add;
     p[ATT_MEKF_IX(1u, 1u)] = p[ATT_MEKF_IX(1u, 1u)] + add;
     return att_mekf_innov(p, r, y0, y1);

@@ -64,7 +64,8 @@
  *  and updated in place, so that no copy of it is on the stack) restarts at its start values p0,
  *  p0_bias; a step flagged NUMERIC keeps the angles and bias from before it, except after a prediction
  *  not taken, which restarts the bias too (bias_init: a bias estimate run beyond any gyro's range would
- *  keep every later prediction out of the wrap's range). Every 16 steps, at every
+ *  keep every later prediction out of the wrap's range); with every conditioning of P (below) the bias
+ *  is limited to +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts). Every 16 steps, at every
  *  step flagged GIMBAL and after a roll or pitch increment beyond 1/16 rad, P is conditioned: variances
  *  above p_max are brought down by the congruence D P D (correlations kept); if P then fails a positive
  *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by

@@ -37,8 +37,8 @@
  *     the innovation covariance is scaled by lambda = d^2 / (gate / 4), so that an applied update never
  *     has d^2 > gate / 4 (the measurement noise then is lambda S - A_xy >= lambda r: a Huber-like soft
  *     limit). After gate_recover s of consecutive gate rejections the tilt variances grow by
- *     |y|^2 / (gate / 4), the error the innovation reveals, and the update is applied (a wrong start or
- *     an over-confident filter recovers; a PSD addition, P stays positive definite).
+ *     |y|^2 / (gate / 4) (at most p_max), the error the innovation reveals, and the update is applied
+ *     (a wrong start or an over-confident filter recovers; a PSD addition, P stays positive definite).
  *     Update K = P H^T (lambda S)^-1, dx = K y, P := P - K (lambda S) K^T (the optimal gain for that
  *     noise), q := exp(dtheta) (x) q, b := b + db; lp1 and lp2 are rotated by exp(dtheta) too, so they
  *     stay in the estimate's earth frame.

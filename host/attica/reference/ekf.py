@@ -621,6 +621,16 @@ class Ekf:
             p_c, changed = _condition(self.p, self.p_max)
             self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
             flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)
+            # with the conditioning, the bias limited to +-gyro_range (att_ekf_bias_limit; NaN: bias_init)
+            rg = self.gyro_range
+            b = self.bias
+            inside = ((dm.absf(b[0]) + dm.absf(b[1])) + dm.absf(b[2])) <= rg
+            lim = (dm.clampf(b[0], -rg, rg), dm.clampf(b[1], -rg, rg), dm.clampf(b[2], -rg, rg))
+            lim = dm.vec3_where(dm.isfinitef((lim[0] + lim[1]) + lim[2]), lim, self.bias_init)
+            moved = (lim[0] != b[0]) | (lim[1] != b[1]) | (lim[2] != b[2])
+            limit = cond & ~inside
+            self.bias = dm.vec3_where(limit, lim, b)
+            flags = flags | np.where(limit & moved, _u(Flag.CLAMPED), _U0)
             self.euler = dm.vec3_where(init_now, start, self.euler)
             self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
             self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)

@@ -367,7 +367,7 @@ class Mekf:
             hit = measure & gate_on & (v[4] > self.gate * v[3])
             gated = w(hit & (self.gated < GATED_MAX), self.gated + np.uint32(1), self.gated).astype(np.uint32)
             recover = hit & (self.n_recover > _U0) & (gated >= self.n_recover)
-            p_rec = cv.recover(p, self.soft, y0, y1)
+            p_rec = cv.recover(p, self.soft, y0, y1, self.p_max)
             v_rec = cv.innov(p_rec, rn, y0, y1)
             p = cv.where(recover, p_rec, p)
             v = tuple(w(recover, x1, x0).astype(np.float32) for x0, x1 in zip(v, v_rec, strict=True))

@@ -86,10 +86,12 @@ def innov(p: Cov, r: Any, y0: Any, y1: Any) -> tuple[Any, Any, Any, Any, Any]:
     return s00, s01, s11, det, dn
 
 
-def recover(p: Cov, soft: Any, y0: Any, y1: Any) -> Cov:
-    """att_mekf_recover: the tilt variances grow by |y|^2 / soft."""
+def recover(p: Cov, soft: Any, y0: Any, y1: Any, p_max: Any) -> Cov:
+    """att_mekf_recover: the tilt variances grow by |y|^2 / soft, by at most p_max (NaN: p_max)."""
     out = list(p)
-    add = (y0 * y0 + y1 * y1) / soft
+    with np.errstate(all="ignore"):
+        add = (y0 * y0 + y1 * y1) / soft
+    add = np.where(add <= p_max, add, p_max).astype(np.float32)
     out[ix(0, 0)] = p[ix(0, 0)] + add
     out[ix(1, 1)] = p[ix(1, 1)] + add
     return out
