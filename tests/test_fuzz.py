@@ -133,6 +133,8 @@ FILTER_FINDINGS = {
     "17 rad per step (the fix of limiting the bias was not enough)",
     "filter-ekf-STUCK-bias-updates.bin": "F10 ekf: q_bias 1e6: updates at rest pushed the bias to 240 rad/s, "
     "NUMERIC at the 8th good sample (now also limited to the range with every conditioning of P)",
+    "filter-ekf-STUCK-bias-variance.bin": "F10 ekf: q_bias 1e6, dt 0.5 s: bias variance 6.7e5, the estimate "
+    "never settled at rest (the conditioning now caps the bias variances at gyro_range^2)",
     "filter-mekf-BIAS_FINITE-recover.bin": "F11 mekf: gate 3.5e-43: the gate recovery's growth "
     "|y|^2 / (gate/4) overflowed, the update made the bias NaN (the growth is now at most p_max)",
 }

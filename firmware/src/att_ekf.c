@@ -303,7 +303,7 @@ static bool att_ekf_pd_ok(const float *p)
  * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
  * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
-static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
+static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max, float pb_max)
 {
     float dd[6];
     bool capped = false;
@@ -311,9 +311,10 @@ static ATT_NOINLINE uint32_t att_ekf_condition(float *p, float p_max)
     int j;
     ATT_EKF_UNROLL
     for (i = 0; i < 6; i++) {
+        const float cap = (i < 3) ? p_max : pb_max;
         dd[i] = 1.0f;
-        if (P_(p, i, i) > p_max) {
-            dd[i] = att_i_sqrtf(p_max / P_(p, i, i));
+        if (P_(p, i, i) > cap) {
+            dd[i] = att_i_sqrtf(cap / P_(p, i, i));
             capped = true;
         }
     }
@@ -976,7 +977,10 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:
          * P is conditioned at once */
-        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max) | att_ekf_bias_limit(c, st);
+        /* the bias variances capped at gyro_range^2 too: a bias beyond the range is no estimate */
+        const float r2 = c->gyro_range * c->gyro_range;
+        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max, (r2 < c->p_max) ? r2 : c->p_max) |
+                att_ekf_bias_limit(c, st);
     }
     st->steps = st->steps + 1u;
     st->flags = flags;

@@ -162,15 +162,16 @@ def _pd_ok(p: list[Any]) -> Any:
         return ok
 
 
-def _condition(p: list[Any], p_max: Any) -> tuple[list[Any], Any]:
-    """att_ekf_condition: (P, changed) with the cap, the PD test and the correlation repair."""
+def _condition(p: list[Any], p_max: Any, pb_max: Any) -> tuple[list[Any], Any]:
+    """att_ekf_condition: (P, changed) with the caps (p_max, pb_max bias), PD test and repair."""
     with np.errstate(all="ignore"):
         dd = []
         capped = np.zeros(np.shape(p[0]), np.bool_)
         for i in range(6):
             v = p[_IX[i][i]]
-            over = v > p_max
-            dd.append(np.where(over, dm.sqrtf(p_max / v), dm.ONE))
+            cap = p_max if i < 3 else pb_max
+            over = v > cap
+            dd.append(np.where(over, dm.sqrtf(cap / v), dm.ONE))
             capped = capped | over
         q = list(p)
         for i in range(6):
@@ -618,7 +619,8 @@ class Ekf:
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
             cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p)
-            p_c, changed = _condition(self.p, self.p_max)
+            r2 = self.gyro_range * self.gyro_range
+            p_c, changed = _condition(self.p, self.p_max, np.where(r2 < self.p_max, r2, self.p_max))
             self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
             flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)
             # with the conditioning, the bias limited to +-gyro_range (att_ekf_bias_limit; NaN: bias_init)
