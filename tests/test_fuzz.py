@@ -135,6 +135,8 @@ FILTER_FINDINGS = {
     "NUMERIC at the 8th good sample (now also limited to the range with every conditioning of P)",
     "filter-ekf-STUCK-bias-variance.bin": "F10 ekf: q_bias 1e6, dt 0.5 s: bias variance 6.7e5, the estimate "
     "never settled at rest (the conditioning now caps the bias variances at gyro_range^2)",
+    "filter-ekf-COV_POSITIVE-range.bin": "F10 fix's own defect: gyro_range 1.7e-24, its square 0, capped the "
+    "bias variances at 0 (the cap is now never below p0_bias)",
     "filter-mekf-BIAS_FINITE-recover.bin": "F11 mekf: gate 3.5e-43: the gate recovery's growth "
     "|y|^2 / (gate/4) overflowed, the update made the bias NaN (the growth is now at most p_max)",
 }

@@ -977,9 +977,11 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:
          * P is conditioned at once */
-        /* the bias variances capped at gyro_range^2 too: a bias beyond the range is no estimate */
+        /* the bias variances capped at gyro_range^2 too (a bias beyond the range is no estimate), never
+         * below their start value p0_bias (a tiny range's square underflows) */
         const float r2 = c->gyro_range * c->gyro_range;
-        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max, (r2 < c->p_max) ? r2 : c->p_max) |
+        const float rb = (r2 > c->p0_bias) ? r2 : c->p0_bias;
+        flags = (flags & ~ATT_EKF_COND_NOW) | att_ekf_condition(st->p, c->p_max, (rb < c->p_max) ? rb : c->p_max) |
                 att_ekf_bias_limit(c, st);
     }
     st->steps = st->steps + 1u;

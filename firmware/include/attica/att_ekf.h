@@ -67,8 +67,8 @@
  *  keep every later prediction out of the wrap's range); with every conditioning of P (below) the bias
  *  is limited to +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts). Every 16 steps, at every
  *  step flagged GIMBAL and after a roll or pitch increment beyond 1/16 rad, P is conditioned: variances
- *  above p_max (the bias variances above min(p_max, gyro_range^2): a bias beyond the range is no
- *  estimate) are brought down by the congruence D P D (correlations kept); if P then fails a positive
+ *  above p_max (the bias variances above min(p_max, max(gyro_range^2, p0_bias)): a bias beyond the
+ *  range is no estimate) are brought down by the congruence D P D (correlations kept); if P then fails a positive
  *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
  *

@@ -620,7 +620,8 @@ class Ekf:
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
             cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p)
             r2 = self.gyro_range * self.gyro_range
-            p_c, changed = _condition(self.p, self.p_max, np.where(r2 < self.p_max, r2, self.p_max))
+            rb = np.where(r2 > self.p0_bias, r2, self.p0_bias)
+            p_c, changed = _condition(self.p, self.p_max, np.where(rb < self.p_max, rb, self.p_max))
             self.p = [np.where(cond, p_c[i], self.p[i]).astype(np.float32) for i in range(21)]
             flags = flags | np.where(cond & changed, _u(Flag.CLAMPED), _U0)
             # with the conditioning, the bias limited to +-gyro_range (att_ekf_bias_limit; NaN: bias_init)
