@@ -119,6 +119,11 @@ CSV_HEAD = "gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z\n"
         ("# rate=100\n" + CSV_HEAD + "1,2,3,4,5\n", "fields"),
         ("# rate=100\n" + CSV_HEAD + "1,2,3,4,5,abc\n", "cannot parse"),
         ("# rate=100\n" + CSV_HEAD + "1,2,3,4,5,\n", "non-finite"),
+        ("# rate=100\n" + CSV_HEAD + "1,2,3,4" + "4" * 50 + ",5,6\n", "float32 range"),  # host fuzz find
+        (
+            "# rate=100\ngyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z\n1,2,3,4,5,6,7,-1e39,\n",
+            "float32 range",
+        ),
         (CSV_HEAD + "1,2,3,4,5,6\n", "no sampling rate"),
         ("# rate=-5\n" + CSV_HEAD + "1,2,3,4,5,6\n", "rate"),
         ("# rate=fast\n" + CSV_HEAD + "1,2,3,4,5,6\n", "rate"),

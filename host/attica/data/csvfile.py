@@ -144,11 +144,20 @@ def load_csv(path: PathLike) -> Recording:
     def cols(names: tuple[str, ...]) -> NDArray[np.float64]:
         return table[:, [pos[c] for c in names]]
 
+    f32_max = float(np.finfo(np.float32).max)
     for group in (_GYR, _ACC):
         bad = ~np.isfinite(cols(group))
         if bad.any():
             r = int(np.flatnonzero(bad.any(axis=1))[0])
             raise ValueError(f"{p}: data row {r + 1}: empty or non-finite value in {', '.join(group)}")
+    for group in (_GYR, _ACC, _MAG):
+        if group[0] not in col:
+            continue
+        with np.errstate(invalid="ignore"):
+            big = np.abs(cols(group)) > f32_max  # would become Inf as float32 (NaN: absent mag, allowed)
+        if big.any():
+            r = int(np.flatnonzero(big.any(axis=1))[0])
+            raise ValueError(f"{p}: data row {r + 1}: value beyond the float32 range in {', '.join(group)}")
 
     rate: float | None = None
     if "rate" in meta:
