@@ -202,24 +202,29 @@ def _nees_run(seed: int, use_mag: bool) -> np.ndarray:
     return np.array(out)
 
 
+def _assert_nees_band(nees: np.ndarray, dof: int, what: str) -> None:
+    """The run-averaged NEES (runs x checks) in the two-sided 95 % chi-square band of ``dof`` at >= 90 %
+    of the checks, and its time average in the band; printed."""
+    runs = nees.shape[0]
+    lo, hi = chi2.ppf(0.025, dof * runs) / runs, chi2.ppf(0.975, dof * runs) / runs
+    anees = nees.mean(axis=0)
+    inside = np.mean((anees > lo) & (anees < hi))
+    print(
+        f"\nNEES {what} over {runs} runs: time-average {anees.mean():.2f} (dof {dof}); 95% band "
+        f"[{lo:.2f}, {hi:.2f}]; per-second ANEES min {anees.min():.2f} max {anees.max():.2f}, "
+        f"{inside:.0%} of {anees.size} checks inside"
+    )
+    assert lo < anees.mean() < hi
+    assert inside >= 0.9
+
+
 @pytest.mark.parametrize("use_mag", [True, False], ids=["9axis", "6axis"])
 def test_nees_within_the_chi_square_band(use_mag: bool) -> None:
     """100 seeded 60 s runs with the filter set to the simulator's noise model: the average NEES over
     the runs, checked once a second, lies in the two-sided 95 % chi-square band (dof: 6, or 5 without the
     unobservable heading) at >= 90 % of the checks, and its time average lies in the band."""
-    runs = 100
-    nees = np.array([_nees_run(s, use_mag) for s in range(runs)])
-    dof = 6 if use_mag else 5
-    lo, hi = chi2.ppf(0.025, dof * runs) / runs, chi2.ppf(0.975, dof * runs) / runs
-    anees = nees.mean(axis=0)
-    inside = np.mean((anees > lo) & (anees < hi))
-    print(
-        f"\nNEES mekf {'9' if use_mag else '6'}-axis over {runs} runs: time-average {anees.mean():.2f} "
-        f"(dof {dof}); 95% band [{lo:.2f}, {hi:.2f}]; per-second ANEES min {anees.min():.2f} max "
-        f"{anees.max():.2f}, {inside:.0%} of {anees.size} checks inside"
-    )
-    assert lo < anees.mean() < hi
-    assert inside >= 0.9
+    nees = np.array([_nees_run(s, use_mag) for s in range(100)])
+    _assert_nees_band(nees, 6 if use_mag else 5, f"mekf {'9' if use_mag else '6'}-axis")
 
 
 def _scaled_gyro(rec: Any, truth: Any, s_true: float) -> np.ndarray:
@@ -266,19 +271,8 @@ def test_nees_with_the_gyro_scale(use_mag: bool) -> None:
     """The two-stage scale estimate is consistent too: 100 runs with a gyro scale error drawn from
     N(0, 1 %^2) and gyro_scale_sd 1 %, the 7-state NEES (6 without the heading) in the 95 % band at
     >= 90 % of the once-a-second checks and on time average."""
-    runs = 100
-    nees = np.array([_nees_scale_run(s, use_mag, 0.01) for s in range(runs)])
-    dof = 7 if use_mag else 6
-    lo, hi = chi2.ppf(0.025, dof * runs) / runs, chi2.ppf(0.975, dof * runs) / runs
-    anees = nees.mean(axis=0)
-    inside = np.mean((anees > lo) & (anees < hi))
-    print(
-        f"\nNEES mekf {'9' if use_mag else '6'}-axis with the gyro scale over {runs} runs: time-average "
-        f"{anees.mean():.2f} (dof {dof}); 95% band [{lo:.2f}, {hi:.2f}]; per-second ANEES min "
-        f"{anees.min():.2f} max {anees.max():.2f}, {inside:.0%} of {anees.size} checks inside"
-    )
-    assert lo < anees.mean() < hi
-    assert inside >= 0.9
+    nees = np.array([_nees_scale_run(s, use_mag, 0.01) for s in range(100)])
+    _assert_nees_band(nees, 7 if use_mag else 6, f"mekf {'9' if use_mag else '6'}-axis with the gyro scale")
 
 
 def test_gyro_scale_estimated_during_motion() -> None:
