@@ -30,8 +30,8 @@ build: setup node
 # attica-node: the CAN node on Linux SocketCAN (firmware core + firmware/ports/linux). The core is
 # compiled with the strict firmware flags; the port needs -std=gnu99 for the socket headers.
 NODE_CFLAGS := $(shell cat firmware/cflags.txt) -O2
-NODE_SRC := $(wildcard firmware/src/*.c)
-NODE_HDR := $(wildcard firmware/include/attica/*.h) $(wildcard firmware/src/*.h)
+NODE_SRC := $(sort $(shell find firmware/src -name '*.c'))
+NODE_HDR := $(wildcard firmware/include/attica/*.h) $(sort $(shell find firmware/src -name '*.h'))
 NODE_PORT := $(wildcard firmware/ports/linux/*.c)
 
 node: build/attica-node

@@ -1,6 +1,6 @@
 """Build hooks of the attica package (the metadata is in pyproject.toml).
 
-- ``build_ext`` compiles the firmware (firmware/src/*.c) and the host kernels (host/attica/csrc/*.c)
+- ``build_ext`` compiles the firmware (firmware/src/**/*.c) and the host kernels (host/attica/csrc/*.c)
   with exactly the flags of firmware/cflags.txt, then builds the cffi wrapper ``attica._native``
   (Python's flags apply to the wrapper only) and links the objects into it.
 - ``build_py`` copies the firmware tree into the package as ``attica/_firmware`` (sources, headers,

@@ -6,11 +6,13 @@
 #
 # Variables it sets:
 #   ATTICA_DIR       this directory
-#   ATTICA_SRCS      the library sources (every src/*.c: filters, math, CAN codec and node)
+#   ATTICA_SRCS      the library sources (every src/**/*.c: math, core, filters, calib, CAN codec, node)
 #   ATTICA_INCLUDES  -I flag for the public headers
 #   ATTICA_CFLAGS    the numerics flags of cflags.txt line 1 (-std=c99 -ffp-contract=off -fno-fast-math
 #                    -fno-math-errno ...) and -fno-lto: attica's sources must be compiled with exactly
-#                    these, after any flags of yours, for results bit-identical to the reference
+#                    these, after any flags of yours, for results bit-identical to the reference;
+#                    and -ffunction-sections -fdata-sections, so that a link with --gc-sections drops
+#                    every function (and filter kind) the application does not call
 #   ATTICA_WARNINGS  the warning flags of cflags.txt line 2 (-Wall ... -Werror); set
 #                    ATTICA_STRICT_WARNINGS=0 to leave them out
 #   ATTICA_OBJS, ATTICA_LIB  objects and static library built under ATTICA_BUILD (default build/attica)
@@ -20,9 +22,11 @@
 #   ATTICA_OPT       optimisation (default -O2; -Os is fine: every level gives the same bits)
 _attica_default_goal := $(.DEFAULT_GOAL)
 ATTICA_DIR := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
-ATTICA_SRCS := $(sort $(wildcard $(ATTICA_DIR)/src/*.c))
+_attica_rwildcard = $(foreach d,$(wildcard $(1:=/*)),$(call _attica_rwildcard,$d,$2) $(filter $(subst *,%,$2),$d))
+ATTICA_SRCS := $(sort $(call _attica_rwildcard,$(ATTICA_DIR)/src,*.c))
+ATTICA_PRIVATE_HDRS := $(sort $(call _attica_rwildcard,$(ATTICA_DIR)/src,*.h))
 ATTICA_INCLUDES := -I$(ATTICA_DIR)/include
-ATTICA_CFLAGS := $(shell sed -n 1p $(ATTICA_DIR)/cflags.txt) -fno-lto
+ATTICA_CFLAGS := $(shell sed -n 1p $(ATTICA_DIR)/cflags.txt) -fno-lto -ffunction-sections -fdata-sections
 ATTICA_STRICT_WARNINGS ?= 1
 ATTICA_WARNINGS := $(if $(filter 1,$(ATTICA_STRICT_WARNINGS)),$(shell sed -n 2p $(ATTICA_DIR)/cflags.txt))
 ATTICA_OPT ?= -O2
@@ -31,7 +35,7 @@ ATTICA_BUILD ?= build/attica
 ATTICA_OBJS := $(patsubst $(ATTICA_DIR)/src/%.c,$(ATTICA_BUILD)/%.o,$(ATTICA_SRCS))
 ATTICA_LIB := $(ATTICA_BUILD)/libattica.a
 
-$(ATTICA_BUILD)/%.o: $(ATTICA_DIR)/src/%.c $(wildcard $(ATTICA_DIR)/include/attica/*.h) $(wildcard $(ATTICA_DIR)/src/*.h) $(ATTICA_DIR)/cflags.txt
+$(ATTICA_BUILD)/%.o: $(ATTICA_DIR)/src/%.c $(wildcard $(ATTICA_DIR)/include/attica/*.h) $(ATTICA_PRIVATE_HDRS) $(ATTICA_DIR)/cflags.txt
 	@mkdir -p $(@D)
 	$(CC) $(ATTICA_ARCH) $(ATTICA_OPT) $(ATTICA_CFLAGS) $(ATTICA_WARNINGS) $(ATTICA_INCLUDES) -c $< -o $@
 

@@ -353,7 +353,7 @@ def test_fast_math_after_firmware_flags(cc: str, tmp_path: Path) -> None:
     macros of exactly that command line.
     """
     require_tool(cc)
-    src = _build.FIRMWARE / "src" / "att_math.c"
+    src = _build.FIRMWARE / "src" / "math" / "att_math.c"
     base = [cc, *_build.cflags(), "-I", str(_build.INCLUDE)]
     proc = subprocess.run(
         [*base, "-O2", "-ffast-math", "-c", str(src), "-o", str(tmp_path / "a.o")],

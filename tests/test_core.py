@@ -32,9 +32,9 @@ def test_fast_paths_against_general_twins(tmp_path: Path) -> None:
     need(cc is not None, "no C compiler")
     assert cc is not None
     exe = tmp_path / "att_core_test"
-    src = [ROOT / "tests" / "c" / "att_core_test.c", ROOT / "firmware" / "src" / "att_math.c"]
+    src = [ROOT / "tests" / "c" / "att_core_test.c", ROOT / "firmware" / "src" / "math" / "att_math.c"]
     cmd = [cc, *_build.cflags(), "-O2", "-I", str(ROOT / "firmware" / "include")]
-    cmd += ["-I", str(ROOT / "firmware" / "src"), *map(str, src), "-o", str(exe)]
+    cmd += ["-I", str(ROOT / "firmware" / "src" / "core"), *map(str, src), "-o", str(exe)]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     proc = subprocess.run([str(exe), "256"], capture_output=True, text=True, timeout=600)
     print(proc.stdout)

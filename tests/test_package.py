@@ -102,7 +102,7 @@ def test_dists_hold_what_they_must(dists: dict[str, Path]) -> None:
         "attica/_firmware/can/attica.dbc",
         "attica/_firmware/include/attica/att_version.h",
         "attica/_firmware/include/attica/att_filter.h",
-        "attica/_firmware/src/att_filter.c",
+        "attica/_firmware/src/filters/att_filter.c",
         "attica/_firmware/CMakeLists.txt",
         "attica/py.typed",
         f"attica-{VERSION}.dist-info/licenses/LICENSE",
@@ -113,7 +113,7 @@ def test_dists_hold_what_they_must(dists: dict[str, Path]) -> None:
     root = f"attica-{VERSION}"
     for must in ("LICENSE", "setup.py", "MANIFEST.in", "firmware/cflags.txt", "firmware/can/attica.dbc"):
         assert f"{root}/{must}" in members, must
-    assert f"{root}/firmware/src/att_filter.c" in members and f"{root}/host/attica/csrc/att_host.c" in members
+    assert f"{root}/firmware/src/filters/att_filter.c" in members and f"{root}/host/attica/csrc/att_host.c" in members
     assert not [m for m in members if m.endswith((".so", ".o", ".stamp"))]
 
 

@@ -23,7 +23,7 @@ from attica_dev import cross, golden
 from helpers import ROOT, need
 
 SAN = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g")
-FW = sorted((ROOT / "firmware" / "src").glob("*.c"))
+FW = sorted((ROOT / "firmware" / "src").rglob("*.c"))
 INC = ROOT / "firmware" / "include"
 
 # clang -Weverything minus these, each for a reason:
@@ -39,8 +39,8 @@ WEVERYTHING_OFF = {
 }
 
 ANALYSED = [
-    ROOT / "firmware" / "src" / "att_node.c",
-    ROOT / "firmware" / "src" / "att_can.c",
+    ROOT / "firmware" / "src" / "node" / "att_node.c",
+    ROOT / "firmware" / "src" / "can" / "att_can.c",
     ROOT / "firmware" / "ports" / "linux" / "att_node_linux.c",
 ]
 """The files of this baseline. Over the rest of firmware/src the tools report only (docs/robustness.md):

@@ -3,7 +3,7 @@
 Near-minimax fits (iteratively reweighted least squares, Lawson's algorithm) of the *final*
 absolute error, in float64, rounded to float32 and printed as hex floats.
 Run: ``python docs/tools/fit_trig.py``. The printed constants are the ones committed in
-firmware/src/att_math.c and host/attica/reference/detmath.py.
+firmware/src/math/att_math.c and host/attica/reference/detmath.py.
 
 - sin(x) = x + x*z*(s0 + z*(s1 + z*s2)),            z = x^2, |x| <= pi/4 (+0.2 %)
 - cos(x) = 1 - z/2 + z*z*(c0 + z*(c1 + z*c2)),       same range

@@ -1,6 +1,6 @@
 """Build the cffi API-mode extension ``attica._native`` from the firmware sources.
 
-The firmware sources (firmware/src/*.c) and the host batch kernels (host/attica/csrc/*.c) are
+The firmware sources (firmware/src/**/*.c) and the host batch kernels (host/attica/csrc/*.c) are
 compiled to objects with exactly the flags in firmware/cflags.txt (the same as every other build)
 and linked into the extension; only the cffi wrapper itself is compiled with Python's flags. The C
 declarations given to cffi are the ``ATT_CDEF_BEGIN``/``ATT_CDEF_END`` sections of the headers, so
@@ -50,8 +50,13 @@ _CDEF = re.compile(r"/\* ATT_CDEF_BEGIN \*/(.*?)/\* ATT_CDEF_END \*/", re.S)
 
 
 def firmware_sources() -> list[Path]:
-    """The firmware C sources (sorted)."""
-    return sorted((FIRMWARE / "src").glob("*.c"))
+    """The firmware C sources (every ``*.c`` below firmware/src, sorted by path)."""
+    return sorted((FIRMWARE / "src").rglob("*.c"))
+
+
+def private_headers() -> list[Path]:
+    """The firmware's private headers (every ``*.h`` below firmware/src, sorted by path)."""
+    return sorted((FIRMWARE / "src").rglob("*.h"))
 
 
 _INCLUDE_RE = re.compile(r'^#include "(?:attica/)?(att_\w+\.h)"', re.M)
@@ -85,8 +90,11 @@ def _has_source(header: Path) -> bool:
     decls = re.sub(r"/\*.*?\*/", "", "".join(_CDEF.findall(header.read_text())), flags=re.S)
     if "(" not in decls:
         return True  # types and constants only
-    src_dir = CSRC if header.parent == CSRC else FIRMWARE / "src"
-    if (src_dir / (header.stem + ".c")).exists():
+    if header.parent == CSRC:
+        found = (CSRC / (header.stem + ".c")).exists()
+    else:
+        found = any(s.stem == header.stem for s in firmware_sources())
+    if found:
         return True
     print(f"attica build: skipping {header.name}: no {header.stem}.c yet", file=sys.stderr)
     return False
@@ -110,7 +118,7 @@ def cdef_text() -> str:
 def inputs_digest() -> str:
     """Hash over everything the extension is built from (sources, headers, flags, this file)."""
     h = hashlib.sha256()
-    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + sorted((FIRMWARE / "src").glob("*.h"))
+    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + private_headers()
     for f in files + [FIRMWARE / "cflags.txt", Path(__file__)]:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -123,6 +131,9 @@ def compile_objects(cc: str, opt: str = "-O2", build_dir: Path | None = None) ->
     out_dir = build_dir if build_dir is not None else BUILD
     out_dir.mkdir(parents=True, exist_ok=True)
     objs = []
+    stems = [s.stem for s in firmware_sources() + sorted(CSRC.glob("*.c"))]
+    if len(stems) != len(set(stems)):
+        raise RuntimeError(f"two C sources share a name (objects are named by it): {sorted(stems)}")
     for src in firmware_sources() + sorted(CSRC.glob("*.c")):
         obj = out_dir / (src.stem + ".o")
         cmd = [

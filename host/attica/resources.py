@@ -66,13 +66,13 @@ def include_dir() -> Path:
 
 
 def source_dir() -> Path:
-    """The directory of the firmware C sources (``att_*.c``)."""
+    """The directory of the firmware C sources (``att_*.c`` in its sub-folders: math, core, filters ...)."""
     return firmware_dir() / "src"
 
 
 def sources() -> list[Path]:
-    """The firmware C sources, sorted."""
-    return sorted(source_dir().glob("*.c"))
+    """The firmware C sources (every ``*.c`` below :func:`source_dir`), sorted by path."""
+    return sorted(source_dir().rglob("*.c"))
 
 
 def cflags_file() -> Path:

@@ -1,7 +1,7 @@
 /**
  * @file fuzz_can.c
  * @brief libFuzzer target: every decoder and unpacker of the CAN codec (att_can.c and the cantools code
- * firmware/src/att_can_db.c) on arbitrary frames, with invariants (docs/robustness.md):
+ * firmware/src/can/generated/att_can_db.c) on arbitrary frames, with invariants (docs/robustness.md):
  *
  * - C1 att_can_check agrees with an independent model: ID table, length/format table, and a table-driven
  *   CRC-8 J1850 written here (not the codec's bitwise one).
@@ -22,7 +22,7 @@
 #include "fuzz_common.h"
 #include "fuzz_model.h"
 
-#include "../../firmware/src/att_can_db.h"
+#include "../../firmware/src/can/generated/att_can_db.h"
 
 /* --- generated pack/unpack -------------------------------------------------------------------- */
 

@@ -283,7 +283,7 @@ def build_program(
     Parameters
     ----------
     sources
-        Extra C files (test harnesses) linked with firmware/src/*.c.
+        Extra C files (test harnesses) linked with firmware/src/**/*.c.
     cc
         Compiler command (``gcc``, ``clang``, ``arm-none-eabi-gcc``...).
     opt

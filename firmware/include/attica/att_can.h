@@ -3,9 +3,9 @@
  * @brief attica CAN codec: frames, CRC-8 J1850 / E2E, int16 quantisation, frame set encoders/decoders.
  *
  * The frame layout is defined by firmware/can/attica.dbc (the single source of truth); the bit packing
- * is done by the code cantools generated from it (firmware/src/att_can_db.c). This module adds the
- * parts a DBC cannot express: the E2E CRC, our quantisation and the grouping into frame sets. See
- * docs/can.md.
+ * is done by the code cantools generated from it (firmware/src/can/generated/att_can_db.c). This
+ * module adds the parts a DBC cannot express: the E2E CRC, our quantisation and the grouping into
+ * frame sets. See docs/can.md.
  *
  * - CRC: CRC-8 SAE J1850 (poly 0x1D, init 0xFF, final XOR 0xFF, not reflected; check 0x4B). E2E as in
  *   AUTOSAR profile 1: over the 16-bit data ID (0x0A00 + CAN ID, low byte first), then the frame's

@@ -1,6 +1,6 @@
 """The firmware's view of a calibration: ``att_calib_settings_t`` field by field, in float32.
 
-:class:`StageSettings` is what the C input/output stages (firmware/src/att_calib.c) and their numpy
+:class:`StageSettings` is what the C input/output stages (firmware/src/calib/att_calib.c) and their numpy
 mirror (:mod:`attica.reference.calib`) are given; :func:`from_calibration` makes it from a
 :class:`~attica.calibration.model.Calibration` (a calibration file), :func:`fill_c` copies it into a
 cffi ``att_calib_settings_t``.

@@ -2,7 +2,7 @@
 
 The layout of every frame is defined by firmware/can/attica.dbc; :mod:`attica.can.gen` regenerates
 the C pack/unpack code from it; :mod:`attica.can.codec` encodes and decodes frames bit-identically to
-firmware/src/att_can.c and wraps the C node (firmware/src/att_node.c). See docs/can.md.
+firmware/src/can/att_can.c and wraps the C node (firmware/src/node/att_node.c). See docs/can.md.
 """
 
 from __future__ import annotations

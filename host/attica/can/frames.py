@@ -1,4 +1,4 @@
-"""Encoding and decoding of attica frames, bit-identical to firmware/src/att_can.c.
+"""Encoding and decoding of attica frames, bit-identical to firmware/src/can/att_can.c.
 
 - :func:`encode_imu`, :func:`encode_outputs`, :func:`encode_cmd`: vectorised encoders producing the
   same bytes as the C encoders (classic and CAN FD).

@@ -1,9 +1,9 @@
-"""Regenerate the C pack/unpack code (firmware/src/att_can_db.{c,h}) from firmware/can/attica.dbc.
+"""Regenerate the C pack/unpack code (firmware/src/can/generated/att_can_db.{c,h}) from firmware/can/attica.dbc.
 
 The DBC is the single source of truth. The generated files are committed; ``tests/test_can_codec.py``
 checks that regenerating gives byte-identical files (a golden-file test). Run::
 
-    PYTHONPATH=host python3 -m attica.can.gen          # rewrite firmware/src/att_can_db.{c,h}
+    PYTHONPATH=host python3 -m attica.can.gen          # rewrite firmware/src/can/generated/att_can_db.{c,h}
     PYTHONPATH=host python3 -m attica.can.gen --check  # exit 1 when the committed files are stale
 
 The options equal ``cantools generate_c_source --database-name att_can_db
@@ -23,12 +23,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[3]
 DBC = ROOT / "firmware" / "can" / "attica.dbc"
-GEN = ROOT / "firmware" / "src"
+GEN = ROOT / "firmware" / "src" / "can" / "generated"
 DATABASE_NAME = "att_can_db"
 
 _PRELUDE = (
     "/* Generated from firmware/can/attica.dbc by host/attica/can/gen.py: do not edit; regenerate. */\n"
-    '#include "att_fp.h"\n\n'
+    '#include "../../math/att_fp.h"\n\n'
 )
 """Prepended to the generated source: attica's floating-point rules come first in every firmware .c."""
 

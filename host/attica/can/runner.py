@@ -1,6 +1,6 @@
 """Run the attica node in-process on a python-can bus: frames from the bus in, the node's frames out.
 
-The node is the C node (firmware/src/att_node.c) through :class:`attica.can.codec.Node`, the same code
+The node is the C node (firmware/src/node/att_node.c) through :class:`attica.can.codec.Node`, the same code
 ``attica-node`` runs on Linux SocketCAN; this module is its "port" for any python-can bus (the virtual
 bus, udp_multicast, socketcan...). The loop is the one of the Linux port: receive frames, push them,
 poll, send whatever the node queued.

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_ars.c: the quaternion complementary ARS, many instances in lockstep."""
+"""Mirror of firmware/src/filters/ars/att_ars.c: the quaternion complementary ARS, many instances in lockstep."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_bias.c: rest detector and capped running-mean gyro bias, in lockstep."""
+"""Mirror of firmware/src/core/att_bias.c: rest detector and capped running-mean gyro bias, in lockstep."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_calib.c and of the stage, acceleration and heading parts of att_filter.c.
+"""Mirror of firmware/src/calib/att_calib.c and of the stage, acceleration and heading parts of att_filter.c.
 
 :class:`Stages` is ``att_calib_t``: the settings folded into one stage per sensor when applied
 (identity, a signed axis permutation, or ``v = A (raw - o)``), the convention and the acceleration

@@ -1,4 +1,4 @@
-"""Deterministic float32 math, mirroring firmware/src/att_math.c operation by operation.
+"""Deterministic float32 math, mirroring firmware/src/math/att_math.c operation by operation.
 
 Every function accepts ``np.float32`` scalars or float32 arrays (broadcast together) and returns
 float32 values with exactly the bits the C code produces. Rules followed here (see DEVELOPERS.md):

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_ekf.c: the Euler-angle EKF with gyro bias states, instances in lockstep.
+"""Mirror of firmware/src/filters/ekf/att_ekf.c: the Euler-angle EKF with gyro bias states, instances in lockstep.
 
 P is kept as the 21 elements of the packed upper triangle (att_ekf_state_t.p), each an (n,) array.
 """

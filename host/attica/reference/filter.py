@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_filter.c: one interface over every reference filter."""
+"""Mirror of firmware/src/filters/att_filter.c: one interface over every reference filter."""
 
 from __future__ import annotations
 

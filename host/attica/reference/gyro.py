@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_gyro.c: gyro-only ZYX Euler-rate integration, instances in lockstep."""
+"""Mirror of firmware/src/filters/gyro/att_gyro.c: gyro-only ZYX Euler-rate integration, instances in lockstep."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_kf.c: the linear quaternion Kalman filter, many instances in lockstep.
+"""Mirror of firmware/src/filters/kf/att_kf.c: the linear quaternion Kalman filter, many instances in lockstep.
 
 The covariance is isotropic (P = p I, see att_kf.h), so the filter carries the scalar p.
 """

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_mars.c: the 9-axis complementary filter, many instances in lockstep."""
+"""Mirror of firmware/src/filters/mars/att_mars.c: the 9-axis complementary filter, many instances in lockstep."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_mekf.c: the multiplicative (error-state) EKF, many instances in lockstep.
+"""Mirror of firmware/src/filters/mekf/att_mekf.c: the multiplicative (error-state) EKF, many instances in lockstep.
 
 The covariance algebra lives in :mod:`attica.reference.mekf_cov`; this module holds the coefficients,
 the reference field, the initialisation and the step, with every C branch as ``np.where``.

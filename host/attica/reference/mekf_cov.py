@@ -1,4 +1,4 @@
-"""The covariance algebra of the MEKF (firmware/src/att_mekf.c), operation for operation.
+"""The covariance algebra of the MEKF (firmware/src/filters/mekf/att_mekf.c), operation for operation.
 
 P is the packed upper triangle of a symmetric 6x6 matrix: a list of 21 float32 arrays (one value per
 instance), ``p[ix(i, j)]`` for ``i <= j``. Every function returns new lists (the inputs are not changed)

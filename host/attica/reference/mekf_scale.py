@@ -1,4 +1,4 @@
-"""The MEKF's gyro scale-factor estimate (firmware/src/att_mekf.c), operation for operation.
+"""The MEKF's gyro scale-factor estimate (firmware/src/filters/mekf/att_mekf.c), operation for operation.
 
 The two-stage filter beside the 6-state one (att_mekf.h, "Gyro scale factor"): the scale error's
 variance ``p_scale`` and the sensitivity ``V`` (six float32 arrays, one value per instance) of the error

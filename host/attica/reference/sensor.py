@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_sensor.c: sample checks and tilt from gravity."""
+"""Mirror of firmware/src/core/att_sensor.c: sample checks and tilt from gravity."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/att_tilt.c: accel-only tilt, instances in lockstep."""
+"""Mirror of firmware/src/filters/tilt/att_tilt.c: accel-only tilt, instances in lockstep."""
 
 from __future__ import annotations
 

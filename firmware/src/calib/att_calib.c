@@ -2,11 +2,11 @@
  * @file att_calib.c
  * @brief Input and output stages (see att_calib.h). Mirrored by host/attica/reference/calib.py.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
 #include "att_calib_i.h"
-#include "att_core.h"
-#include "att_inline.h"
+#include "../core/att_core.h"
+#include "../math/att_inline.h"
 #include "attica/att_calib.h"
 #include "attica/att_math.h"
 

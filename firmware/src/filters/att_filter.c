@@ -2,11 +2,11 @@
  * @file att_filter.c
  * @brief Dispatch of the unified filter interface (see att_filter.h). Mirrored by reference/filter.py.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
-#include "att_calib_i.h"
-#include "att_core.h"
-#include "att_inline.h"
+#include "../calib/att_calib_i.h"
+#include "../core/att_core.h"
+#include "../math/att_inline.h"
 #include "att_step.h"
 #include "attica/att_filter.h"
 #include "attica/att_math.h"

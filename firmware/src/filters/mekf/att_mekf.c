@@ -6,10 +6,10 @@
  * p[ATT_MEKF_IX(i, j)]; every formula below computes the upper triangle only, so P is exactly
  * symmetric by construction.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
-#include "att_step.h"
+#include "../../core/att_core.h"
+#include "../att_step.h"
 #include "attica/att_math.h"
 #include "attica/att_mekf.h"
 #include "attica/att_sensor.h"

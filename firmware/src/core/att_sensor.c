@@ -2,7 +2,7 @@
  * @file att_sensor.c
  * @brief Sensor sample checks (see att_sensor.h). Mirrored by host/attica/reference/sensor.py.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"

@@ -6,7 +6,7 @@
 #ifndef ATT_CALIB_I_H
 #define ATT_CALIB_I_H
 
-#include "att_inline.h"
+#include "../math/att_inline.h"
 
 #include "attica/att_calib.h"
 

@@ -3,10 +3,10 @@
  * @brief 9-axis complementary filter with magnetometer (see att_mars.h).
  * Mirrored by host/attica/reference/mars.py.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
-#include "att_step.h"
+#include "../../core/att_core.h"
+#include "../att_step.h"
 #include "attica/att_mars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"

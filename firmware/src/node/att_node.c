@@ -3,7 +3,7 @@
  * @brief The attica CAN node (see att_node.h): rx ring -> checks -> sample assembly -> filter step ->
  * output set -> tx ring. No heap, no time source, no I/O.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
 #include <string.h>
 

@@ -2,9 +2,9 @@
  * @file att_gyro.c
  * @brief Gyro-only Euler-rate integration (see att_gyro.h). Mirrored by reference/gyro.py.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
+#include "../../core/att_core.h"
 #include "attica/att_gyro.h"
 #include "attica/att_math.h"
 

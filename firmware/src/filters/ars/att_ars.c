@@ -2,10 +2,10 @@
  * @file att_ars.c
  * @brief Quaternion complementary ARS (see att_ars.h). Mirrored by host/attica/reference/ars.py.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
-#include "att_step.h"
+#include "../../core/att_core.h"
+#include "../att_step.h"
 #include "attica/att_ars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"

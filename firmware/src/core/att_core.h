@@ -9,7 +9,7 @@
 #ifndef ATT_CORE_H
 #define ATT_CORE_H
 
-#include "att_inline.h"
+#include "../math/att_inline.h"
 
 #include "attica/att_bias.h"
 #include "attica/att_math.h"

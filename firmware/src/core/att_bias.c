@@ -2,7 +2,7 @@
  * @file att_bias.c
  * @brief Rest detector and capped running-mean gyro bias (see att_bias.h). Mirrored by reference/bias.py.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
 #include "att_core.h"
 #include "attica/att_bias.h"

@@ -2,10 +2,10 @@
  * @file att_kf.c
  * @brief Linear quaternion Kalman filter (see att_kf.h). Mirrored by host/attica/reference/kf.py.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
-#include "att_step.h"
+#include "../../core/att_core.h"
+#include "../att_step.h"
 #include "attica/att_kf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"

@@ -6,10 +6,10 @@
  * att_ekf_ix[i][j] (the table is symmetric, so (j, i) finds the same element). Every sum below is
  * written out in a fixed order (the reference follows it term by term).
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
-#include "att_step.h"
+#include "../../core/att_core.h"
+#include "../att_step.h"
 #include "attica/att_ekf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"

@@ -3,13 +3,13 @@
  * @brief CAN codec (see att_can.h): CRC/E2E, quantisation, frame sets on top of the cantools code.
  * Mirrored bit for bit by host/attica/can/codec.py.
  */
-#include "att_fp.h"
+#include "../math/att_fp.h"
 
 #include <string.h>
 
 #include "attica/att_can.h"
 
-#include "att_can_db.h"
+#include "generated/att_can_db.h"
 
 /** 1.5 * 2^23: adding and subtracting it rounds a float of magnitude < 2^22 to an integer, ties even. */
 #define ATT_CAN_ROUND_MAGIC 0x1.8p23f

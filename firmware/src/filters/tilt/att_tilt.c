@@ -2,9 +2,9 @@
  * @file att_tilt.c
  * @brief Accel-only tilt baseline (see att_tilt.h). Mirrored by reference/tilt.py.
  */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
-#include "att_core.h"
+#include "../../core/att_core.h"
 #include "attica/att_math.h"
 #include "attica/att_tilt.h"
 

@@ -1,5 +1,5 @@
 /* Generated from firmware/can/attica.dbc by host/attica/can/gen.py: do not edit; regenerate. */
-#include "att_fp.h"
+#include "../../math/att_fp.h"
 
 /**
  * @file att_can_db.c
