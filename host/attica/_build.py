@@ -105,13 +105,20 @@ def cflags() -> list[str]:
     return shlex.split((FIRMWARE / "cflags.txt").read_text())
 
 
+_CONFIG_LINE = re.compile(r"^[ \t]*#[ \t]*(?:if ATT_WITH_[A-Z]+|endif)\b.*$", re.M)
+
+
 def cdef_text() -> str:
-    """Declarations for cffi, taken from the headers' ATT_CDEF sections."""
+    """Declarations for cffi, taken from the headers' ATT_CDEF sections.
+
+    The binding is built with every kind and stage (att_config.h's defaults), so the ``#if ATT_WITH_*``
+    / ``#endif`` lines around union members are dropped (cffi's parser takes no conditionals).
+    """
     parts = []
     for h in headers():
         for block in _CDEF.findall(h.read_text()):
             parts.append(block)
-    text = "\n".join(parts)
+    text = _CONFIG_LINE.sub("", "\n".join(parts))
     return re.sub(r"/\*.*?\*/", "", text, flags=re.S)
 
 

@@ -145,6 +145,8 @@ def _check(status: int, what: str) -> None:
         raise NativeError(f"{what}: not supported by this filter kind (or not initialised)")
     if status == lib.ATT_ERR_STATE:
         raise NativeError(f"{what}: the filter is not initialised yet (no valid sample)")
+    if status == lib.ATT_ERR_DISABLED:
+        raise NativeError(f"{what}: compiled out of this build (att_config.h ATT_WITH_*)")
     if status != lib.ATT_OK:
         raise NativeError(f"{what}: status {status}")
 

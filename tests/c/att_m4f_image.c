@@ -9,7 +9,13 @@
  *
  *   ATT_IMAGE  1..7  one filter through its own API (att_<kind>_settings_default, init, reset, step):
  *                    1 ars, 2 mars, 3 kf, 4 ekf, 5 gyro, 6 tilt, 7 mekf (the att_filter_kind_t values)
- *              10    every filter through the unified interface (att_filter_*)
+ *              10    the filters through the unified interface (att_filter_*): the kind is a volatile
+ *                    (ATT_IMAGE_KIND, default ATT_FILTER_ARS), so every kind compiled in is linked; built
+ *                    with a configuration of att_config.h (e.g. -DATT_WITH_EKF=0) it shows what that
+ *                    configuration costs
+ *              13    the loop of images 1..7 (settings, init, step, reset) through att_filter.h, for the
+ *                    kind ATT_IMAGE_KIND: with a configuration of only that kind it compares with its
+ *                    own image
  *              11    the CAN codec: every att_can_* function
  *              12    the CAN node (att_node_*): filters + codec + node
  *              0     start-up only (baseline)
@@ -25,6 +31,9 @@
 
 #ifndef ATT_IMAGE
 #error "define ATT_IMAGE"
+#endif
+#ifndef ATT_IMAGE_KIND
+#define ATT_IMAGE_KIND ATT_FILTER_ARS
 #endif
 
 static volatile float in[9];
@@ -183,7 +192,7 @@ int main(void)
 }
 #elif ATT_IMAGE == 10
 static att_filter_t state;
-static volatile int kind = ATT_FILTER_ARS;
+static volatile int kind = ATT_IMAGE_KIND;
 int main(void)
 {
     att_filter_settings_t s;
@@ -203,6 +212,29 @@ int main(void)
             att_filter_reset(&state);
             att_filter_output(&state, &o);
             out_q[0] = (float)att_filter_name(state.kind)[0];
+        }
+    }
+    return 0;
+}
+#elif ATT_IMAGE == 13
+static att_filter_t state;
+int main(void)
+{
+    att_filter_settings_t s;
+    att_sample_t x;
+    att_output_t o;
+    if (att_filter_settings_default(ATT_IMAGE_KIND, 0.01f, &s) != ATT_OK ||
+        att_filter_init(&state, ATT_IMAGE_KIND, &s) != ATT_OK) {
+        return 1;
+    }
+    while (run) {
+        x.gyr = v3(0);
+        x.acc = v3(3);
+        x.mag = v3(6);
+        out_flags = att_filter_step(&state, &x, &o);
+        put_q(o.q);
+        if (out_flags == 0xffffffffu) {
+            att_filter_reset(&state);
         }
     }
     return 0;

@@ -622,16 +622,25 @@ class M4fBuild:
 M4F_LIB_OPTS = ("-Os", "-O2")
 
 
-def library_objects(opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc", board: str = "m4f") -> list[Path]:
+def library_objects(
+    opt: str, out_dir: Path, cc: str = "arm-none-eabi-gcc", board: str = "m4f", defines: Sequence[str] = ()
+) -> list[Path]:
     """Compile the firmware sources for a Cortex-M board as a library would be (stack gate on).
 
     Flags: the firmware flags, ``opt``, the board's CPU flags, ``-ffunction-sections -fdata-sections``
     (so images keep only what they use), ``-Wstack-usage=M4F_STACK_LIMIT`` (an error with -Werror)
-    and ``-fstack-usage -fcallgraph-info=su`` (.su and .ci files for the stack analysis).
+    and ``-fstack-usage -fcallgraph-info=su`` (.su and .ci files for the stack analysis); then
+    ``defines`` (a build configuration of att_config.h, e.g. ``-DATT_WITH_EKF=0``).
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     target = Target(board, "", cc, BOARDS[board].cpu)
-    extra = [*M4F_SECTIONS, f"-Wstack-usage={M4F_STACK_LIMIT}", "-fstack-usage", "-fcallgraph-info=su"]
+    extra = [
+        *M4F_SECTIONS,
+        f"-Wstack-usage={M4F_STACK_LIMIT}",
+        "-fstack-usage",
+        "-fcallgraph-info=su",
+        *defines,
+    ]
     objs = [out_dir / (src.stem + ".o") for src in _build.firmware_sources()]
     with ThreadPoolExecutor(max(2, os.cpu_count() or 2)) as pool:
         list(

@@ -127,14 +127,24 @@ def _compile(src: Path, obj: Path, opt: str, defines: Sequence[str] = (), board:
 
 
 def link_image(
-    name: str, image: int, lib: Path, opt: str, out: Path, board: str = "m4f"
+    name: str,
+    image: int,
+    lib: Path,
+    opt: str,
+    out: Path,
+    board: str = "m4f",
+    defines: Sequence[str] = (),
 ) -> tuple[Path, Path]:
-    """Link footprint image ``image`` for ``board`` against ``lib``; return (elf, map)."""
+    """Link footprint image ``image`` for ``board`` against ``lib``; return (elf, map).
+
+    ``defines``: the build configuration the library was compiled with (att_config.h options), and
+    for image 10 ``-DATT_IMAGE_KIND=...``.
+    """
     out.mkdir(parents=True, exist_ok=True)
     slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
     main_o = out / f"image_{slug}.o"
     start_o = out / "startup.o"
-    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}"], board)
+    _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}", *defines], board)
     _compile(cross.PORT / "startup.c", start_o, opt, (), board)
     elf = out / f"image_{slug}.elf"
     map_file = out / f"image_{slug}.map"
@@ -157,6 +167,99 @@ def link_image(
     if proc.returncode != 0:
         raise FootprintError(f"{' '.join(cmd)}\n{proc.stderr}")
     return elf, map_file
+
+
+KINDS = ("ARS", "MARS", "KF", "EKF", "GYRO", "TILT", "MEKF")
+"""The ATT_WITH_<NAME> options of att_config.h (the kind table of firmware/src/filters/att_kinds.h)."""
+
+
+def only(*kinds: str, calib: bool = True) -> list[str]:
+    """The -D flags of a configuration with just ``kinds`` (and the stages when ``calib``)."""
+    flags = [f"-DATT_WITH_{k}={1 if k in kinds else 0}" for k in KINDS]
+    return flags if calib else [*flags, "-DATT_WITH_CALIB=0"]
+
+
+CONFIGS: dict[str, tuple[list[str], str, int]] = {
+    "every kind (the default)": ([], "ARS", 10),
+    "every kind, no stages": (["-DATT_WITH_CALIB=0"], "ARS", 10),
+    "ARS only": (only("ARS"), "ARS", 13),
+    "ARS only, no stages": (only("ARS", calib=False), "ARS", 13),
+    "MEKF only": (only("MEKF"), "MEKF", 13),
+    "MEKF only, no stages": (only("MEKF", calib=False), "MEKF", 13),
+    "node, every kind (the default)": ([], "ARS", 12),
+    "node, ARS only, no stages": (only("ARS", calib=False), "ARS", 12),
+}
+"""Build configurations of the per-configuration table: name -> (att_config.h flags, the kind the
+image runs, ATT_IMAGE of tests/c/att_m4f_image.c: 10 every kind compiled in through att_filter.h
+(the kind a volatile), 13 the loop of the kinds' own images through att_filter.h, 12 the CAN node)."""
+
+SIZEOF_TYPES = ("att_filter_t", "att_filter_settings_t", "att_node_t")
+
+
+def sizeof(types: Sequence[str], defines: Sequence[str], out: Path, board: str = "m4f") -> dict[str, int]:
+    """The sizeof of public types on the board under a configuration (arrays of that size, read with nm)."""
+    out.mkdir(parents=True, exist_ok=True)
+    src = out / "sizeof.c"
+    src.write_text(
+        '#include "attica/att_filter.h"\n#include "attica/att_node.h"\n'
+        + "".join(f"char sz_{t}[sizeof({t})];\n" for t in types)
+    )
+    obj = out / "sizeof.o"
+    _compile(src, obj, "-Os", defines, board)
+    proc = subprocess.run(
+        [_tool("arm-none-eabi-nm"), "-S", str(obj)], capture_output=True, text=True, check=True
+    )
+    sizes: dict[str, int] = {}
+    for line in proc.stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[3].startswith("sz_"):
+            sizes[parts[3][3:]] = int(parts[1], 16)
+    return sizes
+
+
+@dataclass
+class ConfigSizes:
+    """One build configuration: the image's library sizes and the state sizes."""
+
+    name: str
+    sizes: ImageSizes
+    types: dict[str, int]
+
+
+def config_sizes(opt: str = "-Os", out: Path = OUT, names: Sequence[str] | None = None) -> list[ConfigSizes]:
+    """Library .text/.data/.bss of the images of each configuration (CONFIGS), and state sizes."""
+    result = []
+    for name in names if names is not None else CONFIGS:
+        defines, kind, image = CONFIGS[name]
+        slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+        d = out / "configs" / f"{slug}{opt}"
+        objs = cross.library_objects(opt, d / "obj", defines=defines)
+        lib = cross.archive(objs, d / "libattica.a")
+        _, map_file = link_image(
+            name, image, lib, opt, d, defines=[*defines, f"-DATT_IMAGE_KIND=ATT_FILTER_{kind}"]
+        )
+        result.append(ConfigSizes(name, map_sizes(map_file), sizeof(SIZEOF_TYPES, defines, d)))
+    return result
+
+
+def config_report(opt: str = "-Os", out: Path = OUT) -> str:
+    """The per-configuration table (make footprint): each configuration beside the kinds' own images."""
+    rows = []
+    for c in config_sizes(opt, out):
+        s = c.sizes.attica
+        t = c.types
+        rows.append(
+            [c.name, str(s.text), str(s.data), str(s.bss), str(t["att_filter_t"]), str(t["att_node_t"])]
+        )
+    head = (
+        f"Per build configuration (att_config.h; M4F {opt}, --gc-sections): the library in an image "
+        "that runs one kind through att_filter.h (or the node), and the state sizes"
+    )
+    return (
+        head
+        + "\n"
+        + _table(["configuration", f".text {opt}", ".data", ".bss", "att_filter_t", "att_node_t"], rows)
+    )
 
 
 @dataclass
@@ -563,6 +666,8 @@ def footprint_report(opts: Sequence[str] = cross.M4F_LIB_OPTS, out: Path = OUT) 
     lines.append(_table(headers, rows))
     lines.append(f"Deepest paths ({opts[0]}):")
     lines.extend("  " + p for p in paths)
+    lines.append("")
+    lines.append(config_report(opts[0], out))
     return "\n".join(lines), ok
 
 

@@ -34,6 +34,7 @@
 #ifndef ATT_ARS_H
 #define ATT_ARS_H
 
+#include "attica/att_config.h"
 #include "attica/att_bias.h"
 #include "attica/att_types.h"
 

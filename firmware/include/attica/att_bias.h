@@ -10,6 +10,7 @@
 #ifndef ATT_BIAS_H
 #define ATT_BIAS_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

@@ -37,6 +37,7 @@
 #ifndef ATT_CALIB_H
 #define ATT_CALIB_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

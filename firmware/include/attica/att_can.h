@@ -19,6 +19,7 @@
 #ifndef ATT_CAN_H
 #define ATT_CAN_H
 
+#include "attica/att_config.h"
 #include "attica/att_filter.h"
 #include "attica/att_types.h"
 

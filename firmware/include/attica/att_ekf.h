@@ -83,6 +83,7 @@
 #ifndef ATT_EKF_H
 #define ATT_EKF_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

@@ -16,6 +16,7 @@
 #ifndef ATT_FILTER_H
 #define ATT_FILTER_H
 
+#include "attica/att_config.h"
 #include "attica/att_ars.h"
 #include "attica/att_calib.h"
 #include "attica/att_ekf.h"
@@ -90,36 +91,72 @@ typedef enum {
     ATT_PRESET_SEED = 1     /**< the literal settings of the first implementation (per-sample gains) */
 } att_preset_t;
 
-/** Settings of any filter; the member named after the kind is used. */
+/** Settings of any filter; the member named after the kind is used (the kinds compiled in: att_config.h). */
 typedef union {
+#if ATT_WITH_ARS
     att_ars_settings_t ars;
+#endif
+#if ATT_WITH_MARS
     att_mars_settings_t mars;
+#endif
+#if ATT_WITH_KF
     att_kf_settings_t kf;
+#endif
+#if ATT_WITH_EKF
     att_ekf_settings_t ekf;
+#endif
+#if ATT_WITH_GYRO
     att_gyro_settings_t gyro;
+#endif
+#if ATT_WITH_TILT
     att_tilt_settings_t tilt;
+#endif
+#if ATT_WITH_MEKF
     att_mekf_settings_t mekf;
+#endif
 } att_filter_settings_t;
 
-/** State of any filter; the member named after the kind is used. */
+/** State of any filter; the member named after the kind is used (the kinds compiled in). */
 typedef union {
+#if ATT_WITH_ARS
     att_ars_t ars;
+#endif
+#if ATT_WITH_MARS
     att_mars_t mars;
+#endif
+#if ATT_WITH_KF
     att_kf_t kf;
+#endif
+#if ATT_WITH_EKF
     att_ekf_t ekf;
+#endif
+#if ATT_WITH_GYRO
     att_gyro_t gyro;
+#endif
+#if ATT_WITH_TILT
     att_tilt_t tilt;
+#endif
+#if ATT_WITH_MEKF
     att_mekf_t mekf;
+#endif
 } att_filter_state_t;
 
-/** A filter of any kind. */
+/**
+ * A filter of any kind: as large as the largest kind compiled in, plus the kind and (ATT_WITH_CALIB)
+ * the input/output stages.
+ */
 typedef struct {
     att_filter_kind_t kind; /**< which member of u is live; ATT_FILTER_NONE before init */
     att_filter_state_t u;   /**< the filter state */
+#if ATT_WITH_CALIB
     att_calib_t cal;        /**< input and output stages (att_filter_calibrate; identity after init) */
+#endif
 } att_filter_t;
 
-/** Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind. */
+/**
+ * Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind,
+ * ATT_ERR_DISABLED for a kind compiled out (att_config.h).
+ */
 att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_filter_settings_t *settings);
 /**
  * Settings of a named preset for sample period dt (s). ATT_PRESET_SEED restores the literal settings of
@@ -136,7 +173,10 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
  * att_filter_init and att_filter_retune accept exactly the settings this accepts.
  */
 att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filter_settings_t *settings);
-/** Initialise f as the given kind, with identity input/output stages (ENU); on error f is unchanged. */
+/**
+ * Initialise f as the given kind, with identity input/output stages (ENU); on error f is unchanged.
+ * ATT_ERR_DISABLED for a kind compiled out of this build (att_config.h).
+ */
 att_status_t att_filter_init(att_filter_t *f, att_filter_kind_t kind, const att_filter_settings_t *settings);
 /**
  * New settings for a running filter of the same kind, keeping its state (attitude, bias, filter

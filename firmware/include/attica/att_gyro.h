@@ -16,6 +16,7 @@
 #ifndef ATT_GYRO_H
 #define ATT_GYRO_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

@@ -41,6 +41,7 @@
 #ifndef ATT_KF_H
 #define ATT_KF_H
 
+#include "attica/att_config.h"
 #include "attica/att_bias.h"
 #include "attica/att_types.h"
 

@@ -59,6 +59,7 @@
 #ifndef ATT_MARS_H
 #define ATT_MARS_H
 
+#include "attica/att_config.h"
 #include "attica/att_ars.h"
 #include "attica/att_types.h"
 

@@ -17,6 +17,7 @@
 #ifndef ATT_MATH_H
 #define ATT_MATH_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

@@ -111,6 +111,7 @@
 #ifndef ATT_MEKF_H
 #define ATT_MEKF_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

@@ -50,6 +50,7 @@
 #ifndef ATT_NODE_H
 #define ATT_NODE_H
 
+#include "attica/att_config.h"
 #include "attica/att_can.h"
 #include "attica/att_filter.h"
 #include "attica/att_types.h"

@@ -5,6 +5,7 @@
 #ifndef ATT_SENSOR_H
 #define ATT_SENSOR_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

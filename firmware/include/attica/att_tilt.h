@@ -11,6 +11,7 @@
 #ifndef ATT_TILT_H
 #define ATT_TILT_H
 
+#include "attica/att_config.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus

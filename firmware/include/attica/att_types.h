@@ -15,6 +15,8 @@
 #ifndef ATT_TYPES_H
 #define ATT_TYPES_H
 
+#include "attica/att_config.h"
+
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -45,7 +47,8 @@ typedef enum {
     ATT_ERR_NULL = -1,     /**< a required pointer argument was NULL */
     ATT_ERR_SETTINGS = -2, /**< a setting is out of range or not finite; nothing was changed */
     ATT_ERR_KIND = -3,     /**< unknown filter kind, or a call the kind does not support */
-    ATT_ERR_STATE = -4     /**< the filter's state does not allow the call yet (not initialised) */
+    ATT_ERR_STATE = -4,    /**< the filter's state does not allow the call yet (not initialised) */
+    ATT_ERR_DISABLED = -5  /**< the kind or feature is compiled out of this build (att_config.h) */
 } att_status_t;
 
 /**

@@ -10,6 +10,9 @@
 #ifndef ATT_VERSION_H
 #define ATT_VERSION_H
 
+
+#include "attica/att_config.h"
+
 /* ATT_CDEF_BEGIN */
 #define ATT_VERSION_MAJOR 0
 #define ATT_VERSION_MINOR 1

@@ -21,6 +21,7 @@
 #ifndef ATTICA_H
 #define ATTICA_H
 
+#include "attica/att_config.h"
 #include "attica/att_version.h"
 #include "attica/att_types.h"
 #include "attica/att_math.h"

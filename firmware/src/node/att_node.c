@@ -5,6 +5,8 @@
  */
 #include "../math/att_fp.h"
 
+#include "../filters/att_kinds.h"
+
 #include <string.h>
 
 #include "attica/att_math.h"
@@ -19,6 +21,14 @@
 #define ATT_NODE_MAX_DATA_BITRATE 16000000u
 #define ATT_NODE_MAX_DIVIDER 65535u
 #define ATT_NODE_SET_FRAMES 6u
+
+/* The kinds' gain hooks take the CAN contract's SET_GAIN parameters as they are. */
+typedef char att_node_check_gains[((int)ATT_GAIN_TAU_ACC == (int)ATT_CAN_GAIN_TAU_ACC &&
+                                   (int)ATT_GAIN_TAU_MAG == (int)ATT_CAN_GAIN_TAU_MAG &&
+                                   (int)ATT_GAIN_KF_R == (int)ATT_CAN_GAIN_KF_R &&
+                                   (int)ATT_GAIN_EKF_R == (int)ATT_CAN_GAIN_EKF_R)
+                                      ? 1
+                                      : -1];
 
 /* A bool field holds 0 or 1 (read as bytes: another value would make reading it undefined). */
 static bool att_i_bool_ok_node(const bool *b)
@@ -109,31 +119,10 @@ float att_node_bus_load(const att_node_settings_t *s)
     return sets_per_s * t_set;
 }
 
-/** The sample period of the filter settings (0 for kinds without one, e.g. tilt). */
-static float att_node_filter_dt(att_filter_kind_t kind, const att_filter_settings_t *fs)
-{
-    switch (kind) {
-    case ATT_FILTER_ARS:
-        return fs->ars.dt;
-    case ATT_FILTER_MARS:
-        return fs->mars.dt;
-    case ATT_FILTER_KF:
-        return fs->kf.dt;
-    case ATT_FILTER_EKF:
-        return fs->ekf.dt;
-    case ATT_FILTER_GYRO:
-        return fs->gyro.dt;
-    case ATT_FILTER_MEKF:
-        return fs->mekf.dt;
-    default:
-        return 0.0f;
-    }
-}
-
 /** The filter's dt agrees with sample_rate (relative 1e-3), or the kind has no dt. */
 static bool att_node_dt_matches(const att_node_settings_t *s)
 {
-    float dt = att_node_filter_dt(s->kind, &s->filter);
+    float dt = att_filter_settings_period(s->kind, &s->filter);
     float r;
     if (dt == 0.0f) {
         return true;
@@ -170,6 +159,15 @@ att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate
     return ATT_OK;
 }
 
+#if !ATT_WITH_CALIB
+/* The calibration settings are valid and change nothing (no stage, ENU, no accel outputs). */
+static bool att_node_calib_identity(const att_calib_settings_t *cs)
+{
+    att_calib_t c;
+    return att_calib_init(&c, cs) == ATT_OK && c.active == 0u;
+}
+#endif
+
 att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
 {
     att_filter_t f;
@@ -185,6 +183,7 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     if (st != ATT_OK) {
         return st;
     }
+#if ATT_WITH_CALIB
     if (!att_i_bool_ok_node(&s->accel_out) || att_filter_calibrate(&f, &s->calib) != ATT_OK) {
         return ATT_ERR_SETTINGS;
     }
@@ -193,6 +192,11 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
         c.accel_outputs = true;
         (void)att_filter_calibrate(&f, &c); /* valid: only accel_outputs changed */
     }
+#else
+    if (!att_i_bool_ok_node(&s->accel_out) || s->accel_out || !att_node_calib_identity(&s->calib)) {
+        return ATT_ERR_SETTINGS; /* no input/output stages in this build (ATT_WITH_CALIB 0) */
+    }
+#endif
     if (!att_node_dt_matches(s)) {
         return ATT_ERR_SETTINGS; /* the filter would integrate with another period than the samples have */
     }
@@ -428,14 +432,22 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
     att_filter_t f;
     if (kind == n->s.kind) {
         fs = n->s.filter;
-    } else if (att_filter_settings_default(kind, 1.0f / n->s.sample_rate, &fs) != ATT_OK) {
-        return (uint8_t)ATT_CAN_ACK_BAD_ARG;
+    } else {
+        const att_status_t st = att_filter_settings_default(kind, 1.0f / n->s.sample_rate, &fs);
+        if (st == ATT_ERR_DISABLED) {
+            return (uint8_t)ATT_CAN_ACK_REFUSED; /* a kind this build does not have (att_config.h) */
+        }
+        if (st != ATT_OK) {
+            return (uint8_t)ATT_CAN_ACK_BAD_ARG;
+        }
     }
     if (att_filter_init(&f, kind, &fs) != ATT_OK) {
         return (uint8_t)ATT_CAN_ACK_REFUSED;
     }
+#if ATT_WITH_CALIB
     f.cal = n->f.cal; /* the calibration stays (it is not part of the filter's state) */
     f.cal.have_acc = false;
+#endif
     n->kind = kind;
     n->fs = fs;
     n->f = f;
@@ -460,22 +472,7 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
 static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
 {
     att_filter_settings_t fs = n->fs;
-    const float gain = (value > 0.0f) ? 0.0f : 1.0f;
-    if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_ARS) {
-        fs.ars.tau = value;
-        fs.ars.gain = gain;
-    } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_ACC && n->kind == ATT_FILTER_MARS) {
-        fs.mars.tau_acc = value;
-        fs.mars.alpha_acc = gain;
-    } else if (param == (uint8_t)ATT_CAN_GAIN_TAU_MAG && n->kind == ATT_FILTER_MARS) {
-        fs.mars.tau_mag = value;
-        fs.mars.alpha_mag = gain;
-    } else if (param == (uint8_t)ATT_CAN_GAIN_KF_R && n->kind == ATT_FILTER_KF) {
-        fs.kf.r_noise = value;
-    } else if (param == (uint8_t)ATT_CAN_GAIN_EKF_R && n->kind == ATT_FILTER_EKF) {
-        fs.ekf.r_phi = value;
-        fs.ekf.r_theta = value;
-    } else {
+    if (!att_filter_settings_gain(n->kind, &fs, (att_gain_t)param, value)) {
         return (uint8_t)ATT_CAN_ACK_BAD_ARG; /* no such gain for the running kind */
     }
     if (att_filter_retune(&n->f, &fs) != ATT_OK) {
@@ -485,6 +482,7 @@ static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
     return (uint8_t)ATT_CAN_ACK_OK;
 }
 
+#if ATT_WITH_CALIB
 /* Apply calibration cs to the running filter (state kept); REFUSED with *reason when invalid. */
 static uint8_t att_node_apply_cal(att_node_t *n, const att_calib_settings_t *cs, uint8_t *reason,
                                   uint8_t *persisted)
@@ -506,6 +504,7 @@ static uint8_t att_node_apply_cal(att_node_t *n, const att_calib_settings_t *cs,
     }
     return (uint8_t)ATT_CAN_ACK_OK;
 }
+#endif
 
 static void att_node_cal_command(att_node_t *n, const att_can_cmd_t *c)
 {
@@ -518,6 +517,14 @@ static void att_node_cal_command(att_node_t *n, const att_can_cmd_t *c)
     a.reason = 0u;
     a.index = c->arg;
     a.persisted = (uint8_t)ATT_CAN_PERSIST_NONE;
+#if !ATT_WITH_CALIB
+    (void)t;
+    a.result = (uint8_t)ATT_CAN_ACK_REFUSED; /* no input/output stages in this build (ATT_WITH_CALIB 0) */
+    a.session = 0u;
+    att_can_encode_cal_ack(&a, &answer);
+    att_node_queue(n, &answer, 1u);
+    return;
+#else
     switch (c->cmd) {
     case ATT_CAN_CMD_CAL_BEGIN:
         if (c->arg > 1u) {
@@ -575,6 +582,7 @@ static void att_node_cal_command(att_node_t *n, const att_can_cmd_t *c)
     a.session = n->shadow_open ? 1u : 0u;
     att_can_encode_cal_ack(&a, &answer);
     att_node_queue(n, &answer, 1u);
+#endif
 }
 
 static void att_node_command(att_node_t *n, const att_can_frame_t *f)

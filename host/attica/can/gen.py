@@ -1,7 +1,8 @@
-"""Regenerate the C pack/unpack code (firmware/src/can/generated/att_can_db.{c,h}) from firmware/can/attica.dbc.
+"""Regenerate the C pack/unpack code (firmware/src/can/generated/att_can_db.{c,h}) from attica.dbc.
 
-The DBC is the single source of truth. The generated files are committed; ``tests/test_can_codec.py``
-checks that regenerating gives byte-identical files (a golden-file test). Run::
+The DBC (firmware/can/attica.dbc) is the single source of truth. The generated files are committed;
+``tests/test_can_codec.py`` checks that regenerating gives byte-identical files (a golden-file test).
+Run::
 
     PYTHONPATH=host python3 -m attica.can.gen          # rewrite firmware/src/can/generated/att_can_db.{c,h}
     PYTHONPATH=host python3 -m attica.can.gen --check  # exit 1 when the committed files are stale

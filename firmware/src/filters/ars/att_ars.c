@@ -5,7 +5,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
-#include "../att_step.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_ars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -309,4 +310,55 @@ uint32_t att_ars_step_out(att_ars_t *restrict f, const att_sample_t *restrict in
         out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
     }
     return flags;
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_ars_preset(att_ars_settings_t *s, att_preset_t preset, float dt)
+{
+    att_ars_settings_default(s, dt);
+    if (preset == ATT_PRESET_SEED) {
+        s->gain = 0.1f;
+        s->tau = 0.0f;
+        s->gain_c = 100.0f;
+        s->tau_acc_lp = 0.0f;
+    }
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_ars_period(const att_ars_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_ars_output(const att_ars_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->gyro_bias = f->st.bias;
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+}
+
+att_heading_t att_ars_heading_kind(const att_ars_t *f)
+{
+    (void)f;
+    return ATT_HEADING_UPDATE;
+}
+
+att_status_t att_ars_yaw_to(att_ars_t *f, float target, float gain)
+{
+    float s;
+    float c;
+    return att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+}
+
+bool att_ars_set_gain(att_ars_settings_t *s, att_gain_t gain, float value)
+{
+    if (gain != ATT_GAIN_TAU_ACC) {
+        return false;
+    }
+    s->tau = value;
+    s->gain = att_i_gain_for_tau(value);
+    return true;
 }

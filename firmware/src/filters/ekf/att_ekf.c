@@ -9,7 +9,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
-#include "../att_step.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_ekf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -1008,4 +1009,79 @@ uint32_t att_ekf_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
         return ATT_FLAG_BAD_ARG;
     }
     return att_ekf_update_step(f, gyr, acc);
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_ekf_preset(att_ekf_settings_t *s, att_preset_t preset, float dt)
+{
+    att_ekf_settings_default(s, dt);
+    if (preset == ATT_PRESET_SEED) {
+        s->q_phi = 0.0001f;
+        s->q_theta = 0.0001f;
+        s->q_psi = 0.1f;
+        s->q_bias = 1e-12f; /* the notes' filter had no bias states: they stay at 0 */
+        s->p0_bias = 1e-12f;
+        s->r_phi = 6.0f;
+        s->r_theta = 6.0f;
+        s->r_accel = 0.0f;
+        s->gate = 0.0f;
+        s->accel_reject = 0.1f;
+        s->tau_acc_lp = 0.0f;
+        s->noise_rates = false;
+    }
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_ekf_period(const att_ekf_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_ekf_output(const att_ekf_t *f, att_output_t *out)
+{
+    const float *p = f->st.p; /* packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20 */
+    out->euler = f->st.euler; /* the state: q is derived on request */
+    out->gyro_bias = f->st.bias;
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_EULER | ATT_OUT_BIAS;
+    out->cov[0] = p[0]; /* phi, theta, psi; then the mean bias variance */
+    out->cov[1] = p[6];
+    out->cov[2] = p[11];
+    out->cov[3] = ((p[15] + p[18]) + p[20]) * 0x1.555556p-2f;
+}
+
+att_heading_t att_ekf_heading_kind(const att_ekf_t *f)
+{
+    (void)f;
+    return ATT_HEADING_UPDATE;
+}
+
+att_status_t att_ekf_yaw_to(att_ekf_t *f, float target, float gain)
+{
+    float d;
+    float s;
+    float c;
+    const float yaw = f->st.euler.z;
+    if (!f->st.initialised) {
+        return ATT_ERR_STATE;
+    }
+    if (!att_yaw_turn(yaw, target, gain, &d, &s, &c)) {
+        return ATT_ERR_STATE; /* a yaw outside the wrap domain */
+    }
+    f->st.lp1 = att_i_yaw_vec(f->st.lp1, c, s);
+    f->st.lp2 = att_i_yaw_vec(f->st.lp2, c, s);
+    f->st.euler.z = (gain == 1.0f) ? target : att_wrap_pi(yaw + d);
+    return ATT_OK;
+}
+
+bool att_ekf_set_gain(att_ekf_settings_t *s, att_gain_t gain, float value)
+{
+    if (gain != ATT_GAIN_EKF_R) {
+        return false;
+    }
+    s->r_phi = value;
+    s->r_theta = value;
+    return true;
 }

@@ -5,6 +5,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_gyro.h"
 #include "attica/att_math.h"
 
@@ -125,4 +127,64 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
     f->st.steps = f->st.steps + 1u;
     f->st.flags = flags;
     return flags;
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_gyro_preset(att_gyro_settings_t *s, att_preset_t preset, float dt)
+{
+    att_gyro_settings_default(s, dt); /* nothing was tuned: the seed preset is the defaults */
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_gyro_period(const att_gyro_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_gyro_output(const att_gyro_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->euler = f->st.euler;
+    out->gyro_bias = att_i_vec3(0.0f, 0.0f, 0.0f);
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS | ATT_OUT_EULER;
+}
+
+uint32_t att_gyro_step_out(att_gyro_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_gyro_step(f, in->gyr);
+    if (out != NULL) {
+        att_gyro_output(f, out);
+    }
+    return flags;
+}
+
+att_heading_t att_gyro_heading_kind(const att_gyro_t *f)
+{
+    (void)f;
+    return ATT_HEADING_UPDATE;
+}
+
+att_status_t att_gyro_yaw_to(att_gyro_t *f, float target, float gain)
+{
+    float d;
+    float s;
+    float c;
+    const float yaw = f->st.euler.z;
+    if (!att_yaw_turn(yaw, target, gain, &d, &s, &c)) {
+        return ATT_ERR_STATE; /* a yaw outside the wrap domain */
+    }
+    f->st.euler.z = (gain == 1.0f) ? target : att_wrap_pi(yaw + d);
+    f->st.q = att_quat_from_euler(f->st.euler.x, f->st.euler.y, f->st.euler.z);
+    return ATT_OK;
+}
+
+bool att_gyro_set_gain(att_gyro_settings_t *s, att_gain_t gain, float value)
+{
+    (void)s;
+    (void)gain;
+    (void)value;
+    return false;
 }

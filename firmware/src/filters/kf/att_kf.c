@@ -5,7 +5,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
-#include "../att_step.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_kf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -287,4 +288,62 @@ uint32_t att_kf_step_out(att_kf_t *restrict f, const att_sample_t *restrict in, 
 uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
 {
     return att_kf_update(f, &gyr, &acc);
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_kf_preset(att_kf_settings_t *s, att_preset_t preset, float dt)
+{
+    att_kf_settings_default(s, dt);
+    if (preset == ATT_PRESET_SEED) {
+        s->q_noise = 1e-4f;
+        s->r_noise = 10.0f;
+        s->r_accel = 0.0f;
+        s->gate = 0.0f;
+        s->accel_reject = 0.1f;
+        s->noise_rates = false;
+        s->tau_acc_lp = 0.0f;
+        s->bias_mode = ATT_BIAS_OFF;
+    }
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_kf_period(const att_kf_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_kf_output(const att_kf_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->gyro_bias = f->st.bias;
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    out->cov[0] = f->st.p; /* P = p I */
+    out->cov[1] = f->st.p;
+    out->cov[2] = f->st.p;
+    out->cov[3] = f->st.p;
+}
+
+att_heading_t att_kf_heading_kind(const att_kf_t *f)
+{
+    (void)f;
+    return ATT_HEADING_UPDATE;
+}
+
+att_status_t att_kf_yaw_to(att_kf_t *f, float target, float gain)
+{
+    float s;
+    float c;
+    return att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+}
+
+bool att_kf_set_gain(att_kf_settings_t *s, att_gain_t gain, float value)
+{
+    if (gain != ATT_GAIN_KF_R) {
+        return false;
+    }
+    s->r_noise = value;
+    return true;
 }

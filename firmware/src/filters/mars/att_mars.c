@@ -6,7 +6,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
-#include "../att_step.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_mars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -595,4 +596,72 @@ uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict 
         out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
     }
     return flags;
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
+{
+    att_mars_settings_default(s, dt);
+    if (preset == ATT_PRESET_SEED) {
+        s->alpha_acc = 0.02f;
+        s->alpha_mag = 0.01f;
+        s->tau_acc = 0.0f;
+        s->tau_mag = 0.0f;
+        s->accel_reject = 0.1f;
+        s->mag_norm_reject = 0.2f;
+        s->mag_dip_reject = 0.17f;
+        s->integration = ATT_INTEGRATE_FIRST_ORDER;
+        s->tau_acc_lp = 0.0f;
+        s->bias_mode = ATT_BIAS_FROZEN;
+    }
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_mars_period(const att_mars_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_mars_output(const att_mars_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->gyro_bias = f->st.bias;
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+}
+
+att_heading_t att_mars_heading_kind(const att_mars_t *f)
+{
+    (void)f;
+    return ATT_HEADING_SET; /* its heading reference is the magnetometer */
+}
+
+att_status_t att_mars_yaw_to(att_mars_t *f, float target, float gain)
+{
+    float s;
+    float c;
+    const att_status_t st = att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+    if (st == ATT_OK) {
+        f->st.m0 = att_i_yaw_vec(f->st.m0, c, s);
+        f->st.m0_ref = att_i_yaw_vec(f->st.m0_ref, c, s);
+        f->st.m0_perp = att_i_yaw_vec(f->st.m0_perp, c, s);
+    }
+    return st;
+}
+
+bool att_mars_set_gain(att_mars_settings_t *s, att_gain_t gain, float value)
+{
+    if (gain == ATT_GAIN_TAU_ACC) {
+        s->tau_acc = value;
+        s->alpha_acc = att_i_gain_for_tau(value);
+        return true;
+    }
+    if (gain == ATT_GAIN_TAU_MAG) {
+        s->tau_mag = value;
+        s->alpha_mag = att_i_gain_for_tau(value);
+        return true;
+    }
+    return false;
 }

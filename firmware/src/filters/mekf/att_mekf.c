@@ -9,7 +9,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
-#include "../att_step.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_math.h"
 #include "attica/att_mekf.h"
 #include "attica/att_sensor.h"
@@ -1182,4 +1183,60 @@ uint32_t att_mekf_step_out(att_mekf_t *restrict f, const att_sample_t *restrict 
 uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
 {
     return att_mekf_update(f, &gyr, &acc, &mag);
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_mekf_preset(att_mekf_settings_t *s, att_preset_t preset, float dt)
+{
+    att_mekf_settings_default(s, dt); /* the seed preset is the defaults: mekf has no earlier settings */
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_mekf_period(const att_mekf_settings_t *s)
+{
+    return s->dt;
+}
+
+void att_mekf_output(const att_mekf_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->gyro_bias = f->st.bias;
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    out->cov[0] = f->st.p[0]; /* packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20 */
+    out->cov[1] = f->st.p[6];
+    out->cov[2] = f->st.p[11];
+    out->cov[3] = (f->st.p[15] + f->st.p[18] + f->st.p[20]) / 3.0f;
+}
+
+att_heading_t att_mekf_heading_kind(const att_mekf_t *f)
+{
+    return f->c.use_mag ? ATT_HEADING_SET : ATT_HEADING_UPDATE;
+}
+
+att_status_t att_mekf_yaw_to(att_mekf_t *f, float target, float gain)
+{
+    float s;
+    float c;
+    att_vec3_t h;
+    const att_status_t st = att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+    if (st == ATT_OK) {
+        /* the heading measurement's tilt entries (-c r_x, -c r_y) are linear in m0_ref: they turn with it */
+        h = att_i_yaw_vec(att_i_vec3(f->st.mag_hx, f->st.mag_hy, 0.0f), c, s);
+        f->st.m0 = att_i_yaw_vec(f->st.m0, c, s);
+        f->st.m0_ref = att_i_yaw_vec(f->st.m0_ref, c, s);
+        f->st.mag_hx = h.x;
+        f->st.mag_hy = h.y;
+    }
+    return st;
+}
+
+bool att_mekf_set_gain(att_mekf_settings_t *s, att_gain_t gain, float value)
+{
+    (void)s;
+    (void)gain;
+    (void)value;
+    return false; /* no CAN gain command for mekf yet (the DBC's SET_GAIN parameters: docs/can.md) */
 }

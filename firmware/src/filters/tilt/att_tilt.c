@@ -5,6 +5,8 @@
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
+#include "../att_kinds.h"
+#include "../att_yaw.h"
 #include "attica/att_math.h"
 #include "attica/att_tilt.h"
 
@@ -96,4 +98,60 @@ uint32_t att_tilt_step(att_tilt_t *f, att_vec3_t acc)
     f->st.steps = f->st.steps + 1u;
     f->st.flags = flags;
     return flags;
+}
+
+/* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
+
+bool att_tilt_preset(att_tilt_settings_t *s, att_preset_t preset, float dt)
+{
+    (void)dt; /* no sample period: each sample stands alone */
+    att_tilt_settings_default(s);
+    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
+}
+
+float att_tilt_period(const att_tilt_settings_t *s)
+{
+    (void)s;
+    return 0.0f;
+}
+
+void att_tilt_output(const att_tilt_t *f, att_output_t *out)
+{
+    out->q = f->st.q;
+    out->euler = f->st.euler;
+    out->gyro_bias = att_i_vec3(0.0f, 0.0f, 0.0f);
+    out->flags = f->st.flags;
+    out->steps = f->st.steps;
+    out->valid = ATT_OUT_Q | ATT_OUT_BIAS | ATT_OUT_EULER;
+}
+
+uint32_t att_tilt_step_out(att_tilt_t *restrict f, const att_sample_t *restrict in, att_output_t *restrict out)
+{
+    const uint32_t flags = att_tilt_step(f, in->acc);
+    if (out != NULL) {
+        att_tilt_output(f, out);
+    }
+    return flags;
+}
+
+att_heading_t att_tilt_heading_kind(const att_tilt_t *f)
+{
+    (void)f;
+    return ATT_HEADING_NONE; /* no heading: accel alone does not observe it */
+}
+
+att_status_t att_tilt_yaw_to(att_tilt_t *f, float target, float gain)
+{
+    (void)f;
+    (void)target;
+    (void)gain;
+    return ATT_ERR_KIND;
+}
+
+bool att_tilt_set_gain(att_tilt_settings_t *s, att_gain_t gain, float value)
+{
+    (void)s;
+    (void)gain;
+    (void)value;
+    return false;
 }

@@ -1,0 +1,157 @@
+"""Build configurations (att_config.h): single-kind and no-stage builds give every output bit the
+default build gives, refuse the kinds they leave out with ATT_ERR_DISABLED, and are as small as
+their kinds.
+
+Each configuration builds the golden runner (tests/c/att_golden.c) natively with its -D flags and
+hashes the runner's records over the digest streams: the hashes must equal the committed lines of
+tests/digests.txt that the default build (the cffi binding) wrote. The per-configuration sizes on
+the Cortex-M4F are in ``make footprint`` (tools/attica_dev/footprint.py CONFIGS).
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from attica.settings import FilterKind, implemented_kinds
+from attica_dev import digests, footprint, golden
+
+from helpers import ROOT, need
+
+CONFIGS: dict[str, list[str]] = {
+    "ars-only": footprint.only("ARS"),
+    "mekf-only": footprint.only("MEKF"),
+    "ars-mars-only": footprint.only("ARS", "MARS"),
+    "no-stages": ["-DATT_WITH_CALIB=0"],
+    "ars-only-no-stages": footprint.only("ARS", calib=False),
+}
+"""Configurations built here (CI builds each of them; the default is every other test)."""
+
+ATT_ERR_DISABLED = -5
+ATT_ERR_KIND = -3
+ACK_OK, ACK_BAD_ARG, ACK_REFUSED = 0, 2, 3
+
+
+def enabled(defines: list[str]) -> set[str]:
+    """Lower-case names of the kinds a configuration compiles in."""
+    off = {m.group(1).lower() for d in defines if (m := re.fullmatch(r"-DATT_WITH_([A-Z]+)=0", d))}
+    return {k.label for k in implemented_kinds()} - off
+
+
+@pytest.fixture(scope="module", params=sorted(CONFIGS))
+def config(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    need(shutil.which("gcc") is not None, "gcc is not installed")
+    name: str = request.param
+    out = tmp_path_factory.mktemp(name)
+    return name, golden.build_runner("gcc", "-O2", CONFIGS[name], out_dir=out)
+
+
+def test_single_kind_builds_give_the_committed_digests(config: tuple[str, Path], tmp_path: Path) -> None:
+    name, runner = config
+    committed = digests.read()
+    kinds = enabled(CONFIGS[name])
+    checked = 0
+    for kind in implemented_kinds():
+        if kind.label not in kinds:
+            continue
+        for preset in ("default", "seed"):
+            settings = digests._settings(kind, preset)
+            for stream in ("sim", "adversarial"):
+                g, a, m = digests.sim_stream() if stream == "sim" else digests.adversarial_stream()
+                recs = golden.run_filter(runner, kind, settings, g, a, m, workdir=tmp_path)
+                key = f"{kind.label}.{preset}.{stream}.run"
+                assert digests.sha(recs.reshape(-1)) == committed[key], f"{name}: {key} differs"
+                checked += 1
+    assert checked == 4 * len(kinds)
+
+
+def test_a_left_out_kind_is_refused(config: tuple[str, Path]) -> None:
+    name, runner = config
+    kinds = enabled(CONFIGS[name])
+    for kind in implemented_kinds():
+        if kind.label in kinds:
+            continue
+        with pytest.raises(golden.GoldenError, match=f"unknown command '{kind.label}'"):
+            golden.run_filter(runner, kind, None, *digests.sim_stream())
+
+
+def _config_program(defines: list[str], out: Path) -> dict[str, object]:
+    exe = golden.build_program(
+        [ROOT / "tests" / "c" / "att_config_test.c"], "gcc", "-O2", defines, "att_config_test", out
+    )
+    text = subprocess.run([str(exe)], capture_output=True, text=True, check=True, timeout=60).stdout
+    kinds = {
+        int(m.group(1)): (m.group(2), int(m.group(3)), int(m.group(4)))
+        for m in re.finditer(r"^kind (\d+) (\S+) default=(-?\d+) init=(-?\d+)$", text, re.M)
+    }
+    selects = {
+        int(m.group(1)): int(m.group(2)) for m in re.finditer(r"^select (\d+) result=(-?\d+)$", text, re.M)
+    }
+    size = re.search(r"^sizeof att_filter_t=(\d+) largest_kind=(\d+)$", text, re.M)
+    cal = re.search(r"^calibrate=(-?\d+)$", text, re.M)
+    assert size and cal, text
+    return {
+        "kinds": kinds,
+        "selects": selects,
+        "size": (int(size.group(1)), int(size.group(2))),
+        "calibrate": int(cal.group(1)),
+    }
+
+
+@pytest.mark.parametrize("name", ["default", *sorted(CONFIGS)])
+def test_configuration_interface(name: str, tmp_path: Path) -> None:
+    need(shutil.which("gcc") is not None, "gcc is not installed")
+    defines = CONFIGS.get(name, [])
+    res = _config_program(defines, tmp_path)
+    kinds = enabled(defines)
+    got = res["kinds"]
+    assert isinstance(got, dict)
+    for kind in FilterKind:
+        label, default, init = got[int(kind)]
+        assert label == kind.label  # a kind left out is still named
+        if kind.label in kinds:
+            assert (default, init) == (0, 0), f"{name}: {kind.label}"
+        else:
+            assert (default, init) == (ATT_ERR_DISABLED, ATT_ERR_DISABLED), f"{name}: {kind.label}"
+    assert got[0][1:] == (ATT_ERR_KIND, ATT_ERR_KIND) and got[8] == ("?", ATT_ERR_KIND, ATT_ERR_KIND)
+    selects = res["selects"]
+    assert isinstance(selects, dict)
+    for kind in FilterKind:
+        assert selects[int(kind)] == (ACK_OK if kind.label in kinds else ACK_REFUSED), f"{name}: {kind.label}"
+    assert selects[8] == ACK_BAD_ARG
+    size, largest = res["size"]  # type: ignore[misc]
+    stages = "-DATT_WITH_CALIB=0" not in defines
+    assert res["calibrate"] == (0 if stages else ATT_ERR_DISABLED)
+    if not stages:
+        assert size <= largest + 16, f"{name}: att_filter_t {size} B for a largest kind of {largest} B"
+
+
+def test_config_header_is_included_first(tmp_path: Path) -> None:
+    """-DATT_CONFIG_HEADER names a header of the user's (libcanard's CANARD_CONFIG_HEADER pattern)."""
+    need(shutil.which("gcc") is not None, "gcc is not installed")
+    (tmp_path / "my_attica_config.h").write_text("#define ATT_WITH_EKF 0\n#define ATT_WITH_CALIB 0\n")
+    res = _config_program(['-DATT_CONFIG_HEADER="my_attica_config.h"', f"-I{tmp_path}"], tmp_path)
+    kinds = res["kinds"]
+    assert isinstance(kinds, dict)
+    assert kinds[int(FilterKind.EKF)][1:] == (ATT_ERR_DISABLED, ATT_ERR_DISABLED)
+    assert kinds[int(FilterKind.ARS)][1:] == (0, 0) and res["calibrate"] == ATT_ERR_DISABLED
+
+
+@pytest.mark.parametrize(
+    ("defines", "message"),
+    [
+        (["-DATT_WITH_ARS=2"], "ATT_WITH_ARS must be 0 or 1"),
+        (footprint.only(), "at least one filter kind"),
+        (["-DATT_WITH_CALIB=-1"], "ATT_WITH_CALIB must be 0 or 1"),
+    ],
+)
+def test_bad_configuration_stops_the_build(defines: list[str], message: str, tmp_path: Path) -> None:
+    need(shutil.which("gcc") is not None, "gcc is not installed")
+    with pytest.raises(golden.GoldenError, match=message):
+        golden.build_program(
+            [ROOT / "tests" / "c" / "att_config_test.c"], "gcc", "-O0", defines, "x", tmp_path
+        )
