@@ -163,7 +163,7 @@ static void att_calib_remap_axes(uint32_t r, uint32_t axis[3], uint32_t sign[3])
     const char *name = att_calib_remaps[r - 1u];
     uint32_t k;
     for (k = 0u; k < 3u; k++) {
-        sign[k] = (name[2u * k] == '-') ? 0x80000000u : 0u;
+        sign[k] = (name[(size_t)2u * k] == '-') ? 0x80000000u : 0u;
         axis[k] = (uint32_t)(name[2u * k + 1u] - 'x');
     }
 }
@@ -232,7 +232,7 @@ static void att_calib_fold(att_calib_stage_t *st, const float m[9], att_vec3_t s
             } else if (mount_identity) {
                 st->a[3u * i + j] = x[3u * i + j];
             } else {
-                st->a[3u * i + j] = (rm[3u * i] * x[j] + rm[3u * i + 1u] * x[3u + j]) + rm[3u * i + 2u] * x[6u + j];
+                st->a[3u * i + j] = (rm[(size_t)3u * i] * x[j] + rm[3u * i + 1u] * x[3u + j]) + rm[3u * i + 2u] * x[6u + j];
             }
         }
     }

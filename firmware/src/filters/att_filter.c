@@ -15,31 +15,17 @@
 
 /* --- the kind table -------------------------------------------------------------------------- */
 
-#define ATT_FILTER_CASE_TRUE(NAME, name, num)                                                              \
-    case ATT_FILTER_##NAME:                                                                                  \
-        return true;
+#define ATT_FILTER_OR_IS(NAME, name, num) || (kind == ATT_FILTER_##NAME)
 
 bool att_filter_kind_enabled(att_filter_kind_t kind)
 {
-    switch (kind) {
-        ATT_KINDS(ATT_FILTER_CASE_TRUE)
-    default:
-        return false;
-    }
+    return false ATT_KINDS(ATT_FILTER_OR_IS);
 }
 
 /* Why kind cannot be used: ATT_ERR_DISABLED for a kind compiled out, ATT_ERR_KIND for an unknown one. */
-#define ATT_FILTER_CASE_KNOWN(NAME, name, num)                                                             \
-    case ATT_FILTER_##NAME:                                                                                  \
-        return ATT_ERR_DISABLED;
-
 static att_status_t att_filter_absent(att_filter_kind_t kind)
 {
-    switch (kind) {
-        ATT_KINDS_ALL(ATT_FILTER_CASE_KNOWN)
-    default:
-        return ATT_ERR_KIND;
-    }
+    return (false ATT_KINDS_ALL(ATT_FILTER_OR_IS)) ? ATT_ERR_DISABLED : ATT_ERR_KIND;
 }
 
 #define ATT_FILTER_CASE_PERIOD(NAME, name, num)                                                            \
@@ -376,6 +362,7 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
 static bool att_filter_q_enu(const att_filter_t *f, att_quat_t *q)
 {
     att_output_t o;
+    att_filter_clear(&o); /* the hook writes what the kind has; the rest is defined too */
     if (!att_filter_fill(f, &o)) {
         return false;
     }

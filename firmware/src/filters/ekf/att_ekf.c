@@ -280,6 +280,8 @@ static bool att_ekf_pd_ok(const float *p)
         float dj = P_(p, j, j);
         ATT_EKF_UNROLL
         for (k = 0; k < j; k++) {
+            /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
+            /* cppcheck-suppress uninitvar */
             dj = dj - (l[j][k] * l[j][k]) * d[k];
         }
         if (!(dj > ((j == 0) ? 0.0f : ATT_EKF_PIVOT_MIN * P_(p, j, j)))) {

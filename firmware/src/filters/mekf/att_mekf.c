@@ -462,7 +462,7 @@ static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_
  */
 static ATT_ALWAYS_INLINE float att_mekf_rc(const float *p, const float *r, uint32_t i, uint32_t j)
 {
-    return r[3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
+    return r[(size_t)3u * i] * p[ATT_MEKF_S(3u, 3u + j)] + r[3u * i + 1u] * p[ATT_MEKF_S(4u, 3u + j)] +
            r[3u * i + 2u] * p[ATT_MEKF_S(5u, 3u + j)];
 }
 
@@ -483,8 +483,8 @@ static ATT_ALWAYS_INLINE void att_mekf_predict(float *p, const float *r, float h
         for (j = i; j < 3u; j++) {
             const float *hi = &p[ATT_MEKF_IX(i, 3u)];
             const float *hj = &p[ATT_MEKF_IX(j, 3u)];
-            const float nij = r[3u * i] * hj[0] + r[3u * i + 1u] * hj[1] + r[3u * i + 2u] * hj[2];
-            const float nji = r[3u * j] * hi[0] + r[3u * j + 1u] * hi[1] + r[3u * j + 2u] * hi[2];
+            const float nij = r[(size_t)3u * i] * hj[0] + r[3u * i + 1u] * hj[1] + r[3u * i + 2u] * hj[2];
+            const float nji = r[(size_t)3u * j] * hi[0] + r[3u * j + 1u] * hi[1] + r[3u * j + 2u] * hi[2];
             float a = p[ATT_MEKF_IX(i, j)] - dt * (nij + nji);
             if (i == j) {
                 a = a + qa;
