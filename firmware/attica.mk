@@ -7,7 +7,8 @@
 # Variables it sets:
 #   ATTICA_DIR       this directory
 #   ATTICA_SRCS      the library sources (every src/**/*.c: math, core, filters, calib, CAN codec, node)
-#   ATTICA_INCLUDES  -I flag for the public headers
+#   ATTICA_INCLUDES  -I flag for the public headers, and $(ATTICA_CONFIG): put it on the compile line
+#                    of every file of yours that includes an attica header
 #   ATTICA_CFLAGS    the numerics flags of cflags.txt line 1 (-std=c99 -ffp-contract=off -fno-fast-math
 #                    -fno-math-errno ...) and -fno-lto: attica's sources must be compiled with exactly
 #                    these, after any flags of yours, for results bit-identical to the reference;
@@ -20,12 +21,17 @@
 #   CC, AR           your (cross) compiler and archiver
 #   ATTICA_ARCH      CPU flags, e.g. -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
 #   ATTICA_OPT       optimisation (default -O2; -Os is fine: every level gives the same bits)
+#   ATTICA_CONFIG    the build configuration (att_config.h), e.g. -DATT_WITH_EKF=0 -DATT_WITH_CALIB=0
+#                    or -DATT_CONFIG_HEADER='"my_attica_config.h"' -Ipath/to/it (default: none, every
+#                    kind and the stages); a change needs a clean ATTICA_BUILD (the objects do not
+#                    depend on it)
 _attica_default_goal := $(.DEFAULT_GOAL)
 ATTICA_DIR := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 _attica_rwildcard = $(foreach d,$(wildcard $(1:=/*)),$(call _attica_rwildcard,$d,$2) $(filter $(subst *,%,$2),$d))
 ATTICA_SRCS := $(sort $(call _attica_rwildcard,$(ATTICA_DIR)/src,*.c))
 ATTICA_PRIVATE_HDRS := $(sort $(call _attica_rwildcard,$(ATTICA_DIR)/src,*.h))
-ATTICA_INCLUDES := -I$(ATTICA_DIR)/include
+ATTICA_CONFIG ?=
+ATTICA_INCLUDES := -I$(ATTICA_DIR)/include $(ATTICA_CONFIG)
 ATTICA_CFLAGS := $(shell sed -n 1p $(ATTICA_DIR)/cflags.txt) -fno-lto -ffunction-sections -fdata-sections
 ATTICA_STRICT_WARNINGS ?= 1
 ATTICA_WARNINGS := $(if $(filter 1,$(ATTICA_STRICT_WARNINGS)),$(shell sed -n 2p $(ATTICA_DIR)/cflags.txt))

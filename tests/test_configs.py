@@ -10,6 +10,7 @@ the Cortex-M4F are in ``make footprint`` (tools/attica_dev/footprint.py CONFIGS)
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -155,3 +156,54 @@ def test_bad_configuration_stops_the_build(defines: list[str], message: str, tmp
         golden.build_program(
             [ROOT / "tests" / "c" / "att_config_test.c"], "gcc", "-O0", defines, "x", tmp_path
         )
+
+
+def _example_output(exe: Path) -> str:
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=True)
+    assert proc.stdout.startswith("steps 1000 "), proc.stdout
+    return proc.stdout
+
+
+def test_make_fragment_and_cmake_take_a_configuration(tmp_path: Path) -> None:
+    """examples/c (ARS through att_filter.h) built with ARS only and no stages by firmware/attica.mk
+    (ATTICA_CONFIG) and by CMake (ATTICA_CONFIG_DEFINITIONS, ATTICA_CONFIG_HEADER): the same bits as
+    the default build."""
+    for tool in ("make", "cmake", "cc"):
+        need(shutil.which(tool) is not None, f"{tool} is not installed")
+    example = ROOT / "examples" / "c"
+    flags = footprint.only("ARS", calib=False)
+    outputs = {}
+    for name, config in (("default", []), ("ars", flags)):
+        build = tmp_path / f"mk-{name}"
+        proc = subprocess.run(
+            ["make", "-f", str(example / "Makefile"), f"BUILD={build}", f"ATTICA_CONFIG={' '.join(config)}"],
+            cwd=ROOT,
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        compiles = [line for line in proc.stdout.splitlines() if " -c " in line]
+        assert compiles and all(("-DATT_WITH_MARS=0" in line) == bool(config) for line in compiles)
+        outputs[f"make {name}"] = _example_output(build / "example")
+    header = tmp_path / "cfg" / "my_attica_config.h"
+    header.parent.mkdir()
+    header.write_text("".join(f"#define {f[2:].replace('=', ' ')}\n" for f in flags))
+    defs = ";".join(f[2:] for f in flags)
+    for name, option in (
+        ("definitions", f"-DATTICA_CONFIG_DEFINITIONS={defs}"),
+        ("header", f"-DATTICA_CONFIG_HEADER={header}"),
+    ):
+        build = tmp_path / f"cmake-{name}"
+        subprocess.run(
+            ["cmake", "-S", str(example), "-B", str(build), option, "-DCMAKE_EXPORT_COMPILE_COMMANDS=ON"],
+            check=True,
+            capture_output=True,
+        )
+        subprocess.run(["cmake", "--build", str(build)], check=True, capture_output=True)
+        entries = json.loads((build / "compile_commands.json").read_text())
+        want = "ATT_WITH_MARS=0" if name == "definitions" else "ATT_CONFIG_HEADER="
+        assert len(entries) > 10 and all(want in e["command"] for e in entries), (
+            "configuration not everywhere"
+        )
+        outputs[f"cmake {name}"] = _example_output(build / "example")
+    assert len(set(outputs.values())) == 1, outputs
