@@ -123,9 +123,8 @@ void att_ars_reset(att_ars_t *f)
 }
 
 /*
- * *q = att_quat_from_euler(phi, theta, psi) (the same operations), the result through a pointer: GCC 12
- * for the Cortex-M gives a quaternion result in FPU registers a home on the stack of every function
- * along the call path. Shared by the start and the Euler increments.
+ * *q = att_quat_from_euler(phi, theta, psi) (the same operations), the result through a pointer
+ * (codegen note C1, docs/architecture.md). Shared by the start and the Euler increments.
  */
 static ATT_NOINLINE void att_ars_quat_from_euler(float phi, float theta, float psi, att_quat_t *q)
 {
@@ -147,9 +146,9 @@ static ATT_ALWAYS_INLINE att_quat_t att_ars_increment(const att_ars_coeffs_t *c,
 
 /*
  * The rotation *qc of the general correction (K_a < 1) for the earth-frame specific force v (or its
- * low-passed value; as scalars, and the result through a pointer: GCC 12 for the Cortex-M gives every
- * struct argument or result in FPU registers a home on the stack): the fraction K_a of the angle
- * between v and z about their common horizontal axis, K_a = k / (1 + c (|a|/g - 1)^2) with norm = |a|.
+ * low-passed value; as scalars, the result through a pointer: codegen note C1): the fraction K_a of the
+ * angle between v and z about their common horizontal axis, K_a = k / (1 + c (|a|/g - 1)^2) with
+ * norm = |a|.
  */
 static ATT_NOINLINE void att_ars_tilt_rotation(const att_ars_coeffs_t *c, float vx, float vy, float vz, float norm,
                                                att_quat_t *qc)

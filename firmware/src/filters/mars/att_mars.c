@@ -244,9 +244,8 @@ void att_mars_reset(att_mars_t *f)
 }
 
 /*
- * The out-of-line helpers of the step below take and return vectors and quaternions through pointers:
- * GCC 12 for the Cortex-M gives every struct argument and result passed by value in FPU registers a
- * home on the stack (tens of bytes per function along the call path); the values are the same.
+ * The out-of-line helpers of the step below take and return vectors and quaternions through pointers
+ * (codegen note C1, docs/architecture.md); the values are the same.
  */
 
 /* First-order quaternion integration q + (0.5 q (x) (0, w)) dt (not normalised). */
@@ -264,7 +263,7 @@ static ATT_NOINLINE void att_mars_rotvec_large(float x, float y, float z, att_qu
 
 /*
  * att_i_quat_from_rotvec_fast (att_core.h: the same series, the same operations) with the large angles
- * through att_mars_rotvec_large: no struct argument of the hot path needs a stack home for them.
+ * through att_mars_rotvec_large (codegen note C1).
  */
 static ATT_ALWAYS_INLINE att_quat_t att_mars_rotvec(att_vec3_t rv)
 {
