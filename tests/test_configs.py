@@ -207,3 +207,17 @@ def test_make_fragment_and_cmake_take_a_configuration(tmp_path: Path) -> None:
         )
         outputs[f"cmake {name}"] = _example_output(build / "example")
     assert len(set(outputs.values())) == 1, outputs
+
+
+def test_the_config_header_of_the_docs(tmp_path: Path) -> None:
+    """The configuration header shown in docs/integration.md compiles and does what it says (ARS only)."""
+    need(shutil.which("gcc") is not None, "gcc is not installed")
+    text = (ROOT / "docs" / "integration.md").read_text()
+    block = re.search(r"```c\n(/\* my_attica_config\.h.*?)```", text, re.S)
+    assert block, "docs/integration.md lost its configuration header example"
+    (tmp_path / "my_attica_config.h").write_text(block.group(1))
+    res = _config_program(['-DATT_CONFIG_HEADER="my_attica_config.h"', f"-I{tmp_path}"], tmp_path)
+    kinds = res["kinds"]
+    assert isinstance(kinds, dict)
+    on = {kinds[int(k)][0] for k in FilterKind if kinds[int(k)][1:] == (0, 0)}
+    assert on == {"ars"} and res["calibrate"] == ATT_ERR_DISABLED
