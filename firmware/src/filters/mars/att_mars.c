@@ -438,9 +438,81 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
  */
 #define ATT_MARS_START_PENDING 0x80000000u
 
+/* The prediction: q turned by the bias-corrected rate d over dt; NUMERIC when the first-order step overflowed. */
+static ATT_ALWAYS_INLINE uint32_t att_mars_predict(const att_mars_coeffs_t *c, att_vec3_t d, att_quat_t *q)
+{
+    att_quat_t qn;
+    if (c->integration == (uint8_t)ATT_INTEGRATE_ROTVEC) {
+        *q = att_i_quat_mul(*q, att_mars_rotvec(att_i_vec3_scale(d, c->dt)));
+        return 0u;
+    }
+    if (att_i_quat_normalize_bounded(att_mars_integrate(*q, d, c->dt), &qn)) {
+        *q = qn;
+        return 0u;
+    }
+    return ATT_FLAG_NUMERIC; /* first-order step overflowed: integration skipped */
+}
+
+/* The accel correction of q toward the earth-frame specific force (low-passed when on), the stages with it. */
+static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c, att_vec3_t acc, att_quat_t *q,
+                                                     att_vec3_t *lp1, att_vec3_t *lp2)
+{
+    const att_vec3_t v = att_i_quat_rotate(*q, acc);
+    att_vec3_t u = v;
+    if (c->lp_on) {
+        att_i_lowpass2(v, c->k_lp, lp1, lp2);
+        u = *lp2;
+    }
+    if (c->full) {
+        float qw;
+        float qx;
+        float qy;
+        float n;
+        if (att_i_align_up(u, &qw, &qx, &qy, &n)) {
+            *q = att_i_quat_mul_hz(qw, qx, qy, *q);
+            if (c->lp_on) {
+                *lp1 = att_i_quat_rotate_hz(qw, qx, qy, *lp1);
+                *lp2 = att_i_vec3(0.0f, 0.0f, n);
+            }
+        }
+    } else {
+        /* general correction: q rotated toward z by the fraction k_acc of the angle, the stages with it */
+        att_vec3_t unit;
+        att_quat_t qc;
+        if (att_i_vec3_normalize(u, &unit)) {
+            att_mars_rotation_toward(unit.x, unit.y, unit.z, &att_mars_up, &att_mars_xaxis, c->k_acc, &qc);
+            *q = att_i_quat_mul(qc, *q);
+            if (c->lp_on) {
+                /* keep the low-pass states in the corrected earth frame */
+                *lp1 = att_i_quat_rotate(qc, *lp1);
+                *lp2 = att_i_quat_rotate(qc, *lp2);
+            }
+        }
+    }
+}
+
+/* The mag correction (or, for the first usable sample, the heading alignment) of q; me = R(q) m. */
+static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_step(const att_mars_coeffs_t *c, att_mars_state_t *st,
+                                                      att_quat_t q, att_vec3_t me, float mnorm,
+                                                      const att_vec3_t *mag_in, uint32_t *flags)
+{
+    att_quat_t qa;
+    if (st->m0_valid) {
+        return att_mars_mag_correct(c, st, q, me, mnorm, flags);
+    }
+    st->flags = *flags;
+    if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
+        q = qa;
+    }
+    *flags = st->flags;
+    return q;
+}
+
 /*
- * One step (att_mars_step, f not NULL; att_mars_step_out adds the output fields). The general accel correction (k_acc < 1) shares the
- * low-pass update with the full alignment and takes only the rotation toward z out of line.
+ * One step (att_mars_step, f not NULL; att_mars_step_out adds the output fields): the sample checks, the
+ * bias, the prediction, the accel correction, the mag correction, the commit. The general accel correction
+ * (k_acc < 1) shares the low-pass update with the full alignment and takes only the rotation toward z
+ * out of line.
  */
 static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gyr_in, const att_vec3_t *acc_in,
                                              const att_vec3_t *mag_in)
@@ -448,40 +520,36 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     const att_vec3_t gyr = att_i_vec3(gyr_in->x, gyr_in->y, gyr_in->z);
     const att_vec3_t acc = att_i_vec3(acc_in->x, acc_in->y, acc_in->z);
     const att_vec3_t mag = att_i_vec3(mag_in->x, mag_in->y, mag_in->z);
-    const att_mars_coeffs_t *c;
-    att_mars_state_t *st;
-    uint32_t flags;
-    uint32_t accel_flags;
-    uint32_t mag_flags;
+    const att_mars_coeffs_t *c = &f->c;
+    att_mars_state_t *st = &f->st;
     float n2;
     float mnorm;
     att_vec3_t d;
-    bool gyro_ok;
-    bool accel_ok;
-    bool mag_ok;
     att_quat_t q;
     att_quat_t qn;
     att_vec3_t lp1;
     att_vec3_t lp2;
     att_vec3_t me;
-    c = &f->c;
-    st = &f->st;
+    uint32_t flags;
+    uint32_t accel_flags;
+    uint32_t mag_flags;
+    bool gyro_ok;
+    bool accel_ok;
+    bool mag_ok;
+    /* the sample checks */
     flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
     gyro_ok = (flags == 0u);
     accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
-    if (accel_ok && c->reject_on &&
-        att_i_absf(att_i_sqrtf(n2) / c->gravity - 1.0f) > c->accel_reject) {
+    if (accel_ok && c->reject_on && att_i_absf(att_i_sqrtf(n2) / c->gravity - 1.0f) > c->accel_reject) {
         flags |= ATT_FLAG_ACCEL_REJECTED;
     }
     mag_flags = att_i_sensor_check_mag(mag, c->mag_range, &mnorm);
     mag_ok = (mag_flags == 0u);
     flags |= mag_flags;
-
     /* rest detection and gyro bias */
     flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
-
     if (!st->initialised) {
         st->flags = flags;
         if (accel_ok) {
@@ -491,7 +559,6 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         st->flags = flags | ATT_FLAG_NOT_READY;
         return st->flags;
     }
-
     q = st->q;
     lp1 = st->lp1;
     lp2 = st->lp2;
@@ -499,62 +566,14 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         if ((flags & ATT_FLAG_BIAS_UPDATED) != 0u) {
             d = att_i_vec3_sub(gyr, st->bias);
         }
-        if (c->integration == (uint8_t)ATT_INTEGRATE_ROTVEC) {
-            q = att_i_quat_mul(q, att_mars_rotvec(att_i_vec3_scale(d, c->dt)));
-        } else {
-            if (att_i_quat_normalize_bounded(att_mars_integrate(q, d, c->dt), &qn)) {
-                q = qn;
-            } else {
-                flags |= ATT_FLAG_NUMERIC; /* first-order step overflowed: integration skipped */
-            }
-        }
+        flags |= att_mars_predict(c, d, &q);
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        const att_vec3_t v = att_i_quat_rotate(q, acc);
-        att_vec3_t u = v;
-        if (c->lp_on) {
-            att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
-            u = lp2;
-        }
-        if (c->full) {
-            float qw;
-            float qx;
-            float qy;
-            float n;
-            if (att_i_align_up(u, &qw, &qx, &qy, &n)) {
-                q = att_i_quat_mul_hz(qw, qx, qy, q);
-                if (c->lp_on) {
-                    lp1 = att_i_quat_rotate_hz(qw, qx, qy, lp1);
-                    lp2 = att_i_vec3(0.0f, 0.0f, n);
-                }
-            }
-        } else {
-            /* general correction: q rotated toward z by the fraction k_acc of the angle, the stages with it */
-            att_vec3_t unit;
-            att_quat_t qc;
-            if (att_i_vec3_normalize(u, &unit)) {
-                att_mars_rotation_toward(unit.x, unit.y, unit.z, &att_mars_up, &att_mars_xaxis, c->k_acc, &qc);
-                q = att_i_quat_mul(qc, q);
-                if (c->lp_on) {
-                    /* keep the low-pass states in the corrected earth frame */
-                    lp1 = att_i_quat_rotate(qc, lp1);
-                    lp2 = att_i_quat_rotate(qc, lp2);
-                }
-            }
-        }
+        att_mars_accel_correct(c, acc, &q, &lp1, &lp2);
     }
     if (mag_ok) {
-        if (st->m0_valid) {
-            q = att_mars_mag_correct(c, st, q, me, mnorm, &flags);
-        } else {
-            att_quat_t qa;
-            st->flags = flags;
-            if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
-                q = qa;
-            }
-            flags = st->flags;
-        }
+        q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags);
     }
     if (att_i_quat_normalize_bounded(q, &qn)) {
         st->q = qn;
