@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import attica
-from attica import native, reference
+from attica import kinds, native, reference
 from attica.checks import SettingsConflictError, unit_problems
 from attica.settings import ArsSettings, FilterKind, MarsSettings, make_settings
 
@@ -55,6 +55,17 @@ def test_top_level_exports(rec: attica.Recording) -> None:
     assert isinstance(rec, attica.Recording)
     for name in attica.__all__:
         assert getattr(attica, name) is not None, name
+    assert attica.kinds is kinds
+
+
+@pytest.mark.parametrize("kind", kinds.KINDS, ids=lambda k: k.label)
+def test_every_settings_class_is_exported_and_frozen(kind: kinds.KindInfo) -> None:
+    """Each kind's settings dataclass is at the top level (MekfSettings once was not) and read-only
+    (MekfSettings once was not frozen)."""
+    cls = kind.settings_class
+    assert cls.__name__ in attica.__all__ and getattr(attica, cls.__name__) is cls
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        setattr(cls(), dataclasses.fields(cls)[0].name, 0)
 
 
 def test_dt_is_required_and_positional(rec: attica.Recording) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from attica import native
+from attica import kinds, native
 from attica.crosscheck import Stream, crosscheck
 from attica.metrics import error_angles
 from attica.settings import Flag
@@ -24,13 +24,17 @@ def _streams(count: int, duration: float) -> list[Stream]:
     return out
 
 
-@pytest.mark.parametrize("kind,overrides", [("gyro", {}), ("tilt", {}), ("tilt", {"normalise": False})])
+BASELINES = [k.label for k in kinds.KINDS if k.baseline]
+"""The single-sensor kinds (gyro-only, accel-only), from the registry."""
+
+CASES = [(label, {}) for label in BASELINES] + [("tilt", {"normalise": False})]
+"""Each baseline with its defaults, and the non-normalised tilt."""
+
+
+@pytest.mark.parametrize("kind,overrides", CASES)
 def test_bit_exact_simulated(kind: str, overrides: dict) -> None:
-    r = (
-        crosscheck(kind, _streams(6, 600.0), dt=1 / RATE, **overrides)
-        if kind == "gyro"
-        else crosscheck(kind, _streams(6, 600.0), **overrides)
-    )
+    dt = {"dt": 1 / RATE} if kinds.info(kind).has_period else {}
+    r = crosscheck(kind, _streams(6, 600.0), **dt, **overrides)
     print(f"\n{kind}{overrides}: {r.steps} steps compared")
     assert r.steps >= 1_000_000
     assert r.ok, r.first_mismatch
@@ -50,11 +54,10 @@ def _adversarial(n: int, seed: int) -> Stream:
     return Stream(g, a, name=f"adversarial{seed}")
 
 
-@pytest.mark.parametrize(
-    "kind,overrides", [("gyro", {"dt": 0.01}), ("tilt", {}), ("tilt", {"normalise": False})]
-)
+@pytest.mark.parametrize("kind,overrides", CASES)
 def test_bit_exact_adversarial(kind: str, overrides: dict) -> None:
-    r = crosscheck(kind, [_adversarial(40_000, s) for s in range(3)], segment=500, **overrides)
+    dt = {"dt": 0.01} if kinds.info(kind).has_period else {}
+    r = crosscheck(kind, [_adversarial(40_000, s) for s in range(3)], segment=500, **dt, **overrides)
     assert r.steps >= 100_000
     assert r.ok, r.first_mismatch
     for out in r.c_outputs:
@@ -141,7 +144,7 @@ def test_tilt_clamp_and_invalid() -> None:
     ],
 )
 def test_settings_rejected(kind: str, field: str, value: object) -> None:
-    kw: dict[str, object] = {"dt": 0.01} if kind != "tilt" else {}
+    kw: dict[str, object] = {"dt": 0.01} if kinds.info(kind).has_period else {}
     kw[field] = value
     # a bad dt is refused in Python already (ValueError), every other field by the C library
     with pytest.raises((native.NativeError, ValueError), match="out of range|finite sample period"):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from calib_support import ordinary
 
-from attica import native
+from attica import kinds, native
 from attica.calibration.stages import StageSettings, fill_c
 from attica.native import ffi, lib
 from attica.reference import calib as rc
@@ -22,7 +22,7 @@ def _node(
     fd: bool = True, accel_out: bool = False, calib: StageSettings | None = None, kind: str = "mars"
 ) -> Any:
     s = ffi.new("att_node_settings_t *")
-    k = {"ars": lib.ATT_FILTER_ARS, "mars": lib.ATT_FILTER_MARS, "kf": lib.ATT_FILTER_KF}[kind]
+    k = int(kinds.info(kind).kind)
     assert lib.att_node_settings_default(k, RATE, s) == lib.ATT_OK
     s.fd = fd
     s.data_bitrate = 2_000_000 if fd else 0

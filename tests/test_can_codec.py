@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import require_tool
 
-from attica import native
+from attica import kinds, native
 from attica.can import codec as c
 from attica.can import gen
 from attica.outputs import OUTPUT_DTYPE
@@ -298,7 +298,7 @@ def test_encoders_c_and_python_give_the_same_bytes() -> None:
         cc = _c_encode_imu(g, a, m, 5, fd)
         assert py.tobytes() == cc.tobytes()
     o = _random_outputs(3000, 2)
-    for kind in (1, 3, 6, 7):
+    for kind in [int(k.kind) for k in kinds.KINDS]:
         for fd in (False, True):
             py = c.encode_outputs(o, kind, counter0=9, fd=fd)
             cc = _c_encode_outputs(o, kind, 9, fd)
@@ -346,8 +346,8 @@ def test_generated_c_is_up_to_date_golden() -> None:
     committed = (gen.GEN / "att_can_db.c").read_text()
     need(
         f"cantools version {cantools.__version__}." in committed,
-        "the committed firmware/src/can/generated/att_can_db.{c,h} were made by another cantools version than "
-        f"{cantools.__version__}",
+        "the committed firmware/src/can/generated/att_can_db.{c,h} were made by another cantools version "
+        f"than {cantools.__version__}",
     )
     fresh = gen.generate()
     for name, text in fresh.items():

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from attica import kinds
 from attica.cli import build_parser, main
 from attica.data import load_recording
 
@@ -31,11 +32,25 @@ def test_sim_then_run_every_filter(tmp_path: Path, capsys: pytest.CaptureFixture
     out_path = tmp_path / "out.npz"
     assert main(["run", "--filter", "all", "--data", str(path), "-q", "--check", "-o", str(out_path)]) == 0
     out = capsys.readouterr().out
-    for kind in ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"):
-        assert f"{kind}:" in out
-        assert np.load(tmp_path / f"out_{kind}.npz")["q"].shape == (len(rec.gyr), 4)
-    assert out.count("0 differ: bit-exact") == 7
-    assert "heading" in out  # the 9-axis filter is judged by total and heading too
+    for k in kinds.KINDS:
+        line = next(x for x in out.splitlines() if x.strip().startswith(f"{k.label}:"))
+        if k.uses_mag():  # 9-axis: judged by total and heading too
+            assert "RMSE total" in line and "heading" in line, line
+        else:
+            assert "RMSE inclination" in line and f"({k.axes()}-axis: heading not observable)" in line, line
+        assert np.load(tmp_path / f"out_{k.label}.npz")["q"].shape == (len(rec.gyr), 4)
+    assert out.count("0 differ: bit-exact") == len(kinds.KINDS)
+
+
+def test_run_judges_by_the_magnetometer_in_use(capsys: pytest.CaptureFixture[str]) -> None:
+    """The MEKF uses the mag (total and heading errors) unless use_mag is off (6-axis, inclination only);
+    it was once labelled 6-axis whatever its settings."""
+    assert main(["run", "--filter", "mekf", "--duration", "6", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "mekf: RMSE total" in out and "not observable" not in out
+    assert main(["run", "--filter", "mekf", "--duration", "6", "-q", "--set", "use_mag=0"]) == 0
+    out = capsys.readouterr().out
+    assert "mekf: RMSE inclination" in out and "(6-axis: heading not observable)" in out
 
 
 def test_run_with_settings(capsys: pytest.CaptureFixture[str]) -> None:
@@ -138,7 +153,7 @@ def test_run_and_demo_agree(capsys: pytest.CaptureFixture[str]) -> None:
         (["run", "-o", "{tmp}"], "is a directory"),
         (
             ["run", "--filter", "all", "--set", "nosuch=1"],
-            "none of ars, mars, kf, ekf, gyro, tilt, mekf has no setting",
+            f"none of {', '.join(kinds.labels())} has no setting",
         ),
         (["run", "--filter", "ars,"], None),
         (["run", "--filter", ",", "-q"], "empty filter selection"),
@@ -276,10 +291,8 @@ def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFix
     args = ["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=0.5", "--set", "r_noise=0.02"]
     assert main(args) == 0
     cap = capsys.readouterr()
-    assert (
-        "attica: note: --set tau=0.5 applies to ars only (mars, kf, ekf, gyro, tilt, mekf have no setting"
-        in cap.err
-    )
+    others = ", ".join(label for label in kinds.labels() if label != "ars")  # tau: the ARS's alone
+    assert f"attica: note: --set tau=0.5 applies to ars only ({others} have no setting" in cap.err
     assert "attica: note: --set r_noise=0.02 applies to " in cap.err
     # before running: the notes come first, and a refused setting stops everything before any output
     assert main(["run", "--filter", "all", "--duration", "6", "-q", "--set", "tau=-1"]) == 2

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from attica import kinds
 from attica.cli import main
 from attica.data import Recording, broad_groups
-from attica.evaluate import Method, run_methods
+from attica.evaluate import VARIANTS, Method, run_methods
 from attica.metrics import quat_mul
 from attica.sim import SimConfig, simulate
 
@@ -130,14 +131,15 @@ def trial_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_eval_output_fits_110_columns_unless_wide(
     trial_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Every attica filter at both presets: 10 six-axis columns (two tables at 110) and 2 nine-axis ones."""
+    """Every attica filter (and variant) at both presets: the 6-axis columns in two tables at 110, the
+    9-axis ones in one."""
     args = ["eval", "--data", str(trial_dir), "--preset", "both", "-q"]
     assert main(args) == 0
     text = capsys.readouterr().out
     body = text.split("\n", 1)[1]  # the first line names the data directory (a long tmp path here)
     assert max(len(ln) for ln in body.splitlines()) <= 110
     assert "6-axis: inclination RMSE (deg), part 1 of 2" in text and "9-axis: total RMSE (deg)" in text
-    for name in ("ars", "ars@seed", "kf", "ekf@seed", "gyro", "tilt", "mars", "mars@seed"):
+    for name in [n for label in [*kinds.labels(), *VARIANTS] for n in (label, f"{label}@seed")]:
         assert f" {name} " in f" {text} ".replace("\n", " ")
     assert main([*args, "--wide"]) == 0
     wide = capsys.readouterr().out

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from attica import crosscheck as cc
-from attica import native, sim
+from attica import kinds, native, sim
 from attica.can import codec as c
 from attica.can import compare as compare_mod
 from attica.can import verify as v
@@ -24,7 +24,7 @@ from attica.settings import FilterKind
 from helpers import same_bits
 
 ffi = native.ffi
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")
+KINDS = kinds.labels()
 
 
 def _flip(arr: np.ndarray, index: tuple[int, ...], bit: int) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from attica import _build, native
+from attica import _build, kinds, native
 from attica.native import ffi, lib
 from attica.outputs import OUT_ALL, OUT_BIAS, OUT_EULER, OUT_Q, OUTPUT_DTYPE
 from attica.reference._common import c_state_values, state_values
@@ -46,7 +46,7 @@ def _sim(duration: float = 20.0, seed: int = 5) -> Any:
     return simulate(SimConfig(duration=duration, rate=RATE, seed=seed))
 
 
-@pytest.mark.parametrize("kind", [k.label for k in implemented_kinds()])
+@pytest.mark.parametrize("kind", kinds.labels())
 def test_step_fills_the_per_step_fields_output_the_rest(kind: str) -> None:
     """att_filter_step writes q, gyro_bias, flags, steps (euler for Euler-state kinds; the EKF, whose
     state is the angles, derives q only on request), says so in valid and leaves the rest;
@@ -56,16 +56,15 @@ def test_step_fills_the_per_step_fields_output_the_rest(kind: str) -> None:
     cheap = f.run(rec.gyr, rec.acc, rec.mag, full=False)
     g = native.Filter(kind, dt=1 / RATE)
     full = g.run(rec.gyr, rec.acc, rec.mag)
-    euler_state = kind in ("ekf", "gyro", "tilt")
-    want_valid = (0 if kind == "ekf" else OUT_Q) | OUT_BIAS | (OUT_EULER if euler_state else 0)
+    k = kinds.info(kind)
+    euler_state = k.euler_state
+    want_valid = (OUT_Q if k.q_state else 0) | OUT_BIAS | (OUT_EULER if euler_state else 0)
     assert (cheap["valid"] == want_valid).all()
     assert (full["valid"] == OUT_ALL).all()
-    if kind == "ekf":
+    if not k.q_state:
         assert (cheap["q"] == 0).all()  # not written
     for name in (
-        (("q",) if kind != "ekf" else ())
-        + ("gyro_bias", "flags", "steps")
-        + (("euler",) if euler_state else ())
+        (("q",) if k.q_state else ()) + ("gyro_bias", "flags", "steps") + (("euler",) if euler_state else ())
     ):
         assert_same_bits(cheap[name], full[name], name) if name in ("q", "gyro_bias", "euler") else None
         if name in ("flags", "steps"):
@@ -111,9 +110,14 @@ RETUNE_CHANGES: dict[str, dict[str, Any]] = {
         "gyro_scale_sd": 0.005,
     },
 }
+"""Per kind: settings that a retune changes (test_retune_keeps_the_state)."""
 
 
-@pytest.mark.parametrize("kind", [k.label for k in implemented_kinds()])
+def test_retune_changes_cover_every_kind() -> None:
+    assert set(RETUNE_CHANGES) == set(kinds.labels())
+
+
+@pytest.mark.parametrize("kind", kinds.labels())
 def test_retune_keeps_the_state(kind: str) -> None:
     """att_filter_retune with the same settings changes no byte; with new ones the state carries on
     (attitude, bias, memories), and C and reference, both retuned at the same step, stay bit-identical."""
@@ -138,18 +142,18 @@ def test_retune_keeps_the_state(kind: str) -> None:
     assert (out["steps"] == got["steps"]).all() and out["steps"][0] == first["steps"][-1] + 1
     fresh = native.Filter(k, make_settings(k, dt=1 / RATE, **changes))
     again = fresh.run(rec.gyr[half:], rec.acc[half:], rec.mag[half:])
-    if kind != "tilt":  # the tilt baseline has no memory: a fresh one gives the same
+    if kinds.info(k).has_period:  # a kind without a sample period (tilt) has no memory: a fresh one is alike
         assert not np.array_equal(again["q"], out["q"]), "the retuned filter kept its state"
 
 
-@pytest.mark.parametrize("kind", [k.label for k in implemented_kinds()])
+@pytest.mark.parametrize("kind", kinds.labels())
 def test_retune_refuses_bad_settings_and_leaves_the_filter(kind: str) -> None:
     k = FilterKind.parse(kind)
     f = native.Filter(k, dt=1 / RATE)
     rec = _sim(2.0)
     f.run(rec.gyr, rec.acc, rec.mag)
     before = bytes(f.state)
-    field = "gravity" if kind == "tilt" else "dt"
+    field = "dt" if kinds.info(k).has_period else "gravity"
     bad = _c_settings(k, **{field: float("nan")})
     assert lib.att_filter_settings_validate(int(k), bad) == lib.ATT_ERR_SETTINGS
     assert lib.att_filter_retune(f.state.ptr, bad) == lib.ATT_ERR_SETTINGS
@@ -159,7 +163,7 @@ def test_retune_refuses_bad_settings_and_leaves_the_filter(kind: str) -> None:
     assert lib.att_filter_retune(fresh, _c_settings(k)) == lib.ATT_ERR_KIND
 
 
-@pytest.mark.parametrize("kind", [k.label for k in implemented_kinds()])
+@pytest.mark.parametrize("kind", kinds.labels())
 def test_validate_matches_init(kind: str) -> None:
     """att_filter_settings_validate accepts exactly what att_filter_init accepts (defaults, one bad field)."""
     k = FilterKind.parse(kind)
@@ -173,11 +177,9 @@ def test_validate_matches_init(kind: str) -> None:
 
 def test_time_constant_and_gain_together_are_refused() -> None:
     """One knob each: a per-sample gain with a time constant > 0 is refused (it would be ignored)."""
-    for kind, fields in (
-        (FilterKind.ARS, [("tau", "gain")]),
-        (FilterKind.MARS, [("tau_acc", "alpha_acc"), ("tau_mag", "alpha_mag")]),
-    ):
-        for tau, gain in fields:
+    for k in kinds.KINDS:
+        kind = k.kind
+        for gain, tau in k.gain_time_constants:
             s = _c_settings(kind, **{tau: 0.5, gain: 0.1})
             assert lib.att_filter_settings_validate(int(kind), s) == lib.ATT_ERR_SETTINGS, (kind, tau)
             s = _c_settings(kind, **{tau: 0.5, gain: 0.0})
@@ -202,7 +204,7 @@ def test_flag_names() -> None:
     assert lib.ATT_FLAGS_OUTPUT_INVALID == int(Flag.NOT_READY | Flag.BAD_ARG)
 
 
-@pytest.mark.parametrize("kind", ["ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"])
+@pytest.mark.parametrize("kind", kinds.labels())
 @pytest.mark.parametrize(
     "changes",
     [{}, {"tau_acc_lp": 0.0}, {"rest_time": 0.123, "rest_gyro": 0.2}],

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import pytest
 
+from attica.kinds import labels
 from attica_dev import digests
 
 
@@ -25,13 +26,17 @@ def test_inputs_unchanged() -> None:
     assert digests.compute("input.") == {k: v for k, v in committed.items() if k.startswith("input.")}
 
 
-@pytest.mark.parametrize("kind", ["ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf"])
+@pytest.mark.parametrize("kind", labels())
 def test_outputs_unchanged(kind: str) -> None:
     committed = digests.read()
     now = digests.compute(kind + ".")
     assert now, f"no digest cases for {kind}"
     changed = sorted(k for k in now if committed.get(k) != now[k])
     assert not changed, f"{len(changed)} of {len(now)} digests of {kind} changed: {', '.join(changed)}"
+
+
+def test_every_kind_has_a_retune_case() -> None:
+    assert sorted(digests._RETUNE) == sorted(labels())
 
 
 def test_a_one_bit_change_changes_the_digest() -> None:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from attica import native, sim
+from attica import kinds, native, sim
 from attica.can import codec
 from attica.reference._common import c_state_values
 from attica.reference.filter import Filter as RefFilter
@@ -27,7 +27,7 @@ from attica.settings import FilterKind
 
 ffi, lib = native.ffi, native.lib
 ROUNDS = 10
-KINDS = [k for k in FilterKind if k != FilterKind.TILT] + [FilterKind.TILT]
+KINDS = [k.kind for k in kinds.KINDS if k.has_period] + [k.kind for k in kinds.KINDS if not k.has_period]
 DT = 0.01
 
 
@@ -41,7 +41,7 @@ IMU = _imu()
 
 def _filter(kind: FilterKind, dt: float = DT, steps: int = 50) -> native.Filter:
     """A filter of ``kind`` that ran ``steps`` samples (so its state differs from a fresh one's)."""
-    f = native.Filter(kind, None if kind == FilterKind.TILT else dt)
+    f = native.Filter(kind, dt if kinds.info(kind).has_period else None)
     if steps:
         f.run(*(x[:steps] for x in IMU))
     return f
@@ -49,7 +49,7 @@ def _filter(kind: FilterKind, dt: float = DT, steps: int = 50) -> native.Filter:
 
 @functools.cache
 def _spec(kind: FilterKind) -> dict[str, str]:
-    impl = RefFilter(kind, None if kind == FilterKind.TILT else DT).impl
+    impl = RefFilter(kind, DT if kinds.info(kind).has_period else None).impl
     return {**impl.STATE, **impl.COEFFS}
 
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from attica import native, sim
+from attica import kinds, native, sim
 from attica.can import codec as c
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
@@ -86,10 +86,26 @@ def _check_stream(
 # --- the long bit-exact runs ----------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kind", ["ars", "kf", "mars"])
+LONG_KINDS = ["ars", "kf", "mars"]
+"""The kinds of the long runs (N_LONG steps: a 6-axis filter, one with a covariance, the 9-axis one);
+every kind has a short run (test_node_stream_every_kind)."""
+
+
+@pytest.mark.parametrize("kind", LONG_KINDS)
 @pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
 def test_node_stream_bit_exact_vs_reference(kind: str, fd: bool) -> None:
-    gyr, acc, mag = _recording(N_LONG, 1)
+    _node_stream(kind, fd, N_LONG)
+
+
+@pytest.mark.parametrize("kind", kinds.labels())
+@pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
+def test_node_stream_every_kind(kind: str, fd: bool) -> None:
+    _node_stream(kind, fd, 4000)
+
+
+def _node_stream(kind: str, fd: bool, n: int) -> None:
+    """The node's output frames over n samples: the reference's outputs encoded, bit for bit."""
+    gyr, acc, mag = _recording(n, 1)
     node = c.Node(
         kind,
         sample_rate=RATE,
@@ -103,18 +119,18 @@ def test_node_stream_bit_exact_vs_reference(kind: str, fd: bool) -> None:
         frames = c.encode_imu(gyr, acc, mag)
     out, steps = node.run(frames)
     st = node.stats()
-    assert steps == N_LONG == st["steps"] == st["samples"] == st["sets"]
+    assert steps == n == st["steps"] == st["samples"] == st["sets"]
     assert st["rx_frames"] == frames.shape[0]
     assert all(st[e] == 0 for e in ERRORS) and st["tx_overflows"] == 0
-    assert st["tx_frames"] == out.shape[0] == (1 if fd else 6) * N_LONG + N_LONG // 16
-    ref = _reference(kind, N_LONG, 1)
+    assert st["tx_frames"] == out.shape[0] == (1 if fd else 6) * n + n // 16
+    ref = _reference(kind, n, 1)
     _check_stream(out, ref, FilterKind.parse(kind), fd)
     dec = c.decode_outputs(out)
-    assert dec.diag.shape[0] == N_LONG // 16 and (dec.diag["counter"] == 15).all()
+    assert dec.diag.shape[0] == n // 16 and (dec.diag["counter"] == 15).all()
     # cantools decodes the same values as the numpy stream decoder
     rng = np.random.default_rng(0)
     per = 1 if fd else 6
-    for i in rng.choice(N_LONG, 60, replace=False).tolist():
+    for i in rng.choice(n, 60, replace=False).tolist():
         start = i * per + i // 16  # one DIAG after every 16th set
         sig: dict[str, Any] = {}
         for f in out[start : start + per]:
@@ -462,7 +478,8 @@ def test_init_refuses_bus_load_over_100_percent_and_leaves_the_node_untouched() 
     s = _settings(rate=200.0)
     s.filter.ars.dt = 0.01  # the filter's period does not match the sample rate
     bad.append(s)
-    for kind in ("mars", "kf", "ekf", "gyro", "mekf"):  # every kind with a dt (the EKF was once forgotten)
+    for kind in [k.label for k in kinds.KINDS if k.has_period and k.kind != FilterKind.ARS]:
+        # every other kind with a dt (the ARS is above; the EKF was once forgotten)
         s = _settings(rate=200.0)
         s.kind = getattr(lib, f"ATT_FILTER_{kind.upper()}")
         assert lib.att_filter_settings_default(s.kind, 0.01, ffi.addressof(s[0], "filter")) == lib.ATT_OK

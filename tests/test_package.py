@@ -45,7 +45,7 @@ for p in (resources.dbc_path(), resources.cflags_file(), resources.include_dir()
     assert p.is_file(), p
 assert len(resources.sources()) >= 10
 rec = attica.simulate(attica.SimConfig(duration=12.0, rate=200.0, seed=3, taps=1))
-for kind in ("ars", "mars"):
+for kind in attica.kinds.labels():
     c = attica.Filter(kind, 1 / rec.rate).run(rec.gyr, rec.acc, rec.mag)
     r = reference.Filter(kind, 1 / rec.rate).run(rec.gyr[:400], rec.acc[:400], rec.mag[:400])
     assert (c["q"][:400].view(np.uint32) == r["q"].view(np.uint32)).all(), kind
@@ -113,7 +113,10 @@ def test_dists_hold_what_they_must(dists: dict[str, Path]) -> None:
     root = f"attica-{VERSION}"
     for must in ("LICENSE", "setup.py", "MANIFEST.in", "firmware/cflags.txt", "firmware/can/attica.dbc"):
         assert f"{root}/{must}" in members, must
-    assert f"{root}/firmware/src/filters/att_filter.c" in members and f"{root}/host/attica/csrc/att_host.c" in members
+    assert (
+        f"{root}/firmware/src/filters/att_filter.c" in members
+        and f"{root}/host/attica/csrc/att_host.c" in members
+    )
     assert not [m for m in members if m.endswith((".so", ".o", ".stamp"))]
 
 

@@ -13,14 +13,14 @@ from pathlib import Path
 
 import pytest
 
-from attica import native
+from attica import kinds, native
 
 from helpers import ROOT
 
 ffi, lib = native.ffi, native.lib
 SOAK = ROOT / "build" / "soak" / "att_soak"
 STEPS = int(os.environ.get("ATT_SOAK_STEPS", "10000000"))
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")
+KINDS = kinds.labels()
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ The user API at the top level::
 - :mod:`attica.reference`: the numpy float32 mirror, bit for bit (``attica.reference.Filter``).
 - :func:`simulate`, :class:`SimConfig`: deterministic IMU simulator with ground truth.
 - :func:`load_recording`, :class:`Recording`: .npz / .csv / BROAD files.
+- :mod:`attica.kinds`: the filter kinds and what each one is (inputs, heading, outputs, CAN gains).
 - :class:`Flag`, :func:`describe_flags`, :func:`flag_names`: the per-step status flags by name.
 - :class:`UnitWarning`: raised as a warning when inputs look like deg/s, g, gauss or nT.
 - ``attica`` on the command line (:mod:`attica.cli`); ``attica paths`` prints where the firmware
@@ -39,6 +40,7 @@ from attica.settings import (
     KfSettings,
     MagMode,
     MarsSettings,
+    MekfSettings,
     Preset,
     TiltSettings,
     describe_flags,
@@ -78,6 +80,7 @@ __all__ = [
     "KfSettings",
     "MagMode",
     "MarsSettings",
+    "MekfSettings",
     "Preset",
     "Recording",
     "SettingsConflictError",
@@ -94,7 +97,7 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    if name in ("native", "reference"):
+    if name in ("native", "reference", "kinds"):
         import importlib
 
         return importlib.import_module(f"attica.{name}")

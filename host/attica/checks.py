@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from attica.kinds import KINDS
 from attica.settings import SETTINGS_CLASS, FilterKind, make_settings
 
 __all__ = [
@@ -48,11 +49,11 @@ class SettingsConflictError(ValueError):
 
 
 GAIN_TIME_CONSTANTS: dict[FilterKind, tuple[tuple[str, str], ...]] = {
-    FilterKind.ARS: (("gain", "tau"),),
-    FilterKind.MARS: (("alpha_acc", "tau_acc"), ("alpha_mag", "tau_mag")),
+    k.kind: k.gain_time_constants for k in KINDS if k.gain_time_constants
 }
-"""Per kind: (per-sample gain, time constant) pairs. A time constant > 0 sets the gain to
-``dt / (tau + dt)``, so the per-sample gain must then be left unset (0, its default)."""
+"""Per kind that has some: (per-sample gain, time constant) pairs (``gain_time_constants`` of
+:data:`attica.kinds.KINDS`). A time constant > 0 sets the gain to ``dt / (tau + dt)``, so the per-sample
+gain must then be left unset (0, its default)."""
 
 
 def check_gains(kind: FilterKind, settings: Any) -> None:

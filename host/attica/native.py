@@ -199,7 +199,7 @@ class Filter:
     Parameters
     ----------
     kind
-        ``"ars"``, ``"mars"``, ``"kf"``, ``"ekf"``, ``"gyro"``, ``"tilt"`` or a :class:`FilterKind`.
+        A kind name of :mod:`attica.kinds` (``"ars"``, ``"mekf"`` ...), its number or a :class:`FilterKind`.
     dt
         Sample period in s (overrides ``settings.dt``). Required unless ``settings`` is given (it
         carries ``dt``); the accel-only ``tilt`` has none. A settings dataclass in this place is taken

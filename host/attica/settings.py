@@ -8,6 +8,7 @@ frozen: change settings with :func:`dataclasses.replace`, :func:`make_settings` 
 from __future__ import annotations
 
 import enum
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -200,7 +201,7 @@ class EkfSettings:
     noise_rates: bool = True
 
 
-@dataclass
+@dataclass(frozen=True)
 class MekfSettings:
     """Multiplicative EKF settings (``att_mekf_settings_t``); see att_mekf.h for meanings."""
 
@@ -239,7 +240,7 @@ class MekfSettings:
 
 
 class FilterKind(enum.IntEnum):
-    """``att_filter_kind_t`` (values are part of the CAN contract)."""
+    """``att_filter_kind_t`` (values are part of the CAN contract); what each kind is: :mod:`attica.kinds`."""
 
     ARS = 1
     MARS = 2
@@ -268,21 +269,43 @@ class FilterKind(enum.IntEnum):
             raise ValueError(f"unknown filter {value!r}; choose one of: {choices}") from None
 
 
-SETTINGS_CLASS: dict[FilterKind, type[Any]] = {
-    FilterKind.ARS: ArsSettings,
-    FilterKind.MARS: MarsSettings,
-    FilterKind.KF: KfSettings,
-    FilterKind.EKF: EkfSettings,
-    FilterKind.GYRO: GyroSettings,
-    FilterKind.TILT: TiltSettings,
-    FilterKind.MEKF: MekfSettings,
-}
-"""Settings dataclass of each implemented kind."""
+class _SettingsClasses(Mapping[FilterKind, type[Any]]):
+    """Read-only view of the registry (:mod:`attica.kinds`): kind -> settings dataclass.
+
+    The registry imports this module (for the dataclasses), so it is read on use, not at import.
+    """
+
+    def __getitem__(self, kind: FilterKind) -> type[Any]:
+        from attica.kinds import info
+
+        try:
+            return info(kind).settings_class
+        except ValueError:
+            raise KeyError(kind) from None
+
+    def __iter__(self) -> Iterator[FilterKind]:
+        from attica.kinds import KINDS
+
+        return iter([k.kind for k in KINDS])
+
+    def __len__(self) -> int:
+        from attica.kinds import KINDS
+
+        return len(KINDS)
+
+    def __repr__(self) -> str:
+        return repr(dict(self))
+
+
+SETTINGS_CLASS: Mapping[FilterKind, type[Any]] = _SettingsClasses()
+"""Settings dataclass of each implemented kind (a view of :data:`attica.kinds.KINDS`)."""
 
 
 def implemented_kinds() -> list[FilterKind]:
-    """The kinds with a C and reference implementation, in kind order."""
-    return [k for k in FilterKind if k in SETTINGS_CLASS]
+    """The kinds with a C and reference implementation, in kind order (:data:`attica.kinds.KINDS`)."""
+    from attica.kinds import KINDS
+
+    return [k.kind for k in KINDS]
 
 
 class Preset(enum.IntEnum):
@@ -354,7 +377,8 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
 }
 """The seed preset: the literal settings each filter had before it was tuned on BROAD (per-sample gains,
 per-step noises; no accel low-pass, no bias estimation in MARS); the MEKF has none (its seed = its
-defaults). The C twin is ``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)`` in att_filter.c."""
+defaults). The C twin is ``att_filter_settings_preset(kind, ATT_PRESET_SEED, dt, &s)``. Every kind has an
+entry (tests/test_kinds.py checks it)."""
 
 
 def preset_settings(

@@ -136,9 +136,10 @@ def grid_scores(
     progress: bool = True,
 ) -> GridResult:
     """Run every point of ``grid`` (overrides on the defaults of ``kind`` or of ``variant``) on ``recs``."""
-    from attica.evaluate.core import NINE_AXIS, VARIANTS, _progress, attica_method, run_methods
+    from attica.evaluate.core import VARIANTS, _progress, attica_method, run_methods
+    from attica.kinds import uses_mag
 
-    nine = VARIANTS[variant][2] if variant else kind in NINE_AXIS
+    nine = VARIANTS[variant][2] if variant else uses_mag(kind)
     if variant:
         kind = VARIANTS[variant][0]
     points = grid_points(grid)

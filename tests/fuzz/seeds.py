@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from attica import sim
+from attica import kinds, sim
 from attica.can import codec as c
 
-KINDS = ("ars", "mars", "kf", "ekf", "gyro", "tilt", "mekf")  # index = kind - 1
+KINDS = kinds.labels()  # index = kind - 1 (the registry is in value order, from 1)
 KNOWN_IDS = [0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204, 0x205, 0x206, 0x210, 0x300]
 
 
@@ -85,7 +85,7 @@ def node_seeds(out: Path) -> int:
                 )
                 # commands: op 2, counter, selector (cmd = 1 + sel % 3), arg, value byte, corruption 0
                 if i == 8:  # set gain (every gain id) to 8/16
-                    for gain in (1, 2, 3, 4):
+                    for gain in c.Gain:
                         body += bytes([2, i & 15, 0x11, gain, 8, 0])
                 if i == 12:  # reset
                     body += bytes([2, 3, 0x10, 0, 0, 0])

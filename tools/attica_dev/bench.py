@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica import _build
+from attica.kinds import labels
 from attica_dev import golden
 
 BENCH_SOURCE = golden.ROOT / "tests" / "c" / "att_bench.c"
@@ -52,17 +53,10 @@ class BenchCase:
     overrides: dict[str, Any] = field(default_factory=dict)
 
 
-FILTERS: list[BenchCase] = [
-    BenchCase("ars", "ars"),
-    BenchCase("mars", "mars"),
-    BenchCase("kf", "kf"),
-    BenchCase("ekf", "ekf"),
-    BenchCase("gyro", "gyro"),
-    BenchCase("tilt", "tilt"),
-    BenchCase("mekf", "mekf"),
-]
-"""Filters to benchmark, one line each. att_bench runs a kind with its default settings, so cases
-with ``overrides`` get only the native timing (the callgrind columns say n/a)."""
+FILTERS: list[BenchCase] = [BenchCase(label, label) for label in labels()]
+"""Filters to benchmark, one line each: every kind of :mod:`attica.kinds` with its defaults. att_bench
+runs a kind with its default settings, so cases with ``overrides`` get only the native timing (the
+callgrind columns say n/a)."""
 
 CALLGRIND_CONFIGS: list[tuple[str, str]] = [("gcc", "-O2"), ("clang", "-O2")]
 """(compiler, optimisation) builds of att_bench measured with callgrind."""

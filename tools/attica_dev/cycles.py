@@ -450,11 +450,10 @@ class Counted:
 
 
 def attica_rows() -> list[Counted]:
-    """Every implemented attica kind (mars is the 9-axis one; gyro and tilt are baselines)."""
-    from attica.settings import implemented_kinds
+    """Every attica kind with the axes of its defaults (:mod:`attica.kinds`; 0 for the baselines)."""
+    from attica.kinds import KINDS
 
-    axes = {"ars": 6, "kf": 6, "ekf": 6, "mars": 9, "mekf": 9}
-    return [Counted(k.label, axes.get(k.label, 0)) for k in implemented_kinds()]
+    return [Counted(k.label, 0 if k.baseline else k.axes()) for k in KINDS]
 
 
 def peer_rows() -> list[Counted]:

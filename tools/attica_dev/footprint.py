@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from attica import _build
+from attica.kinds import KINDS as ALL_KINDS
 from attica_dev import cross, cycles
 from attica_dev.boards import BOARDS
 
@@ -48,13 +49,7 @@ STACK_SOURCE = cross.TESTS_C / "att_m4f_stack.c"
 BENCH_SOURCE = cross.TESTS_C / "att_bench.c"
 
 IMAGES: dict[str, int] = {
-    "ars": 1,
-    "mars": 2,
-    "kf": 3,
-    "ekf": 4,
-    "gyro": 5,
-    "tilt": 6,
-    "mekf": 7,
+    **{k.label: int(k.kind) for k in ALL_KINDS},  # one kind through its own API: ATT_IMAGE = its value
     "all filters (att_filter)": 10,
     "CAN codec (att_can)": 11,
     "CAN node (att_node)": 12,
@@ -62,13 +57,7 @@ IMAGES: dict[str, int] = {
 """Footprint images: name -> ATT_IMAGE of tests/c/att_m4f_image.c."""
 
 STACK_ENTRIES: dict[str, str] = {
-    "ars": "att_ars_step",
-    "mars": "att_mars_step",
-    "kf": "att_kf_step",
-    "ekf": "att_ekf_step",
-    "gyro": "att_gyro_step",
-    "tilt": "att_tilt_step",
-    "mekf": "att_mekf_step",
+    **{k.label: f"att_{k.label}_step" for k in ALL_KINDS},
     "all filters (att_filter)": "att_filter_step",
     "filter init": "att_filter_init",
     "CAN node (att_node)": "att_node_poll",
@@ -169,8 +158,8 @@ def link_image(
     return elf, map_file
 
 
-KINDS = ("ARS", "MARS", "KF", "EKF", "GYRO", "TILT", "MEKF")
-"""The ATT_WITH_<NAME> options of att_config.h (the kind table of firmware/src/filters/att_kinds.h)."""
+KINDS = tuple(k.kind.name for k in ALL_KINDS)
+"""The <NAME> of the ATT_WITH_<NAME> options of att_config.h, one per kind (:mod:`attica.kinds`)."""
 
 
 def only(*kinds: str, calib: bool = True) -> list[str]:

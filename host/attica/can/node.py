@@ -1,4 +1,4 @@
-"""The C node (firmware/src/node/att_node.c, att_node.h) in-process through cffi: push frames, poll, pop frames."""
+"""The C node (firmware/src/node/att_node.c, att_node.h) in-process via cffi: push, poll, pop frames."""
 
 from __future__ import annotations
 

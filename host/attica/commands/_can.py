@@ -23,10 +23,11 @@ from attica.commands._common import (
     load_data,
     sim_value,
 )
+from attica.kinds import labels
 from attica.settings import FilterKind
 
-KINDS = [k.label for k in FilterKind]
-"""Filter names the node knows."""
+KINDS = labels()
+"""Filter names the node knows (:mod:`attica.kinds`)."""
 
 STREAM_DURATION = 10.0
 """Seconds simulated by the CAN commands when given no recording."""

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     out = run_native(kind, rec, settings, not args.quiet)
     ok, lines = crosscheck_line(kind, rec, settings, not args.quiet)
     print("\n".join(lines))
-    print(error_line(kind, rec, out))
+    print(error_line(kind, rec, out, settings))
     learnt = np.nonzero(out["flags"] & Flag.BIAS_UPDATED)[0]
     if learnt.size:
         i = int(learnt[-1])  # the estimate changes only at rest: compare where it was last updated

@@ -37,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``attica eval``."""
     from attica.evaluate import VARIANTS
 
-    choices = ", ".join([k.label for k in FilterKind] + list(VARIANTS))
+    choices = ", ".join([k.label for k in implemented_kinds()] + list(VARIANTS))
     p.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds and variants ({choices})")
     p.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")
     p.add_argument(
@@ -176,7 +176,7 @@ def _grid_names(spec: str) -> list[str]:
     """Kinds and variants that have a tuning grid (``--grid``); others are a CliError."""
     from attica.evaluate import GRIDS, VARIANT_GRIDS
 
-    tunable = [k.label for k in implemented_kinds() if k in GRIDS] + list(VARIANT_GRIDS)
+    tunable = [k.label for k in implemented_kinds() if GRIDS[k]] + list(VARIANT_GRIDS)  # baselines: empty
     if spec.strip() == "all":
         return tunable
     names = _method_names(spec)

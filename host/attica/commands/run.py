@@ -28,6 +28,7 @@ from attica.commands._common import (
     progress,
     warn_calibrated_truth,
 )
+from attica.kinds import KINDS, axes, uses_mag
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, describe_flags
 
@@ -37,8 +38,9 @@ HELP = "run C filters over simulated or recorded data, print the attitude error 
 CHUNK = 20_000
 """Samples per C batch (the progress bar moves between batches)."""
 
-USES_MAG = {FilterKind.MARS}
-"""Kinds whose heading is meaningful (9-axis); 6-axis filters are judged by inclination only."""
+USES_MAG = frozenset(k.kind for k in KINDS if k.uses_mag())
+"""Kinds that use the magnetometer with their default settings (a view of :data:`attica.kinds.KINDS`);
+:func:`error_line` asks :func:`attica.kinds.uses_mag` with the settings of the run."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -84,19 +86,26 @@ def flag_summary(flags: NDArray[np.uint32]) -> str:
     return ", ".join(f"{describe_flags(int(v))}: {int(c)}" for c, v in rows)
 
 
-def error_line(kind: FilterKind, rec: Any, out: NDArray[np.void]) -> str:
-    """The RMSE line of one filter (the same in ``run`` and ``demo``)."""
+def error_line(kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any = None) -> str:
+    """The RMSE line of one filter (the same in ``run`` and ``demo``).
+
+    A filter that uses the magnetometer with ``settings`` (None: the kind's defaults) is judged by its
+    total, heading and inclination errors; the others (6-axis, or a 3-axis baseline) by inclination only.
+    """
     from attica.metrics import evaluate
 
     if rec.quat_true is None:
         return f"{kind.label:>6}: no ground truth in this recording; last attitude {out['q'][-1]}"
     e = evaluate(out["q"].astype(np.float64), rec.quat_true, rec.movement)
-    if kind in USES_MAG:
+    if uses_mag(kind, settings):
         return (
             f"{kind.label:>6}: RMSE total {e.total:6.2f} deg   heading {e.heading:6.2f} deg   "
             f"inclination {e.inclination:6.2f} deg"
         )
-    return f"{kind.label:>6}: RMSE inclination {e.inclination:6.2f} deg (6-axis: heading not observable)"
+    return (
+        f"{kind.label:>6}: RMSE inclination {e.inclination:6.2f} deg "
+        f"({axes(kind, settings)}-axis: heading not observable)"
+    )
 
 
 def crosscheck_line(
@@ -156,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         out = run_native(kind, rec, settings[kind], not args.quiet, cal)
         elapsed = time.perf_counter() - t0
-        print(error_line(kind, rec, out))
+        print(error_line(kind, rec, out, settings[kind]))
         print(f"        {len(out)} steps in {elapsed * 1e3:.0f} ms; flags: {flag_summary(out['flags'])}")
         if args.check:
             ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet, cal)

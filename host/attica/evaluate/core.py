@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from attica.checks import implied_gains
 from attica.data import Recording, load_recording
+from attica.kinds import KINDS, uses_mag
 from attica.metrics import Errors, error_angles, evaluate
 from attica.settings import FilterKind, Preset, make_settings, preset_settings
 
@@ -52,14 +53,20 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-NINE_AXIS = {FilterKind.MARS, FilterKind.MEKF}
-"""attica kinds that use the magnetometer by default (judged by total error)."""
+NINE_AXIS = frozenset(k.kind for k in KINDS if k.uses_mag())
+"""attica kinds that use the magnetometer by default (judged by total error); from :mod:`attica.kinds`."""
+
+
+def _variant(kind: FilterKind, **overrides: Any) -> tuple[FilterKind, dict[str, Any], bool]:
+    return kind, overrides, uses_mag(kind, make_settings(kind, **overrides))
+
 
 VARIANTS: dict[str, tuple[FilterKind, dict[str, Any], bool]] = {
-    "mekf6": (FilterKind.MEKF, {"use_mag": False}, False),
+    "mekf6": _variant(FilterKind.MEKF, use_mag=False),
 }
 """Named variants of a kind: name -> (kind, setting overrides, nine_axis); ``--filter all`` runs them
-after their kind, ``--filter mekf6`` alone."""
+after their kind, ``--filter mekf6`` alone. ``nine_axis`` is :func:`attica.kinds.uses_mag` of the
+variant's settings."""
 
 DATA_SUFFIXES = (".npz", ".csv", ".hdf5", ".h5", ".mat")
 """Recording files ``load_trials`` picks up from a directory."""
@@ -103,13 +110,16 @@ GRIDS: dict[FilterKind, dict[str, list[Any]]] = {
         "q_phi,q_theta": [3e-4, 1e-3, 3e-3],
         "r_phi,r_theta": [3e-5, 1e-4, 3e-4],
     },
+    FilterKind.GYRO: {},
+    FilterKind.TILT: {},
     FilterKind.MEKF: {
         "mag_noise": [0.3, 0.6, 1.0],
         "mag_norm_reject": [0.1, 0.2],
         "mag_dip_reject": [0.3, 0.5],
     },
 }
-"""The grid searched for each tunable kind, around the default settings (``a,b`` sets both fields)."""
+"""The grid searched for each kind, around the default settings (``a,b`` sets both fields); empty for the
+baselines, which have nothing to tune. Every kind has an entry (tests/test_kinds.py checks it)."""
 
 VARIANT_GRIDS: dict[str, dict[str, list[Any]]] = {
     "mekf6": {
@@ -169,7 +179,7 @@ def attica_method(
     ``variant`` names an entry of :data:`VARIANTS` (its overrides apply first, its name and axes are used).
     ``calibration`` (a :class:`~attica.calibration.Calibration`) sets the filter's input/output stages.
     """
-    nine = kind in NINE_AXIS
+    nine = uses_mag(kind)
     if variant:
         kind, base, nine = VARIANTS[variant]
         overrides = {**base, **(overrides or {})}

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from attica.data import Recording
 from attica.evaluate.core import Report
-from attica.settings import FilterKind
+from attica.kinds import KINDS
 
 __all__ = ["PLOT_PEERS", "groups_figure", "plot_groups", "plot_trial", "trial_figure", "write_plots"]
 
@@ -165,7 +165,7 @@ def write_plots(report: Report, recs: Iterable[Recording], out: Path) -> list[Pa
     baselines) and VQF; groups.png: the same filters and the default-setting peers of
     :data:`PLOT_PEERS`; groups_seed.png: attica's tuned filters against their seed preset.
     """
-    baselines = (FilterKind.GYRO.label, FilterKind.TILT.label)
+    baselines = {k.label for k in KINDS if k.baseline}
     ran = [r.method for r in report.results]
     mine = [
         m.name for m in ran if m.family == "attica" and m.setting == "default" and m.name not in baselines

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/ars/att_ars.c: the quaternion complementary ARS, many instances in lockstep."""
+"""Mirror of firmware/src/filters/ars/att_ars.c: the quaternion complementary ARS, instances in lockstep."""
 
 from __future__ import annotations
 
@@ -55,6 +55,8 @@ class Ars:
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ("lp1", "lp2")
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
 
     COEFFS: StateSpec = {
         "c.dt": "f32",

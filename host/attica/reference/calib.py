@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from attica import kinds
 from attica.calibration.model import Calibration
 from attica.calibration.stages import REMAP_NAMES, StageSettings, from_calibration
 from attica.reference import detmath as dm
@@ -286,15 +287,18 @@ def _turn(v: dm.Vec3, c: Any, s: Any) -> dm.Vec3:
 
 
 def yaw_to(kind: str, impl: Any, target: Any, gain: Any) -> None:
-    """att_filter_yaw_to on every instance of a reference filter (kind its label)."""
-    if kind not in ("ars", "mars", "kf", "ekf", "gyro", "mekf"):
+    """att_filter_yaw_to on every instance of a reference filter (kind its label).
+
+    The kind's earth-frame memories (its class's ``EARTH`` vectors) turn with the attitude.
+    """
+    k = kinds.info(kind)
+    if k.heading(impl.settings) == kinds.Heading.NONE:
         raise ValueError(f"{kind}: no heading")
-    if kind != "gyro" and not bool(np.all(impl.initialised)):
+    if hasattr(impl, "initialised") and not bool(np.all(impl.initialised)):  # gyro: ready from the start
         raise RuntimeError("the filter is not initialised yet (no valid sample)")
     gain = np.float32(gain)
-    euler_kind = kind in ("ekf", "gyro")
     with np.errstate(all="ignore"):
-        if euler_kind:
+        if k.euler_state:
             q = dm.quat_from_euler(*impl.euler)
             yaw = dm.f32(impl.euler[2])
         else:
@@ -305,22 +309,12 @@ def yaw_to(kind: str, impl: Any, target: Any, gain: Any) -> None:
         if not bool(np.all(dm.isfinitef(delta))):
             raise RuntimeError("yaw outside the wrap domain")
         s, c = dm.sinf(delta), dm.cosf(delta)
-        if kind != "gyro":
-            impl.lp1 = _turn(impl.lp1, c, s)
-            impl.lp2 = _turn(impl.lp2, c, s)
-        if kind == "mars":
-            impl.m0 = _turn(impl.m0, c, s)
-            impl.m0_ref = _turn(impl.m0_ref, c, s)
-            impl.m0_perp = _turn(impl.m0_perp, c, s)
-        if kind == "mekf":  # the heading measurement's tilt entries are linear in m0_ref
-            hx, hy, _ = _turn((impl.mag_hx, impl.mag_hy, dm.f32(np.zeros_like(impl.mag_hx))), c, s)
-            impl.m0 = _turn(impl.m0, c, s)
-            impl.m0_ref = _turn(impl.m0_ref, c, s)
-            impl.mag_hx, impl.mag_hy = dm.f32(hx), dm.f32(hy)
-        if euler_kind:
+        for name in impl.EARTH:
+            setattr(impl, name, _turn(getattr(impl, name), c, s))
+        if k.euler_state:
             psi = np.broadcast_to(dm.f32(target), yaw.shape).copy() if gain == 1 else dm.wrap_pi(yaw + delta)
             impl.euler = (dm.f32(impl.euler[0]), dm.f32(impl.euler[1]), dm.f32(psi))
-            if kind == "gyro":
+            if k.q_state:  # kept beside the angles (gyro)
                 impl.q = dm.quat_from_euler(*impl.euler)
             return
         hs, hc = dm.sinf(delta * dm.HALF), dm.cosf(delta * dm.HALF)
@@ -333,16 +327,19 @@ def _heading_ok(h: Any) -> bool:
 
 
 def set_heading(kind: str, impl: Any, conv: int, heading: float) -> None:
-    """att_filter_set_heading; ValueError for the tilt baseline or a bad heading."""
-    if kind == "tilt" or not _heading_ok(heading):
+    """att_filter_set_heading; ValueError for a kind without heading (tilt) or a bad heading."""
+    if kinds.heading(kind, impl.settings) == kinds.Heading.NONE or not _heading_ok(heading):
         raise ValueError(f"{kind}: set_heading({heading}) refused")
     yaw_to(kind, impl, heading_enu(np.float32(heading), conv), np.float32(1.0))
 
 
 def heading_update(kind: str, impl: Any, conv: int, heading: float, gain: float, valid: bool = True) -> None:
-    """att_filter_heading_update (6-axis kinds); ValueError for mars/tilt or a bad heading/gain."""
-    six_axis_mekf = kind == "mekf" and not bool(np.any(impl.use_mag))
-    if kind not in ("ars", "kf", "ekf", "gyro") and not six_axis_mekf:
+    """att_filter_heading_update (kinds without a heading reference of their own).
+
+    ValueError for a kind whose :func:`attica.kinds.heading` is not ``UPDATE`` (mars, 9-axis mekf, tilt)
+    or a bad heading or gain.
+    """
+    if kinds.heading(kind, impl.settings) != kinds.Heading.UPDATE:
         raise ValueError(f"{kind}: no external heading update (6-axis filters only)")
     if not _heading_ok(heading) or not _in(np.float32(gain), np.float32(0.0), np.float32(1.0)):
         raise ValueError(f"heading_update({heading}, {gain}) refused")

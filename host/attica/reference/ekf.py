@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/ekf/att_ekf.c: the Euler-angle EKF with gyro bias states, instances in lockstep.
+"""Mirror of firmware/src/filters/ekf/att_ekf.c: Euler-angle EKF with gyro bias states, instances in lockstep.
 
 P is kept as the 21 elements of the packed upper triangle (att_ekf_state_t.p), each an (n,) array.
 """
@@ -214,6 +214,8 @@ class Ekf:
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ("lp1", "lp2")
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
 
     COEFFS: StateSpec = {
         "c.dt": "f32",
@@ -665,6 +667,11 @@ class Ekf:
     def covariance(self) -> NDArray[np.float32]:
         """The packed upper triangles of P (n, 21)."""
         return stack(tuple(self.p))
+
+    def output_cov(self) -> tuple[Any, Any, Any, Any]:
+        """The output record's ``cov`` (att_filter_output): phi, theta, psi, then the mean bias variance."""
+        p = self.p
+        return (p[0], p[6], p[11], ((p[15] + p[18]) + p[20]) * THIRD)
 
     def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3)."""

@@ -7,22 +7,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica import kinds
 from attica.checks import filter_settings, warn_units
 from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import calib as rc
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, split3, stack, state_values
-from attica.reference.ars import Ars
-from attica.reference.ekf import THIRD, Ekf
-from attica.reference.gyro import Gyro
-from attica.reference.kf import Kf
-from attica.reference.mars import Mars
-from attica.reference.mekf import Mekf
-from attica.reference.tilt import Tilt
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind
-
-THREE = dm.c("0x1.8p+1")
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -40,7 +32,7 @@ class Filter:
     Parameters
     ----------
     kind
-        ``"ars"``, ``"gyro"``, ``"tilt"``... or a :class:`FilterKind`.
+        A kind name of :mod:`attica.kinds` (``"ars"``, ``"mekf"`` ...), its number or a :class:`FilterKind`.
     dt
         Sample period in s (overrides ``settings.dt``); required unless ``settings`` is given (tilt has
         none). A settings dataclass in this place is taken as ``settings``.
@@ -73,24 +65,9 @@ class Filter:
         self.n = n
         g = float(getattr(self.settings, "gravity", 9.80665))
         self.stages = rc.Stages(rc.as_stage_settings(calibration, g, accel_outputs))
-        impl: Any
-        if self.kind == FilterKind.ARS:
-            impl = Ars(self.settings, n)
-        elif self.kind == FilterKind.MARS:
-            impl = Mars(self.settings, n)
-        elif self.kind == FilterKind.KF:
-            impl = Kf(self.settings, n)
-        elif self.kind == FilterKind.EKF:
-            impl = Ekf(self.settings, n)
-        elif self.kind == FilterKind.GYRO:
-            impl = Gyro(self.settings, n)
-        elif self.kind == FilterKind.TILT:
-            impl = Tilt(self.settings, n)
-        elif self.kind == FilterKind.MEKF:
-            impl = Mekf(self.settings, n)
-        else:  # pragma: no cover - make_settings refuses unimplemented kinds
-            raise ValueError(f"filter {self.kind.label} has no reference implementation")
-        self.impl = impl
+        self.info = kinds.info(self.kind)
+        """The kind's facts (:class:`attica.kinds.KindInfo`)."""
+        self.impl: Any = self.info.reference_class()(self.settings, n)
 
     @property
     def settings(self) -> Any:
@@ -108,8 +85,10 @@ class Filter:
 
     def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
         """att_filter_accel: (gravity, linear, earth) accelerations, each (n, 3), m/s^2."""
-        q = self.impl.quat if self.kind == FilterKind.EKF else self.impl.q
-        g, lin, e = self.stages.accel(tuple(q.T) if self.kind == FilterKind.EKF else q)
+        if self.info.q_state:
+            g, lin, e = self.stages.accel(self.impl.q)
+        else:  # an Euler-angle state (the EKF): q from the angles
+            g, lin, e = self.stages.accel(tuple(self.impl.quat.T))
         return stack(g), stack(lin), stack(e)
 
     def set_heading(self, heading: float) -> None:
@@ -117,7 +96,7 @@ class Filter:
         rc.set_heading(self.kind.label, self.impl, self.stages.convention, heading)
 
     def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
-        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        """att_filter_heading_update (the kinds whose :func:`attica.kinds.heading` is ``UPDATE``)."""
         rc.heading_update(self.kind.label, self.impl, self.stages.convention, heading, gain, valid)
 
     def retune(self, settings: Any = None, **overrides: Any) -> None:
@@ -159,37 +138,20 @@ class Filter:
         return not self.state_diff(i, c_state)
 
     def _step_impl(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
-        f = self.impl
-        if self.kind in (FilterKind.ARS, FilterKind.KF, FilterKind.EKF):
-            return f.step(gyr, acc)  # type: ignore[no-any-return]
-        if self.kind in (FilterKind.MARS, FilterKind.MEKF):
-            return f.step(gyr, acc, mag)  # type: ignore[no-any-return]
-        if self.kind == FilterKind.GYRO:
-            return f.step(gyr)  # type: ignore[no-any-return]
-        return f.step(acc)  # type: ignore[no-any-return]
+        given = {"gyr": gyr, "acc": acc, "mag": mag}
+        return self.impl.step(*(given[s] for s in self.info.sensors))  # type: ignore[no-any-return]
 
     def output(self) -> Outputs:
         """att_filter_output for every instance: (n,) records of OUTPUT_DTYPE."""
         f = self.impl
+        k = self.info
         out = np.zeros(self.n, OUTPUT_DTYPE)
-        if self.kind == FilterKind.EKF:
-            out["q"] = f.quat  # derived from the angles on request
-        else:
-            out["q"] = stack(f.q)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.MEKF):
-            out["euler"] = stack(dm.quat_to_euler(f.q))
-        else:
-            out["euler"] = stack(f.euler)
-        if self.kind in (FilterKind.ARS, FilterKind.MARS, FilterKind.KF, FilterKind.EKF, FilterKind.MEKF):
+        out["q"] = stack(f.q) if k.q_state else f.quat  # an Euler-angle state: q derived on request
+        out["euler"] = stack(f.euler) if k.euler_state else stack(dm.quat_to_euler(f.q))
+        if k.gyro_bias:
             out["gyro_bias"] = stack(f.bias)
-        if self.kind == FilterKind.KF:
-            out["cov"] = stack((f.p, f.p, f.p, f.p))  # P = p I
-        elif self.kind == FilterKind.EKF:
-            pb = ((f.p[15] + f.p[18]) + f.p[20]) * THIRD
-            out["cov"] = stack((f.p[0], f.p[6], f.p[11], pb))
-        elif self.kind == FilterKind.MEKF:
-            p = f.p  # packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20
-            out["cov"] = stack((p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE))
+        if k.covariance:
+            out["cov"] = stack(f.output_cov())
         if self.stages.convention != rc.ENU:
             qc = rc.quat_to(tuple(out["q"].T), self.stages.convention)
             out["q"] = stack(qc)

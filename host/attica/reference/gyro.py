@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/gyro/att_gyro.c: gyro-only ZYX Euler-rate integration, instances in lockstep."""
+"""Mirror of firmware/src/filters/gyro/att_gyro.c: gyro-only ZYX Euler-rate integration, in lockstep."""
 
 from __future__ import annotations
 
@@ -22,6 +22,8 @@ class Gyro:
 
     STATE: StateSpec = {"st.euler": "vec3", "st.q": "quat", "st.steps": "u32", "st.flags": "u32"}
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ()
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
     COEFFS: StateSpec = {
         "c.dt": "f32",
         "c.gyro_range": "f32",

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/kf/att_kf.c: the linear quaternion Kalman filter, many instances in lockstep.
+"""Mirror of firmware/src/filters/kf/att_kf.c: the linear quaternion Kalman filter, instances in lockstep.
 
 The covariance is isotropic (P = p I, see att_kf.h), so the filter carries the scalar p.
 """
@@ -47,6 +47,8 @@ class Kf:
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ("lp1", "lp2")
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
 
     COEFFS: StateSpec = {
         "c.dt": "f32",
@@ -261,6 +263,10 @@ class Kf:
     def variance(self) -> NDArray[np.float32]:
         """The variance p of each instance (P = p I), (unit quaternion)^2."""
         return np.asarray(self.p, np.float32)
+
+    def output_cov(self) -> tuple[Any, Any, Any, Any]:
+        """The output record's ``cov`` (att_filter_output): p four times (P = p I)."""
+        return (self.p, self.p, self.p, self.p)
 
     def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3).

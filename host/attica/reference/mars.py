@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/mars/att_mars.c: the 9-axis complementary filter, many instances in lockstep."""
+"""Mirror of firmware/src/filters/mars/att_mars.c: the 9-axis complementary filter, instances in lockstep."""
 
 from __future__ import annotations
 
@@ -87,6 +87,8 @@ class Mars:
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ("lp1", "lp2", "m0", "m0_ref", "m0_perp")
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
 
     COEFFS: StateSpec = {
         "c.dt": "f32",

@@ -1,4 +1,4 @@
-"""Mirror of firmware/src/filters/mekf/att_mekf.c: the multiplicative (error-state) EKF, many instances in lockstep.
+"""Mirror of firmware/src/filters/mekf/att_mekf.c: multiplicative (error-state) EKF, instances in lockstep.
 
 The covariance algebra lives in :mod:`attica.reference.mekf_cov`; this module holds the coefficients,
 the reference field, the initialisation and the step, with every C branch as ``np.where``.
@@ -21,6 +21,7 @@ from attica.settings import Flag, MekfSettings
 
 _U0 = np.uint32(0)
 PIO2 = dm.c("0x1.921fb6p+0")
+THREE = dm.c("0x1.8p+1")
 QUARTER = dm.c("0x1p-2")
 GATED_MAX = np.uint32(0xFFFFFFFF)
 SQRT2 = dm.c("0x1.6a09e6p+0")
@@ -73,6 +74,8 @@ class Mekf:
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ("lp1", "lp2", "m0", "m0_ref", "mag_h")
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
 
     COEFFS: StateSpec = {
         "c.dt": "f32",
@@ -482,6 +485,15 @@ class Mekf:
         return stack(self.bias)
 
     @property
+    def mag_h(self) -> dm.Vec3:
+        """The heading measurement's tilt entries (mag_hx, mag_hy) as an earth-frame vector with z = 0."""
+        return (self.mag_hx, self.mag_hy, dm.f32(np.zeros_like(self.mag_hx)))
+
+    @mag_h.setter
+    def mag_h(self, v: dm.Vec3) -> None:
+        self.mag_hx, self.mag_hy = dm.f32(v[0]), dm.f32(v[1])
+
+    @property
     def gyro_scale(self) -> NDArray[np.float32]:
         """Gyro scale-factor error estimates (n,): the rate integrated is (1 + s)(w - b)."""
         return np.asarray(self.scale, np.float32).copy()
@@ -490,6 +502,15 @@ class Mekf:
     def covariance(self) -> NDArray[np.float32]:
         """The packed covariance (n, 21): upper triangle of the 6x6 P, row-major."""
         return stack(tuple(self.p))
+
+    def output_cov(self) -> tuple[Any, Any, Any, Any]:
+        """The output record's ``cov`` (att_filter_output): attitude error variances, mean bias variance.
+
+        The attitude error variances x, y, z, then the mean of the three bias variances (the diagonal of
+        the packed P is at 0, 6, 11, 15, 18, 20).
+        """
+        p = self.p
+        return (p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE)
 
     def run(self, gyr: Any, acc: Any, mag: Any = None) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc, mag (N, 3) for n == 1 or (N, n, 3); mag None = absent.

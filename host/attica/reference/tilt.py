@@ -26,6 +26,8 @@ class Tilt:
         "st.flags": "u32",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
+    EARTH: tuple[str, ...] = ()
+    """Earth-frame state vectors, turned with the attitude by a heading change (reference.calib.yaw_to)."""
     COEFFS: StateSpec = {
         "c.gravity": "f32",
         "c.accel_range": "f32",
