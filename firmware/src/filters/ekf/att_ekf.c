@@ -673,10 +673,154 @@ static ATT_ALWAYS_INLINE float att_ekf_norm_error(const att_ekf_coeffs_t *c, att
 }
 
 /*
+ * The applied update: the stages (lp := lp + eps x lp with eps_z = 0, in the heading frame of the
+ * predicted yaw, lp_psi: the next update turns them on from there, through this one's change of yaw and
+ * any flip), the angles and the bias.
+ */
+static ATT_ALWAYS_INLINE void att_ekf_commit(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t e,
+                                             att_vec3_t lp1, att_vec3_t lp2, float epx, float epy, bool ready,
+                                             const float db3[3])
+{
+    if (c->lp_on) {
+        st->lp1 = att_i_vec3(lp1.x + epy * lp1.z, lp1.y - epx * lp1.z, lp1.z + (epx * lp1.y - epy * lp1.x));
+        st->lp2 = att_i_vec3(lp2.x + epy * lp2.z, lp2.y - epx * lp2.z, lp2.z + (epx * lp2.y - epy * lp2.x));
+        st->lp_psi = st->euler.z;
+        st->lp_ready = ready;
+        st->converging = !ready;
+    }
+    st->euler = e;
+    st->bias.x = st->bias.x + db3[0];
+    st->bias.y = st->bias.y + db3[1];
+    st->bias.z = st->bias.z + db3[2];
+}
+
+/* What the gain and covariance step of an update takes: the innovation, R and S^-1, the soft factors. */
+typedef struct {
+    float y0;  /**< innovation of roll (the tilt error about x over cos(theta)), rad */
+    float y1;  /**< innovation of pitch, rad */
+    float yb0; /**< the raw sample's innovation (the bias states measure against it): roll, rad */
+    float yb1; /**< pitch, rad */
+    float r0;  /**< R of roll, rad^2 */
+    float r1;  /**< R of pitch, rad^2 */
+    float t0;  /**< det P2 + r1 P00 */
+    float t1;  /**< det P2 + r0 P11 */
+    float inv; /**< 1 / det S */
+    float i00; /**< S^-1 (symmetric) */
+    float i01;
+    float i11;
+    float fk;  /**< the gate's soft factor (1: the whole update) */
+    float fb;  /**< the bias states' factor */
+} att_ekf_innov_t;
+
+/*
+ * K = P H^T S^-1 (columns k0, k1; row i: k0_i = P_i0 i00 + P_i1 i01, k1_i = P_i0 i01 + P_i1 i11): the
+ * updated roll and pitch into e (x, y), the bias change into db3, P in place.
+ * P := P - K S K^T without cancellation in the rows of roll and pitch: (I - K H) P there is
+ * R S^-1 P (rows 0, 1), so P2 := R S^-1 P2 = [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0
+ * P11)] / det S (positive definite) and P(0:2, j) := R (K^T)(:, j); the rest P - K (H P). In place,
+ * one row i = 2..5 of the gain at a time: row i of the block reads P_0j, P_1j for j >= i only, so
+ * P_0i, P_1i are written after it (soft: every element P + fk (P_update - P)).
+ */
+static ATT_ALWAYS_INLINE void att_ekf_gain(att_ekf_state_t *st, const att_ekf_innov_t *v, att_vec3_t *e, float db3[3])
+{
+    const float *p = st->p;
+    float *pn = st->p;
+    int i;
+    int j;
+    const bool soft = v->fk < 1.0f;
+    float kb0[3];
+    float kb1[3];
+    float n00;
+    float n01;
+    float n11;
+    float k00;
+    float k10;
+    float k01;
+    float k11;
+    k00 = P_(p, 0, 0) * v->i00 + P_(p, 0, 1) * v->i01;
+    k10 = P_(p, 0, 0) * v->i01 + P_(p, 0, 1) * v->i11;
+    k01 = P_(p, 1, 0) * v->i00 + P_(p, 1, 1) * v->i01;
+    k11 = P_(p, 1, 0) * v->i01 + P_(p, 1, 1) * v->i11;
+    e->x = st->euler.x + (k00 * v->y0 + k10 * v->y1) * v->fk;
+    e->y = st->euler.y + (k01 * v->y0 + k11 * v->y1) * v->fk;
+    ATT_EKF_UNROLL
+    for (i = 3; i < 6; i++) {
+        const float k0 = P_(p, i, 0) * v->i00 + P_(p, i, 1) * v->i01;
+        const float k1 = P_(p, i, 0) * v->i01 + P_(p, i, 1) * v->i11;
+        const float o0 = P_(p, 0, i);
+        const float o1 = P_(p, 1, i);
+        kb0[i - 3] = k0;
+        kb1[i - 3] = k1;
+        ATT_EKF_UNROLL
+        for (j = i; j < 6; j++) {
+            const float old = P_(pn, i, j);
+            const float nw = old - (k0 * P_(p, 0, j) + k1 * P_(p, 1, j));
+            P_(pn, i, j) = soft ? old + v->fk * (nw - old) : nw;
+        }
+        P_(pn, 0, i) = soft ? o0 + v->fk * (v->r0 * k0 - o0) : v->r0 * k0;
+        P_(pn, 1, i) = soft ? o1 + v->fk * (v->r1 * k1 - o1) : v->r1 * k1;
+    }
+    n00 = (v->r0 * v->inv) * v->t0;
+    n01 = ((v->r0 * v->r1) * v->inv) * P_(p, 0, 1);
+    n11 = (v->r1 * v->inv) * v->t1;
+    if (soft) {
+        n00 = P_(p, 0, 0) + v->fk * (n00 - P_(p, 0, 0));
+        n01 = P_(p, 0, 1) + v->fk * (n01 - P_(p, 0, 1));
+        n11 = P_(p, 1, 1) + v->fk * (n11 - P_(p, 1, 1));
+    }
+    pn[0] = n00;
+    pn[1] = n01;
+    pn[6] = n11;
+    db3[0] = (kb0[0] * v->yb0 + kb1[0] * v->yb1) * v->fb;
+    db3[1] = (kb0[1] * v->yb0 + kb1[1] * v->yb1) * v->fb;
+    db3[2] = (kb0[2] * v->yb0 + kb1[2] * v->yb1) * v->fb;
+}
+
+/*
+ * The measurement of an update: the specific force in the heading frame of the prediction (the earth
+ * frame turned by its yaw: R_y(theta) R_x(phi) a) into *va, and the direction the update measures: the
+ * low-passed one when the stages are on (their copies turned and stepped in *lp1, *lp2; *ready: they
+ * run), else va.
+ */
+static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
+                                                        att_vec3_t acc, const att_ekf_trig_t *tr,
+                                                        att_vec3_t *va, att_vec3_t *lp1, att_vec3_t *lp2,
+                                                        bool *ready)
+{
+    const float sphi = tr->sphi;
+    const float cphi = tr->cphi;
+    const float sth = tr->sth;
+    const float cth = tr->cth;
+    att_vec3_t vv;
+    vv.x = cth * acc.x + (sth * sphi) * acc.y + (sth * cphi) * acc.z;
+    vv.y = cphi * acc.y - sphi * acc.z;
+    vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
+    *va = vv;
+    *ready = st->lp_ready;
+    if (c->lp_on) {
+        att_ekf_turn(st, lp1, lp2); /* the stages in the predicted heading frame */
+        if (!*ready) {
+            /* not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
+             * that gravity (0, 0, g) after a reset or an unusable gyro sample (a right estimate kept: no
+             * pull onto one noisy sample), from the sample at the end of the convergence phase (no
+             * residual error left in the stages); otherwise the raw sample is the measurement */
+            const float h2 = va->x * va->x + va->y * va->y;
+            *ready = va->z > 0.0f && h2 < ATT_EKF_SETTLED * (h2 + va->z * va->z);
+            *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
+            *lp2 = *lp1;
+        }
+        att_i_lowpass2(vv, c->k_lp, lp1, lp2);
+        vv = *lp2;
+    }
+    return vv;
+}
+
+/*
  * Update with the roll and pitch of the low-passed gravity, P in place (out of line: its frame is not
- * the prediction's); returns its flags. Not applied (no direction, det S not usable, outside the
- * gate): the prediction kept. An update whose result cannot be used is discarded (ATT_FLAG_NUMERIC):
- * the predicted angles and bias kept, P restarted (att_ekf_p_restart).
+ * the prediction's); returns its flags: the measurement, the innovation, R, S^-1 and the gate, the
+ * gain and covariance, the pure tilt correction, the commit. Not applied (no direction, det S not
+ * usable, outside the gate): the prediction kept. An update whose result cannot be used is discarded
+ * (ATT_FLAG_NUMERIC): the predicted angles and bias kept, P restarted (att_ekf_p_restart).
  */
 static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc,
                                             const att_ekf_trig_t *tr)
@@ -685,8 +829,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     const float er = c->need_norm ? att_ekf_norm_error(c, acc) : 0.0f;
     const float e2 = c->need_norm ? er * er : 0.0f;
     const float *p = st->p;
-    const float sphi = tr->sphi;
-    const float cphi = tr->cphi;
     const float sth = tr->sth;
     const float cth = tr->cth;
     float cg;
@@ -718,8 +860,6 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     float fk = 1.0f;
     float db3[3];
     float *pn = st->p;
-    int i;
-    int j;
     att_vec3_t lp1 = st->lp1; /* the update's copies of the stages (turned below when on) */
     att_vec3_t lp2 = st->lp2;
     att_vec3_t vv;
@@ -727,28 +867,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     att_vec3_t e;
     float epx; /* the correction's rotation in the heading frame, rad: x, y (its z is 0) */
     float epy;
-    /* the specific force in the heading frame of the prediction (the earth frame turned by its yaw):
-     * R_y(theta) R_x(phi) a */
-    vv.x = cth * acc.x + (sth * sphi) * acc.y + (sth * cphi) * acc.z;
-    vv.y = cphi * acc.y - sphi * acc.z;
-    vv.z = (-sth) * acc.x + (cth * sphi) * acc.y + (cth * cphi) * acc.z;
-    va = vv;
-    ready = st->lp_ready;
-    if (c->lp_on) {
-        att_ekf_turn(st, &lp1, &lp2); /* the stages in the predicted heading frame */
-        if (!ready) {
-            /* not started: a sample within 0.1 rad of the estimate's gravity starts the stages, from
-             * that gravity (0, 0, g) after a reset or an unusable gyro sample (a right estimate kept: no
-             * pull onto one noisy sample), from the sample at the end of the convergence phase (no
-             * residual error left in the stages); otherwise the raw sample is the measurement */
-            const float h2 = va.x * va.x + va.y * va.y;
-            ready = va.z > 0.0f && h2 < ATT_EKF_SETTLED * (h2 + va.z * va.z);
-            lp1 = (ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : va;
-            lp2 = lp1;
-        }
-        att_i_lowpass2(vv, c->k_lp, &lp1, &lp2);
-        vv = lp2;
-    }
+    vv = att_ekf_measurement(c, st, acc, tr, &va, &lp1, &lp2, &ready);
     if (!att_i_align_up(vv, &cw, &cx, &cy, &n)) {
         return att_ekf_check(c, st); /* no direction: no update */
     }
@@ -803,60 +922,9 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         const float db = yb0 * (i00 * yb0 + i01 * yb1) + yb1 * (i01 * yb0 + i11 * yb1);
         fb = (db > ATT_EKF_BIAS_SOFT) ? (ATT_EKF_BIAS_SOFT / db) * fk : fk;
     }
-    /* K = P H^T S^-1 (columns k0, k1; row i: k0_i = P_i0 i00 + P_i1 i01, k1_i = P_i0 i01 + P_i1 i11).
-     * P := P - K S K^T without cancellation in the rows of roll and pitch: (I - K H) P there is
-     * R S^-1 P (rows 0, 1), so P2 := R S^-1 P2 = [r0 (det P2 + r1 P00), r0 r1 P01; ., r1 (det P2 + r0
-     * P11)] / det S (positive definite) and P(0:2, j) := R (K^T)(:, j); the rest P - K (H P). In place,
-     * one row i = 2..5 of the gain at a time: row i of the block reads P_0j, P_1j for j >= i only, so
-     * P_0i, P_1i are written after it (soft: every element P + fk (P_update - P)). */
     {
-        const bool soft = fk < 1.0f;
-        float kb0[3];
-        float kb1[3];
-        float n00;
-        float n01;
-        float n11;
-        float k00;
-        float k10;
-        float k01;
-        float k11;
-        k00 = P_(p, 0, 0) * i00 + P_(p, 0, 1) * i01;
-        k10 = P_(p, 0, 0) * i01 + P_(p, 0, 1) * i11;
-        k01 = P_(p, 1, 0) * i00 + P_(p, 1, 1) * i01;
-        k11 = P_(p, 1, 0) * i01 + P_(p, 1, 1) * i11;
-        e.x = st->euler.x + (k00 * y0 + k10 * y1) * fk;
-        e.y = st->euler.y + (k01 * y0 + k11 * y1) * fk;
-        ATT_EKF_UNROLL
-        for (i = 3; i < 6; i++) {
-            const float k0 = P_(p, i, 0) * i00 + P_(p, i, 1) * i01;
-            const float k1 = P_(p, i, 0) * i01 + P_(p, i, 1) * i11;
-            const float o0 = P_(p, 0, i);
-            const float o1 = P_(p, 1, i);
-            kb0[i - 3] = k0;
-            kb1[i - 3] = k1;
-            ATT_EKF_UNROLL
-            for (j = i; j < 6; j++) {
-                const float old = P_(pn, i, j);
-                const float nw = old - (k0 * P_(p, 0, j) + k1 * P_(p, 1, j));
-                P_(pn, i, j) = soft ? old + fk * (nw - old) : nw;
-            }
-            P_(pn, 0, i) = soft ? o0 + fk * (r0 * k0 - o0) : r0 * k0;
-            P_(pn, 1, i) = soft ? o1 + fk * (r1 * k1 - o1) : r1 * k1;
-        }
-        n00 = (r0 * inv) * t0;
-        n01 = ((r0 * r1) * inv) * P_(p, 0, 1);
-        n11 = (r1 * inv) * t1;
-        if (soft) {
-            n00 = P_(p, 0, 0) + fk * (n00 - P_(p, 0, 0));
-            n01 = P_(p, 0, 1) + fk * (n01 - P_(p, 0, 1));
-            n11 = P_(p, 1, 1) + fk * (n11 - P_(p, 1, 1));
-        }
-        pn[0] = n00;
-        pn[1] = n01;
-        pn[6] = n11;
-        db3[0] = (kb0[0] * yb0 + kb1[0] * yb1) * fb;
-        db3[1] = (kb0[1] * yb0 + kb1[1] * yb1) * fb;
-        db3[2] = (kb0[2] * yb0 + kb1[2] * yb1) * fb;
+        const att_ekf_innov_t v = {y0, y1, yb0, yb1, r0, r1, t0, t1, inv, i00, i01, i11, fk, fb};
+        att_ekf_gain(st, &v, &e, db3);
     }
     /* The correction is a pure tilt rotation: the measurement carries no heading, so the change of the
      * angles must not turn the estimate about the vertical. A change (dphi, dtheta, dpsi) rotates the
@@ -873,19 +941,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     if (!att_ekf_usable(e, pn)) {
         return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
     }
-    if (c->lp_on) {
-        /* lp := lp + eps x lp with eps_z = 0, in the heading frame of the predicted yaw (lp_psi: the
-         * next update turns them on from there, through this one's change of yaw and any flip) */
-        st->lp1 = att_i_vec3(lp1.x + epy * lp1.z, lp1.y - epx * lp1.z, lp1.z + (epx * lp1.y - epy * lp1.x));
-        st->lp2 = att_i_vec3(lp2.x + epy * lp2.z, lp2.y - epx * lp2.z, lp2.z + (epx * lp2.y - epy * lp2.x));
-        st->lp_psi = st->euler.z;
-        st->lp_ready = ready;
-        st->converging = !ready;
-    }
-    st->euler = e;
-    st->bias.x = st->bias.x + db3[0];
-    st->bias.y = st->bias.y + db3[1];
-    st->bias.z = st->bias.z + db3[2];
+    att_ekf_commit(c, st, e, lp1, lp2, epx, epy, ready, db3);
     return 0u;
 }
 
