@@ -142,7 +142,7 @@ float att_gyro_period(const att_gyro_settings_t *s)
     return s->dt;
 }
 
-void att_gyro_output(const att_gyro_t *f, att_output_t *out)
+ATT_NOINLINE void att_gyro_output(const att_gyro_t *f, att_output_t *out)
 {
     out->q = f->st.q;
     out->euler = f->st.euler;

@@ -115,7 +115,7 @@ float att_tilt_period(const att_tilt_settings_t *s)
     return 0.0f;
 }
 
-void att_tilt_output(const att_tilt_t *f, att_output_t *out)
+ATT_NOINLINE void att_tilt_output(const att_tilt_t *f, att_output_t *out)
 {
     out->q = f->st.q;
     out->euler = f->st.euler;
