@@ -59,7 +59,8 @@ bool att_filter_settings_gain(att_filter_kind_t kind, att_filter_settings_t *set
 
 #define ATT_FILTER_CASE_PRESET(NAME, name, num)                                                            \
     case ATT_FILTER_##NAME:                                                                                  \
-        return att_##name##_preset(&settings->name, preset, dt) ? ATT_OK : ATT_ERR_KIND;
+        att_##name##_preset(&settings->name, preset, dt);                                                    \
+        return ATT_OK;
 
 att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
                                         att_filter_settings_t *settings)

@@ -58,11 +58,17 @@ typedef enum {
     ATT_GAIN_EKF_R = 4    /**< EKF measurement noise of roll and pitch */
 } att_gain_t;
 
+/** The per-sample gain that goes with a time constant set over CAN: 0 when tau > 0, else 1. */
+static inline float att_i_gain_for_tau(float tau)
+{
+    return (tau > 0.0f) ? 0.0f : 1.0f;
+}
+
 /*
  * The hooks of kind `name` beside its public att_<name>_init, _retune, _reset and
  * _settings_validate (same meaning for every kind):
- *   att_<name>_preset     the settings of a named preset for sample period dt (s); false for an
- *                         unknown preset
+ *   att_<name>_preset     the settings of a named preset (default or seed; checked by the caller)
+ *                         for sample period dt (s)
  *   att_<name>_period     the sample period of settings, s (0 for kinds without one: tilt)
  *   att_<name>_step_out   one step on the sample; fills the per-step fields of out (may be NULL) as
  *                         att_filter_step documents; returns the flags
@@ -77,7 +83,7 @@ typedef enum {
  *                         such gain
  */
 #define ATT_KIND_HOOKS(NAME, name, num)                                                                    \
-    bool att_##name##_preset(att_##name##_settings_t *s, att_preset_t preset, float dt);                      \
+    void att_##name##_preset(att_##name##_settings_t *s, att_preset_t preset, float dt);                      \
     float att_##name##_period(const att_##name##_settings_t *s);                                              \
     uint32_t att_##name##_step_out(att_##name##_t *restrict f, const att_sample_t *restrict in,               \
                                    att_output_t *restrict out);                                               \

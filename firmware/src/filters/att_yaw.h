@@ -45,10 +45,4 @@ static inline att_vec3_t att_i_yaw_vec(att_vec3_t v, float c, float s)
     return att_i_vec3(c * v.x - s * v.y, s * v.x + c * v.y, v.z);
 }
 
-/** The per-sample gain that goes with a time constant set over CAN: 0 when tau > 0, else 1. */
-static inline float att_i_gain_for_tau(float tau)
-{
-    return (tau > 0.0f) ? 0.0f : 1.0f;
-}
-
 #endif /* ATT_YAW_H */

@@ -313,7 +313,7 @@ uint32_t att_ars_step_out(att_ars_t *restrict f, const att_sample_t *restrict in
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_ars_preset(att_ars_settings_t *s, att_preset_t preset, float dt)
+void att_ars_preset(att_ars_settings_t *s, att_preset_t preset, float dt)
 {
     att_ars_settings_default(s, dt);
     if (preset == ATT_PRESET_SEED) {
@@ -322,7 +322,6 @@ bool att_ars_preset(att_ars_settings_t *s, att_preset_t preset, float dt)
         s->gain_c = 100.0f;
         s->tau_acc_lp = 0.0f;
     }
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_ars_period(const att_ars_settings_t *s)

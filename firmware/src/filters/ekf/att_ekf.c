@@ -1071,7 +1071,7 @@ uint32_t att_ekf_step(att_ekf_t *f, att_vec3_t gyr, att_vec3_t acc)
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_ekf_preset(att_ekf_settings_t *s, att_preset_t preset, float dt)
+void att_ekf_preset(att_ekf_settings_t *s, att_preset_t preset, float dt)
 {
     att_ekf_settings_default(s, dt);
     if (preset == ATT_PRESET_SEED) {
@@ -1088,7 +1088,6 @@ bool att_ekf_preset(att_ekf_settings_t *s, att_preset_t preset, float dt)
         s->tau_acc_lp = 0.0f;
         s->noise_rates = false;
     }
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_ekf_period(const att_ekf_settings_t *s)

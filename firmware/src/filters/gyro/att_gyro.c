@@ -131,10 +131,10 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_gyro_preset(att_gyro_settings_t *s, att_preset_t preset, float dt)
+void att_gyro_preset(att_gyro_settings_t *s, att_preset_t preset, float dt)
 {
+    (void)preset;
     att_gyro_settings_default(s, dt); /* nothing was tuned: the seed preset is the defaults */
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_gyro_period(const att_gyro_settings_t *s)

@@ -292,7 +292,7 @@ uint32_t att_kf_step(att_kf_t *f, att_vec3_t gyr, att_vec3_t acc)
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_kf_preset(att_kf_settings_t *s, att_preset_t preset, float dt)
+void att_kf_preset(att_kf_settings_t *s, att_preset_t preset, float dt)
 {
     att_kf_settings_default(s, dt);
     if (preset == ATT_PRESET_SEED) {
@@ -305,7 +305,6 @@ bool att_kf_preset(att_kf_settings_t *s, att_preset_t preset, float dt)
         s->tau_acc_lp = 0.0f;
         s->bias_mode = ATT_BIAS_OFF;
     }
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_kf_period(const att_kf_settings_t *s)

@@ -618,7 +618,7 @@ uint32_t att_mars_step_out(att_mars_t *restrict f, const att_sample_t *restrict 
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
+void att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
 {
     att_mars_settings_default(s, dt);
     if (preset == ATT_PRESET_SEED) {
@@ -633,7 +633,6 @@ bool att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
         s->tau_acc_lp = 0.0f;
         s->bias_mode = ATT_BIAS_FROZEN;
     }
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_mars_period(const att_mars_settings_t *s)

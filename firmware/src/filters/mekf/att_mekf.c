@@ -1187,10 +1187,10 @@ uint32_t att_mekf_step(att_mekf_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_mekf_preset(att_mekf_settings_t *s, att_preset_t preset, float dt)
+void att_mekf_preset(att_mekf_settings_t *s, att_preset_t preset, float dt)
 {
+    (void)preset;
     att_mekf_settings_default(s, dt); /* the seed preset is the defaults: mekf has no earlier settings */
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_mekf_period(const att_mekf_settings_t *s)

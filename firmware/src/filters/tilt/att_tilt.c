@@ -102,11 +102,11 @@ uint32_t att_tilt_step(att_tilt_t *f, att_vec3_t acc)
 
 /* --- hooks of the kind table (att_kinds.h) ------------------------------------------------- */
 
-bool att_tilt_preset(att_tilt_settings_t *s, att_preset_t preset, float dt)
+void att_tilt_preset(att_tilt_settings_t *s, att_preset_t preset, float dt)
 {
+    (void)preset;
     (void)dt; /* no sample period: each sample stands alone */
     att_tilt_settings_default(s);
-    return preset == ATT_PRESET_DEFAULT || preset == ATT_PRESET_SEED;
 }
 
 float att_tilt_period(const att_tilt_settings_t *s)
