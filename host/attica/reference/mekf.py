@@ -494,14 +494,15 @@ class Mekf:
         """Gyro bias estimates (n, 3), rad/s, sensor frame."""
         return stack(self.bias)
 
-    @property
-    def mag_h(self) -> dm.Vec3:
-        """The heading measurement's tilt entries (mag_hx, mag_hy) as an earth-frame vector with z = 0."""
+    def _get_mag_h(self) -> dm.Vec3:
         return (self.mag_hx, self.mag_hy, dm.f32(np.zeros_like(self.mag_hx)))
 
-    @mag_h.setter
-    def mag_h(self, v: dm.Vec3) -> None:
+    def _set_mag_h(self, v: dm.Vec3) -> None:
         self.mag_hx, self.mag_hy = dm.f32(v[0]), dm.f32(v[1])
+
+    mag_h = property(_get_mag_h, _set_mag_h)
+    """The heading measurement's tilt entries (mag_hx, mag_hy) as an earth-frame vector with z = 0: one of
+    the EARTH memories a heading turn rotates (att_mekf_yaw_to turns them with m0_ref)."""
 
     @property
     def gyro_scale(self) -> NDArray[np.float32]:
