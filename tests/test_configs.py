@@ -14,6 +14,7 @@ import json
 import re
 import shutil
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -80,7 +81,17 @@ def test_a_left_out_kind_is_refused(config: tuple[str, Path]) -> None:
             golden.run_filter(runner, kind, None, *digests.sim_stream())
 
 
-def _config_program(defines: list[str], out: Path) -> dict[str, object]:
+@dataclass(frozen=True)
+class ConfigReport:
+    """What tests/c/att_config_test.c printed for one configuration."""
+
+    kinds: dict[int, tuple[str, int, int]]  # value -> (name, settings_default status, init status)
+    selects: dict[int, int]  # kind value -> the node's SELECT answer (ack result)
+    size: tuple[int, int]  # sizeof(att_filter_t), the largest kind compiled in
+    calibrate: int  # att_filter_calibrate's status
+
+
+def _config_program(defines: list[str], out: Path) -> ConfigReport:
     exe = golden.build_program(
         [ROOT / "tests" / "c" / "att_config_test.c"], "gcc", "-O2", defines, "att_config_test", out
     )
@@ -95,12 +106,7 @@ def _config_program(defines: list[str], out: Path) -> dict[str, object]:
     size = re.search(r"^sizeof att_filter_t=(\d+) largest_kind=(\d+)$", text, re.M)
     cal = re.search(r"^calibrate=(-?\d+)$", text, re.M)
     assert size and cal, text
-    return {
-        "kinds": kinds,
-        "selects": selects,
-        "size": (int(size.group(1)), int(size.group(2))),
-        "calibrate": int(cal.group(1)),
-    }
+    return ConfigReport(kinds, selects, (int(size.group(1)), int(size.group(2))), int(cal.group(1)))
 
 
 @pytest.mark.parametrize("name", ["default", *sorted(CONFIGS)])
@@ -109,8 +115,7 @@ def test_configuration_interface(name: str, tmp_path: Path) -> None:
     defines = CONFIGS.get(name, [])
     res = _config_program(defines, tmp_path)
     kinds = enabled(defines)
-    got = res["kinds"]
-    assert isinstance(got, dict)
+    got = res.kinds
     for kind in FilterKind:
         label, default, init = got[int(kind)]
         assert label == kind.label  # a kind left out is still named
@@ -119,14 +124,13 @@ def test_configuration_interface(name: str, tmp_path: Path) -> None:
         else:
             assert (default, init) == (ATT_ERR_DISABLED, ATT_ERR_DISABLED), f"{name}: {kind.label}"
     assert got[0][1:] == (ATT_ERR_KIND, ATT_ERR_KIND) and got[8] == ("?", ATT_ERR_KIND, ATT_ERR_KIND)
-    selects = res["selects"]
-    assert isinstance(selects, dict)
+    selects = res.selects
     for kind in FilterKind:
         assert selects[int(kind)] == (ACK_OK if kind.label in kinds else ACK_REFUSED), f"{name}: {kind.label}"
     assert selects[8] == ACK_BAD_ARG
-    size, largest = res["size"]  # type: ignore[misc]
+    size, largest = res.size
     stages = "-DATT_WITH_CALIB=0" not in defines
-    assert res["calibrate"] == (0 if stages else ATT_ERR_DISABLED)
+    assert res.calibrate == (0 if stages else ATT_ERR_DISABLED)
     if not stages:
         assert size <= largest + 16, f"{name}: att_filter_t {size} B for a largest kind of {largest} B"
 
@@ -136,10 +140,9 @@ def test_config_header_is_included_first(tmp_path: Path) -> None:
     need(shutil.which("gcc") is not None, "gcc is not installed")
     (tmp_path / "my_attica_config.h").write_text("#define ATT_WITH_EKF 0\n#define ATT_WITH_CALIB 0\n")
     res = _config_program(['-DATT_CONFIG_HEADER="my_attica_config.h"', f"-I{tmp_path}"], tmp_path)
-    kinds = res["kinds"]
-    assert isinstance(kinds, dict)
+    kinds = res.kinds
     assert kinds[int(FilterKind.EKF)][1:] == (ATT_ERR_DISABLED, ATT_ERR_DISABLED)
-    assert kinds[int(FilterKind.ARS)][1:] == (0, 0) and res["calibrate"] == ATT_ERR_DISABLED
+    assert kinds[int(FilterKind.ARS)][1:] == (0, 0) and res.calibrate == ATT_ERR_DISABLED
 
 
 @pytest.mark.parametrize(
@@ -217,7 +220,6 @@ def test_the_config_header_of_the_docs(tmp_path: Path) -> None:
     assert block, "docs/integration.md lost its configuration header example"
     (tmp_path / "my_attica_config.h").write_text(block.group(1))
     res = _config_program(['-DATT_CONFIG_HEADER="my_attica_config.h"', f"-I{tmp_path}"], tmp_path)
-    kinds = res["kinds"]
-    assert isinstance(kinds, dict)
+    kinds = res.kinds
     on = {kinds[int(k)][0] for k in FilterKind if kinds[int(k)][1:] == (0, 0)}
-    assert on == {"ars"} and res["calibrate"] == ATT_ERR_DISABLED
+    assert on == {"ars"} and res.calibrate == ATT_ERR_DISABLED

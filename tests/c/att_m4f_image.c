@@ -190,16 +190,21 @@ int main(void)
     }
     return 0;
 }
-#elif ATT_IMAGE == 10
+#elif ATT_IMAGE == 10 || ATT_IMAGE == 13
 static att_filter_t state;
-static volatile int kind = ATT_IMAGE_KIND;
+#if ATT_IMAGE == 10
+static volatile int kind = ATT_IMAGE_KIND; /* a volatile: every kind compiled in is linked */
+#define ATT_IMAGE_RUN_KIND ((att_filter_kind_t)kind)
+#else
+#define ATT_IMAGE_RUN_KIND ATT_IMAGE_KIND /* a constant: the loop of the kinds' own images */
+#endif
 int main(void)
 {
     att_filter_settings_t s;
     att_sample_t x;
     att_output_t o;
-    if (att_filter_settings_default((att_filter_kind_t)kind, 0.01f, &s) != ATT_OK ||
-        att_filter_init(&state, (att_filter_kind_t)kind, &s) != ATT_OK) {
+    if (att_filter_settings_default(ATT_IMAGE_RUN_KIND, 0.01f, &s) != ATT_OK ||
+        att_filter_init(&state, ATT_IMAGE_RUN_KIND, &s) != ATT_OK) {
         return 1;
     }
     while (run) {
@@ -210,31 +215,10 @@ int main(void)
         put_q(o.q);
         if (out_flags == 0xffffffffu) {
             att_filter_reset(&state);
+#if ATT_IMAGE == 10
             att_filter_output(&state, &o);
             out_q[0] = (float)att_filter_name(state.kind)[0];
-        }
-    }
-    return 0;
-}
-#elif ATT_IMAGE == 13
-static att_filter_t state;
-int main(void)
-{
-    att_filter_settings_t s;
-    att_sample_t x;
-    att_output_t o;
-    if (att_filter_settings_default(ATT_IMAGE_KIND, 0.01f, &s) != ATT_OK ||
-        att_filter_init(&state, ATT_IMAGE_KIND, &s) != ATT_OK) {
-        return 1;
-    }
-    while (run) {
-        x.gyr = v3(0);
-        x.acc = v3(3);
-        x.mag = v3(6);
-        out_flags = att_filter_step(&state, &x, &o);
-        put_q(o.q);
-        if (out_flags == 0xffffffffu) {
-            att_filter_reset(&state);
+#endif
         }
     }
     return 0;
