@@ -34,12 +34,21 @@ NODE_SRC := $(sort $(shell find firmware/src -name '*.c'))
 NODE_HDR := $(wildcard firmware/include/attica/*.h) $(sort $(shell find firmware/src -name '*.h'))
 NODE_PORT := $(wildcard firmware/ports/linux/*.c)
 
-node: build/attica-node
+# the small node of docs/firmware-quickstart.md: ARS only, no stages, classic frames, rings of 8
+NODE_SMALL_CONFIG := -DATT_WITH_MARS=0 -DATT_WITH_KF=0 -DATT_WITH_EKF=0 -DATT_WITH_GYRO=0 -DATT_WITH_TILT=0 \
+  -DATT_WITH_MEKF=0 -DATT_WITH_CALIB=0 -DATT_NODE_WITH_FD=0 -DATT_NODE_RX_RING=8 -DATT_NODE_TX_RING=8
+
+node: build/attica-node build/attica-node-small
 
 build/attica-node: $(NODE_SRC) $(NODE_HDR) $(NODE_PORT) firmware/cflags.txt
 	@mkdir -p build/node
 	$(CC) $(NODE_CFLAGS) -std=gnu99 -Ifirmware/include -c $(NODE_PORT) -o build/node/port.o
 	$(CC) $(NODE_CFLAGS) -Ifirmware/include $(NODE_SRC) build/node/port.o -o $@
+
+build/attica-node-small: $(NODE_SRC) $(NODE_HDR) $(NODE_PORT) firmware/cflags.txt Makefile
+	@mkdir -p build/node-small
+	$(CC) $(NODE_CFLAGS) $(NODE_SMALL_CONFIG) -std=gnu99 -Ifirmware/include -c $(NODE_PORT) -o build/node-small/port.o
+	$(CC) $(NODE_CFLAGS) $(NODE_SMALL_CONFIG) -Ifirmware/include $(NODE_SRC) build/node-small/port.o -o $@
 
 run: build
 	$(ATTICA) demo --duration 60

@@ -664,3 +664,70 @@ def test_select_back_to_the_init_kind_uses_the_init_settings() -> None:
     assert float(node.state.fs.ars.tau) == 0.25
     f32 = np.float32
     assert node.state.f.u.ars.c.k == f32(DT) / (f32(0.25) + f32(DT))
+
+
+@pytest.mark.parametrize("kind", ["ars", "mars", "mekf"])
+def test_push_sample_is_the_imu_fd_frame_path_bit_for_bit(kind: str) -> None:
+    """att_node_push_sample (an IMU on the node's board) against the same samples as IMU_FD frames:
+    the same output frames, flags and counters (an adversarial stretch included)."""
+    g, a, m = _recording(600, 11)
+    g, a, m = g.copy(), a.copy(), m.copy()
+    g[200] = np.nan
+    a[201] = np.inf
+    m[202:260] = 0.0  # absent mag
+    a[300] = 1e6  # saturated
+    frames_fd = c.encode_imu(g, a, m, fd=True)
+    by_frame = c.Node(kind, sample_rate=RATE)
+    by_push = c.Node(kind, sample_rate=RATE)
+    want, steps = by_frame.run(frames_fd)
+    got = []
+    for i in range(g.shape[0]):
+        assert by_push.push_sample(g[i], a[i], m[i])
+        got.append(by_push.pop())
+    assert steps == g.shape[0]
+    got_frames = np.concatenate(got)
+    assert got_frames.tobytes() == want.tobytes()  # ids, lengths, every data byte
+    s_frame, s_push = by_frame.stats(), by_push.stats()
+    assert s_frame.pop("rx_frames") == g.shape[0] and s_push.pop("rx_frames") == 0
+    s_frame.pop("tx_frames")
+    s_push.pop("tx_frames")
+    assert s_frame == s_push
+
+
+def test_push_sample_keeps_the_order_and_refuses_when_tx_is_full() -> None:
+    g, a, m = _recording(40, 12)
+    node = c.Node("ars", sample_rate=RATE, diag_divider=0)
+    # a command waiting in the rx ring is answered before the pushed sample steps
+    node.push(c.encode_cmd(c.Cmd.RESET, counter=3))
+    assert node.push_sample(g[0], a[0], m[0])
+    out = node.pop()
+    assert list(out["id"][:2]) == [c.ID_STATUS, c.ID_QUAT_A] and node.stats()["steps"] == 1
+    # nobody drains tx: a sample steps while the ring has room for a whole set, then is refused
+    pushed = [node.push_sample(g[i], a[i], m[i]) for i in range(1, 40)]
+    room = (lib.ATT_NODE_TX_RING - lib.ATT_NODE_SET_MAX) // 6 + 1
+    assert pushed == [True] * room + [False] * (39 - room)
+    assert node.stats()["rx_overflows"] == 39 - room and node.stats()["steps"] == 1 + room
+    assert node.stats()["tx_overflows"] == 0
+    node.pop()
+    assert node.push_sample(g[0], a[0], m[0]) and node.stats()["steps"] == 2 + room
+    assert not lib.att_node_push_sample(ffi.NULL, ffi.NULL)
+
+
+def test_id_offset_moves_the_node_and_its_rx_ids() -> None:
+    node = c.Node("ars", sample_rate=RATE, id_offset=0x40)
+    assert node.rx_ids() == [0x140, 0x141, 0x142, 0x150, 0x340]
+    assert c.Node("ars", sample_rate=RATE).rx_ids() == [0x100, 0x101, 0x102, 0x110, 0x300]
+    g, a, m = _recording(20, 13)
+    fr = c.encode_imu(g, a, m)
+    moved = fr.copy()
+    moved["id"] += 0x40
+    out, steps = node.run(moved)
+    ref, ref_steps = c.Node("ars", sample_rate=RATE).run(fr)
+    assert steps == ref_steps == 20
+    assert (out["id"] == ref["id"] + 0x40).all() and (out["data"] == ref["data"]).all()
+    out, steps = node.run(fr)  # the DBC's own IDs: another node's
+    assert steps == 0 and node.stats()["unknown_ids"] == 60
+    for bad in (lib.ATT_NODE_ID_OFFSET_MIN - 1, lib.ATT_NODE_ID_OFFSET_MAX + 1):
+        with pytest.raises(c.NodeError, match=f"id_offset {bad} moves an ID out of 0 .. 0x7FF"):
+            c.Node("ars", sample_rate=RATE, id_offset=bad)
+    assert lib.att_node_rx_ids(ffi.NULL, ffi.new("uint32_t[5]")) == 0

@@ -105,21 +105,57 @@ def cflags() -> list[str]:
     return shlex.split((FIRMWARE / "cflags.txt").read_text())
 
 
-_CONFIG_LINE = re.compile(r"^[ \t]*#[ \t]*(?:if ATT_WITH_[A-Z]+|endif)\b.*$", re.M)
+_CONFIG_IF = re.compile(r"^[ \t]*#[ \t]*(if|else|endif)\b[ \t]*(\w*)")
+_CONFIG_DEFAULT = re.compile(r"^#define (ATT_NODE_[A-Z_]+) (\d+)$", re.M)
+
+
+def config_defaults() -> dict[str, int]:
+    """The numeric defaults of att_config.h's options that are not 0/1 switches (the ring sizes)."""
+    text = (INCLUDE / "attica" / "att_config.h").read_text()
+    return {m.group(1): int(m.group(2)) for m in _CONFIG_DEFAULT.finditer(text)}
+
+
+def _default_branches(text: str) -> str:
+    """Keep what the default configuration compiles of ``#if OPTION`` / ``#else`` / ``#endif`` blocks.
+
+    Every option named in such a condition (ATT_WITH_*, ATT_NODE_WITH_FD) is 1 in the default build;
+    anything else in a condition is an error (cffi's parser takes no conditionals).
+    """
+    keep: list[bool] = []
+    out = []
+    for line in text.splitlines():
+        m = _CONFIG_IF.match(line)
+        if m is None:
+            if all(keep):
+                out.append(line)
+            continue
+        word, name = m.group(1), m.group(2)
+        if word == "if":
+            if not re.fullmatch(r"ATT_(?:NODE_)?WITH_[A-Z]+", name):
+                raise ValueError(f"ATT_CDEF sections: unsupported condition {line.strip()!r}")
+            keep.append(True)
+        elif word == "else":
+            keep[-1] = not keep[-1]
+        else:
+            keep.pop()
+    if keep:
+        raise ValueError("ATT_CDEF sections: #if without #endif")
+    return "\n".join(out)
 
 
 def cdef_text() -> str:
     """Declarations for cffi, taken from the headers' ATT_CDEF sections.
 
-    The binding is built with every kind and stage (att_config.h's defaults), so the ``#if ATT_WITH_*``
-    / ``#endif`` lines around union members are dropped (cffi's parser takes no conditionals).
+    The binding is built with every kind and stage (att_config.h's defaults): of ``#if ATT_WITH_*``
+    blocks the default branch is kept (cffi's parser takes no conditionals), and the ring sizes are
+    declared with their default values.
     """
-    parts = []
+    parts = [f"#define {k} {v}" for k, v in sorted(config_defaults().items())]
     for h in headers():
         for block in _CDEF.findall(h.read_text()):
             parts.append(block)
-    text = _CONFIG_LINE.sub("", "\n".join(parts))
-    return re.sub(r"/\*.*?\*/", "", text, flags=re.S)
+    text = re.sub(r"/\*.*?\*/", "", "\n".join(parts), flags=re.S)
+    return _default_branches(text)
 
 
 def inputs_digest() -> str:

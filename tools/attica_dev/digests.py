@@ -214,8 +214,12 @@ def retune_digest(kind: Any) -> str:
     return sha(first, second)
 
 
-def node_digest(kind: Any, fd: bool) -> str:
-    """The node's output frames (id, length, data) for IMU frames and commands of the kind."""
+NODE_BITRATES = {False: (1_000_000, 0), True: (1_000_000, 5_000_000)}
+"""(bitrate, data_bitrate) of the node digests, classic and FD."""
+
+
+def node_stream(kind: Any) -> Any:
+    """The frames of the node digests: 1200 classic IMU samples with gain commands, a NaN gain, a reset."""
     from attica.can import codec as c
 
     g, a, m = sim_stream()
@@ -232,13 +236,24 @@ def node_digest(kind: Any, fd: bool) -> str:
     }
     cmds[700] = c.encode_cmd(c.Cmd.SET_GAIN, int(c.Gain.TAU_ACC), float("nan"), counter=7)
     cmds[900] = c.encode_cmd(c.Cmd.RESET, counter=8)
-    stream = np.concatenate(
+    return np.concatenate(
         [x for i in range(n) for x in ((cmds[i], samples[i]) if i in cmds else (samples[i],))]
     )
-    node = c.Node(kind, sample_rate=RATE, fd=fd, bitrate=1_000_000, data_bitrate=5_000_000 if fd else 0)
-    out, steps = node.run(stream)
-    stats = np.array(list(node.stats().values()), np.int64)
-    return sha(out["id"], out["len"], out["data"], np.array([steps], np.int64), stats)
+
+
+def node_sha(out: Any, steps: int, stats: Any) -> str:
+    """The digest of a node run: output frames (id, length, data), steps and the 14 counters."""
+    return sha(out["id"], out["len"], out["data"], np.array([steps], np.int64), np.asarray(stats, np.int64))
+
+
+def node_digest(kind: Any, fd: bool) -> str:
+    """The node's output frames (id, length, data) for IMU frames and commands of the kind."""
+    from attica.can import codec as c
+
+    bitrate, data_bitrate = NODE_BITRATES[fd]
+    node = c.Node(kind, sample_rate=RATE, fd=fd, bitrate=bitrate, data_bitrate=data_bitrate)
+    out, steps = node.run(node_stream(kind))
+    return node_sha(out, steps, list(node.stats().values()))
 
 
 def _inputs(stream: Callable[[], tuple[Any, ...]]) -> str:

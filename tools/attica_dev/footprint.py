@@ -168,6 +168,9 @@ def only(*kinds: str, calib: bool = True) -> list[str]:
     return flags if calib else [*flags, "-DATT_WITH_CALIB=0"]
 
 
+NODE_SMALL = ["-DATT_NODE_WITH_FD=0", "-DATT_NODE_RX_RING=8", "-DATT_NODE_TX_RING=8"]
+"""The node options of the small node: classic frames only, rings of 8 frames."""
+
 CONFIGS: dict[str, tuple[list[str], str, int]] = {
     "every kind (the default)": ([], "ARS", 10),
     "every kind, no stages": (["-DATT_WITH_CALIB=0"], "ARS", 10),
@@ -177,6 +180,7 @@ CONFIGS: dict[str, tuple[list[str], str, int]] = {
     "MEKF only, no stages": (only("MEKF", calib=False), "MEKF", 13),
     "node, every kind (the default)": ([], "ARS", 12),
     "node, ARS only, no stages": (only("ARS", calib=False), "ARS", 12),
+    "node, ARS only, no stages, classic, rings of 8": ([*only("ARS", calib=False), *NODE_SMALL], "ARS", 12),
 }
 """Build configurations of the per-configuration table: name -> (att_config.h flags, the kind the
 image runs, ATT_IMAGE of tests/c/att_m4f_image.c: 10 every kind compiled in through att_filter.h

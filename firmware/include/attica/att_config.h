@@ -17,6 +17,12 @@
  * att_filter_settings_default and the node's filter command refuse it (ATT_ERR_DISABLED; on CAN the
  * command's answer is REFUSED), and att_filter_name still names it. Its own header (att_<kind>.h)
  * and functions stay available for direct use. The DBC documents every kind whatever the build.
+ *
+ * The CAN node (att_node.h) has three options of its own: the sizes of its receive and transmit rings
+ * (ATT_NODE_RX_RING, ATT_NODE_TX_RING) and whether it handles CAN FD frames at all
+ * (ATT_NODE_WITH_FD). Together with the kinds and the stages they set the node's RAM: att_node_t is
+ * about 11 KB with the defaults and under 1 KB with ARS alone, no stages, classic frames and rings of
+ * 8 (docs/firmware-quickstart.md has the measured table).
  */
 #ifndef ATT_CONFIG_H
 #define ATT_CONFIG_H
@@ -63,6 +69,26 @@
 #define ATT_WITH_CALIB 1
 #endif
 
+/**
+ * CAN FD in the node: IMU_FD in, ATT_OUT_FD / ATT_ACCEL_FD out (att_node_settings_t.fd). With 0 the
+ * node handles classic frames only: its rings store 8 data bytes a frame instead of 64, settings with
+ * fd true are refused, and an IMU_FD frame is not for it (counted in unknown_ids).
+ */
+#ifndef ATT_NODE_WITH_FD
+#define ATT_NODE_WITH_FD 1
+#endif
+/** Frames in the node's receive ring: a power of two, at least 4 (a classic sample and a command). */
+#ifndef ATT_NODE_RX_RING
+#define ATT_NODE_RX_RING 64
+#endif
+/**
+ * Frames in the node's transmit ring: a power of two, at least ATT_NODE_SET_MAX (the most frames one
+ * received frame can queue: 8 without the stages, 10 with them; see att_node.h).
+ */
+#ifndef ATT_NODE_TX_RING
+#define ATT_NODE_TX_RING 64
+#endif
+
 #if (ATT_WITH_ARS != 0) && (ATT_WITH_ARS != 1)
 #error "ATT_WITH_ARS must be 0 or 1"
 #endif
@@ -89,6 +115,16 @@
 #endif
 #if (ATT_WITH_ARS + ATT_WITH_MARS + ATT_WITH_KF + ATT_WITH_EKF + ATT_WITH_GYRO + ATT_WITH_TILT + ATT_WITH_MEKF) == 0
 #error "attica needs at least one filter kind: set one of ATT_WITH_ARS ... ATT_WITH_MEKF to 1"
+#endif
+#if (ATT_NODE_WITH_FD != 0) && (ATT_NODE_WITH_FD != 1)
+#error "ATT_NODE_WITH_FD must be 0 or 1"
+#endif
+#if (ATT_NODE_RX_RING < 4) || (ATT_NODE_RX_RING > 65536) || ((ATT_NODE_RX_RING & (ATT_NODE_RX_RING - 1)) != 0)
+#error "ATT_NODE_RX_RING must be a power of two from 4 to 65536"
+#endif
+#if (ATT_NODE_TX_RING < 8 + 2 * ATT_WITH_CALIB) || (ATT_NODE_TX_RING > 65536) || \
+    ((ATT_NODE_TX_RING & (ATT_NODE_TX_RING - 1)) != 0)
+#error "ATT_NODE_TX_RING must be a power of two from ATT_NODE_SET_MAX (8, or 10 with ATT_WITH_CALIB) to 65536"
 #endif
 
 #endif /* ATT_CONFIG_H */

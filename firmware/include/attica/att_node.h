@@ -13,9 +13,16 @@
  *         while (can_tx_free() && att_node_tx(&node, &f)) { can_send(&f); }
  *     }
  *
+ * With the IMU on the node's own board, each sample goes in with att_node_push_sample(&node, &sample)
+ * instead of frames (same checks, counters and outputs as an IMU_FD frame). The node's size is set at
+ * build time (att_config.h: kinds, stages, ATT_NODE_RX_RING / ATT_NODE_TX_RING, ATT_NODE_WITH_FD);
+ * its CAN IDs at init (id_offset: every ID + offset; att_node_rx_ids lists the ones it receives, for
+ * the controller's acceptance filter; `attica dbc --id-offset N` writes the matching DBC). The E2E
+ * data ID of a message stays 0x0A00 + its DBC ID whatever the offset.
+ *
  * Input: IMU_GYRO + IMU_ACC + IMU_MAG with one counter (any order) or one IMU_FD form a sample; a
  * complete sample steps the filter exactly once (att_filter_step). Both input formats are accepted in
- * either output mode. Every frame is checked in this order: known ID (else unknown_ids), length and
+ * either output mode (IMU_FD only in builds with ATT_NODE_WITH_FD: otherwise it is an unknown ID). Every frame is checked in this order: known ID (else unknown_ids), length and
  * classic/FD format (dlc_errors), E2E CRC (crc_errors); then the sample assembly:
  * - a classic IMU frame whose counter differs from the sample being assembled discards that partial
  *   sample (stale_partials) and starts a new one;
@@ -60,9 +67,36 @@ extern "C" {
 #endif
 
 /* ATT_CDEF_BEGIN */
-#define ATT_NODE_RX_RING 64 /* frames in the receive ring (power of two) */
-#define ATT_NODE_TX_RING 64 /* frames in the transmit ring (power of two) */
+/* The ring sizes ATT_NODE_RX_RING and ATT_NODE_TX_RING and ATT_NODE_WITH_FD are options of att_config.h. */
+#if ATT_WITH_CALIB
 #define ATT_NODE_SET_MAX 10 /* most frames one rx frame can queue: 6 (set) + 2 (accel) + 1 (DIAG) + 1 (answer) */
+#else
+#define ATT_NODE_SET_MAX 8 /* most frames one rx frame can queue: 6 (set) + 1 (DIAG) + 1 (answer) */
+#endif
+#if ATT_NODE_WITH_FD
+#define ATT_NODE_FRAME_LEN 64 /* data bytes a ring entry holds */
+#else
+#define ATT_NODE_FRAME_LEN 8 /* data bytes a ring entry holds (classic frames only) */
+#endif
+#define ATT_NODE_RX_IDS_MAX 5     /* most CAN IDs a node receives (att_node_rx_ids) */
+#define ATT_NODE_ID_OFFSET_MIN -256 /* att_node_settings_t.id_offset: the lowest ID (0x100) moves to 0 */
+#define ATT_NODE_ID_OFFSET_MAX 1279 /* ... the highest (0x300) to 0x7FF */
+
+/**
+ * A frame as the node's rings store it (rx: as received; tx: at the DBC's ID, id_offset is added by
+ * att_node_tx): att_can_frame_t itself, or with ATT_NODE_WITH_FD 0 the same fields with 8 data bytes
+ * (a longer frame keeps its len and is refused by it).
+ */
+#if ATT_NODE_WITH_FD
+typedef att_can_frame_t att_node_frame_t;
+#else
+typedef struct {
+    uint32_t id;                      /**< 11-bit identifier */
+    uint8_t len;                      /**< data length in bytes as received */
+    uint8_t fd;                       /**< 1 = CAN FD frame */
+    uint8_t data[ATT_NODE_FRAME_LEN]; /**< the first 8 data bytes */
+} att_node_frame_t;
+#endif
 
 /**
  * Port hook that persists the node's calibration (flash on a microcontroller, a file on Linux): called
@@ -82,8 +116,11 @@ typedef struct {
     bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
     uint32_t output_divider;      /**< emit outputs every Nth step (1 = every step); 1 .. 65535 */
     uint32_t diag_divider;        /**< ATT_DIAG after every Nth emitted set (0 = never) */
+#if ATT_WITH_CALIB
     att_calib_settings_t calib;   /**< calibration, mounting, convention (att_calib_settings_default) */
+#endif
     bool accel_out;               /**< ATT_LIN_ACC + ATT_EARTH_ACC (classic) or ATT_ACCEL_FD after each set */
+    int32_t id_offset;            /**< added to every attica CAN ID, in and out (0: the DBC's IDs); ATT_NODE_ID_OFFSET_MIN .. _MAX */
 } att_node_settings_t;
 
 /** Node counters (uint32, wrap; ATT_DIAG/ATT_STATUS carry them saturated to 8 bits). */
@@ -104,7 +141,7 @@ typedef struct {
     uint32_t commands;       /**< commands executed (good CRC) */
 } att_node_stats_t;
 
-/** The node: settings, filter, sample assembly, rings, counters (no heap; ~10 KB). */
+/** The node: settings, filter, sample assembly, rings, counters (no heap; size: see att_config.h). */
 typedef struct {
     att_node_settings_t s;                     /**< validated copy of the init settings */
     att_filter_kind_t kind;                    /**< filter kind now running */
@@ -121,13 +158,15 @@ typedef struct {
     uint32_t rx_tail;                          /**< rx ring read count */
     uint32_t tx_head;                          /**< tx ring write count */
     uint32_t tx_tail;                          /**< tx ring read count */
-    att_can_frame_t rx[ATT_NODE_RX_RING];      /**< receive ring */
-    att_can_frame_t tx[ATT_NODE_TX_RING];      /**< transmit ring */
+    att_node_frame_t rx[ATT_NODE_RX_RING];     /**< receive ring */
+    att_node_frame_t tx[ATT_NODE_TX_RING];     /**< transmit ring */
     att_node_stats_t stats;                    /**< counters */
+#if ATT_WITH_CALIB
     att_calib_settings_t cal;                  /**< the applied calibration (as given, before accel_out) */
     att_calib_settings_t shadow;               /**< the calibration session's copy (CAL_BEGIN .. COMMIT) */
     bool shadow_open;                          /**< a session is open */
     uint8_t shadow_count;                      /**< CAL_SET commands in the session (saturates at 255) */
+#endif
     att_node_persist_fn persist;               /**< port hook (NULL: none) */
     void *persist_ctx;                         /**< its context */
 } att_node_t;
@@ -150,6 +189,20 @@ uint32_t att_node_classic_bits(uint32_t len);
 float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitrate);
 /** Push a received frame (false: NULL, or the rx ring is full: counted in rx_overflows). */
 bool att_node_rx(att_node_t *n, const att_can_frame_t *f);
+/**
+ * Give the node a sample from an IMU on its own board (no CAN frame): it is stepped at once, with the
+ * same filter checks, counters (samples, steps, sets) and output frames as a sample that arrived as an
+ * IMU_FD frame, bit for bit (gyro rad/s, accel m/s^2, mag uT, sensor frame; NaN or zero mag = absent).
+ * Frames still waiting in the rx ring are processed first (att_node_poll), so the order of arrival
+ * holds. False: NULL, or the tx ring has no room for a whole output set (the application has not
+ * drained att_node_tx): the sample is not used and is counted in rx_overflows.
+ */
+bool att_node_push_sample(att_node_t *n, const att_sample_t *in);
+/**
+ * The standard CAN IDs the node receives (IMU_GYRO, IMU_ACC, IMU_MAG, IMU_FD when the build has CAN
+ * FD, CMD; each + id_offset), for a port's acceptance filter. Returns how many (0 for NULL).
+ */
+size_t att_node_rx_ids(const att_node_t *n, uint32_t ids[ATT_NODE_RX_IDS_MAX]);
 /** Process queued rx frames: check, assemble, step, answer, queue tx. Returns the steps run. */
 size_t att_node_poll(att_node_t *n);
 /** Register (or with NULL remove) the persistence hook of the calibration. */

@@ -4,7 +4,7 @@
  *
  *     attica-node --channel vcan0 --filter ars --rate 285.714 [--fd] [--bitrate 500000]
  *                 [--data-bitrate 2000000] [--output-divider N] [--diag-divider N] [--count N]
- *                 [--rcvbuf BYTES] [--quiet]
+ *                 [--rcvbuf BYTES] [--id-offset N] [--quiet]
  *
  * The portable node core (att_node.c) does all the work; this port only moves frames between a
  * CAN_RAW socket and the core:
@@ -65,6 +65,7 @@ typedef struct {
     int quiet;
     const char *calib_file;   /* calibration loaded at start and saved by the persistence hook; NULL = none */
     int accel_out;            /* linear / earth acceleration frames */
+    long id_offset;           /* added to every attica CAN ID (att_node_settings_t.id_offset) */
 } options_t;
 
 /** Frames and errors seen by the port itself (the core keeps its own counters). */
@@ -92,7 +93,7 @@ static void usage(FILE *to) {
     fprintf(to,
             "usage: " PROG " --channel IFACE [--filter KIND] [--rate HZ] [--fd] [--bitrate BIT/S]\n"
             "                   [--data-bitrate BIT/S] [--output-divider N] [--diag-divider N] [--count N]\n"
-            "                   [--rcvbuf BYTES] [--calib-file PATH] [--accel-out] [--quiet]\n"
+            "                   [--rcvbuf BYTES] [--calib-file PATH] [--accel-out] [--id-offset N] [--quiet]\n"
             "\n"
             "Run an attica filter as a CAN node on a SocketCAN interface (vcan0, can0...).\n"
             "  --channel IFACE       SocketCAN interface (required)\n"
@@ -108,6 +109,8 @@ static void usage(FILE *to) {
             "  --calib-file PATH     calibration file: loaded at start (if it exists), rewritten after every\n"
             "                        calibration command (CMD 4..9); lines 'INDEX 0xBITS' (att_calib_field_set)\n"
             "  --accel-out           send ATT_LIN_ACC + ATT_EARTH_ACC (or ATT_ACCEL_FD) after every set\n"
+            "  --id-offset N         add N to every attica CAN ID, in and out (-256 .. 1279, 0x.. allowed;\n"
+            "                        default 0: the IDs of attica.dbc; 'attica dbc --id-offset N' writes the DBC)\n"
             "  --quiet               no start-up line\n");
 }
 
@@ -128,6 +131,7 @@ static int parse_ulong(const char *opt, const char *text, unsigned long long max
     return 0;
 }
 
+#if ATT_WITH_CALIB
 /*
  * The calibration file: one line per field, "INDEX 0xBITS" with the IEEE-754 bits of the float value
  * (exact, no decimal conversion). Written to PATH.tmp and renamed over PATH, so a crash never leaves a
@@ -192,6 +196,7 @@ static int calib_load(const char *path, att_calib_settings_t *c) {
     }
     return 0;
 }
+#endif
 
 static int parse_args(int argc, char **argv, options_t *o) {
     int i;
@@ -255,6 +260,17 @@ static int parse_args(int argc, char **argv, options_t *o) {
         } else if (strcmp(a, "--rcvbuf") == 0) {
             if (parse_ulong(a, val, 0x7FFFFFFFULL, &v) != 0) return -1;
             o->rcvbuf = (int)v;
+        } else if (strcmp(a, "--id-offset") == 0) {
+            char *end = NULL;
+            long off;
+            errno = 0;
+            off = strtol(val, &end, 0);
+            if (errno != 0 || end == val || *end != '\0' || off < ATT_NODE_ID_OFFSET_MIN || off > ATT_NODE_ID_OFFSET_MAX) {
+                fprintf(stderr, PROG ": error: --id-offset expects an integer from %d to %d (every ID stays 11-bit), got '%s'\n",
+                        ATT_NODE_ID_OFFSET_MIN, ATT_NODE_ID_OFFSET_MAX, val);
+                return -1;
+            }
+            o->id_offset = off;
         } else if (strcmp(a, "--count") == 0) {
             if (parse_ulong(a, val, 0xFFFFFFFFFFFFFFFFULL, &v) != 0) return -1;
             o->count = v;
@@ -273,6 +289,19 @@ static int parse_args(int argc, char **argv, options_t *o) {
         return -1;
     }
     if (o->fd && o->data_bitrate == 0UL) o->data_bitrate = 2000000UL;
+#if !ATT_NODE_WITH_FD
+    if (o->fd) {
+        fprintf(stderr, PROG ": error: --fd: this attica-node is built without CAN FD (ATT_NODE_WITH_FD 0)\n");
+        return -1;
+    }
+#endif
+#if !ATT_WITH_CALIB
+    if (o->calib_file != NULL || o->accel_out) {
+        fprintf(stderr, PROG ": error: %s: this attica-node is built without the calibration stages (ATT_WITH_CALIB 0)\n",
+                o->calib_file != NULL ? "--calib-file" : "--accel-out");
+        return -1;
+    }
+#endif
     return 0;
 }
 
@@ -454,10 +483,13 @@ int main(int argc, char **argv) {
     ns.output_divider = (uint32_t)o.output_divider;
     ns.diag_divider = (uint32_t)o.diag_divider;
     ns.accel_out = o.accel_out != 0;
+    ns.id_offset = (int32_t)o.id_offset;
+#if ATT_WITH_CALIB
     if (o.calib_file != NULL && calib_load(o.calib_file, &ns.calib) != 0) {
         fprintf(stderr, PROG ": error: cannot use calibration file '%s'\n", o.calib_file);
         return 2;
     }
+#endif
     st = att_node_init(&g_node, &ns);
     if (st != ATT_OK) {
         float load = att_node_bus_load(&ns);
@@ -473,7 +505,9 @@ int main(int argc, char **argv) {
         return 2;
     }
 
+#if ATT_WITH_CALIB
     if (o.calib_file != NULL) att_node_set_persist(&g_node, calib_save, (void *)o.calib_file);
+#endif
     g_channel = o.channel;
     s = open_socket(&o);
     if (s < 0) return 1;

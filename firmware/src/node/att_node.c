@@ -43,11 +43,9 @@ static bool att_i_bool_ok_node(const bool *b)
     return p[0] <= 1u;
 }
 
-#if (ATT_NODE_RX_RING & (ATT_NODE_RX_RING - 1)) != 0 || (ATT_NODE_TX_RING & (ATT_NODE_TX_RING - 1)) != 0
-#error "ATT_NODE_RX_RING and ATT_NODE_TX_RING must be powers of two"
-#endif
+/* att_config.h checks the ring sizes; this is the same bound written with att_node.h's name. */
 #if ATT_NODE_TX_RING < ATT_NODE_SET_MAX
-#error "ATT_NODE_TX_RING must hold at least one output set"
+#error "ATT_NODE_TX_RING must hold at least one output set (ATT_NODE_SET_MAX frames)"
 #endif
 
 /* --- bus load -------------------------------------------------------------------------------- */
@@ -85,8 +83,11 @@ static bool att_node_rates_ok(const att_node_settings_t *s)
     if (s->data_bitrate != 0u && (s->data_bitrate < s->bitrate || s->data_bitrate > ATT_NODE_MAX_DATA_BITRATE)) {
         return false;
     }
-    if (s->fd && s->data_bitrate == 0u) {
-        return false;
+    if (s->fd && (s->data_bitrate == 0u || ATT_NODE_WITH_FD == 0)) {
+        return false; /* FD outputs need a data bit rate, and a build with CAN FD (att_config.h) */
+    }
+    if (s->id_offset < ATT_NODE_ID_OFFSET_MIN || s->id_offset > ATT_NODE_ID_OFFSET_MAX) {
+        return false; /* every ID must stay an 11-bit identifier */
     }
     return s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER;
 }
@@ -154,19 +155,13 @@ att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate
     s->fd = false;
     s->output_divider = 1u;
     s->diag_divider = 16u;
+#if ATT_WITH_CALIB
     att_calib_settings_default(&s->calib);
+#endif
     s->accel_out = false;
+    s->id_offset = 0;
     return ATT_OK;
 }
-
-#if !ATT_WITH_CALIB
-/* The calibration settings are valid and change nothing (no stage, ENU, no accel outputs). */
-static bool att_node_calib_identity(const att_calib_settings_t *cs)
-{
-    att_calib_t c;
-    return att_calib_init(&c, cs) == ATT_OK && c.active == 0u;
-}
-#endif
 
 att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
 {
@@ -193,10 +188,13 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
         (void)att_filter_calibrate(&f, &c); /* valid: only accel_outputs changed */
     }
 #else
-    if (!att_i_bool_ok_node(&s->accel_out) || s->accel_out || !att_node_calib_identity(&s->calib)) {
-        return ATT_ERR_SETTINGS; /* no input/output stages in this build (ATT_WITH_CALIB 0) */
+    if (!att_i_bool_ok_node(&s->accel_out) || s->accel_out) {
+        return ATT_ERR_SETTINGS; /* no acceleration outputs without the stages (ATT_WITH_CALIB 0) */
     }
 #endif
+    if (!att_i_bool_ok_node(&s->fd)) {
+        return ATT_ERR_SETTINGS;
+    }
     if (!att_node_dt_matches(s)) {
         return ATT_ERR_SETTINGS; /* the filter would integrate with another period than the samples have */
     }
@@ -209,7 +207,9 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     n->kind = s->kind;
     n->fs = s->filter;
     n->f = f;
+#if ATT_WITH_CALIB
     n->cal = s->calib;
+#endif
     att_filter_output(&n->f, &n->out);
     return ATT_OK;
 }
@@ -225,6 +225,34 @@ void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx)
 
 /* --- rings ----------------------------------------------------------------------------------- */
 
+/* A ring entry from a frame: the first ATT_NODE_FRAME_LEN data bytes (a longer classic-only frame is
+   refused by its length before any byte past them is read). */
+static void att_node_store(att_node_frame_t *e, const att_can_frame_t *f, uint32_t id)
+{
+#if ATT_NODE_WITH_FD
+    *e = *f;
+#else
+    e->len = f->len;
+    e->fd = f->fd;
+    memcpy(e->data, f->data, sizeof e->data);
+#endif
+    e->id = id;
+}
+
+/* A frame from a ring entry at CAN ID id, the bytes a ring entry does not hold zero. */
+static void att_node_load(att_can_frame_t *f, const att_node_frame_t *e, uint32_t id)
+{
+#if ATT_NODE_WITH_FD
+    *f = *e;
+#else
+    f->len = e->len;
+    f->fd = e->fd;
+    memcpy(f->data, e->data, sizeof e->data);
+    memset(&f->data[ATT_NODE_FRAME_LEN], 0, sizeof f->data - (size_t)ATT_NODE_FRAME_LEN);
+#endif
+    f->id = id;
+}
+
 bool att_node_rx(att_node_t *n, const att_can_frame_t *f)
 {
     if (n == NULL || f == NULL) {
@@ -234,7 +262,7 @@ bool att_node_rx(att_node_t *n, const att_can_frame_t *f)
         n->stats.rx_overflows++;
         return false;
     }
-    n->rx[n->rx_head & ATT_NODE_RX_MASK] = *f;
+    att_node_store(&n->rx[n->rx_head & ATT_NODE_RX_MASK], f, f->id);
     n->rx_head++;
     n->stats.rx_frames++;
     return true;
@@ -242,13 +270,33 @@ bool att_node_rx(att_node_t *n, const att_can_frame_t *f)
 
 bool att_node_tx(att_node_t *n, att_can_frame_t *f)
 {
+    const att_node_frame_t *e;
     if (n == NULL || f == NULL || n->tx_head == n->tx_tail) {
         return false;
     }
-    *f = n->tx[n->tx_tail & ATT_NODE_TX_MASK];
+    e = &n->tx[n->tx_tail & ATT_NODE_TX_MASK];
+    att_node_load(f, e, e->id + (uint32_t)n->s.id_offset); /* the tx ring holds the DBC's IDs */
     n->tx_tail++;
     n->stats.tx_frames++;
     return true;
+}
+
+size_t att_node_rx_ids(const att_node_t *n, uint32_t ids[ATT_NODE_RX_IDS_MAX])
+{
+    static const uint32_t base[] = {
+        (uint32_t)ATT_CAN_ID_IMU_GYRO, (uint32_t)ATT_CAN_ID_IMU_ACC, (uint32_t)ATT_CAN_ID_IMU_MAG,
+#if ATT_NODE_WITH_FD
+        (uint32_t)ATT_CAN_ID_IMU_FD,
+#endif
+        (uint32_t)ATT_CAN_ID_CMD};
+    size_t i;
+    if (n == NULL || ids == NULL) {
+        return 0u;
+    }
+    for (i = 0u; i < sizeof base / sizeof base[0]; i++) {
+        ids[i] = base[i] + (uint32_t)n->s.id_offset;
+    }
+    return i;
 }
 
 size_t att_node_tx_pending(const att_node_t *n)
@@ -269,7 +317,7 @@ static void att_node_queue(att_node_t *n, const att_can_frame_t *f, uint32_t cou
         return;
     }
     for (i = 0u; i < count; ++i) {
-        n->tx[n->tx_head & ATT_NODE_TX_MASK] = f[i];
+        att_node_store(&n->tx[n->tx_head & ATT_NODE_TX_MASK], &f[i], f[i].id);
         n->tx_head++;
     }
 }
@@ -316,24 +364,32 @@ static void att_node_emit(att_node_t *n)
 {
     att_can_frame_t set[ATT_NODE_SET_FRAMES];
     uint8_t counter = (uint8_t)(n->stats.sets & 0x0Fu);
+#if ATT_NODE_WITH_FD
     if (n->s.fd) {
         att_can_encode_output_fd(&n->out, n->kind, counter, &set[0]);
         att_node_queue(n, set, 1u);
-    } else {
+    } else
+#endif
+    {
         (void)att_can_encode_output_set(&n->out, n->kind, counter, att_node_error_count(n), set);
         att_node_queue(n, set, ATT_NODE_SET_FRAMES);
     }
+#if ATT_WITH_CALIB
     if (n->s.accel_out) {
         att_accel_t a;
         att_filter_accel(&n->f, &a);
+#if ATT_NODE_WITH_FD
         if (n->s.fd) {
             att_can_encode_accel_fd(&a, counter, &set[0]);
             att_node_queue(n, set, 1u);
-        } else {
+        } else
+#endif
+        {
             att_can_encode_accel(&a, counter, set);
             att_node_queue(n, set, 2u);
         }
     }
+#endif
     n->stats.sets++;
     if (n->s.diag_divider != 0u && (n->stats.sets % n->s.diag_divider) == 0u) {
         att_can_diag_t d;
@@ -414,6 +470,7 @@ static size_t att_node_part(att_node_t *n, const att_can_frame_t *f)
     return att_node_step(n, &n->part);
 }
 
+#if ATT_NODE_WITH_FD
 static size_t att_node_fd_sample(att_node_t *n, const att_can_frame_t *f)
 {
     att_sample_t in;
@@ -422,6 +479,7 @@ static size_t att_node_fd_sample(att_node_t *n, const att_can_frame_t *f)
     }
     return att_node_step(n, &in);
 }
+#endif
 
 /* --- commands -------------------------------------------------------------------------------- */
 
@@ -633,11 +691,13 @@ static size_t att_node_handle(att_node_t *n, const att_can_frame_t *f)
     case ATT_CAN_ID_IMU_GYRO:
     case ATT_CAN_ID_IMU_ACC:
     case ATT_CAN_ID_IMU_MAG:
+#if ATT_NODE_WITH_FD
     case ATT_CAN_ID_IMU_FD:
+#endif
     case ATT_CAN_ID_CMD:
         break;
     default:
-        n->stats.unknown_ids++; /* not for the node (incl. attica output IDs) */
+        n->stats.unknown_ids++; /* not for the node (incl. attica output IDs; IMU_FD without CAN FD) */
         return 0u;
     }
     switch (att_can_check(f)) {
@@ -657,9 +717,11 @@ static size_t att_node_handle(att_node_t *n, const att_can_frame_t *f)
         att_node_command(n, f);
         return 0u;
     }
+#if ATT_NODE_WITH_FD
     if (f->id == ATT_CAN_ID_IMU_FD) {
         return att_node_fd_sample(n, f);
     }
+#endif
     return att_node_part(n, f);
 }
 
@@ -670,8 +732,25 @@ size_t att_node_poll(att_node_t *n)
         return 0u;
     }
     while (n->rx_tail != n->rx_head && att_node_tx_free(n) >= (uint32_t)ATT_NODE_SET_MAX) {
-        steps += att_node_handle(n, &n->rx[n->rx_tail & ATT_NODE_RX_MASK]);
+        const att_node_frame_t *e = &n->rx[n->rx_tail & ATT_NODE_RX_MASK];
+        att_can_frame_t f;
+        att_node_load(&f, e, e->id - (uint32_t)n->s.id_offset); /* the DBC's ID (another node's: unknown) */
+        steps += att_node_handle(n, &f);
         n->rx_tail++;
     }
     return steps;
+}
+
+bool att_node_push_sample(att_node_t *n, const att_sample_t *in)
+{
+    if (n == NULL || in == NULL) {
+        return false;
+    }
+    (void)att_node_poll(n); /* frames that arrived before this sample go first */
+    if (n->rx_tail != n->rx_head || att_node_tx_free(n) < (uint32_t)ATT_NODE_SET_MAX) {
+        n->stats.rx_overflows++; /* tx not drained: no room for the outputs of this sample */
+        return false;
+    }
+    (void)att_node_step(n, in);
+    return true;
 }

@@ -53,6 +53,8 @@ class Node:
     calibration, accel_out
         The node's calibration (a :class:`~attica.calibration.Calibration` or
         :class:`~attica.calibration.stages.StageSettings`; None: identity, ENU) and its acceleration frames.
+    id_offset
+        Added to every attica CAN ID the node receives and sends (0: the DBC's IDs; -256 .. 1279).
     **overrides
         Filter settings fields to change.
 
@@ -75,6 +77,7 @@ class Node:
         diag_divider: int = 16,
         calibration: Any = None,
         accel_out: bool = False,
+        id_offset: int = 0,
         **overrides: Any,
     ) -> None:
         from attica import native
@@ -106,6 +109,7 @@ class Node:
         s.diag_divider = diag_divider
         fill_c(s.calib, as_stage_settings(calibration, float(getattr(self.settings, "gravity", 9.80665))))
         s.accel_out = accel_out
+        s.id_offset = id_offset
         self._s = s
         self.fd = fd
         self.bus_load = float(lib.att_node_bus_load(s))
@@ -116,6 +120,11 @@ class Node:
             sdt = getattr(self.settings, "dt", None)
             if sdt is not None and abs(sdt * sample_rate - 1.0) > 1e-3:
                 why = f"the filter's dt {sdt:g} s does not match sample_rate {sample_rate:g} Hz"
+            if not lib.ATT_NODE_ID_OFFSET_MIN <= id_offset <= lib.ATT_NODE_ID_OFFSET_MAX:
+                why = (
+                    f"id_offset {id_offset} moves an ID out of 0 .. 0x7FF "
+                    f"(allowed {lib.ATT_NODE_ID_OFFSET_MIN} .. {lib.ATT_NODE_ID_OFFSET_MAX})"
+                )
             if self.bus_load > 1.0:
                 why = f"the outputs need {100 * self.bus_load:.1f} % of the bus (> 100 %)"
             raise NodeError(f"att_node_init: {why}")
@@ -153,6 +162,27 @@ class Node:
         ffi, lib = self._native.ffi, self._native.lib
         buf = ffi.from_buffer("att_can_frame_t[]", fr)
         return sum(1 for i in range(fr.shape[0]) if lib.att_node_rx(self._n, buf + i))
+
+    def push_sample(self, gyr: Any, acc: Any, mag: Any = None) -> bool:
+        """att_node_push_sample: one sample of an IMU on the node's own board (rad/s, m/s^2, uT).
+
+        Returns False when the tx ring has no room for the outputs (counted in rx_overflows).
+        """
+        ffi, lib = self._native.ffi, self._native.lib
+        s = ffi.new("att_sample_t *")
+        nan = float("nan")
+        for name, v in (("gyr", gyr), ("acc", acc), ("mag", (nan, nan, nan) if mag is None else mag)):
+            x, y, z = (float(np.float32(c)) for c in v)
+            getattr(s, name).x = x
+            getattr(s, name).y = y
+            getattr(s, name).z = z
+        return bool(lib.att_node_push_sample(self._n, s))
+
+    def rx_ids(self) -> list[int]:
+        """att_node_rx_ids: the CAN IDs the node receives (id_offset applied)."""
+        ffi, lib = self._native.ffi, self._native.lib
+        ids = ffi.new("uint32_t[]", int(lib.ATT_NODE_RX_IDS_MAX))
+        return [int(ids[i]) for i in range(int(lib.att_node_rx_ids(self._n, ids)))]
 
     def poll(self) -> int:
         """att_node_poll: returns the steps run."""
