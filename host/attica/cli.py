@@ -6,7 +6,9 @@
 - ``attica sim``: write a simulated IMU recording with ground truth (.npz, BROAD layout).
 - ``attica eval``: accuracy on recorded trials with the BROAD metrics, peers side by side.
 - ``attica paths``: where the firmware sources, headers, flags and DBC of this installation are.
-- ``attica node | replay | monitor | verify``: the CAN tools (python-can buses).
+- ``attica dbc``: attica's DBC with every CAN ID moved by an ID offset (a node with ``--id-offset``).
+- ``attica node | replay | monitor | verify``: the CAN tools (python-can buses); ``--id-offset N`` for a
+  node whose CAN IDs are the DBC's + N.
 
 Every user error is one ``attica: error: ...`` line on stderr and exit status 2.
 """

@@ -14,11 +14,17 @@ When the user names no interface, python-can's configuration is honoured (``can.
 ``can.rc``, the ``CAN_INTERFACE`` / ``CAN_CHANNEL`` / ``CAN_BITRATE`` environment variables, the files
 ``~/can.conf``, ``/etc/can.conf``, ``~/.can``, ``~/.canrc``, or a file given with ``--can-config``);
 only when none of them names an interface is ``virtual`` used.
+
+``open_bus(..., id_offset=N)`` talks to a node whose CAN IDs are moved by N
+(:class:`attica.can.idoffset.OffsetBus`): the frames sent and received are at the DBC's IDs.
+:class:`BusReader` takes a bus's frames off its socket in a thread (the monitor's receive path).
 """
 
 from __future__ import annotations
 
 import os
+import queue
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +32,10 @@ from typing import Any
 import can
 import can.util
 
+from attica.can.idoffset import IdOffsetError, OffsetBus, check_id_offset
+
 __all__ = [
+    "BusReader",
     "DEFAULT_CHANNELS",
     "DEFAULT_INTERFACE",
     "BusConfig",
@@ -167,13 +176,18 @@ def open_bus(
     config_file: str | os.PathLike[str] | None = None,
     context: str | None = None,
     receive_own_messages: bool = False,
+    id_offset: int = 0,
 ) -> can.BusABC:
     """Open a bus (see :func:`resolve_config` for the parameters).
+
+    ``id_offset``: the node's CAN ID offset; not 0: the bus is an :class:`~attica.can.idoffset.OffsetBus`
+    (frames sent get + offset, frames received - offset, so the caller sees the DBC's IDs).
 
     Raises
     ------
     BusOpenError
-        With a message that says what to fix (no such device, msgpack missing, bad config...).
+        With a message that says what to fix (no such device, msgpack missing, bad config, an ID
+        offset out of range...).
 
     """
     cfg = resolve_config(
@@ -185,7 +199,13 @@ def open_bus(
         config_file=config_file,
         context=context,
     )
-    return open_config(cfg, receive_own_messages=receive_own_messages)
+    if id_offset:
+        try:
+            check_id_offset(id_offset)
+        except IdOffsetError as exc:
+            raise BusOpenError(str(exc)) from None
+    bus = open_config(cfg, receive_own_messages=receive_own_messages)
+    return OffsetBus(bus, id_offset) if id_offset else bus
 
 
 def open_config(cfg: BusConfig, *, receive_own_messages: bool = False) -> can.BusABC:
@@ -359,3 +379,65 @@ def from_messages(msgs: list[can.Message]) -> Any:
 def is_attica_candidate(msg: can.Message) -> bool:
     """True for data frames with an 11-bit ID (the only frames attica uses; others are ignored)."""
     return not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id)
+
+
+class BusReader:
+    """Takes frames off a bus in a background thread, so that bursts wait in memory, not in the socket.
+
+    Parameters
+    ----------
+    bus
+        An open bus.
+    max_backlog
+        Most frames kept waiting; beyond that frames are dropped and counted (:attr:`dropped`).
+
+    """
+
+    def __init__(self, bus: can.BusABC, max_backlog: int = 2_000_000) -> None:
+        self.bus = bus
+        self.max_backlog = max_backlog
+        self.dropped = 0
+        self._q: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="attica-monitor-rx", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                msg = self.bus.recv(0.05)
+                if msg is None:
+                    continue
+                if self._q.qsize() >= self.max_backlog:
+                    self.dropped += 1
+                else:
+                    self._q.put(msg)
+        except BaseException as exc:  # reported by get()
+            self._error = exc
+
+    def get(self, timeout: float) -> can.Message | None:
+        """The next frame (None after ``timeout`` s without one)."""
+        try:
+            return self._q.get(timeout=timeout)
+        except queue.Empty:
+            if self._error is not None:
+                raise self._error from None
+            return None
+
+    def stop(self) -> list[can.Message]:
+        """Stop the thread; returns every frame still waiting, then those already in the socket."""
+        self._stop.set()
+        self._thread.join(2.0)
+        rest = []
+        while True:
+            try:
+                rest.append(self._q.get_nowait())
+            except queue.Empty:
+                break
+        for _ in range(1_000_000):  # what the kernel already holds
+            msg = self.bus.recv(0.0)
+            if msg is None:
+                break
+            rest.append(msg)
+        return rest

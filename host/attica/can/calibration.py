@@ -21,6 +21,7 @@ import numpy as np
 from attica.can import codec
 from attica.can.bus import is_attica_candidate, to_messages
 from attica.can.e2e import check
+from attica.can.idoffset import silent_node_hint
 
 CAL_BEGIN = 4
 CAL_SET = 5
@@ -154,6 +155,7 @@ class _Session:
         if self.on_send is not None:
             self.on_send(msg)
         deadline = time.monotonic() + self.timeout
+        foreign: list[can.Message] = []
         while time.monotonic() < deadline:
             if self.service is not None:
                 self.service()
@@ -163,12 +165,13 @@ class _Session:
                 continue
             if self.on_receive is not None:
                 self.on_receive(got)
+            if len(foreign) < 256 and is_attica_candidate(got) and got.arbitration_id not in codec.MSG_LEN:
+                foreign.append(got)
             ack = decode_cal_ack(got)
             if ack is not None and ack.cmd == cmd and ack.counter == self.counter:
                 return ack
-        raise NodeSilentError(
-            f"no ATT_CAL_ACK to command {cmd} within {self.timeout:g} s (is a node running on this bus?)"
-        )
+        why = silent_node_hint(self.bus, foreign)
+        raise NodeSilentError(f"no ATT_CAL_ACK to command {cmd} within {self.timeout:g} s: {why}")
 
 
 def send_calibration(

@@ -6,7 +6,8 @@
   other formats with ``can.LogReader``.
 - :func:`open_writer`: a python-can writer by suffix (``.log`` is ``CanutilsLogWriter``).
 - :class:`LogTee`: logs both directions of a session (frames sent, stamped at sending, and frames
-  received), for ``attica replay --write`` and ``attica verify --with-node --write``.
+  received), for ``attica replay --write`` and ``attica verify --with-node --write``; with the node's ID
+  offset it writes the frames at their bus IDs (:mod:`attica.can.idoffset`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from typing import IO, Any
 
 import can
 from can.io.canutils import CanutilsLogReader
+
+from attica.can.idoffset import to_bus
 
 __all__ = ["LOG_SUFFIXES", "LogError", "LogMessage", "LogTee", "open_writer", "read_log"]
 
@@ -200,11 +203,25 @@ class LogTee:
 
     Frames sent are logged as transmitted (``T`` in candump -L) with the time they were sent; frames
     received as received (``R``) with their receive time stamp (now, when they carry none).
+
+    Parameters
+    ----------
+    paths
+        The logs to write (:func:`open_writer`).
+    channel
+        Channel name of frames that carry none.
+    id_offset
+        The node's ID offset when the frames handed in are at the DBC's IDs (those of a bus opened with
+        that offset): they are written at their bus IDs, as a candump of the bus shows them.
+
     """
 
-    def __init__(self, paths: Sequence[str | os.PathLike[str]], channel: str = "can0") -> None:
+    def __init__(
+        self, paths: Sequence[str | os.PathLike[str]], channel: str = "can0", id_offset: int = 0
+    ) -> None:
         self.writers: list[can.Listener] = []
         self.frames = 0
+        self.id_offset = id_offset
         try:
             for path in paths:
                 self.writers.append(open_writer(path, channel=channel))
@@ -214,7 +231,7 @@ class LogTee:
         self.channel = channel
 
     def _write(self, msg: can.Message, rx: bool) -> None:
-        m = copy.copy(msg)
+        m = copy.copy(to_bus(msg, self.id_offset))
         m.is_rx = rx
         if not m.timestamp:
             m.timestamp = time.time()

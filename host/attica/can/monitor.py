@@ -21,19 +21,23 @@ compares it with the IMU samples seen: the node cannot step without a sample, so
 steps than the samples this view holds, the difference is samples lost from the view (a log cut short,
 a monitor that could not keep up) and the summary says so.
 
-Watching a bus, a receive thread takes the frames off the socket as they come (:class:`BusReader`), so a
-burst faster than decoding and printing waits in memory instead of overflowing the socket buffer, and at
-the end (``--duration``, ``--count``, Ctrl-C) every frame already received is shown before the summary.
+Watching a bus, a receive thread takes the frames off the socket as they come
+(:class:`attica.can.bus.BusReader`), so a burst faster than decoding and printing waits in memory instead
+of overflowing the socket buffer, and at the end (``--duration``, ``--count``, Ctrl-C) every frame
+already received is shown before the summary.
 
 Logs (``--write``, ``--log``): :mod:`attica.can.logs` (python-can's readers and writers).
+
+A node with an ID offset N (``id_offset``): every frame is checked and decoded at its bus ID - N
+(:mod:`attica.can.idoffset`) and shown at its bus ID; frames that are not attica's at that offset are
+``!UNKNOWN``, and when they are attica frames at another offset by their E2E CRC the summary says which.
+A DBC written by ``attica dbc --id-offset D`` (``--dbc``) is read at its own offset D.
 """
 
 from __future__ import annotations
 
 import math
 import os
-import queue
-import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,6 +45,16 @@ from typing import Any
 import can
 
 from attica.can import codec
+from attica.can.bus import BusReader
+from attica.can.dbcshift import dbc_id_offset
+from attica.can.idoffset import (
+    IdOffsetError,
+    check_id_offset,
+    from_bus,
+    guess_id_offset,
+    offset_text,
+    option_text,
+)
 from attica.can.logs import LogError, open_writer, read_log
 from attica.settings import describe_flags
 
@@ -153,8 +167,13 @@ class Monitor:
         Channel name used when a frame carries none.
     decode
         False: candump text and checks only (no cantools decoding: faster).
+    id_offset
+        The node's CAN ID offset: the frames fed are bus frames, checked at their bus ID - ``id_offset``.
 
     """
+
+    UNKNOWN_KEPT = 256
+    """Frames of unknown ID kept for the guess of their ID offset (:func:`guess_id_offset`)."""
 
     def __init__(
         self,
@@ -163,9 +182,14 @@ class Monitor:
         data_bitrate: int = 2_000_000,
         channel: str = "can0",
         decode: bool = True,
+        id_offset: int = 0,
     ) -> None:
         import cantools
 
+        try:
+            self.id_offset = check_id_offset(id_offset)
+        except IdOffsetError as exc:
+            raise MonitorError(str(exc)) from None
         path = Path(dbc) if dbc is not None else codec.DBC_PATH
         if not path.is_file():
             raise MonitorError(f"DBC file not found: {path}")
@@ -177,22 +201,31 @@ class Monitor:
             raise MonitorError(f"{path} is not a CAN database")
         self.db = db
         self.dbc_path = path
+        self.dbc_offset = dbc_id_offset(db)
         self.bitrate = bitrate
         self.data_bitrate = data_bitrate
         self.channel = channel
         self.decode_signals = decode
         self.stats = MonitorStats()
         self._names = {m.frame_id: m.name for m in db.messages}
+        self._unknown: list[can.Message] = []
         self._last_counter: dict[int, int] = {}
         self._quat: dict[int, can.Message] = {}
         self._step_low: int | None = None
         self._step_base = 0  # node steps before this view's samples (see _node_step)
         self._imu_offset = 0  # IMU samples seen before the node's last reset
 
+    def _dbc_id(self, msg: can.Message) -> int:
+        """The DBC's ID of a bus frame: bus ID - the node's offset + the DBC's own offset."""
+        shift = self.dbc_offset - self.id_offset
+        if not shift or msg.is_extended_id:
+            return int(msg.arbitration_id)
+        return (msg.arbitration_id + shift) & 0x7FF
+
     def signals(self, msg: can.Message) -> tuple[str, dict[str, Any]] | None:
         """(message name, decoded signals) by the DBC, or None when the ID is not in it / cannot decode."""
         try:
-            m = self.db.get_message_by_frame_id(msg.arbitration_id)
+            m = self.db.get_message_by_frame_id(self._dbc_id(msg))
         except KeyError:
             return None
         try:
@@ -239,15 +272,18 @@ class Monitor:
         st.samples_behind = max(st.samples_behind, behind)
 
     def check(self, msg: can.Message) -> list[str]:
-        """The problems of one frame (updates the counters)."""
+        """The problems of one frame as seen on the bus (updates the counters)."""
         st = self.stats
         probs: list[str] = []
         if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
             st.other += 1
             return ["!OTHER"]
+        bus_msg, msg = msg, from_bus(msg, self.id_offset)
         can_id = msg.arbitration_id
         if can_id not in codec.MSG_LEN:
             st.unknown_ids += 1
+            if len(self._unknown) < self.UNKNOWN_KEPT:
+                self._unknown.append(bus_msg)
             return ["!UNKNOWN"]
         res = codec.check(msg)
         if res == codec.Check.DLC:
@@ -313,7 +349,7 @@ class Monitor:
             st.fd_frames += 1 if msg.is_fd else 0
         probs = self.check(msg)
         if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
-            name = self._names.get(msg.arbitration_id)
+            name = self._names.get(self._dbc_id(msg))
             if name is not None:
                 st.by_name[name] = st.by_name.get(name, 0) + 1
         return probs
@@ -370,6 +406,17 @@ class Monitor:
             out.append(f"IMU samples seen {st.imu_samples}; no output set from a node")
         if st.dropped:
             out.append(f"DROPPED {st.dropped} frames: the monitor fell too far behind the bus")
+        if self.id_offset or self.dbc_offset:
+            text = f"attica ID offset {offset_text(self.id_offset)}: frames checked at bus ID - offset"
+            if self.dbc_offset:
+                text += f"; {self.dbc_path.name} is written for ID offset {offset_text(self.dbc_offset)}"
+            out.append(text)
+        guess = guess_id_offset(self._unknown) if st.unknown_ids else None
+        if guess is not None and guess != self.id_offset:
+            out.append(
+                f"the frames of unknown ID are attica frames at ID offset {offset_text(guess)} by their "
+                f"E2E CRC: try {option_text(guess)}"
+            )
         out.append(f"messages: {names or 'none'}")
         return out
 
@@ -378,68 +425,6 @@ class Monitor:
         """True when the counters show lost or dropped frames."""
         st = self.stats
         return bool(st.missing_frames or st.missing_sets or st.samples_behind > 0 or st.dropped)
-
-
-class BusReader:
-    """Takes frames off a bus in a background thread, so that bursts wait in memory, not in the socket.
-
-    Parameters
-    ----------
-    bus
-        An open bus.
-    max_backlog
-        Most frames kept waiting; beyond that frames are dropped and counted (:attr:`dropped`).
-
-    """
-
-    def __init__(self, bus: can.BusABC, max_backlog: int = 2_000_000) -> None:
-        self.bus = bus
-        self.max_backlog = max_backlog
-        self.dropped = 0
-        self._q: queue.SimpleQueue[can.Message] = queue.SimpleQueue()
-        self._stop = threading.Event()
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="attica-monitor-rx", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            while not self._stop.is_set():
-                msg = self.bus.recv(0.05)
-                if msg is None:
-                    continue
-                if self._q.qsize() >= self.max_backlog:
-                    self.dropped += 1
-                else:
-                    self._q.put(msg)
-        except BaseException as exc:  # reported by get()
-            self._error = exc
-
-    def get(self, timeout: float) -> can.Message | None:
-        """The next frame (None after ``timeout`` s without one)."""
-        try:
-            return self._q.get(timeout=timeout)
-        except queue.Empty:
-            if self._error is not None:
-                raise self._error from None
-            return None
-
-    def stop(self) -> list[can.Message]:
-        """Stop the thread; returns every frame still waiting, then those already in the socket."""
-        self._stop.set()
-        self._thread.join(2.0)
-        rest = []
-        while True:
-            try:
-                rest.append(self._q.get_nowait())
-            except queue.Empty:
-                break
-        for _ in range(1_000_000):  # what the kernel already holds
-            msg = self.bus.recv(0.0)
-            if msg is None:
-                break
-            rest.append(msg)
-        return rest
 
 
 def decoded_fields(line: str) -> tuple[str, str, dict[str, str]]:

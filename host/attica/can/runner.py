@@ -58,7 +58,8 @@ class NodeRunner:
     Parameters
     ----------
     bus
-        An open python-can bus.
+        An open python-can bus, as it is: a node with an ID offset moves its IDs itself (not an
+        :class:`~attica.can.idoffset.OffsetBus`, which would move them twice).
     node
         The node (its ``fd`` setting must match the bus: an FD node needs a bus opened with ``fd=True``
         on interfaces that care, such as socketcan).

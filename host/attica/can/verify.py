@@ -50,6 +50,7 @@ from attica.can.compare import (
     node_dt,
     sort_outputs,
 )
+from attica.can.idoffset import silent_node_hint
 from attica.can.replay import ImuStream, replay
 from attica.settings import FilterKind
 
@@ -78,7 +79,17 @@ __all__ = [
 
 
 class NodeNotAnsweringError(RuntimeError):
-    """No node answered the reset command."""
+    """No node answered the reset command (or, without one, no output came back at all)."""
+
+
+FOREIGN_KEPT = 256
+"""Frames of other IDs kept while waiting for a node, for the hint of :func:`silent_node_hint`."""
+
+
+def _keep_foreign(msg: can.Message, kept: list[can.Message]) -> None:
+    """Keep a frame that is not attica's (for the error message when no node answers)."""
+    if len(kept) < FOREIGN_KEPT and is_attica_candidate(msg) and msg.arbitration_id not in codec.MSG_LEN:
+        kept.append(msg)
 
 
 def reset_node(
@@ -96,7 +107,8 @@ def reset_node(
     Raises
     ------
     NodeNotAnsweringError
-        When no answer arrived within ``timeout`` s.
+        When no answer arrived within ``timeout`` s; the message names the bus's ID offset and suggests
+        ``--id-offset`` (or the offset at which the frames seen are attica frames).
 
     """
     cmd = to_messages(codec.encode_cmd(int(codec.Cmd.RESET), counter=counter))[0]
@@ -104,6 +116,7 @@ def reset_node(
     if on_send is not None:
         on_send(cmd)
     deadline = time.monotonic() + timeout
+    foreign: list[can.Message] = []
     while time.monotonic() < deadline:
         if service is not None:
             service()
@@ -112,6 +125,7 @@ def reset_node(
             continue
         if on_receive is not None:
             on_receive(msg)
+        _keep_foreign(msg, foreign)
         if (
             is_attica_candidate(msg)
             and msg.arbitration_id == codec.ID_STATUS
@@ -123,7 +137,7 @@ def reset_node(
             if ans.crc_ok:
                 return ans
     raise NodeNotAnsweringError(
-        f"no node answered a reset command within {timeout:g} s (is a node running on this bus?)"
+        f"no node answered a reset command within {timeout:g} s: {silent_node_hint(bus, foreign)}"
     )
 
 
@@ -172,7 +186,8 @@ def verify_live(
         reference too.
     tap
         A bus on the node's side of a lossy link: the node's input is reconstructed from what it shows
-        (:func:`assemble`) instead of taken from what was sent.
+        (:func:`assemble`) instead of taken from what was sent (opened with the same ID offset as
+        ``bus``).
     progress
         Progress bars on a terminal.
     on_message
@@ -182,6 +197,13 @@ def verify_live(
         (the node then runs on this thread).
     on_send
         Called with every frame sent (with ``on_message``: a log of both directions).
+
+    Raises
+    ------
+    NodeNotAnsweringError
+        No node answered the reset; or, with ``reset`` False, not one output frame came back.
+    ValueError
+        The node runs another filter than ``kind``.
 
     """
     if reset:
@@ -194,9 +216,11 @@ def verify_live(
         window = max(window, 2 * output_divider)  # the node confirms steps only with its output sets
     coll = OutputCollector()
     tap_msgs: list[can.Message] = []
+    foreign: list[can.Message] = []
 
     def receive(msg: can.Message) -> None:
         coll.feed(msg)
+        _keep_foreign(msg, foreign)
         if on_message is not None:
             on_message(msg)
 
@@ -247,6 +271,10 @@ def verify_live(
         receive(msg)
         msg = bus.recv(0.0)
     elapsed = time.perf_counter() - t0
+    if not reset and len(stream) >= output_divider and not coll.msgs:
+        raise NodeNotAnsweringError(
+            f"{rstats.samples} samples sent, not one output frame came back: {silent_node_hint(bus, foreign)}"
+        )
     drain_tap()
     faults: dict[str, int] = {}
     if tap is not None:

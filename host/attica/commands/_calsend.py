@@ -4,7 +4,8 @@ The calibration goes as one session (CAL_BEGIN, CAL_SET for fields 0..47, CAL_CO
 acknowledged by ATT_CAL_ACK (:func:`attica.can.calibration.send_calibration`); a refusal names the
 reason and leaves the node unchanged. ``--verify`` then resets the node's filter, replays a stream
 (``--data`` or a simulation) and checks every output set bit for bit against the reference filter
-with the same calibration (:func:`attica.can.verify.verify_live`).
+with the same calibration (:func:`attica.can.verify.verify_live`). ``--id-offset N`` talks to a node
+whose CAN IDs are the DBC's + N.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from attica.commands._can import (
     add_stream_arguments,
     check_stream_args,
     describe_bus,
+    id_offset,
     open_bus,
     parse_kind,
     stream,
@@ -27,7 +29,7 @@ from attica.commands._common import CliError, describe_calibration, load_calibra
 
 SEND_ONLY = (
     "verify", "with_node", "interface", "channel", "can_config", "can_context", "fd", "data", "count",
-    "duration", "rate", "seed", "taps", "breaks", "realtime",
+    "duration", "rate", "seed", "taps", "breaks", "realtime", "id_offset",
 )  # fmt: skip
 """Options of ``calibrate send`` that the fits refuse (their defaults are None or False)."""
 
@@ -102,6 +104,7 @@ def run_send(args: argparse.Namespace) -> int:
                 bitrate=args.bitrate,
                 data_bitrate=args.data_bitrate if args.fd else 0,
                 fd=args.fd,
+                id_offset=id_offset(args),
             )
         except NodeError as exc:
             raise CliError(f"node settings refused: {exc}") from None
@@ -111,7 +114,7 @@ def run_send(args: argparse.Namespace) -> int:
     try:
         service = None
         if node is not None:
-            node_bus = open_bus(args)
+            node_bus = open_bus(args, raw=True)  # the node moves its IDs itself
             service = NodeRunner(node_bus, node).service
         where = describe_bus(args) + (" (node in this process)" if node is not None else "")
         print(f"sending {args.calibration} to the node on {where}", flush=True)
@@ -134,19 +137,22 @@ def run_send(args: argparse.Namespace) -> int:
             if args.filter is not None and kind != parse_kind(args.filter):
                 raise CliError(f"the node runs {kind.label}, not {args.filter}")
             print(f"verify: {len(st)} samples at {st.rate:g} Hz to the {kind.label} node", flush=True)
-            rep = verify_live(
-                bus,
-                st,
-                kind,
-                fd=args.fd,
-                realtime=args.realtime,
-                speed=args.speed,
-                window=args.window,
-                reset=False,
-                progress=not args.quiet,
-                service=service,
-                calibration=cal,
-            )
+            try:
+                rep = verify_live(
+                    bus,
+                    st,
+                    kind,
+                    fd=args.fd,
+                    realtime=args.realtime,
+                    speed=args.speed,
+                    window=args.window,
+                    reset=False,
+                    progress=not args.quiet,
+                    service=service,
+                    calibration=cal,
+                )
+            except NodeNotAnsweringError as exc:
+                raise CliError(str(exc)) from None
             for line in rep.lines():
                 print(line)
             status = 0 if rep.ok else 1

@@ -1,7 +1,8 @@
 """Options and helpers shared by the CAN subcommands (node, replay, monitor, verify).
 
 Every CAN command takes ``--interface`` (default: python-can's configuration, else ``virtual``),
-``--channel``, ``--can-config`` (a python-can config file), ``--can-context`` and ``--fd``.
+``--channel``, ``--can-config`` (a python-can config file), ``--can-context``, ``--fd`` and
+``--id-offset`` (the node's CAN ID offset: :mod:`attica.can.idoffset`).
 """
 
 from __future__ import annotations
@@ -33,8 +34,35 @@ STREAM_DURATION = 10.0
 """Seconds simulated by the CAN commands when given no recording."""
 
 
+def id_offset_type(text: str) -> int:
+    """The argparse type of ``--id-offset``: decimal or 0x hex, within the node's range."""
+    from attica.can.idoffset import IdOffsetError, parse_id_offset
+
+    try:
+        return parse_id_offset(text)
+    except IdOffsetError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_id_offset_argument(p: Any, what: str) -> None:
+    """``--id-offset N`` on a parser or argument group (default None: 0; ``what`` starts its help)."""
+    p.add_argument(
+        "--id-offset",
+        type=id_offset_type,
+        metavar="N",
+        help=f"{what} (decimal or 0x hex, -256 .. 1279, a negative hex one as --id-offset=-0x20; "
+        "default 0: the IDs of attica.dbc)",
+    )
+
+
+def id_offset(args: argparse.Namespace) -> int:
+    """The ``--id-offset`` of the options (0 when not given)."""
+    value = getattr(args, "id_offset", None)
+    return int(value) if value is not None else 0
+
+
 def add_bus_arguments(p: argparse.ArgumentParser) -> None:
-    """``--interface --channel --can-config --can-context --fd --bitrate --data-bitrate``."""
+    """``--interface --channel --can-config --can-context --fd --bitrate --data-bitrate --id-offset``."""
     g = p.add_argument_group("bus")
     g.add_argument(
         "--interface",
@@ -53,6 +81,9 @@ def add_bus_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--bitrate", type=int, default=500_000, help="nominal bit/s (bus load; default 500000)")
     g.add_argument(
         "--data-bitrate", type=int, default=2_000_000, help="CAN FD data phase bit/s (default 2000000)"
+    )
+    add_id_offset_argument(
+        g, "the node's CAN ID offset: every attica frame at DBC ID + N on the bus (attica-node --id-offset N)"
     )
 
 
@@ -94,8 +125,12 @@ def add_write_argument(p: argparse.ArgumentParser, what: str) -> None:
     )
 
 
-def open_bus(args: argparse.Namespace, receive_own: bool = False) -> can.BusABC:
-    """The bus of the command's options (an error opening it is a CliError)."""
+def open_bus(args: argparse.Namespace, receive_own: bool = False, raw: bool = False) -> can.BusABC:
+    """The bus of the command's options (an error opening it is a CliError).
+
+    With ``--id-offset`` the bus moves the IDs (frames at the DBC's IDs for the caller), unless ``raw``:
+    the bus as it is (for the in-process node, which applies its offset itself, and for the monitor).
+    """
     from attica.can.bus import BusOpenError
     from attica.can.bus import open_bus as _open_bus
 
@@ -107,21 +142,25 @@ def open_bus(args: argparse.Namespace, receive_own: bool = False) -> can.BusABC:
             config_file=args.can_config,
             context=args.can_context,
             receive_own_messages=receive_own,
+            id_offset=0 if raw else id_offset(args),
         )
     except BusOpenError as exc:
         raise CliError(str(exc)) from None
 
 
 def describe_bus(args: argparse.Namespace) -> str:
-    """``interface:channel`` of the command's options."""
+    """``interface:channel`` of the command's options, and the ID offset when there is one."""
     from attica.can.bus import BusOpenError, resolve_config
+    from attica.can.idoffset import offset_text
 
     try:
-        return resolve_config(
+        text = resolve_config(
             args.interface, args.channel, fd=args.fd, config_file=args.can_config, context=args.can_context
         ).describe()
     except BusOpenError as exc:
         raise CliError(str(exc)) from None
+    offset = id_offset(args)
+    return f"{text}, attica ID offset {offset_text(offset)}" if offset else text
 
 
 def check_stream_args(args: argparse.Namespace) -> None:

@@ -3,7 +3,10 @@
 Each frame gives one line (the ``candump -L`` text, the message and its signals, flags by name, then
 any problem: ``!CRC``, ``!GAP+n``, ``!DUP``, ``!DLC``, ``!UNKNOWN``); the summary counts them, gives
 the bus load, and says when samples or output sets were lost (by the node's step counter, not only the
-4-bit alive counters). ``--write`` logs what is seen (.log candump -L, .asc, .blf).
+4-bit alive counters). ``--write`` logs what is seen (.log candump -L, .asc, .blf). ``--id-offset N``:
+the node's frames are at their DBC ID + N; they are checked and decoded at the DBC's IDs and shown (and
+logged) as they are on the bus; without it the summary names the offset at which frames of unknown ID
+are attica frames.
 """
 
 from __future__ import annotations
@@ -15,7 +18,14 @@ from pathlib import Path
 
 import can
 
-from attica.commands._can import StopSignals, add_bus_arguments, add_write_argument, log_paths, open_bus
+from attica.commands._can import (
+    StopSignals,
+    add_bus_arguments,
+    add_write_argument,
+    id_offset,
+    log_paths,
+    open_bus,
+)
 from attica.commands._common import CliError
 
 NAME = "monitor"
@@ -26,7 +36,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``attica monitor``."""
     add_bus_arguments(p)
     p.add_argument("--log", help="read this log (.log candump -L, .asc, .blf) instead of a bus")
-    p.add_argument("--dbc", help="DBC file (default: the firmware's attica.dbc, see attica paths)")
+    p.add_argument(
+        "--dbc",
+        help="DBC file (default: the firmware's attica.dbc, see attica paths; one written by "
+        "attica dbc --id-offset D is read at its offset D)",
+    )
     add_write_argument(p, "every frame seen")
     p.add_argument("--count", type=int, help="stop after N frames")
     p.add_argument("--duration", type=float, help="stop after this many seconds (bus)")
@@ -63,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
             bitrate=args.bitrate,
             data_bitrate=args.data_bitrate,
             decode=not (args.no_decode or args.summary_only),
+            id_offset=id_offset(args),
         )
         tee = LogTee(paths, channel=args.channel or "can0")
     except (MonitorError, LogError) as exc:
@@ -89,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
             except LogError as exc:
                 raise CliError(str(exc)) from None
         else:
-            bus = open_bus(args)
+            bus = open_bus(args, raw=True)  # the monitor shows the bus as it is; it moves the IDs itself
             try:
                 reader = BusReader(bus)
                 t_end = time.monotonic() + args.duration if args.duration else None

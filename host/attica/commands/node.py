@@ -1,13 +1,23 @@
 """``attica node``: the C node in-process on a python-can bus (virtual, udp_multicast, socketcan ...).
 
 On Linux SocketCAN the stand-alone ``build/attica-node`` (``make node``) does the same without Python.
+``--id-offset N`` moves every CAN ID the node receives and sends by N (as ``attica-node --id-offset N``);
+``attica dbc --id-offset N`` writes the matching DBC.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from attica.commands._can import KINDS, StopSignals, add_bus_arguments, describe_bus, open_bus, parse_kind
+from attica.commands._can import (
+    KINDS,
+    StopSignals,
+    add_bus_arguments,
+    describe_bus,
+    id_offset,
+    open_bus,
+    parse_kind,
+)
 from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
 
 NAME = "node"
@@ -46,10 +56,11 @@ def run(args: argparse.Namespace) -> int:
             output_divider=args.output_divider,
             diag_divider=args.diag_divider,
             calibration=cal,
+            id_offset=id_offset(args),
         )
     except (NodeError, ValueError, TypeError) as exc:
         raise CliError(f"node settings refused: {exc}") from None
-    bus = open_bus(args)
+    bus = open_bus(args, raw=True)  # the node moves its IDs itself
     try:
         runner = NodeRunner(bus, node)
         if not args.quiet:

@@ -2,7 +2,8 @@
 
 Real time (``--realtime``, ``--speed``) or as fast as the node takes them (flow control by its reported
 steps, ``--window``). ``--write`` logs the traffic of this process, both directions (the frames sent
-and those received while replaying), in one run.
+and those received while replaying), in one run. ``--id-offset N``: the node's CAN IDs are the DBC's
++ N (the frames go out, and are logged, at their bus IDs).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from attica.commands._can import (
     add_write_argument,
     check_stream_args,
     describe_bus,
+    id_offset,
     log_paths,
     open_bus,
     stream,
@@ -47,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     cal = load_calibration(args)
     st = stream(args)
     try:
-        tee = LogTee(paths, channel=args.channel or "can0")
+        tee = LogTee(paths, channel=args.channel or "can0", id_offset=id_offset(args))
     except LogError as exc:
         raise CliError(str(exc)) from None
     bus = open_bus(args)

@@ -4,6 +4,7 @@ Live: sends the stream (``--with-node`` runs the C node in this process on the s
 every output set and compares it bit for bit with the numpy reference fed the samples the node got.
 ``--log``: the same proof from a recorded log of both directions. ``--write`` logs this session's
 traffic, both directions, so that ``attica verify --log`` and ``attica monitor --log`` can check it.
+``--id-offset N``: the node's CAN IDs are the DBC's + N (on the bus, in the logs and for ``--with-node``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from attica.commands._can import (
     add_write_argument,
     check_stream_args,
     describe_bus,
+    id_offset,
     log_paths,
     open_bus,
     parse_kind,
@@ -49,6 +51,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _verify_log(args: argparse.Namespace) -> int:
+    from attica.can.codec import MSG_LEN
+    from attica.can.idoffset import (
+        from_bus,
+        guess_id_offset,
+        offset_text,
+        option_text,
+        silent_node_hint,
+        to_bus,
+    )
     from attica.can.logs import LogError, read_log
     from attica.can.verify import frames_of, verify_frames
 
@@ -57,23 +68,32 @@ def _verify_log(args: argparse.Namespace) -> int:
     kind = parse_kind(args.filter)
     cal = load_calibration(args)
     rate = args.rate if args.rate is not None else 285.714
+    offset = id_offset(args)
     try:
-        frames = frames_of(read_log(args.log))
+        msgs = [from_bus(m, offset) for m in read_log(args.log)]
     except LogError as exc:
         raise CliError(str(exc)) from None
+    frames = frames_of(msgs)
+    if frames.shape[0] and not any(int(i) in MSG_LEN for i in set(frames["id"].tolist())):
+        raise CliError(f"{args.log}: {frames.shape[0]} frames, {silent_node_hint(offset, msgs[:1000])}")
     rep = verify_frames(
         frames, kind, rate, fd=True if args.fd else None, output_divider=args.output_divider, calibration=cal
     )
-    print(f"{args.log}: {rep.frames_received} frames")
+    where = f", attica ID offset {offset_text(offset)}" if offset else ""
+    print(f"{args.log}: {rep.frames_received} frames{where}")
     if cal is not None:
         print(f"  reference: {describe_calibration(cal, args.calibration)}")
     for line in rep.lines():
         print(line)
+    guess = None if rep.ok else guess_id_offset(to_bus(m, offset) for m in msgs[:1000])
+    if guess is not None and guess != offset:
+        print(f"  the log's frames are attica frames at ID offset {offset_text(guess)}: {option_text(guess)}")
     return 0 if rep.ok else 1
 
 
 def run(args: argparse.Namespace) -> int:
     """``attica verify``."""
+    from attica.can.idoffset import to_bus
     from attica.can.logs import LogError, LogTee
     from attica.can.monitor import Monitor
     from attica.can.node import Node, NodeError
@@ -89,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
     paths = log_paths(args)
     cal = load_calibration(args)
     st = stream(args)
+    offset = id_offset(args)
     node = None
     if args.with_node:
         try:
@@ -100,21 +121,24 @@ def run(args: argparse.Namespace) -> int:
                 fd=args.fd,
                 output_divider=args.output_divider,
                 calibration=cal,
+                id_offset=offset,
             )
         except NodeError as exc:
             raise CliError(f"node settings refused: {exc}") from None
     try:
-        tee = LogTee(paths, channel=args.channel or "can0")
+        tee = LogTee(paths, channel=args.channel or "can0", id_offset=offset)
     except LogError as exc:
         raise CliError(str(exc)) from None
-    mon = Monitor(bitrate=args.bitrate, data_bitrate=args.data_bitrate) if args.show else None
+    mon = (
+        Monitor(bitrate=args.bitrate, data_bitrate=args.data_bitrate, id_offset=offset) if args.show else None
+    )
     shown = 0
 
     def on_message(msg: can.Message) -> None:
         nonlocal shown
         tee.received(msg)
         if mon is not None and shown < args.show:
-            print("   " + mon.feed(msg), flush=True)
+            print("   " + mon.feed(to_bus(msg, offset)), flush=True)  # as on the bus
             shown += 1
 
     bus = open_bus(args)
@@ -122,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         runner = None
         if node is not None:
-            node_bus = open_bus(args)
+            node_bus = open_bus(args, raw=True)  # the node moves its IDs itself
             runner = NodeRunner(node_bus, node)
         print(
             f"verify: {len(st)} samples at {st.rate:g} Hz to the {kind.label} node "
