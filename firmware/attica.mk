@@ -17,6 +17,16 @@
 #   ATTICA_WARNINGS  the warning flags of cflags.txt line 2 (-Wall ... -Werror); set
 #                    ATTICA_STRICT_WARNINGS=0 to leave them out
 #   ATTICA_OBJS, ATTICA_LIB  objects and static library built under ATTICA_BUILD (default build/attica)
+# The Cortex-M port (ports/cortex_m; docs/integration.md):
+#   ATTICA_PORT_DIR       ports/cortex_m
+#   ATTICA_PORT_INCLUDES  -I flag for att_can_hal.h, att_fdcan_hal.h, att_port.h
+#   ATTICA_BXCAN_SRCS, ATTICA_FDCAN_SRCS   the bxCAN and the FDCAN / M_CAN HAL of the CAN node
+#   ATTICA_FPENV_SRCS     att_fpenv.c: the floating-point environment, for a start-up of your own
+#   ATTICA_STARTUP_SRCS   startup.c + att_fpenv.c: attica's own start-up (needs a linker script like
+#                         ports/cortex_m/mps2_an386.ld)
+#   ATTICA_BXCAN_OBJS, ATTICA_FDCAN_OBJS, ATTICA_FPENV_OBJS, ATTICA_STARTUP_OBJS  the same compiled under
+#                         $(ATTICA_BUILD)/ports with the library's flags; link them with $(ATTICA_LIB):
+#                         firmware.elf: main.o $(ATTICA_FDCAN_OBJS) $(ATTICA_FPENV_OBJS) $(ATTICA_LIB)
 # Variables it reads (set them before the include, or on the command line):
 #   CC, AR           your (cross) compiler and archiver
 #   ATTICA_ARCH      CPU flags, e.g. -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
@@ -40,10 +50,25 @@ ATTICA_ARCH ?=
 ATTICA_BUILD ?= build/attica
 ATTICA_OBJS := $(patsubst $(ATTICA_DIR)/src/%.c,$(ATTICA_BUILD)/%.o,$(ATTICA_SRCS))
 ATTICA_LIB := $(ATTICA_BUILD)/libattica.a
+ATTICA_PORT_DIR := $(ATTICA_DIR)/ports/cortex_m
+ATTICA_PORT_INCLUDES := -I$(ATTICA_PORT_DIR)
+ATTICA_BXCAN_SRCS := $(ATTICA_PORT_DIR)/att_can_hal.c
+ATTICA_FDCAN_SRCS := $(ATTICA_PORT_DIR)/att_fdcan_hal.c
+ATTICA_FPENV_SRCS := $(ATTICA_PORT_DIR)/att_fpenv.c
+ATTICA_STARTUP_SRCS := $(ATTICA_PORT_DIR)/startup.c $(ATTICA_PORT_DIR)/att_fpenv.c
+_attica_port_objs = $(patsubst $(ATTICA_PORT_DIR)/%.c,$(ATTICA_BUILD)/ports/%.o,$(1))
+ATTICA_BXCAN_OBJS := $(call _attica_port_objs,$(ATTICA_BXCAN_SRCS))
+ATTICA_FDCAN_OBJS := $(call _attica_port_objs,$(ATTICA_FDCAN_SRCS))
+ATTICA_FPENV_OBJS := $(call _attica_port_objs,$(ATTICA_FPENV_SRCS))
+ATTICA_STARTUP_OBJS := $(call _attica_port_objs,$(ATTICA_STARTUP_SRCS))
 
 $(ATTICA_BUILD)/%.o: $(ATTICA_DIR)/src/%.c $(wildcard $(ATTICA_DIR)/include/attica/*.h) $(ATTICA_PRIVATE_HDRS) $(ATTICA_DIR)/cflags.txt
 	@mkdir -p $(@D)
 	$(CC) $(ATTICA_ARCH) $(ATTICA_OPT) $(ATTICA_CFLAGS) $(ATTICA_WARNINGS) $(ATTICA_INCLUDES) -c $< -o $@
+
+$(ATTICA_BUILD)/ports/%.o: $(ATTICA_PORT_DIR)/%.c $(wildcard $(ATTICA_PORT_DIR)/*.h) $(wildcard $(ATTICA_DIR)/include/attica/*.h) $(ATTICA_DIR)/cflags.txt
+	@mkdir -p $(@D)
+	$(CC) $(ATTICA_ARCH) $(ATTICA_OPT) $(ATTICA_CFLAGS) $(ATTICA_WARNINGS) $(ATTICA_INCLUDES) $(ATTICA_PORT_INCLUDES) -c $< -o $@
 
 $(ATTICA_LIB): $(ATTICA_OBJS)
 	@rm -f $@

@@ -1,7 +1,7 @@
 """The firmware on other CPUs: bit-exact golden comparisons on Cortex-M4F, M7, M33 and M0+ (QEMU boards),
 aarch64 and riscv64 (qemu-user) and x86-64 (gcc, clang); FMA gates per target; the Cortex-M start-up and
 floating-point environment (every FPU board), images (no heap), stack; the CMake and Makefile library
-builds; the bxCAN HAL.
+builds; the CAN HALs (bxCAN, FDCAN) and the stand-alone floating-point environment.
 
 Missing cross tools skip with a printed reason (host/tools/install-system-deps.sh installs them);
 under CI=true they fail instead. Inputs and numpy reference outputs are computed once per session
@@ -545,7 +545,8 @@ def test_cmake_and_make_agree(cmake_example: str, make_example: str) -> None:
 
 
 def test_cmake_cortex_m4f(tmp_path: Path) -> None:
-    """The CMake library (and the bxCAN HAL) cross-compiled with the Cortex-M4F toolchain file."""
+    """The CMake library and the Cortex-M port (bxCAN and FDCAN HALs, floating-point environment)
+    cross-compiled with the Cortex-M4F toolchain file."""
     need_tools("cmake", "arm-none-eabi-gcc")
     toolchain = cross.PORT / "arm-none-eabi-m4f.cmake"
     subprocess.run(
@@ -557,6 +558,8 @@ def test_cmake_cortex_m4f(tmp_path: Path) -> None:
             str(tmp_path),
             f"-DCMAKE_TOOLCHAIN_FILE={toolchain}",
             "-DATTICA_CORTEX_M_BXCAN=ON",
+            "-DATTICA_CORTEX_M_FDCAN=ON",
+            "-DATTICA_CORTEX_M_FPENV=ON",
             "-DCMAKE_BUILD_TYPE=MinSizeRel",
         ],
         check=True,
@@ -573,41 +576,92 @@ def test_cmake_cortex_m4f(tmp_path: Path) -> None:
         check=True,
     ).stdout
     assert "VFPv4-D16" in attrs and "VFP registers" in attrs
-    assert (tmp_path / "libattica_bxcan.a").exists()
+    for port in ("bxcan", "fdcan", "fpenv"):
+        assert (tmp_path / f"libattica_{port}.a").exists(), port
 
 
-# --- bxCAN HAL ------------------------------------------------------------------------------------------
+# --- CAN HALs: bxCAN, FDCAN / M_CAN ------------------------------------------------------------------------
+
+HALS = {
+    "bxcan": (cross.PORT / "att_can_hal.c", cross.TESTS_C / "att_can_hal_test.c"),
+    "fdcan": (cross.PORT / "att_fdcan_hal.c", cross.TESTS_C / "att_fdcan_hal_test.c"),
+}
+"""Each CAN HAL of firmware/ports/cortex_m and its host test against a fake register block."""
+SMALL_NODE = ("-DATT_NODE_WITH_FD=0", "-DATT_WITH_CALIB=0", "-DATT_NODE_RX_RING=8", "-DATT_NODE_TX_RING=8")
+"""The small node of issue 22: classic frames only, no stages, rings of 8 (4 receive IDs instead of 5)."""
 
 
-@pytest.mark.parametrize("cc", ["gcc", "clang"])
-def test_can_hal_host(cc: str, tmp_path: Path) -> None:
-    """The bxCAN HAL against a fake register block on the host: init, bit timing, frames through a real
-    node, overruns, extended IDs, busy mailboxes, bus-off."""
-    need_tools(cc)
+def _run_hal_test(hal: str, cc: str, tmp_path: Path, config: tuple[str, ...] = ()) -> str:
     prog = golden.build_program(
-        [cross.PORT / "att_can_hal.c", cross.TESTS_C / "att_can_hal_test.c"],
-        cc,
-        "-O2",
-        ["-I", str(cross.PORT)],
-        "att_can_hal_test",
-        tmp_path,
+        list(HALS[hal]), cc, "-O2", ["-I", str(cross.PORT), *config], f"att_{hal}_hal_test", tmp_path
     )
-    proc = subprocess.run([str(prog)], capture_output=True, text=True, timeout=60)
+    proc = subprocess.run([str(prog)], capture_output=True, text=True, timeout=120)
     print(proc.stdout)
     assert proc.returncode == 0 and "FAIL" not in proc.stdout, proc.stdout + proc.stderr
     assert "0 failure(s)" in proc.stdout
+    return proc.stdout
 
 
-def test_can_hal_compiles_for_m4f(tmp_path: Path) -> None:
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("hal", list(HALS))
+def test_can_hal_host(hal: str, cc: str, tmp_path: Path) -> None:
+    """A CAN HAL against its fake controller on the host, frames through a real node. Both: bit timing,
+    init and its refusals, the acceptance filter (every 11-bit ID reaches the receive FIFO iff it is one
+    of the node's IDs, decided from the filter registers by the controller's matching rules, id_offset 0
+    and three others), output sets bit-identical to a direct filter, other nodes' traffic kept out, full
+    FIFOs, bus-off. bxCAN: extended IDs, busy mailboxes. FDCAN: the G4 and H7 register maps and message
+    RAM layouts, classic and CAN FD frames in both directions (DLC 9..15, BRS), protected registers."""
+    need_tools(cc)
+    out = _run_hal_test(hal, cc, tmp_path)
+    assert out.count("reach") >= (4 if hal == "bxcan" else 8)  # the acceptance checks ran
+
+
+@pytest.mark.parametrize("hal", list(HALS))
+def test_can_hal_small_node(hal: str, tmp_path: Path) -> None:
+    """The HALs with the small node configuration (classic only, no stages, rings of 8): 4 receive IDs,
+    one bxCAN filter bank, two FDCAN filter elements."""
+    need_tools("gcc")
+    out = _run_hal_test(hal, "gcc", tmp_path, SMALL_NODE)
+    assert "exactly the node's 4 reach" in out
+
+
+@pytest.mark.parametrize("hal", list(HALS))
+def test_can_hal_compiles_for_m4f(hal: str, tmp_path: Path) -> None:
     """The HAL compiles for the Cortex-M4F with the strict firmware flags, without heap or libm calls."""
     need_tools("arm-none-eabi-gcc", "arm-none-eabi-nm")
-    obj = tmp_path / "att_can_hal.o"
-    cross.compile_object(TARGETS["m4f"], cross.PORT / "att_can_hal.c", obj, "-Os", ["-I", str(cross.PORT)])
+    obj = tmp_path / f"{hal}.o"
+    cross.compile_object(TARGETS["m4f"], HALS[hal][0], obj, "-Os", ["-I", str(cross.PORT)])
     undefined = subprocess.run(
         ["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True, check=True
     )
     names = {line.split()[-1] for line in undefined.stdout.splitlines() if line.strip()}
-    assert names <= {"att_node_rx", "att_node_tx", "att_node_poll", "memset", "memcpy"}, names
+    allowed = {"att_node_rx", "att_node_tx", "att_node_poll", "att_node_rx_ids", "memset", "memcpy"}
+    assert names <= allowed, names
+
+
+@pytest.mark.parametrize("board", list(boards.BOARDS))
+def test_fpenv_stands_alone(board: str, tmp_path: Path) -> None:
+    """att_fpenv.c (the floating-point environment) needs nothing else: no vector table, no start-up, no
+    C library; it defines exactly att_port_fp_init, att_port_fp_ok and att_port_fpscr, which startup.c
+    calls and no longer defines (so a vendor start-up links att_fpenv.c alone)."""
+    need_tools("arm-none-eabi-gcc", "arm-none-eabi-nm")
+    target = TARGETS[board]
+    fpenv, start = tmp_path / "fpenv.o", tmp_path / "startup.o"
+    cross.compile_object(target, cross.PORT / "att_fpenv.c", fpenv, "-Os", ["-I", str(cross.PORT)])
+    cross.compile_object(target, cross.PORT / "startup.c", start, "-Os", ["-I", str(cross.PORT)])
+
+    def syms(obj: Path) -> tuple[set[str], set[str]]:
+        out = subprocess.run(
+            ["arm-none-eabi-nm", str(obj)], capture_output=True, text=True, check=True
+        ).stdout
+        rows = [line.split() for line in out.splitlines() if line.strip()]
+        return {r[-1] for r in rows if r[-2] == "T"}, {r[-1] for r in rows if r[-2] == "U"}
+
+    api = {"att_port_fp_init", "att_port_fp_ok", "att_port_fpscr"}
+    defined, undefined = syms(fpenv)
+    assert defined == api and not undefined, (defined, undefined)
+    defined, undefined = syms(start)
+    assert not defined & api and {"att_port_fp_init", "att_port_fp_ok"} <= undefined
 
 
 def test_golden_configs_cover_every_cpu() -> None:

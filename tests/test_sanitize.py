@@ -3,10 +3,11 @@
 - The golden runner (tests/c/att_golden.c) built with clang -fsanitize=address,undefined: every math
   function and every filter kind (defaults and variants) on the adversarial golden inputs, still bit
   for bit equal to the reference; and the same runner built with gcc -m32 (i386, SSE2 arithmetic).
-- The bxCAN HAL test (tests/c/att_can_hal_test.c, frames through a real node) and attica-node
-  (firmware/ports/linux) under ASan+UBSan.
-- The firmware compiles warning-free with -std=c11 (gcc and clang) and with clang -Weverything minus
-  WEVERYTHING_OFF, each entry justified there.
+- The CAN HAL tests (tests/c/att_can_hal_test.c: bxCAN, tests/c/att_fdcan_hal_test.c: FDCAN / M_CAN;
+  frames through a real node), the flash persistence example's test (examples/c/persist) and
+  attica-node (firmware/ports/linux) under ASan+UBSan.
+- The firmware and the Cortex-M CAN HALs compile warning-free with -std=c11 (gcc and clang) and with
+  clang -Weverything minus WEVERYTHING_OFF, each entry justified there.
 - cppcheck and clang-tidy report nothing on the files this baseline covers (ANALYSED).
 """
 
@@ -38,9 +39,20 @@ WEVERYTHING_OFF = {
     "-Wno-float-equal": "exact comparisons are deliberate: a zero vector means 'no sample' (att_sensor.c)",
 }
 
-ANALYSED = [*FW, ROOT / "firmware" / "ports" / "linux" / "att_node_linux.c"]
+PORT = ROOT / "firmware" / "ports" / "cortex_m"
+PERSIST = ROOT / "examples" / "c" / "persist"
+CORTEX_M_PORTS = [PORT / "att_can_hal.c", PORT / "att_fdcan_hal.c", PORT / "att_fpenv.c"]
+"""The Cortex-M port files that are plain C (startup.c and semihost.c are ARM assembly glue): the two CAN
+HALs and the floating-point environment (its no-FPU branch on the host)."""
+ANALYSED = [
+    *FW,
+    ROOT / "firmware" / "ports" / "linux" / "att_node_linux.c",
+    *CORTEX_M_PORTS,
+    PERSIST / "att_persist.c",
+]
 """The files of the static-analysis baseline: every firmware source (filters, math, calib, CAN codec
-and its generated code, node) and the Linux port. Clean, with one inline suppression: cppcheck
+and its generated code, node), the Linux port, the Cortex-M CAN HALs and floating-point environment,
+and the flash persistence example. Clean, with one inline suppression: cppcheck
 uninitvar at att_ekf.c att_ekf_pd_ok (a false positive: d[k] and l[j][k] are read only for k < j,
 written by the earlier passes of the same loop). cppcheck runs with ATT_CONFIG_HEADER undefined (it
 would try the configuration with a user's header it does not have)."""
@@ -109,15 +121,23 @@ def test_golden_runner_m32(
     _golden(t, *golden_inputs)
 
 
-def test_can_hal_test_asan_ubsan(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "sources",
+    [
+        (PORT / "att_can_hal.c", ROOT / "tests" / "c" / "att_can_hal_test.c"),
+        (PORT / "att_fdcan_hal.c", ROOT / "tests" / "c" / "att_fdcan_hal_test.c"),
+        (PERSIST / "att_persist.c", PERSIST / "att_persist_test.c"),
+    ],
+    ids=["bxcan", "fdcan", "persist"],
+)
+def test_port_tests_asan_ubsan(sources: tuple[Path, Path], tmp_path: Path) -> None:
     _have("clang")
-    port = ROOT / "firmware" / "ports" / "cortex_m"
     prog = golden.build_program(
-        [port / "att_can_hal.c", ROOT / "tests" / "c" / "att_can_hal_test.c"],
+        list(sources),
         "clang",
         "-O1",
-        ["-I", str(port), *SAN],
-        "att_can_hal_test",
+        ["-I", str(PORT), "-I", str(sources[0].parent), *SAN],
+        sources[1].stem,
         tmp_path,
     )
     r = subprocess.run([str(prog)], capture_output=True, text=True, timeout=120)
@@ -152,9 +172,22 @@ def test_attica_node_asan_ubsan(tmp_path: Path) -> None:
 def test_firmware_c11(cc: str, tmp_path: Path) -> None:
     _have(cc)
     flags = [f for f in (ROOT / "firmware" / "cflags.txt").read_text().split() if f != "-std=c99"]
-    for src in FW:
+    for src in [*FW, *CORTEX_M_PORTS]:
         r = subprocess.run(
-            [cc, "-std=c11", *flags, "-O2", "-I", str(INC), "-c", str(src), "-o", str(tmp_path / "x.o")],
+            [
+                cc,
+                "-std=c11",
+                *flags,
+                "-O2",
+                "-I",
+                str(INC),
+                "-I",
+                str(PORT),
+                "-c",
+                str(src),
+                "-o",
+                str(tmp_path / "x.o"),
+            ],
             capture_output=True,
             text=True,
         )
@@ -163,7 +196,7 @@ def test_firmware_c11(cc: str, tmp_path: Path) -> None:
 
 def test_firmware_clang_weverything(tmp_path: Path) -> None:
     _have("clang")
-    for src in FW:
+    for src in [*FW, *CORTEX_M_PORTS]:
         r = subprocess.run(
             [
                 "clang",
@@ -175,6 +208,8 @@ def test_firmware_clang_weverything(tmp_path: Path) -> None:
                 "-O2",
                 "-I",
                 str(INC),
+                "-I",
+                str(PORT),
                 "-c",
                 str(src),
                 "-o",
@@ -199,6 +234,10 @@ def test_cppcheck_clean() -> None:
             "-UATT_CONFIG_HEADER",
             "-I",
             str(INC),
+            "-I",
+            str(PORT),
+            "-I",
+            str(PERSIST),
             *map(str, ANALYSED),
         ],
         capture_output=True,
@@ -222,6 +261,10 @@ def test_clang_tidy_clean() -> None:
             "-std=gnu99",  # the Linux port needs the GNU socket definitions; the core is C99 anyway
             "-I",
             str(INC),
+            "-I",
+            str(PORT),
+            "-I",
+            str(PERSIST),
         ],
         capture_output=True,
         text=True,

@@ -3,10 +3,13 @@
  * @brief Host unit test of the bxCAN HAL (firmware/ports/cortex_m/att_can_hal.c) against a fake controller.
  *
  * The fake keeps a register file and models what the driver relies on: INRQ/SLEEP acknowledged in
- * MSR (or never, to test the timeout), a 3-deep receive FIFO behind RF0R/RI0R.. with RFOM0 release and
- * FOVR0 overrun, three transmit mailboxes whose TXRQ captures the frame and stays busy until the test
- * completes the transmission. A real attica node runs behind the driver: IMU sample frames go in,
- * output sets come out and must equal (bit for bit) a filter stepped directly on the decoded samples.
+ * MSR (or never, to test the timeout), the acceptance filter (bx_fifo0_accepts: the bxCAN filter
+ * matching rules of RM0090 32.7.4 evaluated on the filter registers the driver wrote; a frame that
+ * arrives from the bus reaches FIFO 0 only when they say so), a 3-deep receive FIFO behind
+ * RF0R/RI0R.. with RFOM0 release and FOVR0 overrun, three transmit mailboxes whose TXRQ captures the
+ * frame and stays busy until the test completes the transmission. A real attica node runs behind the
+ * driver: IMU sample frames go in, output sets come out and must equal (bit for bit) a filter stepped
+ * directly on the decoded samples.
  *
  * Prints "ok ..." / "FAIL ..." per check; exit status = number of failures.
  */
@@ -15,6 +18,7 @@
 
 #include "att_can_hal.h"
 #include "attica/att_can.h"
+#include "attica/att_config.h"
 #include "attica/att_filter.h"
 #include "attica/att_node.h"
 
@@ -30,6 +34,7 @@ typedef struct {
     att_can_frame_t tx_log[FAKE_TX_LOG];
     uint32_t tx_n;
     uint32_t writes;
+    uint32_t filtered; /* frames from the bus the acceptance filter kept out of FIFO 0 */
 } fake_t;
 
 static int failures;
@@ -40,6 +45,71 @@ static void check(int ok, const char *what)
     if (!ok) {
         failures++;
     }
+}
+
+/*
+ * The controller's acceptance decision, from the filter registers alone (RM0090 32.7.4, "Identifier
+ * filtering"): does a frame (11-bit id, or 29-bit id when ide; remote when rtr) go to FIFO 0?
+ * - nothing is received while FMR.FINIT is set (filter initialisation mode);
+ * - every bank with its FA1R bit set holds, by FS1R, one 32-bit filter per register or two 16-bit
+ *   filters per register, and by FM1R identifier mask (register 1 / low half = identifier, register 2
+ *   / high half = mask: the masked bits must be equal) or identifier list (every entry an identifier
+ *   that must be equal in every bit);
+ * - 32-bit layout: STID[10:0] bits 31:21 (or EXID[28:0] bits 31:3), IDE bit 2, RTR bit 1, bit 0 unused;
+ *   16-bit layout: STID[10:0] bits 15:5, RTR bit 4, IDE bit 3, EXID[17:15] bits 2:0;
+ * - of the filters that match, the one of highest priority decides the FIFO (FFA1R bit of its bank):
+ *   32-bit before 16-bit, then list before mask, then the lower filter number (lower bank, earlier
+ *   entry); no match: the frame is discarded.
+ */
+static int bx_fifo0_accepts(const fake_t *f, uint32_t id, int ide, int rtr)
+{
+    const uint32_t fmr = f->reg[ATT_BXCAN_FMR / 4];
+    const uint32_t fa = f->reg[ATT_BXCAN_FA1R / 4];
+    const uint32_t fm = f->reg[ATT_BXCAN_FM1R / 4];
+    const uint32_t fs = f->reg[ATT_BXCAN_FS1R / 4];
+    const uint32_t ffa = f->reg[ATT_BXCAN_FFA1R / 4];
+    const uint32_t w32 = (ide ? ((id & 0x1fffffffu) << 3) | 4u : (id & 0x7ffu) << 21) | (rtr ? 2u : 0u);
+    const uint32_t w16 = (ide ? (((id >> 18) & 0x7ffu) << 5) | 8u | ((id >> 15) & 7u) : (id & 0x7ffu) << 5) |
+                         (rtr ? 16u : 0u);
+    uint32_t best = 0xffffffffu; /* priority key of the best match: class * 1000 + bank * 4 + entry */
+    int best_fifo = -1;
+    uint32_t b;
+    if ((fmr & ATT_BXCAN_FMR_FINIT) != 0u) {
+        return 0;
+    }
+    for (b = 0u; b < ATT_BXCAN_BANKS; b++) {
+        const uint32_t r1 = f->reg[(ATT_BXCAN_F0R1 + ATT_BXCAN_BANK_STRIDE * b) / 4];
+        const uint32_t r2 = f->reg[(ATT_BXCAN_F0R2 + ATT_BXCAN_BANK_STRIDE * b) / 4];
+        const int scale32 = (int)((fs >> b) & 1u);
+        const int list = (int)((fm >> b) & 1u);
+        const uint32_t cls = (scale32 ? 0u : 2u) + (list ? 0u : 1u);
+        uint32_t entry = 99u;
+        if (((fa >> b) & 1u) == 0u) {
+            continue;
+        }
+        if (scale32 && list) {
+            entry = (((w32 ^ r1) & ~1u) == 0u) ? 0u : (((w32 ^ r2) & ~1u) == 0u) ? 1u : 99u;
+        } else if (scale32) {
+            entry = (((w32 ^ r1) & r2 & ~1u) == 0u) ? 0u : 99u;
+        } else if (list) {
+            const uint32_t h[4] = {r1 & 0xffffu, r1 >> 16, r2 & 0xffffu, r2 >> 16};
+            uint32_t k;
+            for (k = 0u; k < 4u && entry == 99u; k++) {
+                if (w16 == h[k]) {
+                    entry = k;
+                }
+            }
+        } else if (((w16 ^ (r1 & 0xffffu)) & (r1 >> 16)) == 0u) {
+            entry = 0u;
+        } else if (((w16 ^ (r2 & 0xffffu)) & (r2 >> 16)) == 0u) {
+            entry = 1u;
+        }
+        if (entry != 99u && cls * 1000u + b * 4u + entry < best) {
+            best = cls * 1000u + b * 4u + entry;
+            best_fifo = (int)((ffa >> b) & 1u);
+        }
+    }
+    return best_fifo == 0;
 }
 
 static void fake_update_status(fake_t *f)
@@ -120,8 +190,8 @@ static void fake_write(void *ctx, uint32_t offset, uint32_t value)
 /* The bus takes every frame waiting in the mailboxes. */
 static void fake_complete_tx(fake_t *f) { memset(f->tx_busy, 0, sizeof f->tx_busy); }
 
-/* A frame arrives; false (and FOVR0) when the FIFO is full. */
-static int fake_receive(fake_t *f, const att_can_frame_t *fr, int extended)
+/* A frame enters FIFO 0 (whatever the filter says); false (and FOVR0) when the FIFO is full. */
+static int fake_inject(fake_t *f, const att_can_frame_t *fr, int extended)
 {
     uint32_t lo = 0u;
     uint32_t hi = 0u;
@@ -140,6 +210,16 @@ static int fake_receive(fake_t *f, const att_can_frame_t *fr, int extended)
     f->fifo[f->fifo_n][3] = hi;
     f->fifo_n++;
     return 1;
+}
+
+/* A frame arrives from the bus: the acceptance filter decides whether it enters FIFO 0. */
+static int fake_receive(fake_t *f, const att_can_frame_t *fr, int extended)
+{
+    if (!bx_fifo0_accepts(f, fr->id, extended, 0)) {
+        f->filtered++;
+        return 0;
+    }
+    return fake_inject(f, fr, extended);
 }
 
 static fake_t fake;
@@ -200,13 +280,135 @@ static void test_init(void)
     check(fake.reg[ATT_BXCAN_BTR / 4] == 0x001a0005u, "BTR written");
     check((fake.reg[ATT_BXCAN_MCR / 4] & ATT_BXCAN_MCR_INRQ) == 0u, "normal mode after init");
     check((fake.reg[ATT_BXCAN_MCR / 4] & ATT_BXCAN_MCR_ABOM) != 0u, "automatic bus-off recovery");
-    check((fake.reg[ATT_BXCAN_FA1R / 4] & 1u) == 1u && fake.reg[ATT_BXCAN_F0R2 / 4] == 0u &&
-              (fake.reg[ATT_BXCAN_FMR / 4] & ATT_BXCAN_FMR_FINIT) == 0u,
-          "filter bank 0 active, accepts all, filters out of init");
+    check((fake.reg[ATT_BXCAN_FA1R / 4] & 3u) == (ATT_NODE_WITH_FD ? 3u : 1u) &&
+              (fake.reg[ATT_BXCAN_FM1R / 4] & 3u) == 3u && (fake.reg[ATT_BXCAN_FS1R / 4] & 3u) == 0u &&
+              (fake.reg[ATT_BXCAN_FFA1R / 4] & 3u) == 0u && (fake.reg[ATT_BXCAN_FMR / 4] & ATT_BXCAN_FMR_FINIT) == 0u,
+          "filter banks active as needed (5 IDs: 0 and 1; 4 IDs without CAN FD: 0), 16-bit identifier list, FIFO 0, "
+          "filters out of init");
+}
+
+/* The node's receive IDs, written out from the DBC's IDs (not from att_node_rx_ids). */
+static uint32_t expected_ids(int32_t offset, uint32_t ids[8])
+{
+    uint32_t n = 0u;
+    ids[n++] = (uint32_t)((int32_t)ATT_CAN_ID_IMU_GYRO + offset);
+    ids[n++] = (uint32_t)((int32_t)ATT_CAN_ID_IMU_ACC + offset);
+    ids[n++] = (uint32_t)((int32_t)ATT_CAN_ID_IMU_MAG + offset);
+#if ATT_NODE_WITH_FD
+    ids[n++] = (uint32_t)((int32_t)ATT_CAN_ID_IMU_FD + offset);
+#endif
+    ids[n++] = (uint32_t)((int32_t)ATT_CAN_ID_CMD + offset);
+    return n;
+}
+
+/*
+ * The acceptance filter, decided by bx_fifo0_accepts from the registers the driver wrote: every
+ * 11-bit data frame ID reaches FIFO 0 iff it is one of the node's receive IDs; none of them as a
+ * remote frame, none as an extended frame (same top 11 bits, or the same value as a 29-bit ID).
+ * The fake starts with bank 0 left open by earlier code (32-bit mask 0: every frame) and bank 1 in
+ * 32-bit mask mode: the driver must rewrite mode, scale and FIFO, not rely on reset values.
+ */
+static void test_acceptance_filter(void)
+{
+    static const int32_t offsets[] = {0, 0x23, -0x100, 0x4ff};
+    static att_node_t fnode;
+    size_t o;
+    for (o = 0u; o < sizeof offsets / sizeof offsets[0]; o++) {
+        att_node_settings_t s;
+        att_can_hal_t h2;
+        uint32_t want[8];
+        uint32_t got[ATT_NODE_RX_IDS_MAX];
+        const uint32_t n_want = expected_ids(offsets[o], want);
+        uint32_t id;
+        uint32_t accepted = 0u;
+        uint32_t wrong = 0u;
+        uint32_t first_wrong = 0xffffffffu;
+        uint32_t bad_other = 0u;
+        uint32_t k;
+        size_t n_got;
+        char what[160];
+        att_node_settings_default(ATT_FILTER_ARS, 100.0f, &s);
+        s.id_offset = offsets[o];
+        memset(&fake, 0, sizeof fake);
+        fake.ack_init = 1;
+        fake.reg[ATT_BXCAN_FA1R / 4] = 3u;
+        fake.reg[ATT_BXCAN_FS1R / 4] = 3u;
+        fake.reg[ATT_BXCAN_FFA1R / 4] = 0u;
+        snprintf(what, sizeof what, "id_offset %ld: node and HAL init", (long)offsets[o]);
+        check(att_node_init(&fnode, &s) == ATT_OK && att_can_hal_init(&h2, fake_io(), &fnode, 42000000u) == ATT_OK,
+              what);
+        n_got = att_node_rx_ids(&fnode, got);
+        {
+            uint32_t found = 0u;
+            size_t g;
+            for (g = 0u; g < n_got; g++) {
+                for (k = 0u; k < n_want; k++) {
+                    found += (uint32_t)(got[g] == want[k]);
+                }
+            }
+            snprintf(what, sizeof what, "id_offset %ld: att_node_rx_ids gives the %lu IDs of the DBC + offset",
+                     (long)offsets[o], (unsigned long)n_want);
+            check(n_got == n_want && found == n_want, what);
+        }
+        for (id = 0u; id < 0x800u; id++) {
+            int in = 0;
+            for (k = 0u; k < n_want; k++) {
+                in |= (want[k] == id);
+            }
+            if (bx_fifo0_accepts(&fake, id, 0, 0)) {
+                accepted++;
+            }
+            if (bx_fifo0_accepts(&fake, id, 0, 0) != in) {
+                wrong++;
+                first_wrong = (first_wrong == 0xffffffffu) ? id : first_wrong;
+            }
+        }
+        snprintf(what, sizeof what,
+                 "id_offset %ld: of the 2048 standard IDs exactly the node's %lu reach FIFO 0 (%lu accepted, %lu "
+                 "wrong, first 0x%lx)",
+                 (long)offsets[o], (unsigned long)n_want, (unsigned long)accepted, (unsigned long)wrong,
+                 (unsigned long)first_wrong);
+        check(wrong == 0u && accepted == n_want, what);
+        for (k = 0u; k < n_want; k++) {
+            bad_other += (uint32_t)bx_fifo0_accepts(&fake, want[k], 0, 1);        /* remote frame */
+            bad_other += (uint32_t)bx_fifo0_accepts(&fake, want[k] << 18, 1, 0);  /* extended, same STID */
+            bad_other += (uint32_t)bx_fifo0_accepts(&fake, want[k], 1, 0);        /* extended, same value */
+            bad_other += (uint32_t)bx_fifo0_accepts(&fake, (want[k] << 18) | 0x3ffffu, 1, 0);
+        }
+        snprintf(what, sizeof what, "id_offset %ld: remote and extended frames of those IDs are kept out",
+                 (long)offsets[o]);
+        check(bad_other == 0u, what);
+    }
+}
+
+/* Other nodes' traffic never reaches this node: no unknown IDs, no error count. */
+static void test_other_traffic(void)
+{
+    att_can_frame_t fr;
+    const uint32_t unknown = node.stats.unknown_ids;
+    const uint32_t before = can.stats.rx_frames;
+    uint32_t i;
+    uint32_t kept_out = 0u;
+    memset(&fr, 0, sizeof fr);
+    fr.len = 8u;
+    for (i = 0u; i < 300u; i++) {
+        fr.id = (0x080u + 7u * i) & 0x7ffu;
+        if (fr.id >= 0x100u && fr.id <= 0x300u) {
+            fr.id = 0x400u + i; /* not an attica ID of this node */
+        }
+        fr.data[1] = (uint8_t)i;
+        kept_out += (uint32_t)(fake_receive(&fake, &fr, 0) == 0);
+        kept_out += (uint32_t)(fake_receive(&fake, &fr, 1) == 0);
+        (void)att_can_hal_service(&can);
+    }
+    check(kept_out == 600u && can.stats.rx_frames == before && node.stats.unknown_ids == unknown &&
+              att_node_error_count(&node) == 0u,
+          "300 standard + 300 extended frames of other nodes: none reached the node, its error count stays 0");
 }
 
 static void test_fd_refused(void)
 {
+#if ATT_NODE_WITH_FD
     att_node_settings_t s;
     static att_node_t fd_node;
     att_can_hal_t h2;
@@ -217,6 +419,7 @@ static void test_fd_refused(void)
     fake.ack_init = 1;
     check(att_node_init(&fd_node, &s) == ATT_OK && att_can_hal_init(&h2, fake_io(), &fd_node, 42000000u) == ATT_ERR_SETTINGS,
           "init refuses a CAN FD node (bxCAN is classic only)");
+#endif
 }
 
 /* Samples in, output sets out, equal to a filter stepped on the decoded samples. */
@@ -299,7 +502,7 @@ static void test_errors(void)
     memset(&fr, 0, sizeof fr);
     fr.id = 0x100u;
     fr.len = 8u;
-    fake_receive(&fake, &fr, 1);
+    fake_inject(&fake, &fr, 1); /* past the filter, e.g. a bank of the application's own */
     (void)att_can_hal_receive(&can);
     check(can.stats.rx_ignored == ign + 1u && fake.fifo_n == 0u, "extended-ID frame dropped and released");
     for (i = 0u; i < 4u; i++) {
@@ -339,9 +542,11 @@ static void test_errors(void)
 int main(void)
 {
     test_btr();
-    test_init();
     test_fd_refused();
+    test_acceptance_filter();
+    test_init();
     test_traffic();
+    test_other_traffic();
     test_errors();
     printf("%d failure(s)\n", failures);
     return failures;

@@ -1,7 +1,7 @@
 """The Cortex-M boards attica runs on under QEMU: code generation, start-up, linker script, machine.
 
 Every board uses the same start-up (firmware/ports/cortex_m/startup.c: vector table, .data/.bss, FPU
-on with FPSCR and FPDSCR in IEEE mode and checked, when the core has one) and semihosting glue
+on with FPSCR and FPDSCR in IEEE mode and checked by att_fpenv.c, when the core has one) and semihosting glue
 (semihost.c), its own linker script, and runs under ``qemu-system-arm`` through
 firmware/ports/cortex_m/qemu-cortex-m.sh:
 
@@ -31,7 +31,11 @@ from attica import _build
 
 PORT = _build.FIRMWARE / "ports" / "cortex_m"
 QEMU_SCRIPT = PORT / "qemu-cortex-m.sh"
-PORT_SOURCES = (PORT / "startup.c", PORT / "semihost.c")
+STARTUP_SOURCES = (PORT / "startup.c", PORT / "att_fpenv.c")
+"""The start-up of every board image: vector table and reset handler, and the floating-point environment
+it sets and checks (att_fpenv.c, a file of its own so that a vendor start-up can link it alone)."""
+PORT_SOURCES = (*STARTUP_SOURCES, PORT / "semihost.c")
+"""The sources of a semihosted test image: the start-up and the semihosting glue."""
 SECTIONS = ("-ffunction-sections", "-fdata-sections")
 
 

@@ -6,7 +6,7 @@ runs them through a command prefix (an emulator, or nothing natively):
 
 - ``m4f``: arm-none-eabi-gcc for Cortex-M4F (``-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16
   -mfloat-abi=hard``), linked with our own start-up (firmware/ports/cortex_m/startup.c: vector
-  table, .data/.bss, FPU on, FPSCR in IEEE mode and checked), the mps2_an386.ld linker script and
+  table, .data/.bss; att_fpenv.c: FPU on, FPSCR in IEEE mode and checked), the mps2_an386.ld linker script and
   newlib with semihosting (rdimon) for stdio on host files; run by
   firmware/ports/cortex_m/qemu-m4f.sh under ``qemu-system-arm -M mps2-an386``;
 - ``aarch64``, ``riscv64``: static Linux programs from the Debian cross compilers, run by

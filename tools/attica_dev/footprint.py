@@ -40,7 +40,7 @@ from pathlib import Path
 from attica import _build
 from attica.kinds import KINDS as ALL_KINDS
 from attica_dev import cross, cycles
-from attica_dev.boards import BOARDS
+from attica_dev.boards import BOARDS, STARTUP_SOURCES
 
 ROOT = _build.ROOT
 OUT = ROOT / "build" / "firmware" / "m4f"
@@ -132,16 +132,18 @@ def link_image(
     out.mkdir(parents=True, exist_ok=True)
     slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
     main_o = out / f"image_{slug}.o"
-    start_o = out / "startup.o"
     _compile(IMAGE_SOURCE, main_o, opt, [f"-DATT_IMAGE={image}", *defines], board)
-    _compile(cross.PORT / "startup.c", start_o, opt, (), board)
+    start_objs = []
+    for src in STARTUP_SOURCES:
+        start_objs.append(out / f"{src.stem}.o")
+        _compile(src, start_objs[-1], opt, (), board)
     elf = out / f"image_{slug}.elf"
     map_file = out / f"image_{slug}.map"
     cmd = [
         _tool("arm-none-eabi-gcc"),
         *BOARDS[board].cpu,
         str(main_o),
-        str(start_o),
+        *map(str, start_objs),
         str(lib),
         "--specs=nano.specs",
         "-nostartfiles",

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from attica import _build
-from attica_dev.boards import BOARDS, PORT_SOURCES, SECTIONS, CortexM
+from attica_dev.boards import BOARDS, PORT_SOURCES, SECTIONS, STARTUP_SOURCES, CortexM
 
 ROOT = _build.ROOT
 PEERS_DIR = ROOT / "build" / "peers"
@@ -285,7 +285,7 @@ def build(lib: PeerLibrary, tc: Toolchain, opt: str, out_dir: Path, image: int =
     archive.unlink(missing_ok=True)
     _run(["arm-none-eabi-ar", "rcs", str(archive), *map(str, peer_objs)])
     port_objs = []
-    for s in PORT_SOURCES if not image else PORT_SOURCES[:1]:
+    for s in PORT_SOURCES if not image else STARTUP_SOURCES:
         o = out / f"port_{s.stem}.o"
         _run(
             [

@@ -77,15 +77,72 @@ uint32_t att_can_hal_btr(uint32_t pclk_hz, uint32_t bitrate)
     return 0u;
 }
 
+/*
+ * Acceptance filter (RM0090 32.7.4): banks 0 .. ATT_CAN_HAL_FILTER_BANKS - 1 in 16-bit identifier list
+ * mode (FM1R bit = 1, FS1R bit = 0), assigned to FIFO 0 (FFA1R bit = 0). A 16-bit filter holds
+ * STID[10:0] << 5 | RTR << 4 | IDE << 3 | EXID[17:15]; a standard data frame of identifier id matches
+ * the entry id << 5 exactly (RTR 0, IDE 0, EXID 0: remote and extended frames never match). A bank
+ * holds four entries: FxR1 = e0 | e1 << 16, FxR2 = e2 | e3 << 16. The node's n IDs fill
+ * ceil(n / 4) banks in order; the free entries of the last bank repeat its first ID (a duplicate
+ * changes nothing). Banks not needed are deactivated. Frames that match no active filter are dropped
+ * by the controller: they never reach FIFO 0.
+ */
+static void att_filter_banks(const att_can_hal_t *h, const uint32_t *ids, size_t n_ids)
+{
+    uint32_t bank;
+    uint32_t mine = 0u;
+    uint32_t used = 0u;
+    for (bank = 0u; bank < ATT_CAN_HAL_FILTER_BANKS; bank++) {
+        mine |= (uint32_t)1u << bank;
+        if ((size_t)bank * 4u < n_ids) {
+            used |= (uint32_t)1u << bank;
+        }
+    }
+    att_wr(h, ATT_BXCAN_FMR, att_rd(h, ATT_BXCAN_FMR) | ATT_BXCAN_FMR_FINIT);
+    att_wr(h, ATT_BXCAN_FA1R, att_rd(h, ATT_BXCAN_FA1R) & ~mine);
+    att_wr(h, ATT_BXCAN_FM1R, att_rd(h, ATT_BXCAN_FM1R) | mine);
+    att_wr(h, ATT_BXCAN_FS1R, att_rd(h, ATT_BXCAN_FS1R) & ~mine);
+    att_wr(h, ATT_BXCAN_FFA1R, att_rd(h, ATT_BXCAN_FFA1R) & ~mine);
+    for (bank = 0u; bank < ATT_CAN_HAL_FILTER_BANKS; bank++) {
+        uint32_t e[4];
+        uint32_t k;
+        const size_t first = (size_t)bank * 4u;
+        if (first >= n_ids) {
+            e[0] = e[1] = e[2] = e[3] = 0u;
+        } else {
+            for (k = 0u; k < 4u; k++) {
+                const size_t j = (first + k < n_ids) ? first + k : first;
+                e[k] = (ids[j] & 0x7ffu) << 5;
+            }
+        }
+        att_wr(h, ATT_BXCAN_F0R1 + ATT_BXCAN_BANK_STRIDE * bank, e[0] | (e[1] << 16));
+        att_wr(h, ATT_BXCAN_F0R2 + ATT_BXCAN_BANK_STRIDE * bank, e[2] | (e[3] << 16));
+    }
+    att_wr(h, ATT_BXCAN_FA1R, att_rd(h, ATT_BXCAN_FA1R) | used);
+    att_wr(h, ATT_BXCAN_FMR, att_rd(h, ATT_BXCAN_FMR) & ~ATT_BXCAN_FMR_FINIT);
+}
+
 att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t *node, uint32_t pclk_hz)
 {
     uint32_t btr;
+    uint32_t ids[ATT_NODE_RX_IDS_MAX];
+    size_t n_ids;
+    size_t i;
     if (h == NULL || node == NULL || io.read == NULL || io.write == NULL) {
         return ATT_ERR_NULL;
     }
     btr = att_can_hal_btr(pclk_hz, node->s.bitrate);
     if (node->s.fd || btr == 0u) {
         return ATT_ERR_SETTINGS;
+    }
+    n_ids = att_node_rx_ids(node, ids);
+    if (n_ids == 0u || n_ids > (size_t)4u * ATT_CAN_HAL_FILTER_BANKS) {
+        return ATT_ERR_SETTINGS;
+    }
+    for (i = 0u; i < n_ids; i++) {
+        if (ids[i] > 0x7ffu) {
+            return ATT_ERR_SETTINGS;
+        }
     }
     memset(h, 0, sizeof *h);
     h->io = io;
@@ -99,16 +156,7 @@ att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t 
     att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_INRQ | ATT_BXCAN_MCR_ABOM | ATT_BXCAN_MCR_TXFP);
     att_wr(h, ATT_BXCAN_BTR, btr);
     att_wr(h, ATT_BXCAN_IER, 0u); /* polled; enable FMPIE0 (bit 1) yourself to be woken by frames */
-    /* filter bank 0: 32-bit mask mode, mask 0 = every identifier, to FIFO 0 */
-    att_wr(h, ATT_BXCAN_FMR, att_rd(h, ATT_BXCAN_FMR) | ATT_BXCAN_FMR_FINIT);
-    att_wr(h, ATT_BXCAN_FA1R, att_rd(h, ATT_BXCAN_FA1R) & ~1u);
-    att_wr(h, ATT_BXCAN_FM1R, att_rd(h, ATT_BXCAN_FM1R) & ~1u);
-    att_wr(h, ATT_BXCAN_FS1R, att_rd(h, ATT_BXCAN_FS1R) | 1u);
-    att_wr(h, ATT_BXCAN_FFA1R, att_rd(h, ATT_BXCAN_FFA1R) & ~1u);
-    att_wr(h, ATT_BXCAN_F0R1, 0u);
-    att_wr(h, ATT_BXCAN_F0R2, 0u);
-    att_wr(h, ATT_BXCAN_FA1R, att_rd(h, ATT_BXCAN_FA1R) | 1u);
-    att_wr(h, ATT_BXCAN_FMR, att_rd(h, ATT_BXCAN_FMR) & ~ATT_BXCAN_FMR_FINIT);
+    att_filter_banks(h, ids, n_ids);
     /* leave initialisation mode: normal operation once 11 recessive bits were seen on the bus */
     att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_ABOM | ATT_BXCAN_MCR_TXFP);
     if (!att_wait_msr(h, ATT_BXCAN_MSR_INAK, 0u)) {

@@ -4,7 +4,15 @@
  *
  * Moves frames between the controller and an att_node_t: receive FIFO 0 -> att_node_rx,
  * att_node_poll, att_node_tx -> transmit mailboxes. Classic CAN only (bxCAN has no CAN FD): the node
- * must run with fd = false; extended-ID and remote frames are not attica frames and are dropped.
+ * must run with fd = false. The acceptance filter passes exactly the node's receive IDs
+ * (att_node_rx_ids: IMU_GYRO, IMU_ACC, IMU_MAG, IMU_FD in builds with CAN FD, CMD, each + id_offset)
+ * as standard data frames into FIFO 0; the controller drops everything else (other nodes' traffic,
+ * extended-ID and remote frames) without the CPU seeing it. Should such a frame reach FIFO 0 anyway
+ * (a filter bank of your own), the driver drops it (counted in rx_ignored) or the node counts it in
+ * unknown_ids.
+ *
+ * The filter banks belong to CAN1 (or the one bxCAN of the part): on a dual-CAN part, CAN2's banks
+ * start at FMR.CAN2SB in CAN1's register block, which this driver does not program; use CAN1.
  *
  * Every register access goes through att_can_hal_io_t (read/write of a 32-bit register at a byte
  * offset), so the driver runs unchanged against the real peripheral (att_can_hal_mmio: ctx = the
@@ -52,13 +60,15 @@ enum {
     ATT_BXCAN_RDT0R = 0x1B4,
     ATT_BXCAN_RDL0R = 0x1B8,
     ATT_BXCAN_RDH0R = 0x1BC,
-    ATT_BXCAN_FMR = 0x200,  /**< filter master */
-    ATT_BXCAN_FM1R = 0x204, /**< filter mode (0 = mask) */
-    ATT_BXCAN_FS1R = 0x20C, /**< filter scale (1 = 32 bit) */
-    ATT_BXCAN_FFA1R = 0x214, /**< filter FIFO assignment (0 = FIFO 0) */
-    ATT_BXCAN_FA1R = 0x21C, /**< filter activation */
-    ATT_BXCAN_F0R1 = 0x240, /**< filter bank 0 register 1 (identifier) */
-    ATT_BXCAN_F0R2 = 0x244  /**< filter bank 0 register 2 (mask) */
+    ATT_BXCAN_FMR = 0x200,  /**< filter master (FINIT; CAN2SB on dual-CAN parts) */
+    ATT_BXCAN_FM1R = 0x204, /**< filter mode, bit per bank (0 = identifier mask, 1 = identifier list) */
+    ATT_BXCAN_FS1R = 0x20C, /**< filter scale, bit per bank (0 = two 16-bit filters per register, 1 = 32 bit) */
+    ATT_BXCAN_FFA1R = 0x214, /**< filter FIFO assignment, bit per bank (0 = FIFO 0) */
+    ATT_BXCAN_FA1R = 0x21C, /**< filter activation, bit per bank */
+    ATT_BXCAN_F0R1 = 0x240, /**< filter bank 0 register 1; bank n at + ATT_BXCAN_BANK_STRIDE n */
+    ATT_BXCAN_F0R2 = 0x244, /**< filter bank 0 register 2 */
+    ATT_BXCAN_BANK_STRIDE = 0x8, /**< bytes between the registers of two filter banks */
+    ATT_BXCAN_BANKS = 28    /**< filter banks of a dual-CAN part (STM32F4: 28, shared with CAN2; single CAN: 14) */
 };
 
 #define ATT_BXCAN_MCR_INRQ ((uint32_t)1u << 0)
@@ -80,6 +90,12 @@ enum {
 
 /** Busy-wait bound for the controller's acknowledgements (loop iterations). */
 #define ATT_CAN_HAL_SPIN 100000u
+/**
+ * Filter banks the driver owns: 0 .. ATT_CAN_HAL_FILTER_BANKS - 1, four of the node's IDs each (16-bit
+ * identifier list mode), enough for ATT_NODE_RX_IDS_MAX. Other banks are left as they are (inactive
+ * after reset): code of yours that activates one routes more frames into FIFO 0.
+ */
+#define ATT_CAN_HAL_FILTER_BANKS 2u
 
 /** Register access: 32-bit read and write at a byte offset from the controller's base. */
 typedef struct {
@@ -91,7 +107,7 @@ typedef struct {
 /** Driver counters. */
 typedef struct {
     uint32_t rx_frames;      /**< frames moved from FIFO 0 to the node */
-    uint32_t rx_ignored;     /**< extended-ID or remote frames dropped */
+    uint32_t rx_ignored;     /**< extended-ID or remote frames dropped (the filter keeps them out of FIFO 0) */
     uint32_t rx_overruns;    /**< FIFO 0 overruns seen (frames lost in the controller) */
     uint32_t rx_node_full;   /**< frames att_node_rx refused (node rx ring full) */
     uint32_t tx_frames;      /**< frames written to a transmit mailbox */
@@ -118,10 +134,13 @@ att_can_hal_io_t att_can_hal_mmio(void *base);
 uint32_t att_can_hal_btr(uint32_t pclk_hz, uint32_t bitrate);
 
 /**
- * Configure the controller for the node's bitrate (node must be initialised, classic CAN): init mode,
- * bit timing, automatic bus-off recovery, transmit in request order, filter bank 0 accepting every
- * standard frame into FIFO 0, then normal mode. ATT_ERR_NULL, ATT_ERR_SETTINGS (fd node, bitrate not
- * reachable from pclk_hz, or the controller did not acknowledge init / normal mode).
+ * Configure the controller for the node (att_node_init done, classic CAN): init mode, bit timing for
+ * the node's bitrate from the CAN kernel clock pclk_hz (Hz; APB1 on STM32F4), automatic bus-off
+ * recovery, transmit in request order, the acceptance filter for the node's receive IDs (banks 0 and
+ * 1 in 16-bit identifier list mode into FIFO 0, see ATT_CAN_HAL_FILTER_BANKS), then normal mode.
+ * Polled: no interrupt is enabled. ATT_ERR_NULL (h, io functions or node NULL), ATT_ERR_SETTINGS (fd
+ * node, bitrate not reachable from pclk_hz, a receive ID that is not an 11-bit ID, or the controller
+ * did not acknowledge init / normal mode within ATT_CAN_HAL_SPIN reads).
  */
 att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t *node, uint32_t pclk_hz);
 

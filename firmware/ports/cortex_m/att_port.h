@@ -1,18 +1,23 @@
 /**
  * @file att_port.h
- * @brief Cortex-M4F port of attica: start-up, floating-point environment, exit hooks.
+ * @brief Cortex-M port of attica: floating-point environment, start-up hooks, exit hooks.
  *
- * startup.c is a complete bare-metal start-up for an ARMv7E-M core with the FPv4-SP FPU (Cortex-M4F),
- * written for the QEMU machine mps2-an386 (linker script mps2_an386.ld) but free of board specifics:
- * vector table, .data copy and .bss clear, FPU enable, a fixed and checked floating-point
- * environment, then main(). semihost.c adds ARM semihosting (command line, exit status, newlib
- * stdio on host files) for test images run under QEMU.
+ * Three files, linked as needed:
+ * - att_fpenv.c: the floating-point environment alone (att_port_fp_init, att_port_fp_ok,
+ *   att_port_fpscr). A project with its own (vendor) start-up links just this file and calls
+ *   att_port_fp_init() in its reset handler before any floating-point instruction runs (with the
+ *   FPU off the first one faults), then att_port_fp_ok() once.
+ * - startup.c: a complete bare-metal start-up (vector table, .data copy and .bss clear, then main())
+ *   for ARMv7E-M (M4F, M7), ARMv8-M Mainline (M33) and ARMv6-M (M0/M0+), free of board specifics;
+ *   its Reset_Handler calls the two functions of att_fpenv.c (link both).
+ * - semihost.c: ARM semihosting (command line, exit status, newlib stdio on host files) for test
+ *   images run under QEMU.
  *
  * The numerics contract of attica (bit-identical results on every CPU) needs, on the FPU:
  * round to nearest even, no flush-to-zero, no default-NaN mode ("RunFast" off), in thread mode and
  * in every exception handler that runs a filter (FPDSCR gives the FPSCR of handlers).
- * att_port_fp_init() sets exactly that and att_port_fp_ok() checks it; call the check in your own
- * start-up if you do not use this one.
+ * att_port_fp_init() sets exactly that and att_port_fp_ok() checks it. On a core without an FPU
+ * (soft float) both are no-ops that succeed.
  */
 #ifndef ATT_PORT_H
 #define ATT_PORT_H
@@ -37,12 +42,19 @@ extern "C" {
 /** Exit status of a test image that took a fault (HardFault, BusFault, ...). */
 #define ATT_PORT_EXIT_FAULT 91
 
-/** Enable CP10/CP11, set FPSCR and FPDSCR to IEEE mode (see above), keep lazy FP context saving. */
+/* att_fpenv.c */
+/**
+ * Enable CP10/CP11 (CPACR), set the mode bits of FPSCR and FPDSCR to ATT_FPSCR_REQUIRED (IEEE: see
+ * above), clear FPSCR's cumulative exception flags, keep lazy FP context saving (FPCCR ASPEN, LSPEN).
+ * Privileged code only (the reset handler). No-op without an FPU.
+ */
 void att_port_fp_init(void);
-/** true when FPSCR and FPDSCR have the mode bits attica needs and the FPU is enabled. */
+/** true when the FPU is enabled and FPSCR and FPDSCR have the mode bits attica needs (always without an FPU). */
 bool att_port_fp_ok(void);
-/** The current FPSCR. */
+/** The current FPSCR (ATT_FPSCR_REQUIRED without an FPU). */
 uint32_t att_port_fpscr(void);
+
+/* startup.c (weak defaults), semihost.c (semihosting versions) */
 
 /** The command line as argc/argv; the default (weak) gives argc 0. semihost.c asks the debugger. */
 int att_port_args(char ***argv);

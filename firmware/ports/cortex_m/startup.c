@@ -4,14 +4,14 @@
  *
  * One start-up for every Cortex-M target of attica: ARMv7E-M with FPv4-SP (Cortex-M4F) or FPv5
  * (Cortex-M7), ARMv8-M Mainline with its FPU (Cortex-M33, secure state) and ARMv6-M without FPU
- * (Cortex-M0/M0+, soft float). Compiled for a core with an FPU (__ARM_FP defined), Reset_Handler
- * enables it (CPACR CP10/CP11 full access), sets FPSCR and FPDSCR to the IEEE mode attica needs
- * (round to nearest even, no flush-to-zero, no default NaN) and checks them
- * (att_port_fatal(ATT_PORT_EXIT_FPSCR) if the FPU does not take them); without an FPU the compiler's
- * soft-float routines are IEEE round-to-nearest with subnormals and there is nothing to set. Then it
- * copies .data from its load address, clears .bss, runs static constructors when newlib is linked,
- * calls main(argc, argv) with the arguments of att_port_args() and hands its status to
- * att_port_exit().
+ * (Cortex-M0/M0+, soft float). Reset_Handler calls att_port_fp_init() (att_fpenv.c: on a core with an
+ * FPU it enables it and sets FPSCR and FPDSCR to the IEEE mode attica needs; without one there is
+ * nothing to set), copies .data from its load address, clears .bss, checks the floating-point
+ * environment with att_port_fp_ok() (att_port_fatal(ATT_PORT_EXIT_FPSCR) if the FPU did not take
+ * it), runs static constructors when newlib is linked, calls main(argc, argv) with the arguments of
+ * att_port_args() and hands its status to att_port_exit().
+ *
+ * Link att_fpenv.c with it. A project with its own (vendor) start-up uses att_fpenv.c alone.
  *
  * Symbols expected from the linker script (mps2_an386.ld, mps2_an500.ld, mps2_an505.ld and
  * microbit.ld define them): __stack_top__, __data_load__, __data_start__, __data_end__,
@@ -36,13 +36,6 @@ extern uint32_t __bss_end__;
 
 /* newlib's constructor runner; absent (NULL) in images linked without a C library. */
 extern void __libc_init_array(void) __attribute__((weak));
-
-/* System control block registers used here (ARMv7-M ARM, B3.2 and B3.2.20 onwards). */
-#define ATT_CPACR (*(volatile uint32_t *)0xE000ED88u)
-#define ATT_FPCCR (*(volatile uint32_t *)0xE000EF34u)
-#define ATT_FPDSCR (*(volatile uint32_t *)0xE000EF3Cu)
-#define ATT_CPACR_CP10_CP11 (0xFul << 20)   /* full access to CP10 and CP11 (the FPU) */
-#define ATT_FPCCR_ASPEN_LSPEN ((uint32_t)3u << 30)   /* automatic + lazy FP context save on exceptions */
 
 typedef void (*att_handler_t)(void);
 
@@ -109,44 +102,6 @@ __attribute__((section(".vectors"), used)) const att_vectors_t att_vectors = {
         att_irq30_handler, att_irq31_handler,
     },
 };
-
-/* ---- floating-point environment ---------------------------------------------------------------- */
-
-#if defined(__ARM_FP)
-uint32_t att_port_fpscr(void)
-{
-    uint32_t v;
-    __asm__ volatile("vmrs %0, fpscr" : "=r"(v));
-    return v;
-}
-
-void att_port_fp_init(void)
-{
-    uint32_t fpscr;
-    ATT_CPACR |= ATT_CPACR_CP10_CP11;
-    __asm__ volatile("dsb\n\tisb" ::: "memory");
-    /* Handlers start with FPDSCR's modes: the same IEEE mode as thread code. */
-    ATT_FPDSCR = (ATT_FPDSCR & ~ATT_FPSCR_MODE_MASK) | ATT_FPSCR_REQUIRED;
-    ATT_FPCCR |= ATT_FPCCR_ASPEN_LSPEN;
-    fpscr = (att_port_fpscr() & ~ATT_FPSCR_MODE_MASK) | ATT_FPSCR_REQUIRED;
-    fpscr &= ~0x9Ful; /* clear the cumulative exception flags IDC IXC UFC OFC DZC IOC */
-    __asm__ volatile("vmsr fpscr, %0" ::"r"(fpscr) : "memory");
-}
-
-bool att_port_fp_ok(void)
-{
-    return (ATT_CPACR & ATT_CPACR_CP10_CP11) == ATT_CPACR_CP10_CP11 &&
-           (att_port_fpscr() & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED &&
-           (ATT_FPDSCR & ATT_FPSCR_MODE_MASK) == ATT_FPSCR_REQUIRED;
-}
-#else
-/* No FPU (soft float): no floating-point environment to set; the library routines are IEEE. */
-uint32_t att_port_fpscr(void) { return ATT_FPSCR_REQUIRED; }
-
-void att_port_fp_init(void) {}
-
-bool att_port_fp_ok(void) { return true; }
-#endif
 
 /* ---- default hooks (semihost.c replaces them) ------------------------------------------------------ */
 
