@@ -12,10 +12,10 @@ import pytest
 
 import attica
 from attica import kinds, native, reference
-from attica.checks import SettingsConflictError, unit_problems
+from attica.checks import unit_problems
 from attica.settings import ArsSettings, FilterKind, MarsSettings, make_settings
 
-from helpers import ROOT
+from helpers import ROOT, assert_same_bits
 
 RATE = 200.0
 
@@ -88,21 +88,26 @@ def test_dt_is_required_and_positional(rec: attica.Recording) -> None:
         native.Filter("ars", 100)  # a rate passed as dt: warned about, then refused by the C library
 
 
-def test_gain_and_time_constant_conflict() -> None:
+def test_gain_beside_time_constant_is_ignored(rec: attica.Recording) -> None:
+    """A time constant > 0 is used and the gain beside it ignored (issue 22; refused before), in C and the
+    reference alike; the gain is still range-checked."""
+    g, a, m = rec.gyr[:600], rec.acc[:600], rec.mag[:600]
     for make in (native.Filter, reference.Filter):
-        with pytest.raises(SettingsConflictError, match=r"gain=0.3 .* together with tau=0.5 s"):
-            make("ars", 0.01, gain=0.3, tau=0.5)
-        with pytest.raises(ValueError, match="alpha_mag=0.05 .*tau_mag"):
-            make("mars", 0.01, alpha_mag=0.05)
-        make("ars", 0.01, gain=0.3, tau=0.0)  # the per-sample gain alone is fine
+        both = make("ars", 0.01, gain=0.3, tau=0.5)
+        assert both.settings.gain == 0.3  # kept as given, unused
+        assert_same_bits(both.run(g, a)["q"], make("ars", 0.01, gain=0.0, tau=0.5).run(g, a)["q"], "ars")
+        mars = make("mars", 0.01, alpha_mag=0.05)  # tau_mag 20 s by default
+        assert_same_bits(mars.run(g, a, m)["q"], make("mars", 0.01, alpha_mag=0.0).run(g, a, m)["q"], "mars")
+        make("ars", 0.01, gain=0.3, tau=0.0)  # the per-sample gain alone
         make("mars", 0.01, alpha_acc=0.05, tau_acc=0.0)
-        # only the time constant given: the default gain yields (0 = unused), no error
+        # only the time constant given: the default gain is set to 0 (= unused)
         assert make("ars", 0.01, tau=0.5).settings.gain == 0.0
         assert make("mars", 0.01, tau_acc=0.3, tau_mag=10.0).settings.alpha_acc == 0.0
-    with pytest.raises(SettingsConflictError):
-        from attica.can.node import Node
+    with pytest.raises(attica.SettingsError, match=r"ars\.gain = 1\.5 is out of range: allowed \[0, 1\]"):
+        native.Filter("ars", 0.01, gain=1.5, tau=0.5)
+    from attica.can.node import Node
 
-        Node("ars", sample_rate=100.0, gain=0.3, tau=0.5)
+    Node("ars", sample_rate=100.0, gain=0.3, tau=0.5)
 
 
 def test_settings_are_read_only(rec: attica.Recording) -> None:
@@ -195,13 +200,13 @@ def test_retune_refusals_leave_the_filter_as_it_was(rec: attica.Recording) -> No
     f = native.Filter("ars", 1 / RATE)
     f.run(rec.gyr[:500], rec.acc[:500])
     before, settings = bytes(f.state), f.settings
-    with pytest.raises(SettingsConflictError, match="gain=0.5 .* tau=0.2"):
-        f.retune(gain=0.5, tau=0.2)
-    with pytest.raises(native.NativeError, match="att_filter_retune"):
+    with pytest.raises(native.SettingsError, match=r"ars\.gain = 1\.5"):
+        f.retune(gain=1.5, tau=0.2)  # unused, still range-checked
+    with pytest.raises(native.NativeError, match=r"att_filter_retune\(ars\): ars\.gravity = -1\.0"):
         f.retune(gravity=-1.0)
     with pytest.raises(TypeError, match="no field"):
         f.retune(gian=0.1)
     assert bytes(f.state) == before and f.settings == settings
     r = reference.Filter("ars", 1 / RATE)
-    with pytest.raises(SettingsConflictError):
-        r.retune(gain=0.5, tau=0.2)
+    r.retune(gain=0.5, tau=0.2)  # a gain beside a time constant is ignored, not refused (issue 22)
+    assert r.settings.gain == 0.5 and r.settings.tau == 0.2

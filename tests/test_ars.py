@@ -97,9 +97,7 @@ def test_converges_from_wrong_attitude(preset: str, tau: float | None, settle: f
     """
     rec = simulate(SimConfig(duration=12.0, rate=RATE, seed=7, rest_start=10.0))
     settings = preset_settings(FilterKind.ARS, preset, dt=1 / RATE)
-    kw: dict[str, object] = {} if tau is None else {"tau": tau}
-    if tau:
-        kw["gain"] = 0.0  # a time constant replaces the per-sample gain: both set is refused
+    kw: dict[str, object] = {} if tau is None else {"tau": tau}  # tau > 0: the preset's gain is ignored
     f = native.Filter("ars", settings, init_from_accel=False, q_init=(0.5, 0.5, 0.5, 0.5), **kw)
     out = f.run(rec.gyr, rec.acc)
     err = _inclination_deg(out["q"], rec.quat_true)
@@ -117,9 +115,7 @@ def test_accuracy_on_simulation(preset: str, tau: float | None, bound: float) ->
     literal k = 0.1 per sample (which follows linear acceleration), 1.0 deg with tau = 1 s, 0.46 deg with
     the defaults (accel low-pass)."""
     rec = simulate(SimConfig(duration=120.0, rate=RATE, seed=3))
-    kw: dict[str, object] = {} if tau is None else {"tau": tau}
-    if tau:
-        kw["gain"] = 0.0  # a time constant replaces the per-sample gain: both set is refused
+    kw: dict[str, object] = {} if tau is None else {"tau": tau}  # tau > 0: the preset's gain is ignored
     out = native.Filter("ars", preset_settings(FilterKind.ARS, preset, dt=1 / RATE), **kw).run(
         rec.gyr, rec.acc
     )
@@ -216,8 +212,7 @@ def test_not_ready_until_valid_accel() -> None:
     ],
 )
 def test_settings_rejected(field: str, value: object) -> None:
-    kw: dict[str, object] = {"dt": 0.01, "tau": 0.0} if field == "gain" else {"dt": 0.01}  # gain needs tau 0
-    kw[field] = value
+    kw: dict[str, object] = {"dt": 0.01, field: value}
     # a bad dt is refused in Python already (ValueError), every other field by the C library
     with pytest.raises((native.NativeError, ValueError), match="out of range|finite sample period"):
         native.Filter("ars", **kw)

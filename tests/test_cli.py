@@ -70,7 +70,10 @@ def test_run_with_settings(capsys: pytest.CaptureFixture[str]) -> None:
         (["run", "--data", "/nonexistent/x.npz"], "no such recording"),
         (["run", "--filter", "ars", "--set", "dt=-1"], "dt is the recording's sample period"),
         (["run", "--filter", "ars", "--set", "tau=0", "--set", "gain=5"], "out of range"),
-        (["run", "--filter", "ars", "--set", "gain=0.3", "--set", "tau=0.5"], "gain=0.3 (a per-sample gain)"),
+        (
+            ["run", "--filter", "ars", "--set", "tau_acc_lp=-1"],
+            "ars.tau_acc_lp = -1.0 is out of range: allowed",
+        ),
         (
             ["sim", "--duration", "6", "--breaks", "2", "-o", "/tmp/never.npz"],
             "use a longer --duration or fewer",

@@ -175,15 +175,21 @@ def test_validate_matches_init(kind: str) -> None:
     assert lib.att_filter_settings_validate(int(k), ffi.NULL) == lib.ATT_ERR_NULL
 
 
-def test_time_constant_and_gain_together_are_refused() -> None:
-    """One knob each: a per-sample gain with a time constant > 0 is refused (it would be ignored)."""
+def test_time_constant_beside_a_gain_is_used_and_the_gain_ignored() -> None:
+    """A time constant > 0 is used and the per-sample gain beside it ignored (issue 22): accepted, the same
+    coefficients as with the gain 0; the gain is still range-checked."""
     for k in kinds.KINDS:
         kind = k.kind
         for gain, tau in k.gain_time_constants:
+            f, g = ffi.new("att_filter_t *"), ffi.new("att_filter_t *")
             s = _c_settings(kind, **{tau: 0.5, gain: 0.1})
-            assert lib.att_filter_settings_validate(int(kind), s) == lib.ATT_ERR_SETTINGS, (kind, tau)
-            s = _c_settings(kind, **{tau: 0.5, gain: 0.0})
             assert lib.att_filter_settings_validate(int(kind), s) == lib.ATT_OK, (kind, tau)
+            assert lib.att_filter_init(f, int(kind), s) == lib.ATT_OK
+            assert lib.att_filter_init(g, int(kind), _c_settings(kind, **{tau: 0.5, gain: 0.0})) == lib.ATT_OK
+            state = [bytes(ffi.buffer(ffi.addressof(x.u, kind.label))) for x in (f, g)]
+            assert state[0] == state[1], (kind, tau)  # coefficients and state alike
+            s = _c_settings(kind, **{tau: 0.5, gain: 1.5})
+            assert lib.att_filter_settings_validate(int(kind), s) == lib.ATT_ERR_SETTINGS, (kind, tau)
 
 
 def test_flag_names() -> None:

@@ -27,9 +27,9 @@ def test_python_blocks_run() -> None:
         for block in blocks:
             lines = []
             for line in block.splitlines():
-                if "# SettingsConflictError" in line:
+                if "# SettingsError" in line:  # a line the text says raises
                     code = line.split("#")[0].strip()
-                    lines += ["with pytest.raises(attica.SettingsConflictError):", f"    {code}"]
+                    lines += ["with pytest.raises(attica.SettingsError):", f"    {code}"]
                 else:
                     lines.append(line)
             code = textwrap.dedent("\n".join(lines))

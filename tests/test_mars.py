@@ -793,8 +793,8 @@ BAD_SETTINGS: list[tuple[str, Any]] = [
     ("gyro_range", 1001.0),
     ("mag_range", INF),
     ("mag_range", 2e5),
-    ("tau_acc", 0.5),  # with the default alpha_acc = 1: a gain and a time constant
-    ("alpha_mag", 0.1),  # with the default tau_mag = 20 s
+    ("alpha_mag", 1.5),  # unused beside the default tau_mag = 20 s, still range-checked
+    ("alpha_acc", NAN),
     ("bias_init", (35.0, 0.0, 0.0)),  # beyond gyro_range
     ("rest_gyro", 35.0),
     ("rest_accel", 10.0),

@@ -47,7 +47,11 @@ int main(void)
     if (att_filter_settings_default(ATT_FILTER_ARS, 0.01f, &settings) != ATT_OK) {
         return 1;
     }
+    /* change what you need here, e.g. settings.ars.tau = 1.0f (a time constant > 0: the gain is unused) */
     if (att_filter_init(&filter, ATT_FILTER_ARS, &settings) != ATT_OK) {
+        att_settings_error_t why; /* which field was refused, and its range */
+        (void)att_filter_settings_check(ATT_FILTER_ARS, &settings, &why);
+        printf("settings refused: %s must be in %s %s\n", why.field, why.rule, why.unit);
         return 1;
     }
     for (i = 0ul; i < 1000ul; i++) { /* in firmware: once per sample, in the IMU interrupt or main loop */
@@ -55,6 +59,9 @@ int main(void)
         (void)att_filter_step(&filter, &in, &out); /* fills q, gyro_bias, flags, steps */
     }
     att_filter_output(&filter, &out); /* on request: the whole record, Euler angles included */
+    if ((out.valid & ATT_OUT_EULER) == 0u) { /* att_filter_step alone writes euler for ekf, gyro, tilt only */
+        return 1;
+    }
     printf("steps %lu flags 0x%04lx q %08lx %08lx %08lx %08lx yaw %.6f\n", (unsigned long)out.steps,
            (unsigned long)out.flags, bits(out.q.w), bits(out.q.x), bits(out.q.y), bits(out.q.z),
            (double)out.euler.z);

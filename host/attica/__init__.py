@@ -16,6 +16,8 @@ The user API at the top level::
 - :mod:`attica.kinds`: the filter kinds and what each one is (inputs, heading, outputs, CAN gains).
 - :class:`Flag`, :func:`describe_flags`, :func:`flag_names`: the per-step status flags by name.
 - :class:`UnitWarning`: raised as a warning when inputs look like deg/s, g, gauss or nT.
+- :class:`SettingsError` (= :class:`attica.native.SettingsError`): settings the C library refuses,
+  naming the field, its value and its range.
 - ``attica`` on the command line (:mod:`attica.cli`); ``attica paths`` prints where the firmware
   sources, headers, flags and DBC of this installation are (:mod:`attica.resources`).
 
@@ -49,7 +51,7 @@ from attica.settings import (
 
 if TYPE_CHECKING:
     from attica.data import Recording, load_recording
-    from attica.native import Filter
+    from attica.native import Filter, SettingsError
     from attica.sim import SimConfig, simulate, simulate_with_truth
 
 VERSION_INFO: tuple[int, int, int] = _parse_version(_version_header().read_text())
@@ -59,6 +61,7 @@ __version__ = "{}.{}.{}".format(*VERSION_INFO)
 
 _LAZY = {
     "Filter": ("attica.native", "Filter"),
+    "SettingsError": ("attica.native", "SettingsError"),
     "simulate": ("attica.sim", "simulate"),
     "simulate_with_truth": ("attica.sim", "simulate_with_truth"),
     "SimConfig": ("attica.sim", "SimConfig"),
@@ -84,6 +87,7 @@ __all__ = [
     "Preset",
     "Recording",
     "SettingsConflictError",
+    "SettingsError",
     "SimConfig",
     "TiltSettings",
     "UnitWarning",

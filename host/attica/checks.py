@@ -1,13 +1,17 @@
-"""Checks that stop silent misuse of the filters: the sample period, conflicting gains, input units.
+"""Checks that stop silent misuse of the filters: the sample period, the gains, input units.
 
 - :func:`filter_settings`: the settings of a new filter from ``(kind, dt, settings, **overrides)``,
-  with the sample period required (a positional float after the kind is ``dt``, as in VQF) and a
-  per-sample gain refused while a time constant replaces it (:func:`check_gains`); setting only the
-  time constant leaves the gain at 0, unused (:func:`implied_gains`).
+  with the sample period required (a positional float after the kind is ``dt``, as in VQF); setting
+  only a time constant sets its per-sample gain to 0, the value that says "unused" (:func:`implied_gains`).
 - :func:`imu_arrays`: batch inputs as float32 C-contiguous (N, 3) arrays, with a clear error for a
   wrong shape or a dtype that is not a real number.
 - :func:`unit_problems` / :func:`warn_units`: median magnitudes of the inputs that look like deg/s, g,
   milli-g, gauss or nT instead of rad/s, m/s^2 and uT, reported as a :class:`UnitWarning`.
+
+A per-sample gain and its time constant (:data:`GAIN_TIME_CONSTANTS`) follow the rule of the C library
+(att_ars.h, att_mars.h): a time constant > 0 is used and the gain beside it is ignored (it must still
+lie in [0, 1]); with the time constant 0 the gain is used. Every range of the settings is the C
+library's (``att_filter_settings_check`` names the refused field: :class:`attica.native.SettingsError`).
 
 Silence the unit warnings with ``warnings.simplefilter("ignore", attica.UnitWarning)`` (or
 ``check_units=False`` in ``Filter.run``, ``--no-unit-check`` on the command line).
@@ -31,7 +35,6 @@ __all__ = [
     "GAIN_TIME_CONSTANTS",
     "SettingsConflictError",
     "UnitWarning",
-    "check_gains",
     "filter_settings",
     "implied_gains",
     "imu_arrays",
@@ -45,53 +48,29 @@ class UnitWarning(UserWarning):
 
 
 class SettingsConflictError(ValueError):
-    """Two settings contradict each other (a per-sample gain and the time constant that replaces it)."""
+    """Two settings contradict each other.
+
+    No longer raised for a per-sample gain beside the time constant that replaces it (since issue 22
+    the time constant is used and the gain ignored, in C, Python and on CAN alike); kept so that
+    ``except SettingsConflictError`` in existing code still works.
+    """
 
 
 GAIN_TIME_CONSTANTS: dict[FilterKind, tuple[tuple[str, str], ...]] = {
     k.kind: k.gain_time_constants for k in KINDS if k.gain_time_constants
 }
 """Per kind that has some: (per-sample gain, time constant) pairs (``gain_time_constants`` of
-:data:`attica.kinds.KINDS`). A time constant > 0 sets the gain to ``dt / (tau + dt)``, so the per-sample
-gain must then be left unset (0, its default)."""
-
-
-def check_gains(kind: FilterKind, settings: Any) -> None:
-    """Refuse a per-sample gain together with the time constant that would override it.
-
-    The rule of the C library (``att_<kind>_settings_validate``: "must be 0 when tau > 0"): a time
-    constant > 0 replaces the per-sample gain, so a non-zero gain beside it is an error, not something
-    to ignore silently. This check says so naming both fields, before the C library's generic refusal.
-
-    Raises
-    ------
-    SettingsConflictError
-        Naming both fields and how to choose one.
-
-    """
-    for gain, tau in GAIN_TIME_CONSTANTS.get(kind, ()):
-        # the reference steps n instances in lockstep: its settings fields may be arrays (one per instance)
-        g = np.asarray(getattr(settings, gain), np.float64)
-        t = np.asarray(getattr(settings, tau), np.float64)
-        bad = np.broadcast_to((t > 0) & (g != 0), np.broadcast_shapes(g.shape, t.shape))
-        if bad.any():
-            i = np.unravel_index(int(np.argmax(bad)), bad.shape)
-            gi, ti = float(np.broadcast_to(g, bad.shape)[i]), float(np.broadcast_to(t, bad.shape)[i])
-            where = f" (instance {i[0] if len(i) == 1 else i})" if bad.ndim else ""
-            raise SettingsConflictError(
-                f"{kind.label}{where}: {gain}={gi:g} (a per-sample gain) is set together with {tau}={ti:g} s "
-                f"(a time constant > 0, which replaces {gain} by dt/({tau}+dt)); set {tau}=0 to use {gain}, "
-                f"or {gain}=0 (or leave it unset) to use {tau}"
-            )
+:data:`attica.kinds.KINDS`). A time constant > 0 sets the per-sample gain of a step to
+``dt / (tau + dt)``; the gain field is then ignored (still range-checked by the C library)."""
 
 
 def implied_gains(kind: FilterKind, base: Any, overrides: dict[str, Any]) -> dict[str, Any]:
     """``overrides`` with each per-sample gain set to 0 where its time constant is in use (> 0).
 
     A per-sample gain left at its default (not in ``overrides``, default value in ``base``) yields to a
-    time constant > 0, given in ``overrides`` or set in ``base`` (e.g. ``ArsSettings(tau=0.5)``): the
-    gain's default means "unused" once a time constant is in use. A gain given with a value of its own
-    together with its time constant is left for :func:`check_gains` to refuse.
+    time constant > 0, given in ``overrides`` or set in ``base`` (e.g. ``ArsSettings(tau=0.5)``): it is
+    set to 0, the value that says "unused" (as the CAN node's SET_GAIN does). A gain given with a value
+    of its own is kept as given: the time constant is used and the gain ignored (same outputs).
     """
     out = dict(overrides)
     cls = SETTINGS_CLASS[kind]
@@ -144,7 +123,7 @@ def filter_settings(
     TypeError
         No sample period for a kind that has one, ``dt`` not a number, unknown fields.
     ValueError
-        ``dt`` not finite and > 0, unknown kind, or conflicting gains (:func:`check_gains`).
+        ``dt`` not finite and > 0, or an unknown kind.
 
     """
     k = FilterKind.parse(kind)
@@ -177,7 +156,6 @@ def filter_settings(
                 stacklevel=4,
             )
     s = make_settings(k, settings, None if dt is None else float(dt), **implied_gains(k, settings, overrides))
-    check_gains(k, s)
     return k, s
 
 

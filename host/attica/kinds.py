@@ -111,8 +111,8 @@ class KindInfo:
     gain_names : tuple of str
         Names of the :class:`attica.can.layout.Gain` parameters the node's ``SET_GAIN`` takes for it.
     gain_time_constants : tuple of (str, str)
-        (per-sample gain, time constant) setting pairs: a time constant > 0 replaces the gain, so both
-        set is an error (:func:`attica.checks.check_gains`).
+        (per-sample gain, time constant) setting pairs: a time constant > 0 is used and the gain beside
+        it ignored (still range-checked); with the time constant 0 the gain is used.
 
     """
 

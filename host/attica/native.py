@@ -11,6 +11,7 @@ Scalar and batch entry points take float32 numpy arrays and loop in C without co
 
 from __future__ import annotations
 
+import re
 from typing import Any, Literal, overload
 
 import numpy as np
@@ -136,6 +137,131 @@ class NativeError(RuntimeError):
     """A C function returned an error status."""
 
 
+class SettingsError(NativeError, ValueError):
+    """The C library refuses a settings field: ``att_filter_settings_check``'s answer.
+
+    ``field`` is the first refused field as ``"<kind>.<field>"`` (``"ars.tau_acc_lp"``,
+    ``"ekf.euler_init.y"``), ``value`` its value (a float, or a tuple for a vector or quaternion),
+    ``rule`` the accepted values in words (``"[0, 1e4]"``, ``"(gravity, 1e4]"``), ``minimum`` and
+    ``maximum`` the rule's bounds for the settings checked (the other fields' values filled in), ``unit``
+    the field's unit (``""`` for none). Also a ``ValueError``, and a :class:`NativeError` as before.
+    """
+
+    def __init__(
+        self, what: str, field: str, value: Any, minimum: float, maximum: float, rule: str, unit: str
+    ) -> None:
+        self.field = field
+        self.value = value
+        self.minimum = minimum
+        self.maximum = maximum
+        self.rule = rule
+        self.unit = unit
+        super().__init__(f"{what}: {field} = {_value_text(value)} is out of range: allowed {self.allowed}")
+
+    @property
+    def allowed(self) -> str:
+        """The rule with its unit, and the bounds it names as numbers.
+
+        ``"[0, 1e4] s"``; ``"(gravity, 1e4] m/s^2, here (9.80665, 10000.0]"``.
+        """
+        text = self.rule + (f" {self.unit}" if self.unit else "")
+        interval = _INTERVAL.match(self.rule)
+        if interval and not (_NUMBER.fullmatch(interval["lo"]) and _NUMBER.fullmatch(interval["hi"])):
+            lo, hi = _value_text(self.minimum), _value_text(self.maximum)
+            text += f", here {self.rule[0]}{lo}, {hi}{self.rule[-1]}"
+        return text
+
+
+_INTERVAL = re.compile(r"^[\[(](?P<lo>[^,]+), (?P<hi>[^,\])]+)[\])]$")
+"""A rule that is an interval: "[lo, hi]", "(lo, hi]" ... (its bounds numbers or field names)."""
+_NUMBER = re.compile(r"-?[0-9.]+(e[+-]?[0-9]+)?(\^-?[0-9]+)?")
+
+
+def _value_text(value: Any) -> str:
+    """A settings value as the float32 it is in C (shortest text), tuples component by component."""
+    if isinstance(value, tuple):
+        return "(" + ", ".join(_value_text(v) for v in value) + ")"
+    if isinstance(value, float):
+        return str(np.float32(value))
+    return repr(value)
+
+
+def _c_value(member: Any, path: str) -> Any:
+    """The value of a settings field of the C struct ``member`` by dotted path (structs as tuples)."""
+    v = member
+    for name in path.split("."):
+        try:
+            v = getattr(v, name)
+        except ValueError:  # a bool whose byte is neither 0 nor 1 (possible only through raw memory)
+            return "invalid bool"
+    if isinstance(v, ffi.CData) and ffi.typeof(v).kind == "struct":
+        return tuple(getattr(v, fname) for fname, _ in ffi.typeof(v).fields)
+    return v
+
+
+def settings_problem(
+    kind: str | int | FilterKind, settings: Any, what: str = "settings"
+) -> SettingsError | None:
+    """Why the C library refuses settings (``att_filter_settings_check``), or None when it accepts them.
+
+    Parameters
+    ----------
+    kind
+        The filter kind (name, number or :class:`FilterKind`).
+    settings
+        A settings dataclass of the kind, or a cffi ``att_filter_settings_t *``.
+    what
+        The start of the error's message (the call that refused them).
+
+    Returns
+    -------
+    SettingsError or None
+        The first refused field with its value, range and rule (raise it), or None (accepted).
+
+    Raises
+    ------
+    NativeError
+        The kind is unknown or compiled out.
+
+    """
+    k = FilterKind.parse(kind)
+    if isinstance(settings, ffi.CData):
+        s = settings
+    else:
+        s = _c_settings(k, make_settings(k, settings))
+    why = ffi.new("att_settings_error_t *")
+    status = lib.att_filter_settings_check(int(k), s, why)
+    if status != lib.ATT_ERR_SETTINGS:
+        _check(status, what)
+        return None
+    field = ffi.string(why.field).decode()
+    member, path = field.split(".", 1)
+    return SettingsError(
+        what,
+        field,
+        _c_value(getattr(s, member), path),
+        float(why.min),
+        float(why.max),
+        ffi.string(why.rule).decode(),
+        ffi.string(why.unit).decode(),
+    )
+
+
+def _c_settings(kind: FilterKind, settings: Any) -> Any:
+    """A new ``att_filter_settings_t *`` holding the settings dataclass of ``kind``."""
+    s = ffi.new("att_filter_settings_t *")
+    _check(lib.att_filter_settings_default(int(kind), 0.01, s), "att_filter_settings_default")
+    _fill(getattr(s, kind.label), to_dict(settings))
+    return s
+
+
+def _check_settings(kind: FilterKind, s: Any, what: str) -> None:
+    """Raise :class:`SettingsError` naming the refused field when the C library refuses ``s``."""
+    problem = settings_problem(kind, s, what)
+    if problem is not None:
+        raise problem
+
+
 def _check(status: int, what: str) -> None:
     if status == lib.ATT_ERR_NULL:
         raise NativeError(f"{what}: NULL argument")
@@ -219,9 +345,10 @@ class Filter:
     TypeError
         No sample period, unknown settings fields.
     ValueError
-        A bad ``dt``, a per-sample gain together with a time constant (names both fields).
-    NativeError
-        The C library refused the settings.
+        A bad ``dt``.
+    SettingsError
+        The C library refused the settings (a :class:`NativeError` and a ``ValueError``): the message
+        names the first refused field, its value and its range.
 
     """
 
@@ -235,11 +362,11 @@ class Filter:
         **overrides: Any,
     ) -> None:
         self.kind, self._settings = filter_settings(kind, dt, settings, overrides, "native.Filter")
-        self._s = ffi.new("att_filter_settings_t *")
-        _check(lib.att_filter_settings_default(int(self.kind), 0.01, self._s), "att_filter_settings_default")
-        _fill(getattr(self._s, self.kind.label), to_dict(self._settings))
+        self._s = _c_settings(self.kind, self._settings)
         self._f = ffi.new("att_filter_t *")
-        _check(lib.att_filter_init(self._f, int(self.kind), self._s), f"att_filter_init({self.kind.label})")
+        what = f"att_filter_init({self.kind.label})"
+        _check_settings(self.kind, self._s, what)
+        _check(lib.att_filter_init(self._f, int(self.kind), self._s), what)
         self._in = ffi.new("att_sample_t *")
         if calibration is not None or accel_outputs:
             self.calibrate(calibration, float(getattr(self.settings, "gravity", 9.80665)), accel_outputs)
@@ -315,26 +442,26 @@ class Filter:
 
         ``changes`` are settings fields (``f.retune(tau_acc_lp=2.0)``); the others keep their values
         (or those of ``settings``, a settings dataclass of the kind, when given).
-        The same checks as at construction apply (a per-sample gain beside its time constant is an error;
-        setting only the time constant leaves the gain at 0). What a changed setting resets is the C
-        library's rule (``att_<kind>_retune``). On an error nothing changes.
+        The same checks as at construction apply (setting only a time constant sets its per-sample gain
+        to 0, unused). What a changed setting resets is the C library's rule (``att_<kind>_retune``).
+        On an error nothing changes.
 
         Raises
         ------
         TypeError
             Unknown settings fields.
         ValueError
-            Conflicting gains, a bad ``dt``.
-        NativeError
-            The C library refused the new settings (the filter is left as it was).
+            A bad ``dt``.
+        SettingsError
+            The C library refused the new settings, naming the field (the filter is left as it was).
 
         """
         base = settings if settings is not None else self._settings
         _, new = filter_settings(self.kind, None, base, changes, "Filter.retune")
-        s = ffi.new("att_filter_settings_t *")
-        _check(lib.att_filter_settings_default(int(self.kind), 0.01, s), "att_filter_settings_default")
-        _fill(getattr(s, self.kind.label), to_dict(new))
-        _check(lib.att_filter_retune(self._f, s), f"att_filter_retune({self.kind.label})")
+        s = _c_settings(self.kind, new)
+        what = f"att_filter_retune({self.kind.label})"
+        _check_settings(self.kind, s, what)
+        _check(lib.att_filter_retune(self._f, s), what)
         self._s = s
         self._settings = new
 

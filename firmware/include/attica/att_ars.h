@@ -53,12 +53,14 @@ typedef enum {
 /**
  * Settings of the complementary ARS. Fill with att_ars_settings_default, then change fields.
  * Each field's valid range is given in brackets; att_ars_init (and att_ars_settings_validate) refuse
- * anything else with ATT_ERR_SETTINGS. NaN and Inf are outside every range.
+ * anything else with ATT_ERR_SETTINGS (att_filter_settings_check names the field). NaN and Inf are
+ * outside every range.
  */
 typedef struct {
     float dt;                      /**< sample period, s; [1e-6, 1] */
-    float gain;                    /**< k: per-sample accel gain at |a| = g, [0, 1]; must be 0 when tau > 0 */
-    float tau;                     /**< accel correction time constant, s, [0, 1e4]; > 0 sets k = dt/(tau+dt) */
+    float gain;                    /**< k: per-sample accel gain at |a| = g, [0, 1]; unused when tau > 0 */
+    float tau;                     /**< accel correction time constant, s, [0, 1e4]; > 0 sets k = dt/(tau+dt)
+                                        (gain is then ignored); 0 = k is gain */
     float gain_c;                  /**< c in K_a = k / (1 + c (|a|/g - 1)^2); [0, 1e6] */
     float gravity;                 /**< g, m/s^2; [1, 100] */
     float accel_reject;            /**< skip correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never skip */

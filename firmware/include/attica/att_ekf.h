@@ -93,7 +93,8 @@ extern "C" {
 /* ATT_CDEF_BEGIN */
 /**
  * Settings of the Euler EKF. Fill with att_ekf_settings_default, then change fields. Each field's valid
- * range is given in brackets; init refuses anything else (NaN and Inf included).
+ * range is given in brackets; init refuses anything else (NaN and Inf included;
+ * att_filter_settings_check names the field).
  */
 typedef struct {
     float dt;              /**< sample period, s; [1e-6, 1] */

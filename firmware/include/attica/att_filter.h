@@ -5,10 +5,22 @@
  *     att_filter_settings_t s;
  *     att_filter_t f;
  *     att_output_t out;
+ *     att_settings_error_t why;
  *     att_filter_settings_default(ATT_FILTER_ARS, 0.0035f, &s);   // dt = 1 / 285.714 Hz
- *     s.ars.tau = 1.0f;                                           // change what you need
- *     if (att_filter_init(&f, ATT_FILTER_ARS, &s) != ATT_OK) { ... }
- *     for (;;) { att_sample_t in = read_imu(); att_filter_step(&f, &in, &out); use(out.q); }
+ *     s.ars.tau = 1.0f;                                           // change what you need (tau > 0: gain unused)
+ *     if (att_filter_init(&f, ATT_FILTER_ARS, &s) != ATT_OK) {
+ *         (void)att_filter_settings_check(ATT_FILTER_ARS, &s, &why);   // why.field: "ars.tau" ...
+ *     }
+ *     for (;;) {
+ *         att_sample_t in = read_imu();
+ *         att_filter_step(&f, &in, &out);            // q, gyro_bias, flags, steps (see out.valid)
+ *         if ((out.flags & ATT_FLAGS_OUTPUT_INVALID) == 0u) { use(out.q); }
+ *         att_filter_output(&f, &out);               // when Euler angles are needed: the whole record
+ *         if ((out.valid & ATT_OUT_EULER) != 0u) { use_euler(out.euler); }
+ *     }
+ *
+ * att_filter_step writes euler only for the kinds whose state is Euler angles (ekf, gyro, tilt: the
+ * ATT_OUT_EULER bit of out.valid); the other fields of out keep what they held.
  *
  * A sample carries gyro (rad/s), accel (m/s^2) and mag (uT), all sensor frame; a mag vector that is
  * exactly zero or has a NaN component means "no mag sample". Filters ignore inputs they do not use.
@@ -173,6 +185,22 @@ att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t pre
  * att_filter_init and att_filter_retune accept exactly the settings this accepts.
  */
 att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filter_settings_t *settings);
+/**
+ * Which field makes att_filter_init refuse settings: the status att_filter_settings_validate returns
+ * (ATT_OK exactly when init accepts them) and, for ATT_ERR_SETTINGS, in why (may be NULL) the first
+ * refused field in the kind's order of checks, its bounds for these settings and the rule in words:
+ *
+ *     att_settings_error_t why;
+ *     if (att_filter_settings_check(ATT_FILTER_ARS, &s, &why) == ATT_ERR_SETTINGS) {
+ *         printf("%s: %s %s\n", why.field, why.rule, why.unit);   // "ars.tau_acc_lp: [0, 1e4] s"
+ *     }
+ *
+ * why->field is NULL unless a field was refused. The validator and this function are written from one
+ * table per kind, so they cannot disagree. att_filter_init does not call it: an image that does not
+ * carries none of its names (--gc-sections).
+ */
+att_status_t att_filter_settings_check(att_filter_kind_t kind, const att_filter_settings_t *settings,
+                                       att_settings_error_t *why);
 /**
  * Initialise f as the given kind, with identity input/output stages (ENU); on error f is unchanged.
  * ATT_ERR_DISABLED for a kind compiled out of this build (att_config.h).

@@ -55,7 +55,8 @@ extern "C" {
 
 /**
  * Settings of the linear quaternion KF. Fill with att_kf_settings_default, then change fields. Each
- * field's valid range is given in brackets; init refuses anything else (NaN and Inf included).
+ * field's valid range is given in brackets; init refuses anything else (NaN and Inf included;
+ * att_filter_settings_check names the field).
  */
 typedef struct {
     float dt;                  /**< sample period, s; [1e-6, 1] */

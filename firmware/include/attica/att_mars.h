@@ -77,14 +77,17 @@ typedef enum {
 /**
  * Settings of the 9-axis complementary filter. Fill with att_mars_settings_default, then change.
  * Each field's valid range is given in brackets; att_mars_init (and att_mars_settings_validate) refuse
- * anything else with ATT_ERR_SETTINGS. NaN and Inf are outside every range.
+ * anything else with ATT_ERR_SETTINGS (att_filter_settings_check names the field). NaN and Inf are
+ * outside every range.
  */
 typedef struct {
     float dt;                     /**< sample period, s; [1e-6, 1] */
-    float alpha_acc;              /**< per-sample accel correction gain, [0, 1]; must be 0 when tau_acc > 0 */
-    float alpha_mag;              /**< per-sample mag correction gain, [0, 1]; must be 0 when tau_mag > 0 */
-    float tau_acc;                /**< accel time constant, s, [0, 1e4]; > 0 sets alpha = dt/(tau+dt) */
-    float tau_mag;                /**< mag time constant, s, [0, 1e4]; > 0 sets alpha = dt/(tau+dt) */
+    float alpha_acc;              /**< per-sample accel correction gain, [0, 1]; unused when tau_acc > 0 */
+    float alpha_mag;              /**< per-sample mag correction gain, [0, 1]; unused when tau_mag > 0 */
+    float tau_acc;                /**< accel time constant, s, [0, 1e4]; > 0 sets k_acc = dt/(tau_acc+dt)
+                                       (alpha_acc is then ignored); 0 = k_acc is alpha_acc */
+    float tau_mag;                /**< mag time constant, s, [0, 1e4]; > 0 sets k_mag = dt/(tau_mag+dt)
+                                       (alpha_mag is then ignored); 0 = k_mag is alpha_mag */
     att_mars_mag_mode_t mag_mode; /**< horizontal (yaw only) or full-vector mag correction */
     float gravity;                /**< g, m/s^2; [1, 100] */
     float accel_reject;           /**< skip accel correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never */

@@ -52,6 +52,21 @@ typedef enum {
 } att_status_t;
 
 /**
+ * Which settings field was refused, and its range (att_filter_settings_check). min and max are the
+ * bounds of the rule for the settings checked, with the values of the other fields it names filled
+ * in (accel_range "(gravity, 1e4]": min = gravity); the rule says whether they are included. For a
+ * rule that is not a range of the field itself they bound what the rule names (|q|^2 of q_init,
+ * q_noise * dt with noise_rates; bools and enums: the smallest and largest accepted value).
+ */
+typedef struct {
+    const char *field; /**< "<kind>.<field>" ("ars.tau_acc_lp", "ekf.euler_init.y"); NULL if none refused */
+    float min;         /**< lower bound of the rule, for these settings */
+    float max;         /**< upper bound of the rule, for these settings (may be +Inf) */
+    const char *rule;  /**< the accepted values in words: "[0, 1e4]", "(gravity, 1e4]", "0 or 1" */
+    const char *unit;  /**< the field's unit: "s", "rad/s", "m/s^2", "uT", "rad"; "" when it has none */
+} att_settings_error_t;
+
+/**
  * Per-step status flags (bit set). Every filter step returns an OR of these.
  * A flag that names a skipped correction means the state was left as it was before that correction.
  */

@@ -120,16 +120,65 @@ static inline bool att_i_quat_init_ok(att_quat_t q)
 #define ATT_GAIN_C_MAX 1000000.0f
 #define ATT_BIAS_N_MAX_LIMIT 16777216u /* 2^24: n converts to float exactly */
 
-/** Bias mode and rest-detector settings shared by the ARS, the 9-axis filter and the KF. */
-static inline bool att_i_bias_settings_ok(att_bias_mode_t mode, uint32_t n_max, att_vec3_t bias_init,
-                                          float gyro_range, float rest_gyro, float rest_accel, float rest_time,
-                                          float gravity)
+/*
+ * The settings contract of a kind, written once: ATT_<KIND>_CHECKS(C) in filters/<kind>/att_<kind>.c
+ * lists the conditions on its settings s in the order they are tested, each as
+ *     C(name, ok, lo, hi, rule, unit)
+ *   name    the field, a string literal ("dt", "euler_init.y")
+ *   ok      the condition on s (true: accepted; NaN fails every range)
+ *   lo, hi  the bounds of the rule for these settings (float; may read other fields: s->gravity)
+ *   rule    the accepted values in words, a string literal ("[0, 1e4]", "(gravity, 1e4]")
+ *   unit    the field's unit, a string literal ("" for none)
+ * att_<kind>_settings_validate is the conjunction of the conditions (ATT_CHECK_AND, the expression it
+ * always was), att_<kind>_settings_check names the first that fails (ATT_CHECK_WHY): one list, so
+ * they cannot disagree. Only the checks use name, rule and unit: an image that does not call
+ * att_filter_settings_check carries none of the text (--gc-sections drops it with the function).
+ * The forms below (ATT_CK_*) write the usual conditions; a line may also call C directly.
+ */
+#define ATT_CHECK_AND(name, ok, lo, hi, rule, unit) &&(ok)
+#define ATT_CHECK_WHY(name, ok, lo, hi, rule, unit)                                                           \
+    if (!(ok)) {                                                                                              \
+        return att_i_settings_refused(why, name, lo, hi, rule, unit);                                         \
+    }
+
+/** field in [lo, hi] */
+#define ATT_CK_IN(C, f, lo, hi, rule, unit) C(#f, att_i_in(s->f, lo, hi), lo, hi, rule, unit)
+/** field in (lo, hi] */
+#define ATT_CK_OC(C, f, lo, hi, rule, unit) C(#f, s->f > (lo) && s->f <= (hi), lo, hi, rule, unit)
+/** field in (lo, hi) */
+#define ATT_CK_OO(C, f, lo, hi, rule, unit) C(#f, s->f > (lo) && s->f < (hi), lo, hi, rule, unit)
+/** every component of a vector field in [-lim, lim] */
+#define ATT_CK_VEC(C, f, lim, rule, unit) C(#f, att_i_vec3_within(s->f, lim), -(lim), lim, rule, unit)
+/** a bool field holds 0 or 1 */
+#define ATT_CK_BOOL(C, f) C(#f, att_i_bool_ok(&s->f), 0.0f, 1.0f, "0 or 1 (bool)", "")
+/** an initial quaternion (att_i_quat_init_ok) */
+#define ATT_CK_QUAT(C, f) C(#f, att_i_quat_init_ok(s->f), 0x1p-20f, 0x1p+20f, "finite, |q|^2 in [2^-20, 2^20]", "")
+
+/** Bias mode and rest-detector settings shared by the ARS, the 9-axis filter and the KF (lines of a table). */
+#define ATT_CK_BIAS(C)                                                                                        \
+    C("bias_mode",                                                                                            \
+      s->bias_mode == ATT_BIAS_OFF || s->bias_mode == ATT_BIAS_FROZEN || s->bias_mode == ATT_BIAS_RUNNING ||  \
+          s->bias_mode == ATT_BIAS_AT_REST,                                                                   \
+      0.0f, 3.0f, "OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3)", "")                                      \
+    C("bias_n_max", s->bias_n_max >= 1u && s->bias_n_max <= ATT_BIAS_N_MAX_LIMIT, 1.0f, 16777216.0f, "[1, 2^24]", \
+      "")                                                                                                     \
+    ATT_CK_VEC(C, bias_init, s->gyro_range, "each component in [-gyro_range, gyro_range]", "rad/s")          \
+    ATT_CK_IN(C, rest_gyro, 0.0f, s->gyro_range, "[0, gyro_range]", "rad/s")                                  \
+    ATT_CK_IN(C, rest_accel, 0.0f, s->gravity, "[0, gravity]", "m/s^2")                                       \
+    ATT_CK_IN(C, rest_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+
+/** why (may be NULL) names field, its bounds and rule; returns ATT_ERR_SETTINGS (the checks' one exit). */
+static inline att_status_t att_i_settings_refused(att_settings_error_t *why, const char *field, float lo, float hi,
+                                                 const char *rule, const char *unit)
 {
-    return (mode == ATT_BIAS_OFF || mode == ATT_BIAS_FROZEN || mode == ATT_BIAS_RUNNING ||
-            mode == ATT_BIAS_AT_REST) &&
-           n_max >= 1u && n_max <= ATT_BIAS_N_MAX_LIMIT && att_i_vec3_within(bias_init, gyro_range) &&
-           att_i_in(rest_gyro, 0.0f, gyro_range) && att_i_in(rest_accel, 0.0f, gravity) &&
-           att_i_in(rest_time, 0.0f, ATT_TAU_MAX);
+    if (why != NULL) {
+        why->field = field;
+        why->min = lo;
+        why->max = hi;
+        why->rule = rule;
+        why->unit = unit;
+    }
+    return ATT_ERR_SETTINGS;
 }
 
 #define ATT_ALIGN_A_MIN 0x1p-19f /* full alignment: below this (|v| + v_z) / |v| the vector points down */

@@ -99,6 +99,32 @@ att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filt
     }
 }
 
+#define ATT_FILTER_CASE_CHECK(NAME, name, num)                                                             \
+    case ATT_FILTER_##NAME:                                                                                  \
+        return att_##name##_settings_check(&settings->name, why);
+
+/* Not called by att_filter_init (nor by anything on its path): the names and rules of the fields stay
+ * out of the images that do not call it. */
+att_status_t att_filter_settings_check(att_filter_kind_t kind, const att_filter_settings_t *settings,
+                                       att_settings_error_t *why)
+{
+    if (why != NULL) {
+        why->field = NULL;
+        why->min = 0.0f;
+        why->max = 0.0f;
+        why->rule = NULL;
+        why->unit = NULL;
+    }
+    if (settings == NULL) {
+        return ATT_ERR_NULL;
+    }
+    switch (kind) {
+        ATT_KINDS(ATT_FILTER_CASE_CHECK)
+    default:
+        return att_filter_absent(kind);
+    }
+}
+
 #define ATT_FILTER_CASE_INIT(NAME, name, num)                                                              \
     case ATT_FILTER_##NAME:                                                                                  \
         st = att_##name##_init(&f->u.name, &settings->name);                                                 \

@@ -58,7 +58,10 @@ typedef enum {
     ATT_GAIN_EKF_R = 4    /**< EKF measurement noise of roll and pitch */
 } att_gain_t;
 
-/** The per-sample gain that goes with a time constant set over CAN: 0 when tau > 0, else 1. */
+/**
+ * The per-sample gain that goes with a time constant set over CAN: 0 when tau > 0 (the gain is then
+ * unused: 0 says so when the settings are read back), else 1 (tau 0: the full correction).
+ */
 static inline float att_i_gain_for_tau(float tau)
 {
     return (tau > 0.0f) ? 0.0f : 1.0f;
@@ -81,6 +84,10 @@ static inline float att_i_gain_for_tau(float tau)
  *                         the difference is not finite; ATT_ERR_KIND for a kind without heading
  *   att_<name>_set_gain   a gain set in settings (state not touched): false when the kind has no
  *                         such gain
+ *   att_<name>_settings_check  att_<name>_settings_validate's verdict on settings (not NULL), and on
+ *                         ATT_ERR_SETTINGS the first refused field in why (may be NULL; untouched
+ *                         when accepted): both are written from the kind's one table of checks
+ *                         (ATT_<NAME>_CHECKS, att_core.h); called only by att_filter_settings_check
  */
 #define ATT_KIND_HOOKS(NAME, name, num)                                                                    \
     void att_##name##_preset(att_##name##_settings_t *s, att_preset_t preset, float dt);                      \
@@ -90,7 +97,8 @@ static inline float att_i_gain_for_tau(float tau)
     void att_##name##_output(const att_##name##_t *f, att_output_t *out);                                     \
     att_heading_t att_##name##_heading_kind(const att_##name##_t *f);                                         \
     att_status_t att_##name##_yaw_to(att_##name##_t *f, float target, float gain);                            \
-    bool att_##name##_set_gain(att_##name##_settings_t *s, att_gain_t gain, float value);
+    bool att_##name##_set_gain(att_##name##_settings_t *s, att_gain_t gain, float value);                      \
+    att_status_t att_##name##_settings_check(const att_##name##_settings_t *s, att_settings_error_t *why);
 
 ATT_KINDS_ALL(ATT_KIND_HOOKS)
 

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.can.layout import FRAME_DTYPE, frames
-from attica.checks import check_gains, implied_gains
+from attica.checks import implied_gains
 from attica.cview import CView
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, make_settings, to_dict
@@ -93,7 +93,6 @@ class Node:
         self.settings = make_settings(
             self.kind, settings, dt_over, **implied_gains(self.kind, settings, overrides)
         )
-        check_gains(self.kind, self.settings)
         s = ffi.new("att_node_settings_t *")
         native._check(
             lib.att_filter_settings_default(int(self.kind), dt, ffi.addressof(s, "filter")),
@@ -117,6 +116,9 @@ class Node:
         status = int(lib.att_node_init(self._n, s))
         if status != lib.ATT_OK:
             why = "a setting is out of range" if status == lib.ATT_ERR_SETTINGS else f"status {status}"
+            problem = native.settings_problem(self.kind, ffi.addressof(s, "filter"), "the filter's settings")
+            if problem is not None:
+                why = str(problem)  # names the refused field and its range
             sdt = getattr(self.settings, "dt", None)
             if sdt is not None and abs(sdt * sample_rate - 1.0) > 1e-3:
                 why = f"the filter's dt {sdt:g} s does not match sample_rate {sample_rate:g} Hz"

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from attica.checks import SettingsConflictError, check_gains, implied_gains, unit_problems
+from attica.checks import implied_gains, unit_problems
 from attica.settings import FilterKind, make_settings
 
 
@@ -301,18 +301,18 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
 
 
 def filter_settings(kind: FilterKind, rate: float, overrides: dict[str, Any], base: Any = None) -> Any:
-    """Settings of ``kind`` at ``rate`` with the overrides, checked (conflicts and C refusals: CliError)."""
+    """Settings of ``kind`` at ``rate`` with the overrides, checked (a C refusal: CliError naming it)."""
     try:
         s = make_settings(kind, base, dt=1.0 / rate, **implied_gains(kind, base, overrides))
-        check_gains(kind, s)
-    except SettingsConflictError as exc:
-        raise CliError(f"{exc} (with --set)") from None
     except (TypeError, ValueError) as exc:
         raise CliError(str(exc)) from None
     from attica import native
 
+    problem = native.settings_problem(kind, s, f"{kind.label} settings")  # the C library's own checks
+    if problem is not None:
+        raise CliError(str(problem))
     try:
-        native.Filter(kind, settings=s)  # the C library's own checks, before any work
+        native.Filter(kind, settings=s)  # anything else the C library refuses, before any work
     except native.NativeError as exc:
         raise CliError(f"{kind.label}: {exc}") from None
     return s

@@ -103,7 +103,7 @@ class Filter:
         """att_filter_retune: new settings for every instance, the state kept (see each kind's retune).
 
         ``settings`` (a settings dataclass, default: the current ones) with field ``overrides``; the
-        checks of the constructor apply (conflicting gains are an error).
+        checks of the constructor apply (a time constant > 0 is used, the gain beside it ignored).
         """
         base = settings if settings is not None else self._settings
         _, new = filter_settings(self.kind, None, base, overrides, "reference.Filter.retune")

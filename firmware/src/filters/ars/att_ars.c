@@ -7,6 +7,7 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_ars_checks.h"
 #include "attica/att_ars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -42,16 +43,7 @@ att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->gain, 0.0f, 1.0f) &&
-         att_i_in(s->tau, 0.0f, ATT_TAU_MAX) && !(s->tau > 0.0f && s->gain != 0.0f) &&
-         att_i_in(s->gain_c, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
-         att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
-         s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
-         att_i_bias_settings_ok(s->bias_mode, s->bias_n_max, s->bias_init, s->gyro_range, s->rest_gyro,
-                                s->rest_accel, s->rest_time, s->gravity) &&
-         (s->integration == ATT_INTEGRATE_ROTVEC || s->integration == ATT_INTEGRATE_EULER) &&
-         att_i_bool_ok(&s->init_from_accel) && att_i_quat_init_ok(s->q_init) &&
-         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX);
+    ok = true ATT_ARS_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 
@@ -130,7 +122,6 @@ static ATT_NOINLINE void att_ars_quat_from_euler(float phi, float theta, float p
 {
     *q = att_i_quat_from_euler(phi, theta, psi);
 }
-
 
 /* The attitude increment of the rotation (w - w_m) dt. */
 static ATT_ALWAYS_INLINE att_quat_t att_ars_increment(const att_ars_coeffs_t *c, att_vec3_t rate)

@@ -11,15 +11,12 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_ekf_checks.h"
 #include "attica/att_ekf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
 #define ATT_EKF_PI_F 0x1.921fb6p+1f
-#define ATT_EKF_PIO2_F 0x1.921fb6p+0f
-#define ATT_EKF_NOISE_MIN 0x1.79ca10p-67f /* 1e-20 */
-#define ATT_EKF_VAR_MAX 1000000.0f           /* upper limit of every variance setting */
-#define ATT_EKF_PMAX_MIN 0.000001f           /* lower limit of p_max and p0 */
 #define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
@@ -75,33 +72,15 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
     settings->noise_rates = true;
 }
 
-static bool att_ekf_noise_ok(float v)
-{
-    return att_i_in(v, ATT_EKF_NOISE_MIN, ATT_EKF_VAR_MAX);
-}
-
 att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
 {
     bool ok;
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_ekf_noise_ok(s->q_phi) && att_ekf_noise_ok(s->q_theta) &&
-         att_ekf_noise_ok(s->q_psi) && att_ekf_noise_ok(s->q_bias) && att_ekf_noise_ok(s->r_phi) &&
-         att_ekf_noise_ok(s->r_theta) && att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) &&
-         att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->p_max, ATT_EKF_PMAX_MIN, ATT_EKF_VAR_MAX) &&
-         att_i_in(s->p0, ATT_EKF_PMAX_MIN, s->p_max) && att_i_in(s->p0_bias, ATT_EKF_NOISE_MIN, s->p_max) &&
-         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
-         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
-         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->cos_min > 0.0f && s->cos_min < 1.0f &&
-         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->init_from_accel) &&
-         att_i_bool_ok(&s->noise_rates) && att_i_in(s->euler_init.y, -ATT_EKF_PIO2_F, ATT_EKF_PIO2_F) &&
-         att_i_in(s->euler_init.x, -8192.0f, 8192.0f) && att_i_in(s->euler_init.z, -8192.0f, 8192.0f) &&
-         att_i_vec3_within(s->bias_init, s->gyro_range);
+    ok = true ATT_EKF_CHECKS(ATT_CHECK_AND);
     if (ok && s->noise_rates) {
-        ok = att_ekf_noise_ok(s->q_phi * s->dt) && att_ekf_noise_ok(s->q_theta * s->dt) &&
-             att_ekf_noise_ok(s->q_psi * s->dt) && att_ekf_noise_ok(s->q_bias * s->dt) &&
-             att_ekf_noise_ok(s->r_phi / s->dt) && att_ekf_noise_ok(s->r_theta / s->dt);
+        ok = true ATT_EKF_RATE_CHECKS(ATT_CHECK_AND);
     }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }

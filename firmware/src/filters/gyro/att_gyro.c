@@ -7,11 +7,11 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_gyro_checks.h"
 #include "attica/att_gyro.h"
 #include "attica/att_math.h"
 
 #define ATT_PI_F 0x1.921fb6p+1f
-#define ATT_PIO2_F 0x1.921fb6p+0f
 
 void att_gyro_settings_default(att_gyro_settings_t *settings, float dt)
 {
@@ -29,9 +29,7 @@ att_status_t att_gyro_settings_validate(const att_gyro_settings_t *s)
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) || !(s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX) ||
-        !(s->cos_min > 0.0f && s->cos_min < 1.0f) || !att_i_in(s->euler_init.y, -ATT_PIO2_F, ATT_PIO2_F) ||
-        !att_i_in(s->euler_init.x, -8192.0f, 8192.0f) || !att_i_in(s->euler_init.z, -8192.0f, 8192.0f)) {
+    if (!(true ATT_GYRO_CHECKS(ATT_CHECK_AND))) {
         return ATT_ERR_SETTINGS;
     }
     return ATT_OK;

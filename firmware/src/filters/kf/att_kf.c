@@ -7,12 +7,11 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_kf_checks.h"
 #include "attica/att_kf.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
-#define ATT_KF_NOISE_MIN 0x1.19799800p-40f /* 1e-12 */
-#define ATT_KF_NOISE_MAX 1000000.0f
 #define ATT_KF_P_MAX_F 1000000.0f
 
 void att_kf_settings_default(att_kf_settings_t *settings, float dt)
@@ -42,28 +41,15 @@ void att_kf_settings_default(att_kf_settings_t *settings, float dt)
     settings->noise_rates = true;
 }
 
-static bool att_kf_noise_valid(float v)
-{
-    return att_i_in(v, ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX);
-}
-
 att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
 {
     bool ok;
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_kf_noise_valid(s->q_noise) && att_kf_noise_valid(s->r_noise) &&
-         att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) &&
-         att_kf_noise_valid(s->p0) && att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) &&
-         att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) && s->accel_range > s->gravity &&
-         s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f && s->gyro_range <= ATT_GYRO_RANGE_MAX &&
-         att_i_bias_settings_ok(s->bias_mode, s->bias_n_max, s->bias_init, s->gyro_range, s->rest_gyro,
-                                s->rest_accel, s->rest_time, s->gravity) &&
-         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_bool_ok(&s->init_from_accel) &&
-         att_i_bool_ok(&s->noise_rates) && att_i_quat_init_ok(s->q_init);
+    ok = true ATT_KF_CHECKS(ATT_CHECK_AND);
     if (ok && s->noise_rates) {
-        ok = att_kf_noise_valid(s->q_noise * s->dt) && att_kf_noise_valid(s->r_noise / s->dt);
+        ok = true ATT_KF_RATE_CHECKS(ATT_CHECK_AND);
     }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }

@@ -8,13 +8,12 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_mars_checks.h"
 #include "attica/att_mars.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
-#define ATT_MARS_PI_F 0x1.921fb6p+1f
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
-#define ATT_MARS_M0_MIN 0x1.0624dep-10f /* 1e-3 uT: smallest |m0_init| */
 
 void att_mars_settings_default(att_mars_settings_t *settings, float dt)
 {
@@ -47,33 +46,13 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->rest_time = 0.5f;
 }
 
-static bool att_mars_vec3_is_zero(att_vec3_t v)
-{
-    return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
-}
-
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
 {
     bool ok;
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->alpha_acc, 0.0f, 1.0f) &&
-         att_i_in(s->alpha_mag, 0.0f, 1.0f) && att_i_in(s->tau_acc, 0.0f, ATT_TAU_MAX) &&
-         att_i_in(s->tau_mag, 0.0f, ATT_TAU_MAX) && !(s->tau_acc > 0.0f && s->alpha_acc != 0.0f) &&
-         !(s->tau_mag > 0.0f && s->alpha_mag != 0.0f) &&
-         (s->mag_mode == ATT_MARS_MAG_HORIZONTAL || s->mag_mode == ATT_MARS_MAG_FULL) &&
-         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
-         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
-         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->mag_range > 0.0f && s->mag_range <= ATT_MAG_RANGE_MAX &&
-         att_i_in(s->mag_norm_reject, 0.0f, ATT_REJECT_MAX) && att_i_in(s->mag_dip_reject, 0.0f, ATT_MARS_PI_F) &&
-         att_i_bias_settings_ok(s->bias_mode, s->bias_n_max, s->bias_init, s->gyro_range, s->rest_gyro,
-                                s->rest_accel, s->rest_time, s->gravity) &&
-         att_i_bool_ok(&s->init_from_sensors) && att_i_quat_init_ok(s->q_init) &&
-         att_i_vec3_within(s->m0_init, s->mag_range) &&
-         (att_mars_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MARS_M0_MIN) &&
-         (s->integration == ATT_INTEGRATE_ROTVEC || s->integration == ATT_INTEGRATE_FIRST_ORDER) &&
-         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX);
+    ok = true ATT_MARS_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 

@@ -11,21 +11,12 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_mekf_checks.h"
 #include "attica/att_math.h"
 #include "attica/att_mekf.h"
 #include "attica/att_sensor.h"
 
-#define ATT_MEKF_PI_F 0x1.921fb6p+1f
 #define ATT_MEKF_PIO2_F 0x1.921fb6p+0f
-#define ATT_MEKF_M0_MIN 0x1.0624dep-10f     /* 1e-3 uT: smallest |m0_init| */
-#define ATT_MEKF_GYRO_NOISE_MIN 0x1.ad7f2ap-24f /* 1e-7 rad/s/sqrt(Hz) */
-#define ATT_MEKF_BIAS_NOISE_MIN 0x1.12e0bep-30f /* 1e-9 rad/s/sqrt(s) */
-#define ATT_MEKF_DENSITY_MIN 0x1.0c6f7ap-20f    /* 1e-6 rad sqrt(s) */
-#define ATT_MEKF_DENSITY_MAX 1000.0f
-#define ATT_MEKF_VAR_MIN 0x1.19799800p-40f      /* 1e-12 */
-#define ATT_MEKF_PMAX_MIN 0x1.0c6f7ap-20f       /* 1e-6 rad^2 */
-#define ATT_MEKF_PMAX_MAX 1000.0f
-#define ATT_MEKF_PBIAS_MAX 100.0f
 #define ATT_MEKF_PIVOT_MIN 0x1p-16f /* relative pivot margin of the positive definiteness test */
 #define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
@@ -86,37 +77,13 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
 }
 
-static bool att_mekf_vec3_is_zero(att_vec3_t v)
-{
-    return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
-}
-
 att_status_t att_mekf_settings_validate(const att_mekf_settings_t *s)
 {
     bool ok;
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ok = att_i_in(s->dt, ATT_DT_MIN, ATT_DT_MAX) && att_i_in(s->gyro_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f) &&
-         att_i_in(s->gyro_rate_noise, 0.0f, 1.0f) && att_i_in(s->bias_noise, ATT_MEKF_BIAS_NOISE_MIN, 1.0f) &&
-         att_i_in(s->accel_noise, ATT_MEKF_DENSITY_MIN, ATT_MEKF_DENSITY_MAX) &&
-         att_i_in(s->r_accel, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->gate, 0.0f, ATT_GAIN_C_MAX) &&
-         att_i_in(s->gate_recover, 0.0f, ATT_TAU_MAX) &&
-         att_i_in(s->mag_noise, ATT_MEKF_DENSITY_MIN, ATT_MEKF_DENSITY_MAX) &&
-         att_i_in(s->mag_gate, 0.0f, ATT_GAIN_C_MAX) && att_i_in(s->p_max, ATT_MEKF_PMAX_MIN, ATT_MEKF_PMAX_MAX) &&
-         att_i_in(s->p0_att, ATT_MEKF_VAR_MIN, s->p_max) && att_i_in(s->p0_bias, ATT_MEKF_VAR_MIN, ATT_MEKF_PBIAS_MAX) &&
-         att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) && att_i_in(s->accel_reject, 0.0f, ATT_REJECT_MAX) &&
-         s->accel_range > s->gravity && s->accel_range <= ATT_ACCEL_RANGE_MAX && s->gyro_range > 0.0f &&
-         s->gyro_range <= ATT_GYRO_RANGE_MAX && s->mag_range > 0.0f && s->mag_range <= ATT_MAG_RANGE_MAX &&
-         att_i_in(s->mag_norm_reject, 0.0f, ATT_REJECT_MAX) && att_i_in(s->mag_dip_reject, 0.0f, ATT_MEKF_PI_F) &&
-         att_i_in(s->tau_acc_lp, 0.0f, ATT_TAU_MAX) && att_i_in(s->rest_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f) &&
-         att_i_in(s->rest_gyro, 0.0f, s->gyro_range) && att_i_in(s->rest_accel, 0.0f, s->gravity) &&
-         att_i_in(s->rest_time, 0.0f, ATT_TAU_MAX) && att_i_in(s->gyro_scale_sd, 0.0f, ATT_MEKF_SCALE_MAX) &&
-         att_i_in(s->gyro_scale_init, -ATT_MEKF_SCALE_MAX, ATT_MEKF_SCALE_MAX) && att_i_bool_ok(&s->use_mag) &&
-         att_i_bool_ok(&s->init_from_sensors) && att_i_quat_init_ok(s->q_init) &&
-         att_i_vec3_within(s->m0_init, s->mag_range) &&
-         (att_mekf_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MEKF_M0_MIN) &&
-         att_i_vec3_within(s->bias_init, s->gyro_range);
+    ok = true ATT_MEKF_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 

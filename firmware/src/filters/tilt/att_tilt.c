@@ -7,6 +7,7 @@
 #include "../../core/att_core.h"
 #include "../att_kinds.h"
 #include "../att_yaw.h"
+#include "att_tilt_checks.h"
 #include "attica/att_math.h"
 #include "attica/att_tilt.h"
 
@@ -25,8 +26,7 @@ att_status_t att_tilt_settings_validate(const att_tilt_settings_t *s)
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    if (!att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX) || !(s->accel_range > s->gravity) ||
-        !(s->accel_range <= ATT_ACCEL_RANGE_MAX) || !att_i_bool_ok(&s->normalise)) {
+    if (!(true ATT_TILT_CHECKS(ATT_CHECK_AND))) {
         return ATT_ERR_SETTINGS;
     }
     return ATT_OK;

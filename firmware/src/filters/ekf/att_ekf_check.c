@@ -1,0 +1,22 @@
+/**
+ * @file att_ekf_check.c
+ * @brief att_ekf_settings_check (att_kinds.h): the first field of the settings that
+ * att_ekf_settings_validate refuses, from the same table (att_ekf_checks.h). A source of its own, so
+ * that it changes nothing in att_ekf.c's code (not even an inlining decision) and only an image that
+ * calls att_filter_settings_check links it.
+ */
+#include "../../math/att_fp.h"
+
+#include "../att_kinds.h"
+#include "att_ekf_checks.h"
+
+#define ATT_EKF_WHY(name, ok, lo, hi, rule, unit) ATT_CHECK_WHY("ekf." name, ok, lo, hi, rule, unit)
+
+att_status_t att_ekf_settings_check(const att_ekf_settings_t *s, att_settings_error_t *why)
+{
+    ATT_EKF_CHECKS(ATT_EKF_WHY)
+    if (s->noise_rates) {
+        ATT_EKF_RATE_CHECKS(ATT_EKF_WHY)
+    }
+    return ATT_OK;
+}

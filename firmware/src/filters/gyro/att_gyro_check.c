@@ -1,0 +1,19 @@
+/**
+ * @file att_gyro_check.c
+ * @brief att_gyro_settings_check (att_kinds.h): the first field of the settings that
+ * att_gyro_settings_validate refuses, from the same table (att_gyro_checks.h). A source of its own, so
+ * that it changes nothing in att_gyro.c's code (not even an inlining decision) and only an image that
+ * calls att_filter_settings_check links it.
+ */
+#include "../../math/att_fp.h"
+
+#include "../att_kinds.h"
+#include "att_gyro_checks.h"
+
+#define ATT_GYRO_WHY(name, ok, lo, hi, rule, unit) ATT_CHECK_WHY("gyro." name, ok, lo, hi, rule, unit)
+
+att_status_t att_gyro_settings_check(const att_gyro_settings_t *s, att_settings_error_t *why)
+{
+    ATT_GYRO_CHECKS(ATT_GYRO_WHY)
+    return ATT_OK;
+}

@@ -1,0 +1,50 @@
+/**
+ * @file att_kf_checks.h
+ * @brief Private: the settings contract of kf as one table, read by att_kf_settings_validate
+ * (att_kf.c) and att_kf_settings_check (att_kf_check.c); the forms of its lines: att_core.h.
+ */
+#ifndef ATT_KF_CHECKS_H
+#define ATT_KF_CHECKS_H
+
+#include "../../core/att_core.h"
+#include "attica/att_kf.h"
+
+#define ATT_KF_NOISE_MIN 0x1.19799800p-40f /* 1e-12 */
+#define ATT_KF_NOISE_MAX 1000000.0f
+
+static inline bool att_kf_noise_valid(float v)
+{
+    return att_i_in(v, ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX);
+}
+
+/*
+ * The settings contract (att_kf.h), in the order of the tests: att_kf_settings_validate accepts
+ * exactly the settings that pass every line, att_kf_settings_check names the first line that fails
+ * (att_core.h: ATT_CHECK_AND, ATT_CHECK_WHY). With noise_rates the per-step noises q_noise dt and
+ * r_noise / dt must be in the range too (ATT_KF_RATE_CHECKS, tested after the others: more than the
+ * header's ranges state).
+ */
+#define ATT_KF_NOISE(C, f) C(#f, att_kf_noise_valid(s->f), ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX, "[1e-12, 1e6]", "")
+#define ATT_KF_CHECKS(C)                                                                                      \
+    ATT_CK_IN(C, dt, ATT_DT_MIN, ATT_DT_MAX, "[1e-6, 1]", "s")                                                 \
+    ATT_KF_NOISE(C, q_noise)                                                                                   \
+    ATT_KF_NOISE(C, r_noise)                                                                                   \
+    ATT_CK_IN(C, r_accel, 0.0f, ATT_GAIN_C_MAX, "[0, 1e6]", "")                                                \
+    ATT_CK_IN(C, gate, 0.0f, ATT_GAIN_C_MAX, "[0, 1e6]", "")                                                   \
+    ATT_KF_NOISE(C, p0)                                                                                        \
+    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
+    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
+    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
+    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")                                    \
+    ATT_CK_BIAS(C)                                                                                             \
+    ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
+    ATT_CK_BOOL(C, init_from_accel)                                                                            \
+    ATT_CK_BOOL(C, noise_rates)                                                                                \
+    ATT_CK_QUAT(C, q_init)
+#define ATT_KF_RATE_CHECKS(C)                                                                                 \
+    C("q_noise", att_kf_noise_valid(s->q_noise * s->dt), ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX,                   \
+      "q_noise * dt in [1e-12, 1e6] (noise_rates)", "")                                                        \
+    C("r_noise", att_kf_noise_valid(s->r_noise / s->dt), ATT_KF_NOISE_MIN, ATT_KF_NOISE_MAX,                   \
+      "r_noise / dt in [1e-12, 1e6] (noise_rates)", "")
+
+#endif /* ATT_KF_CHECKS_H */

@@ -1,0 +1,19 @@
+/**
+ * @file att_mekf_check.c
+ * @brief att_mekf_settings_check (att_kinds.h): the first field of the settings that
+ * att_mekf_settings_validate refuses, from the same table (att_mekf_checks.h). A source of its own, so
+ * that it changes nothing in att_mekf.c's code (not even an inlining decision) and only an image that
+ * calls att_filter_settings_check links it.
+ */
+#include "../../math/att_fp.h"
+
+#include "../att_kinds.h"
+#include "att_mekf_checks.h"
+
+#define ATT_MEKF_WHY(name, ok, lo, hi, rule, unit) ATT_CHECK_WHY("mekf." name, ok, lo, hi, rule, unit)
+
+att_status_t att_mekf_settings_check(const att_mekf_settings_t *s, att_settings_error_t *why)
+{
+    ATT_MEKF_CHECKS(ATT_MEKF_WHY)
+    return ATT_OK;
+}
