@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 # development tooling (tools/attica_dev: golden, cross, footprint, bench) is not installed by pip
 DEV := PYTHONPATH=tools$${PYTHONPATH:+:$$PYTHONPATH} $(PY)
 
-.PHONY: all setup deps build node run test lint pytest bench clean
+.PHONY: all setup deps build node run test lint pytest bench clean docs-figures
 
 all: build
 
@@ -80,6 +80,11 @@ firmware: deps setup
 
 footprint: deps setup
 	$(DEV) -m attica_dev.footprint
+
+# The computed tables of docs/firmware-quickstart.md (flash, RAM, instructions, BROAD accuracy per kind;
+# the quickstart node's size): python -m attica_dev.kind_table --update
+docs-figures: deps setup
+	$(DEV) -m attica_dev.kind_table --update
 
 cycles: deps setup
 	$(DEV) -m attica_dev.cycles $(if $(PROFILE),--profile $(PROFILE)) $(CYCLES_ARGS)

@@ -679,6 +679,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         text, ok = footprint_report()
         print(text, flush=True)
+        from attica_dev import app_size  # the quickstart's node application (imports this module)
+
+        print()
+        node = app_size.measure()
+        print(app_size.report(node), flush=True)
+        ok = ok and node.library.text <= app_size.TARGETS["text"] and node.ram <= app_size.TARGETS["ram"]
         if not args.no_peers:
             from attica_dev import peer_footprint
 

@@ -2,15 +2,21 @@
  * @file att_calib.h
  * @brief Input and output stages around every filter: sensor models, mounting, output convention.
  *
- *     att_calib_settings_t cs;
- *     att_calib_settings_default(&cs);                      // identity everywhere, ENU
- *     cs.gyro.offset = (att_vec3_t){0.01f, -0.02f, 0.0f};   // rad/s (a C99 compound literal)
- *     cs.mag.hard_iron = (att_vec3_t){12.5f, -3.0f, 40.2f}; // uT; cs.mag.soft_iron[9] likewise
- *     cs.remap = att_calib_remap_parse("+y+x-z");           // the board is mounted rotated
- *     cs.convention = ATT_CONV_NED;
- *     if (att_filter_calibrate(&f, &cs) != ATT_OK) {
- *         const char *why = att_calib_error_name(att_calib_settings_check(&cs));   // "gyro matrix" ...
- *     }
+ * @code
+ * static att_filter_t f;                                 // initialised: att_filter_init
+ * att_filter_settings_t s;
+ * att_calib_settings_t cs;
+ * att_filter_settings_default(ATT_FILTER_MARS, 0.01f, &s);
+ * (void)att_filter_init(&f, ATT_FILTER_MARS, &s);
+ * att_calib_settings_default(&cs);                      // identity everywhere, ENU
+ * cs.gyro.offset = (att_vec3_t){0.01f, -0.02f, 0.0f};   // rad/s (a C99 compound literal)
+ * cs.mag.hard_iron = (att_vec3_t){12.5f, -3.0f, 40.2f}; // uT; cs.mag.soft_iron[9] likewise
+ * cs.remap = att_calib_remap_parse("+y+x-z");           // the board is mounted rotated
+ * cs.convention = ATT_CONV_NED;
+ * if (att_filter_calibrate(&f, &cs) != ATT_OK) {        // refused: the filter is unchanged
+ *     printf("%s\n", att_calib_error_name(att_calib_settings_check(&cs)));   // "gyro matrix" ...
+ * }
+ * @endcode
  *
  * Input stage (att_calib_apply; att_filter_step applies it before the filter's own step):
  * - inertial model of the gyro (rad/s) and the accel (m/s^2): v = M (s * (raw - o)), misalignment M

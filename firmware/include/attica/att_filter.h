@@ -2,22 +2,26 @@
  * @file att_filter.h
  * @brief One interface for every attica filter: a tagged union, no heap.
  *
- *     att_filter_settings_t s;
- *     att_filter_t f;
- *     att_output_t out;
- *     att_settings_error_t why;
- *     att_filter_settings_default(ATT_FILTER_ARS, 0.0035f, &s);   // dt = 1 / 285.714 Hz
- *     s.ars.tau = 1.0f;                                           // change what you need (tau > 0: gain unused)
- *     if (att_filter_init(&f, ATT_FILTER_ARS, &s) != ATT_OK) {
- *         (void)att_filter_settings_check(ATT_FILTER_ARS, &s, &why);   // why.field: "ars.tau" ...
+ * @code
+ * static att_filter_t f;
+ * att_filter_settings_t s;
+ * att_output_t out;
+ * att_sample_t in;
+ * att_settings_error_t why;
+ * att_filter_settings_default(ATT_FILTER_ARS, 0.0035f, &s);   // dt = 1 / 285.714 Hz
+ * s.ars.tau = 1.0f;                                           // change what you need (tau > 0: gain unused)
+ * if (att_filter_init(&f, ATT_FILTER_ARS, &s) != ATT_OK) {
+ *     (void)att_filter_settings_check(ATT_FILTER_ARS, &s, &why);   // why.field: "ars.tau" ...
+ *     return 1;
+ * }
+ * while (read_imu(&in)) {                         // your driver: rad/s, m/s^2, uT, sensor frame
+ *     (void)att_filter_step(&f, &in, &out);       // q, gyro_bias, flags, steps (see out.valid)
+ *     att_filter_output(&f, &out);                // when Euler angles are needed: the whole record
+ *     if ((out.valid & ATT_OUT_EULER) != 0u && (out.flags & ATT_FLAGS_OUTPUT_INVALID) == 0u) {
+ *         publish(out.q, out.euler, out.flags);
  *     }
- *     for (;;) {
- *         att_sample_t in = read_imu();
- *         att_filter_step(&f, &in, &out);            // q, gyro_bias, flags, steps (see out.valid)
- *         if ((out.flags & ATT_FLAGS_OUTPUT_INVALID) == 0u) { use(out.q); }
- *         att_filter_output(&f, &out);               // when Euler angles are needed: the whole record
- *         if ((out.valid & ATT_OUT_EULER) != 0u) { use_euler(out.euler); }
- *     }
+ * }
+ * @endcode
  *
  * att_filter_step writes euler only for the kinds whose state is Euler angles (ekf, gyro, tilt: the
  * ATT_OUT_EULER bit of out.valid); the other fields of out keep what they held.
@@ -190,10 +194,15 @@ att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filt
  * (ATT_OK exactly when init accepts them) and, for ATT_ERR_SETTINGS, in why (may be NULL) the first
  * refused field in the kind's order of checks, its bounds for these settings and the rule in words:
  *
- *     att_settings_error_t why;
- *     if (att_filter_settings_check(ATT_FILTER_ARS, &s, &why) == ATT_ERR_SETTINGS) {
- *         printf("%s: %s %s\n", why.field, why.rule, why.unit);   // "ars.tau_acc_lp: [0, 1e4] s"
- *     }
+ * @code
+ * att_filter_settings_t s;
+ * att_settings_error_t why;
+ * att_filter_settings_default(ATT_FILTER_ARS, 0.01f, &s);
+ * s.ars.tau_acc_lp = -1.0f;                       // out of range
+ * if (att_filter_settings_check(ATT_FILTER_ARS, &s, &why) == ATT_ERR_SETTINGS) {
+ *     printf("%s: %s %s\n", why.field, why.rule, why.unit);   // "ars.tau_acc_lp: [0, 1e4] s"
+ * }
+ * @endcode
  *
  * why->field is NULL unless a field was refused. The validator and this function are written from one
  * table per kind, so they cannot disagree. att_filter_init does not call it: an image that does not

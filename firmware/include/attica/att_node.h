@@ -2,16 +2,18 @@
  * @file att_node.h
  * @brief The attica CAN node: frames in, filter steps, frames out. Pure (no time source, no I/O).
  *
- *     att_node_settings_t s;
- *     att_node_t node;                       // large (static rings): make it static / global
- *     att_can_frame_t f;
- *     att_node_settings_default(ATT_FILTER_ARS, 100.0f, &s);
- *     if (att_node_init(&node, &s) != ATT_OK) { ... }   // ATT_ERR_SETTINGS also for bus load > 100 %
- *     for (;;) {
- *         while (can_receive(&f)) { (void)att_node_rx(&node, &f); }   // e.g. from the rx interrupt
- *         (void)att_node_poll(&node);                                   // assemble, step, queue outputs
- *         while (can_tx_free() && att_node_tx(&node, &f)) { can_send(&f); }
- *     }
+ * @code
+ * static att_node_t node;                // its rings are large by default: static, never on the stack
+ * att_node_settings_t s;
+ * att_can_frame_t f;
+ * att_node_settings_default(ATT_FILTER_ARS, 100.0f, &s);   // kind, sample RATE in Hz (not a period)
+ * if (att_node_init(&node, &s) != ATT_OK) { ... }   // ATT_ERR_SETTINGS also for bus load > 100 %
+ * for (;;) {
+ *     while (can_receive(&f)) { (void)att_node_rx(&node, &f); }   // e.g. from the rx interrupt
+ *     (void)att_node_poll(&node);                                   // assemble, step, queue outputs
+ *     while (can_tx_free() && att_node_tx(&node, &f)) { can_send(&f); }
+ * }
+ * @endcode
  *
  * With the IMU on the node's own board, each sample goes in with att_node_push_sample(&node, &sample)
  * instead of frames (same checks, counters and outputs as an IMU_FD frame). The node's size is set at

@@ -2,7 +2,9 @@
  * @file attica.h
  * @brief Umbrella header: the whole public C API of attica in one include.
  *
- *     #include "attica/attica.h"
+ * @code
+ * #include "attica/attica.h"
+ * @endcode
  *
  * - att_version.h: ATT_VERSION_MAJOR/MINOR/PATCH/STRING (the Python package has the same version);
  * - att_types.h: vectors (sensor frame), quaternions (w, x, y, z, sensor-to-earth, earth frame ENU),

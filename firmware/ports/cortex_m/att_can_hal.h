@@ -20,12 +20,15 @@
  * register block in a host unit test (tests/c/att_can_hal_test.c). No heap, no time source: waits
  * for the controller are bounded loops (ATT_CAN_HAL_SPIN).
  *
- *     static att_node_t node;
- *     static att_can_hal_t can;
- *     att_node_settings_default(ATT_FILTER_ARS, 285.714f, &ns);
- *     att_node_init(&node, &ns);
- *     att_can_hal_init(&can, att_can_hal_mmio((void *)0x40006400u), &node, 42000000u);
- *     for (;;) { att_can_hal_service(&can); }   // or: on the RX interrupt / a timer tick
+ * @code
+ * static att_node_t node;
+ * static att_can_hal_t can;
+ * att_node_settings_t ns;
+ * if (att_node_settings_default(ATT_FILTER_ARS, 285.714f, &ns) != ATT_OK) { ... }  // kind, rate in Hz
+ * if (att_node_init(&node, &ns) != ATT_OK) { ... }
+ * if (att_can_hal_init(&can, att_can_hal_mmio((void *)0x40006400u), &node, 42000000u) != ATT_OK) { ... }
+ * for (;;) { (void)att_can_hal_service(&can); }   // or: on the RX interrupt / a timer tick
+ * @endcode
  *
  * att_can_hal_service (= receive, att_node_poll, transmit) must not run concurrently with itself or
  * with other calls on the same node: call it from one context (main loop, or one interrupt).

@@ -10,16 +10,19 @@
  * (att_fdcan_hal_mmio) and against the fake controller of tests/c/att_fdcan_hal_test.c; no heap, no
  * time source, every wait bounded (ATT_FDCAN_HAL_SPIN reads).
  *
- *     static att_node_t node;
- *     static att_fdcan_hal_t can;
- *     att_node_settings_t ns;
- *     att_node_settings_default(ATT_FILTER_ARS, 285.714f, &ns);
- *     ns.fd = true; ns.data_bitrate = 2000000u;                 // or classic: leave both
- *     att_node_init(&node, &ns);
- *     // STM32G4 FDCAN1: registers at 0x40006400, its message RAM at 0x4000A400, kernel clock 160 MHz
- *     if (att_fdcan_hal_init(&can, att_fdcan_hal_mmio((void *)0x40006400u), att_fdcan_hal_mmio((void *)0x4000A400u),
- *                            &att_fdcan_layout_g4, &node, 160000000u) != ATT_OK) { ... }
- *     for (;;) { att_fdcan_hal_service(&can); }   // or: on the FIFO 0 interrupt / a timer tick
+ * @code
+ * static att_node_t node;
+ * static att_fdcan_hal_t can;
+ * att_node_settings_t ns;
+ * if (att_node_settings_default(ATT_FILTER_ARS, 285.714f, &ns) != ATT_OK) { ... }  // kind, rate in Hz
+ * ns.fd = true;                                   // CAN FD outputs ...
+ * ns.data_bitrate = 2000000u;                     // ... at 2 Mbit/s (classic: leave both)
+ * if (att_node_init(&node, &ns) != ATT_OK) { ... }
+ * // STM32G4 FDCAN1: registers at 0x40006400, its message RAM at 0x4000A400, kernel clock 160 MHz
+ * if (att_fdcan_hal_init(&can, att_fdcan_hal_mmio((void *)0x40006400u), att_fdcan_hal_mmio((void *)0x4000A400u),
+ *                        &att_fdcan_layout_g4, &node, 160000000u) != ATT_OK) { ... }
+ * for (;;) { (void)att_fdcan_hal_service(&can); }   // or: on the FIFO 0 interrupt / a timer tick
+ * @endcode
  *
  * Two register maps (att_fdcan_variant_t):
  * - ATT_FDCAN_G4 (STM32G4, G0B1/G0C1, and the parts with the same FDCAN: L5, U5, H5): the message RAM
