@@ -7,7 +7,9 @@ its root (hostfs), loads can, can-raw, can-dev and vcan from /usr/lib/uml/module
 1. classic CAN: ``candump -L vcan0`` logs the bus, ``attica-node --filter ars`` serves it, and
    ``attica verify --interface socketcan --channel vcan0`` replays a simulated stream and checks every
    output set bit for bit against the numpy reference;
-2. the same over CAN FD (``--fd``, the 9-axis filter);
+2. the same over CAN FD (``--fd``, the 9-axis filter), and classic CAN against ``attica-node-small``
+   (the small node of docs/firmware-quickstart.md: ARS only, no stages, classic frames, rings of 8)
+   with its CAN IDs moved by an ID offset (``--id-offset``, host and node);
 3. faults: while verify streams FAULT_SAMPLES valid samples, tests/uml/flood.py floods FLOOD_RATE
    malformed attica frames/s (unknown IDs, wrong lengths, bad CRCs, remote frames) and cangen adds
    CANGEN_FRAMES random extended-ID frames: the node counts every one of them in the right counter,
@@ -45,8 +47,10 @@ BOOT = ROOT / "tests" / "uml" / "boot.sh"
 XSTATE_PAD_SRC = ROOT / "tests" / "uml" / "xstate_pad.c"
 XSTATE_PAD = ROOT / "build" / "uml" / "xstate_pad.so"
 NODE = ROOT / "build" / "attica-node"
+NODE_SMALL = ROOT / "build" / "attica-node-small"
+SMALL_OFFSET = "0x20"
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-SAMPLES = {"classic": 1200, "fd": 1200}
+SAMPLES = {"classic": 1200, "fd": 1200, "small": 1200}
 RATE = 285.714
 FAULT_SAMPLES = 600
 FLOOD_RATE = 500.0  # malformed attica frames/s from tests/uml/flood.py during the faults case
@@ -72,10 +76,10 @@ def _modules_present() -> str:
 
 @pytest.fixture(scope="module")
 def node_binary() -> Path:
-    """build/attica-node, rebuilt by ``make node`` when a source changed."""
+    """build/attica-node (and attica-node-small), rebuilt by ``make node`` when a source changed."""
     r = subprocess.run(["make", "-s", "node"], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert NODE.exists()
+    assert NODE.exists() and NODE_SMALL.exists()
     return NODE
 
 
@@ -108,17 +112,18 @@ def _job(tmp: Path, py: str) -> Path:
         f"export PYTHONPATH={ROOT / 'host'} HOME={os.environ.get('HOME', '/root')} PYTHONDONTWRITEBYTECODE=1",
         f"PY={py}",
         f"NODE={NODE}",
+        f"NODE_SMALL={NODE_SMALL}",
         f"OUT={tmp}",
         "rc=0",
         "wait_ready() {  # a node's output file",
         "  i=0; while ! grep -q ready $1 2>/dev/null; do",
         "    i=$((i+1)); [ $i -gt 100 ] && break; sleep 0.05; done",
         "}",
-        "run_case() {  # name, node args, verify args",
-        "  name=$1; nargs=$2; vargs=$3",
+        "run_case() {  # name, node args, verify args[, node binary]",
+        "  name=$1; nargs=$2; vargs=$3; bin=${4:-$NODE}",
         "  candump -r 16777216 -L vcan0 > $OUT/$name.log 2> $OUT/$name.candump.err &",
         "  cd_pid=$!",
-        "  $NODE --channel vcan0 $nargs > $OUT/$name.node.out 2>&1 &",
+        "  $bin --channel vcan0 $nargs > $OUT/$name.node.out 2>&1 &",
         "  node_pid=$!",
         "  i=0; while ! grep -q ready $OUT/$name.node.out 2>/dev/null; do",
         "    i=$((i+1))",
@@ -140,6 +145,9 @@ def _job(tmp: Path, py: str) -> Path:
         f"    '--filter ars --count {SAMPLES['classic']} --seed 4' || rc=1",
         f"run_case fd '--filter mars --rate {RATE} --fd --count {SAMPLES['fd']}' \\",
         f"    '--filter mars --fd --count {SAMPLES['fd']} --seed 5' || rc=1",
+        f"run_case small '--filter ars --rate {RATE} --id-offset {SMALL_OFFSET}' \\",
+        f"    '--filter ars --count {SAMPLES['small']} --seed 7 --id-offset {SMALL_OFFSET}' \\",
+        "    $NODE_SMALL || rc=1",
         # 3. faults: a second and a third writer flood the bus while verify streams valid samples; every
         # socket gets a 16 MB receive buffer (the verifier, Python in the guest, reads slower than the node)
         "echo 16777216 > /proc/sys/net/core/rmem_default",
@@ -241,11 +249,21 @@ def _boot(job: Path, timeout: float = 300.0) -> tuple[int | None, str, str]:
     return status, log, r.stdout + r.stderr
 
 
-def _cantools_vs_monitor(log: Path) -> int:
-    """Compare ``cantools decode`` with ``attica monitor --log`` line by line; return frames compared."""
+def _cantools_vs_monitor(log: Path, id_offset: str = "0") -> int:
+    """Compare ``cantools decode`` with ``attica monitor --log`` line by line; return frames compared.
+
+    With an ID offset, cantools reads the DBC ``attica dbc --id-offset`` writes for it.
+    """
     from attica.can.monitor import decoded_fields, same_value
 
     dbc = ROOT / "firmware" / "can" / "attica.dbc"
+    if int(id_offset, 0) != 0:
+        dbc = log.with_suffix(".dbc")
+        subprocess.run(
+            [sys.executable, "-m", "attica.cli", "dbc", "--id-offset", id_offset, "-o", str(dbc)],
+            check=True,
+            env=ENV,
+        )
     with open(log) as fh:
         ref = subprocess.run(
             [sys.executable, "-m", "cantools", "decode", "--single-line", str(dbc)],
@@ -256,7 +274,7 @@ def _cantools_vs_monitor(log: Path) -> int:
             env=ENV,
         ).stdout.splitlines()
     ours = subprocess.run(
-        [sys.executable, "-m", "attica.cli", "monitor", "--log", str(log)],
+        [sys.executable, "-m", "attica.cli", "monitor", "--log", str(log), "--id-offset", id_offset],
         capture_output=True,
         text=True,
         check=True,
@@ -321,14 +339,16 @@ def test_vcan_in_uml_node_bit_exact(node_binary: Path, tmp_path: Path) -> None:
                 "--log",
                 str(logf),
                 "--filter",
-                "ars" if name == "classic" else "mars",
+                "mars" if name == "fd" else "ars",
+                "--id-offset",
+                SMALL_OFFSET if name == "small" else "0",
             ],
             capture_output=True,
             text=True,
             env=ENV,
         )
         assert r.returncode == 0 and re.search(r"verdict: BIT-EXACT$", r.stdout, re.M), r.stdout + r.stderr
-        frames = _cantools_vs_monitor(logf)
+        frames = _cantools_vs_monitor(logf, SMALL_OFFSET if name == "small" else "0")
         assert frames > n
     _check_faults(tmp_path, log)
     assert not IN_CI or status == 0
