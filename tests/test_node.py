@@ -731,3 +731,78 @@ def test_id_offset_moves_the_node_and_its_rx_ids() -> None:
         with pytest.raises(c.NodeError, match=f"id_offset {bad} moves an ID out of 0 .. 0x7FF"):
             c.Node("ars", sample_rate=RATE, id_offset=bad)
     assert lib.att_node_rx_ids(ffi.NULL, ffi.new("uint32_t[5]")) == 0
+
+
+def _node_settings(kind: str = "ars") -> Any:
+    s = ffi.new("att_node_settings_t *")
+    assert lib.att_node_settings_default(int(FilterKind.parse(kind)), RATE, s) == lib.ATT_OK
+    return s
+
+
+NODE_PROBES: list[tuple[str, Any, str]] = [
+    ("sample_rate", 0.0, "sample_rate"),
+    ("sample_rate", float("nan"), "sample_rate"),
+    ("sample_rate", 1e6, "sample_rate"),
+    ("sample_rate", 201.0, "filter.dt"),  # the filter's dt stays 1/200 s
+    ("bitrate", 999, "bitrate"),
+    ("bitrate", 1_000_001, "bitrate"),
+    ("bitrate", 50_000, "bus load"),
+    ("data_bitrate", 400_000, "data_bitrate"),
+    ("data_bitrate", 16_000_001, "data_bitrate"),
+    ("fd", True, "fd"),  # without a data bit rate
+    ("id_offset", -257, "id_offset"),
+    ("id_offset", 1280, "id_offset"),
+    ("output_divider", 0, "output_divider"),
+    ("output_divider", 65536, "output_divider"),
+]
+
+
+@pytest.mark.parametrize(("field", "value", "named"), NODE_PROBES)
+def test_node_settings_check_names_what_init_refuses(field: str, value: Any, named: str) -> None:
+    s = _node_settings()
+    setattr(s, field, value)
+    why = ffi.new("att_settings_error_t *")
+    n = ffi.new("att_node_t *")
+    status = lib.att_node_init(n, s)
+    assert status == lib.ATT_ERR_SETTINGS
+    assert lib.att_node_settings_check(s, why) == status
+    assert ffi.string(why.field).decode() == named
+
+
+def test_node_settings_check_agrees_with_init_on_random_settings() -> None:
+    """Random perturbations of node fields, filter fields, the calibration and bools: the check gives
+    att_node_init's status every time, names a field exactly when it is ATT_ERR_SETTINGS."""
+    rng = np.random.default_rng(22)
+    values: dict[str, list[Any]] = {
+        "sample_rate": [RATE, 0.0, -1.0, 1e5, 1e5 + 1, float("inf"), 100.0, RATE * 1.0005],
+        "bitrate": [125_000, 500_000, 1_000_000, 999, 2_000_000, 0],
+        "data_bitrate": [0, 2_000_000, 100, 20_000_000],
+        "output_divider": [1, 2, 0, 65535, 65536],
+        "diag_divider": [0, 1, 16],
+        "id_offset": [0, -256, 1279, -257, 1280, 0x20],
+    }
+    kinds = ["ars", "mars", "ekf", "mekf"]
+    n = ffi.new("att_node_t *")
+    why = ffi.new("att_settings_error_t *")
+    seen: Counter[str] = Counter()
+    for _ in range(3000):
+        s = _node_settings(kinds[int(rng.integers(len(kinds)))])
+        for name in rng.choice(list(values), size=int(rng.integers(1, 4)), replace=False):
+            opts = values[str(name)]
+            setattr(s, str(name), opts[int(rng.integers(len(opts)))])
+        if rng.random() < 0.2:
+            s.fd = True
+        if rng.random() < 0.1:
+            s.accel_out = True
+        if rng.random() < 0.1:
+            ffi.cast("uint8_t *", ffi.addressof(s, "fd"))[0] = 2  # not a bool
+        if rng.random() < 0.1:
+            s.calib.convention = 7  # no such convention
+        if rng.random() < 0.1:
+            s.filter.ars.tau_acc_lp = -1.0  # refused for ars (other kinds: another member)
+        status = lib.att_node_init(n, s)
+        assert lib.att_node_settings_check(s, why) == status
+        assert (why.field != ffi.NULL) == (status == lib.ATT_ERR_SETTINGS)
+        seen[ffi.string(why.field).decode() if why.field != ffi.NULL else "ok"] += 1
+    assert {"ok", "bus load", "calib", "fd", "filter.dt", "id_offset", "sample_rate"} <= set(seen), seen
+    assert lib.att_node_settings_check(ffi.NULL, why) == lib.ATT_ERR_NULL

@@ -13,7 +13,7 @@
 #include "att_can_hal.h"
 #include "board.h"
 
-static att_node_t node;   /* under 1 KB with my_attica_config.h: a static, no heap */
+static att_node_t node;   /* sized by my_attica_config.h (make footprint): a static, no heap */
 static att_can_hal_t can; /* the bxCAN port */
 
 static void fail(void)
@@ -35,7 +35,7 @@ int main(void)
     s.filter.ars.tau = 1.0f; /* accel correction time constant, s (the per-sample gain is then unused) */
     s.id_offset = 0;         /* the IDs of attica.dbc; another node on the bus would take e.g. 0x20 */
     if (att_node_init(&node, &s) != ATT_OK) {
-        fail(); /* att_node_settings_check would say which field */
+        fail(); /* att_filter_settings_check(ATT_FILTER_ARS, &s.filter, &why) names a refused filter field */
     }
     if (att_can_hal_init(&can, att_can_hal_mmio(BOARD_CAN_BASE), &node, BOARD_CAN_PCLK_HZ) != ATT_OK) {
         fail();

@@ -176,8 +176,18 @@ typedef struct {
 /** Defaults: the kind's default filter settings for 1/sample_rate, 500 kbit/s classic, every step, DIAG every 16th set. */
 att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate, att_node_settings_t *s);
 /**
+ * Which setting makes att_node_init refuse: the status att_node_init would return for s, and for
+ * ATT_ERR_SETTINGS in why (may be NULL) the first refused field: a node field ("bitrate",
+ * "id_offset", "fd" ...), the filter's ("ars.tau_acc_lp": att_filter_settings_check), "calib" (rule:
+ * att_calib_error_name), "filter.dt" (not 1 / sample_rate) or "bus load" (outputs over 100 %), with
+ * its bounds, rule and unit; why->field is NULL otherwise. Not called by att_node_init: an image that
+ * does not call it carries none of its text.
+ */
+att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_error_t *why);
+/**
  * Validate the settings (incl. the filter's, and bus load <= 100 %) and initialise the node (empty
- * rings, zero counters). ATT_ERR_NULL / ATT_ERR_SETTINGS / ATT_ERR_KIND leave n untouched.
+ * rings, zero counters). ATT_ERR_NULL / ATT_ERR_SETTINGS / ATT_ERR_KIND / ATT_ERR_DISABLED leave n
+ * untouched; att_node_settings_check says which setting was refused.
  */
 att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s);
 /**

@@ -72,24 +72,37 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
     return (float)nominal / (float)bitrate + (float)data / (float)data_bitrate;
 }
 
+/*
+ * The node's own settings, one line per condition (name, condition, bounds, rule, unit): att_node_init
+ * accepts settings only when every line holds (att_node_rates_ok), and att_node_settings_check reports
+ * the first line that fails, so the two cannot disagree. fd is checked as a bool first: reading a
+ * bool that holds another byte value would be undefined.
+ */
+#define ATT_NODE_CHECKS(C)                                                                                    \
+    C("sample_rate", att_isfinitef(s->sample_rate) && s->sample_rate > 0.0f && s->sample_rate <= ATT_NODE_MAX_RATE, \
+      0.0f, ATT_NODE_MAX_RATE, "(0, 100000]", "Hz")                                                           \
+    C("bitrate", s->bitrate >= ATT_NODE_MIN_BITRATE && s->bitrate <= ATT_NODE_MAX_BITRATE,                    \
+      (float)ATT_NODE_MIN_BITRATE, (float)ATT_NODE_MAX_BITRATE, "[1000, 1000000]", "bit/s")                   \
+    C("data_bitrate",                                                                                         \
+      s->data_bitrate == 0u || (s->data_bitrate >= s->bitrate && s->data_bitrate <= ATT_NODE_MAX_DATA_BITRATE), \
+      (float)s->bitrate, (float)ATT_NODE_MAX_DATA_BITRATE, "0 (classic only) or [bitrate, 16000000]", "bit/s") \
+    C("fd", att_i_bool_ok_node(&s->fd), 0.0f, 1.0f, "0 or 1 (bool)", "")                                     \
+    C("fd", !s->fd || (s->data_bitrate != 0u && ATT_NODE_WITH_FD != 0), 0.0f, (float)ATT_NODE_WITH_FD,        \
+      ATT_NODE_WITH_FD ? "true needs data_bitrate > 0" : "false (this build has no CAN FD: ATT_NODE_WITH_FD 0)", \
+      "")                                                                                                     \
+    C("id_offset", s->id_offset >= ATT_NODE_ID_OFFSET_MIN && s->id_offset <= ATT_NODE_ID_OFFSET_MAX,          \
+      (float)ATT_NODE_ID_OFFSET_MIN, (float)ATT_NODE_ID_OFFSET_MAX, "[-256, 1279] (every ID stays 11-bit)", "") \
+    C("output_divider", s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER, 1.0f,           \
+      (float)ATT_NODE_MAX_DIVIDER, "[1, 65535]", "")                                                          \
+    C("accel_out", att_i_bool_ok_node(&s->accel_out), 0.0f, 1.0f, "0 or 1 (bool)", "")                       \
+    C("accel_out", ATT_WITH_CALIB || !s->accel_out, 0.0f, (float)ATT_WITH_CALIB,                              \
+      ATT_WITH_CALIB ? "0 or 1 (bool)" : "false (this build has no stages: ATT_WITH_CALIB 0)", "")
+
+#define ATT_NODE_CK_AND(name, cond, lo, hi, rule, unit) &&(cond)
+
 static bool att_node_rates_ok(const att_node_settings_t *s)
 {
-    if (!att_isfinitef(s->sample_rate) || !(s->sample_rate > 0.0f) || s->sample_rate > ATT_NODE_MAX_RATE) {
-        return false;
-    }
-    if (s->bitrate < ATT_NODE_MIN_BITRATE || s->bitrate > ATT_NODE_MAX_BITRATE) {
-        return false;
-    }
-    if (s->data_bitrate != 0u && (s->data_bitrate < s->bitrate || s->data_bitrate > ATT_NODE_MAX_DATA_BITRATE)) {
-        return false;
-    }
-    if (s->fd && (s->data_bitrate == 0u || ATT_NODE_WITH_FD == 0)) {
-        return false; /* FD outputs need a data bit rate, and a build with CAN FD (att_config.h) */
-    }
-    if (s->id_offset < ATT_NODE_ID_OFFSET_MIN || s->id_offset > ATT_NODE_ID_OFFSET_MAX) {
-        return false; /* every ID must stay an 11-bit identifier */
-    }
-    return s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER;
+    return true ATT_NODE_CHECKS(ATT_NODE_CK_AND);
 }
 
 float att_node_bus_load(const att_node_settings_t *s)
@@ -179,7 +192,7 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
         return st;
     }
 #if ATT_WITH_CALIB
-    if (!att_i_bool_ok_node(&s->accel_out) || att_filter_calibrate(&f, &s->calib) != ATT_OK) {
+    if (att_filter_calibrate(&f, &s->calib) != ATT_OK) {
         return ATT_ERR_SETTINGS;
     }
     if (s->accel_out) {
@@ -187,14 +200,7 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
         c.accel_outputs = true;
         (void)att_filter_calibrate(&f, &c); /* valid: only accel_outputs changed */
     }
-#else
-    if (!att_i_bool_ok_node(&s->accel_out) || s->accel_out) {
-        return ATT_ERR_SETTINGS; /* no acceleration outputs without the stages (ATT_WITH_CALIB 0) */
-    }
 #endif
-    if (!att_i_bool_ok_node(&s->fd)) {
-        return ATT_ERR_SETTINGS;
-    }
     if (!att_node_dt_matches(s)) {
         return ATT_ERR_SETTINGS; /* the filter would integrate with another period than the samples have */
     }
@@ -211,6 +217,59 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     n->cal = s->calib;
 #endif
     att_filter_output(&n->f, &n->out);
+    return ATT_OK;
+}
+
+#define ATT_NODE_CK_REPORT(name, cond, lo, hi, rule, unit)                                                   \
+    if (!(cond)) {                                                                                            \
+        return att_node_refused(why, name, lo, hi, rule, unit);                                               \
+    }
+
+static att_status_t att_node_refused(att_settings_error_t *why, const char *field, float lo, float hi,
+                                     const char *rule, const char *unit)
+{
+    if (why != NULL) {
+        why->field = field;
+        why->min = lo;
+        why->max = hi;
+        why->rule = rule;
+        why->unit = unit;
+    }
+    return ATT_ERR_SETTINGS;
+}
+
+att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_error_t *why)
+{
+    att_status_t st;
+    float load;
+    (void)att_node_refused(why, NULL, 0.0f, 0.0f, "", "");
+    if (s == NULL) {
+        return ATT_ERR_NULL;
+    }
+    ATT_NODE_CHECKS(ATT_NODE_CK_REPORT)
+    st = att_filter_settings_check(s->kind, &s->filter, why);
+    if (st != ATT_OK) {
+        return st;
+    }
+#if ATT_WITH_CALIB
+    {
+        const att_calib_error_t e = att_calib_settings_check(&s->calib);
+        if (e != ATT_CALIB_OK) {
+            return att_node_refused(why, "calib", (float)e, (float)e, att_calib_error_name(e), "");
+        }
+    }
+#endif
+    if (!att_node_dt_matches(s)) {
+        return att_node_refused(why, "filter.dt", 0.999f / s->sample_rate, 1.001f / s->sample_rate,
+                                "1 / sample_rate within 1e-3 (relative)", "s");
+    }
+    load = att_node_bus_load(s);
+    if (!(load >= 0.0f) || load > 1.0f) {
+        return att_node_refused(why, "bus load", 0.0f, 1.0f,
+                                "the periodic outputs need at most the whole bus (raise output_divider or "
+                                "bitrate, or use fd)",
+                                "");
+    }
     return ATT_OK;
 }
 

@@ -115,22 +115,34 @@ class Node:
         self._n = ffi.new("att_node_t *")
         status = int(lib.att_node_init(self._n, s))
         if status != lib.ATT_OK:
-            why = "a setting is out of range" if status == lib.ATT_ERR_SETTINGS else f"status {status}"
-            problem = native.settings_problem(self.kind, ffi.addressof(s, "filter"), "the filter's settings")
-            if problem is not None:
-                why = str(problem)  # names the refused field and its range
-            sdt = getattr(self.settings, "dt", None)
-            if sdt is not None and abs(sdt * sample_rate - 1.0) > 1e-3:
-                why = f"the filter's dt {sdt:g} s does not match sample_rate {sample_rate:g} Hz"
-            if not lib.ATT_NODE_ID_OFFSET_MIN <= id_offset <= lib.ATT_NODE_ID_OFFSET_MAX:
-                why = (
-                    f"id_offset {id_offset} moves an ID out of 0 .. 0x7FF "
-                    f"(allowed {lib.ATT_NODE_ID_OFFSET_MIN} .. {lib.ATT_NODE_ID_OFFSET_MAX})"
-                )
-            if self.bus_load > 1.0:
-                why = f"the outputs need {100 * self.bus_load:.1f} % of the bus (> 100 %)"
-            raise NodeError(f"att_node_init: {why}")
+            raise NodeError(f"att_node_init: {self._refusal(s, status, sample_rate, id_offset)}")
         self._one = ffi.new("att_can_frame_t *")
+
+    def _refusal(self, s: Any, status: int, sample_rate: float, id_offset: int) -> str:
+        """Why att_node_init refused ``s``, from att_node_settings_check (it names the field)."""
+        ffi, lib = self._native.ffi, self._native.lib
+        why = ffi.new("att_settings_error_t *")
+        checked = int(lib.att_node_settings_check(s, why))
+        if checked != status:  # the check and init agree by construction (tests/test_node.py)
+            raise AssertionError(f"att_node_settings_check {checked} != att_node_init {status}")
+        if status != lib.ATT_ERR_SETTINGS or why.field == ffi.NULL:
+            return f"status {status}"
+        field = ffi.string(why.field).decode()
+        rule, unit = ffi.string(why.rule).decode(), ffi.string(why.unit).decode()
+        if field == "bus load":
+            return f"the outputs need {100 * self.bus_load:.1f} % of the bus (> 100 %)"
+        if field == "filter.dt":
+            return f"the filter's dt {self.settings.dt:g} s does not match sample_rate {sample_rate:g} Hz"
+        if field == "id_offset":
+            return f"id_offset {id_offset} moves an ID out of 0 .. 0x7FF (allowed {rule})"
+        if field == "calib":
+            return f"the calibration is refused: {rule}"
+        if "." in field:  # a field of the filter's settings
+            filt = ffi.addressof(s, "filter")
+            problem = self._native.settings_problem(self.kind, filt, "the filter's settings")
+            return str(problem) if problem is not None else field
+        value = getattr(s, field)
+        return f"{field} = {value} is out of range: allowed {rule}{' ' + unit if unit else ''}"
 
     @property
     def state(self) -> CView:
