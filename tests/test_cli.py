@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +19,7 @@ from attica import kinds
 from attica.cli import build_parser, main
 from attica.data import load_recording
 
-from helpers import need
+from helpers import ROOT, need
 
 
 def test_demo_reports_bit_exact(capsys: pytest.CaptureFixture[str]) -> None:
@@ -129,6 +134,90 @@ def test_version_and_paths(capsys: pytest.CaptureFixture[str]) -> None:
     assert all(Path(s).suffix == ".c" and Path(s).is_file() for s in capsys.readouterr().out.split())
     assert main(["paths", "--cflags"]) == 0
     assert "-ffp-contract=off" in capsys.readouterr().out.split()
+
+
+def _paths_cflags(capsys: pytest.CaptureFixture[str]) -> list[str]:
+    assert main(["paths", "--cflags"]) == 0
+    return capsys.readouterr().out.split()
+
+
+def test_paths_cflags_are_those_of_attica_mk(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``attica paths --cflags`` prints exactly what firmware/attica.mk compiles attica's sources with,
+    ``$(ATTICA_CFLAGS) $(ATTICA_WARNINGS)``, in that order: -fno-lto included (it once printed only
+    cflags.txt, without -fno-lto), and the section flags."""
+    need(shutil.which("make") is not None, "make is not installed")
+    flags = _paths_cflags(capsys)
+    mk = tmp_path / "print.mk"
+    mk.write_text(
+        f"include {ROOT / 'firmware' / 'attica.mk'}\n"
+        "print:\n\t$(info $(ATTICA_CFLAGS) $(ATTICA_WARNINGS))@:\n"
+    )
+    proc = subprocess.run(
+        ["make", "--no-print-directory", "-s", "-f", str(mk), "print"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert flags == proc.stdout.split(), (flags, proc.stdout)
+    assert "-fno-lto" in flags and "-Werror" in flags
+    assert main(["paths", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cflags"].split() == flags
+
+
+def test_documented_paths_compile_lines_name_every_source(tmp_path: Path) -> None:
+    """The ``cc $(attica paths --cflags) ...`` lines of the docs and docstrings, run by bash with a ``cc``
+    that records its arguments: the flags are --cflags's and the files are every firmware source (a
+    glob of ``$(attica paths --src)``/att_*.c once matched nothing: the sources are in sub-folders)."""
+    from attica import resources
+
+    need(shutil.which("bash") is not None, "bash is not installed")
+    bin_dir = Path(sys.executable).parent
+    need((bin_dir / "attica").exists(), f"no attica command beside {sys.executable}")
+    places = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    places += [ROOT / "host" / "attica" / "resources.py", ROOT / "host" / "attica" / "commands" / "paths.py"]
+    lines = [
+        (path.name, ln.strip())
+        for path in places
+        for ln in path.read_text().splitlines()
+        if ln.strip().startswith("cc $(attica paths --cflags)")
+    ]
+    assert {name for name, _ in lines} >= {"integration.md", "python.md", "resources.py", "paths.py"}, lines
+    record = tmp_path / "args"
+    for name, line in lines:
+        script = f'cc() {{ printf "%s\\n" "$@" > {record}; }}\n{line}\n'
+        env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"}
+        subprocess.run(["bash", "-e", "-c", script], cwd=tmp_path, env=env, check=True)
+        args = record.read_text().splitlines()
+        files = [a for a in args if not a.startswith("-")]
+        assert sorted(files) == sorted(str(s) for s in resources.sources()), (name, line)
+        assert args[: len(resources.compile_flags())] == resources.compile_flags(), (name, line)
+
+
+def test_paths_cflags_are_on_cmakes_compile_lines(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """CMake (firmware/CMakeLists.txt) compiles every attica source with the same flags, in one run."""
+    need(shutil.which("cmake") is not None and shutil.which("cc") is not None, "cmake or cc is not installed")
+    flags = _paths_cflags(capsys)
+    subprocess.run(
+        [
+            "cmake",
+            "-S",
+            str(ROOT / "firmware"),
+            "-B",
+            str(tmp_path),
+            "-DCMAKE_C_COMPILER=cc",
+            "-DCMAKE_EXPORT_COMPILE_COMMANDS=ON",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    commands = json.loads((tmp_path / "compile_commands.json").read_text())
+    sources = {Path(c["file"]).name for c in commands}
+    assert {p.name for p in (ROOT / "firmware" / "src").rglob("*.c")} <= sources
+    for c in commands:
+        words = c["command"].split()
+        starts = [i for i, w in enumerate(words) if w == flags[0]]
+        assert any(words[i : i + len(flags)] == flags for i in starts), (c["file"], c["command"])
 
 
 def test_run_and_demo_agree(capsys: pytest.CaptureFixture[str]) -> None:

@@ -580,6 +580,60 @@ def test_cmake_cortex_m4f(tmp_path: Path) -> None:
         assert (tmp_path / f"libattica_{port}.a").exists(), port
 
 
+def _documented_cross_builds() -> list[tuple[str, str]]:
+    """(where, shell text) of every documented command that names the Cortex-M4F toolchain file: the
+    ```sh blocks of the docs (continuation lines joined) and the command in the toolchain file's own
+    comment."""
+    found: list[tuple[str, str]] = []
+    for md in [_build.ROOT / "README.md", *sorted((_build.ROOT / "docs").glob("*.md"))]:
+        lang: str | None = None  # the language of the open fence, None outside one
+        start = 0
+        lines: list[str] = []
+        for n, line in enumerate(md.read_text().splitlines(), 1):
+            if lang is None and line.startswith("```"):
+                lang, start, lines = line[3:].strip(), n + 1, []
+            elif lang is not None and line.strip() == "```":
+                block = "\n".join(lines).replace("\\\n", " ")
+                if lang in ("", "sh", "bash", "shell") and "arm-none-eabi-m4f.cmake" in block:
+                    found.append((f"{md.name}:{start}", block))
+                lang = None
+            elif lang is not None:
+                lines.append(line)
+    toolchain = cross.PORT / "arm-none-eabi-m4f.cmake"
+    for line in toolchain.read_text().splitlines():
+        if re.match(r"^#\s+cmake ", line):
+            found.append((toolchain.name, line.lstrip("#").strip()))
+    return found
+
+
+def test_documented_cross_build_runs_as_written(tmp_path: Path) -> None:
+    """The cross-build commands of the docs, run literally from the directory they are written for (a
+    directory whose firmware/ is the repository's; the build goes there, not into the checkout). With a
+    relative CMAKE_TOOLCHAIN_FILE they once failed: cmake looks for it in the build directory."""
+    need_tools("cmake", "arm-none-eabi-gcc")
+    commands = _documented_cross_builds()
+    where = [w for w, _ in commands]
+    assert any(w.startswith("integration.md") for w in where) and "arm-none-eabi-m4f.cmake" in where, where
+    for i, (source, text) in enumerate(commands):
+        run_dir = tmp_path / f"run{i}"
+        run_dir.mkdir()
+        (run_dir / "firmware").symlink_to(_build.FIRMWARE, target_is_directory=True)
+        proc = subprocess.run(
+            ["bash", "-e", "-c", text], cwd=run_dir, capture_output=True, text=True, timeout=900
+        )
+        assert proc.returncode == 0, f"{source}: {text}\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}"
+        cache = next(run_dir.rglob("CMakeCache.txt")).read_text()
+        m = re.search(r"^CMAKE_TOOLCHAIN_FILE:FILEPATH=(.+)$", cache, re.M)
+        assert m is not None, source
+        assert Path(m.group(1)).resolve() == (cross.PORT / "arm-none-eabi-m4f.cmake").resolve(), source
+        if "--build" in text:
+            lib = next(run_dir.rglob("libattica.a"))
+            attrs = subprocess.run(
+                ["arm-none-eabi-readelf", "-A", str(lib)], capture_output=True, text=True, check=True
+            ).stdout
+            assert "VFPv4-D16" in attrs, source
+
+
 # --- CAN HALs: bxCAN, FDCAN / M_CAN ------------------------------------------------------------------------
 
 HALS = {

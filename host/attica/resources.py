@@ -7,6 +7,9 @@ paths`` prints these locations for firmware builds, e.g.::
 
     cc $(attica paths --cflags) -O2 -I"$(attica paths --include)" -c $(attica paths --sources)
 
+where ``--cflags`` prints :func:`compile_flags`: the flags firmware/attica.mk and firmware/CMakeLists.txt
+compile attica's sources with, not only the file cflags.txt.
+
 Nothing here writes files or compiles anything.
 """
 
@@ -17,9 +20,11 @@ from importlib import resources
 from pathlib import Path
 
 __all__ = [
+    "LIBRARY_FLAGS",
     "FirmwareNotFoundError",
     "cflags",
     "cflags_file",
+    "compile_flags",
     "dbc_path",
     "firmware_dir",
     "include_dir",
@@ -81,8 +86,32 @@ def cflags_file() -> Path:
 
 
 def cflags() -> list[str]:
-    """The flags of :func:`cflags_file` as a list."""
+    """The flags of :func:`cflags_file` as a list (both lines; see :func:`compile_flags` for a build)."""
     return shlex.split(cflags_file().read_text())
+
+
+LIBRARY_FLAGS = ("-fno-lto", "-ffunction-sections", "-fdata-sections")
+"""What firmware/attica.mk (``ATTICA_CFLAGS``) and firmware/CMakeLists.txt add to line 1 of cflags.txt
+for attica's own sources. ``-fno-lto`` is part of the numerics contract: link-time optimisation could
+inline attica's code into functions compiled with other floating-point flags (e.g. fused multiply-add)
+and change the last bit. ``-ffunction-sections -fdata-sections`` change no bit of any result, only where
+the code lands: with them a link with ``--gc-sections`` keeps just the functions (and filter kinds) the
+application calls, which the sizes of docs/performance.md assume; they are here so that
+``attica paths --cflags`` is exactly what the make fragment and CMake use (tests/test_cli.py compares)."""
+
+
+def compile_flags() -> list[str]:
+    """The flags to compile attica's sources with, in the order firmware/attica.mk gives them.
+
+    ``$(ATTICA_CFLAGS) $(ATTICA_WARNINGS)`` of the make fragment, the same as CMake's: line 1 of
+    cflags.txt (the numerics flags), :data:`LIBRARY_FLAGS` (``-fno-lto``, the section flags), then
+    line 2 (the warning flags, ``-Werror`` included). Add the CPU and ``-O`` flags of your build; any
+    ``-O`` level gives the same bits. ``attica paths --cflags`` prints these on one line.
+    """
+    lines = cflags_file().read_text().splitlines()
+    numerics = shlex.split(lines[0]) if lines else []
+    warnings = shlex.split(lines[1]) if len(lines) > 1 else []
+    return [*numerics, *LIBRARY_FLAGS, *warnings]
 
 
 def dbc_path() -> Path:

@@ -112,7 +112,7 @@ typedef bool (*att_node_persist_fn)(void *ctx, const att_calib_settings_t *calib
 typedef struct {
     att_filter_kind_t kind;       /**< filter to run */
     att_filter_settings_t filter; /**< its settings (the member named after kind) */
-    float sample_rate;            /**< Hz, (0, 100000]; the filter's dt must be 1/sample_rate within 1e-3 relative */
+    float sample_rate;            /**< a rate, Hz, (0, 100000]; the filter's dt (s) must be 1/sample_rate within 1e-3 relative */
     uint32_t bitrate;             /**< nominal bit/s (e.g. 500000); 1000 .. 1000000 */
     uint32_t data_bitrate;        /**< CAN FD data phase bit/s, 0 = classic only; else bitrate .. 16000000 */
     bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
@@ -173,7 +173,16 @@ typedef struct {
     void *persist_ctx;                         /**< its context */
 } att_node_t;
 
-/** Defaults: the kind's default filter settings for 1/sample_rate, 500 kbit/s classic, every step, DIAG every 16th set. */
+/**
+ * Defaults for a node of this kind receiving sample_rate samples per second. sample_rate is a RATE in
+ * Hz (100.0f for 100 Hz), not a period, unlike att_filter_settings_default(kind, dt, ...), which takes
+ * the period dt in s (0.01f) and which this calls with dt = 1 / sample_rate. Then 500 kbit/s classic,
+ * a set every step, DIAG every 16th set, the identity calibration, no acceleration frames, offset 0.
+ * ATT_ERR_SETTINGS for a rate that is not finite and > 0; ATT_ERR_NULL, ATT_ERR_KIND, ATT_ERR_DISABLED
+ * as att_filter_settings_default. A period passed here by mistake (0.01f) is a rate of 0.01 Hz, a
+ * filter dt of 100 s: att_node_init refuses it for every kind with a period (their dt is at most 1 s;
+ * att_node_settings_check names "<kind>.dt").
+ */
 att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate, att_node_settings_t *s);
 /**
  * Which setting makes att_node_init refuse: the status att_node_init would return for s, and for

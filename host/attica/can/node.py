@@ -140,7 +140,13 @@ class Node:
         if "." in field:  # a field of the filter's settings
             filt = ffi.addressof(s, "filter")
             problem = self._native.settings_problem(self.kind, filt, "the filter's settings")
-            return str(problem) if problem is not None else field
+            text = str(problem) if problem is not None else field
+            if field.endswith(".dt") and 0.0 < sample_rate < 1.0:  # a period given as the rate?
+                text += (
+                    f" (sample_rate is a rate in Hz, not a period: {sample_rate:g} Hz is one sample "
+                    f"every {1.0 / sample_rate:g} s)"
+                )
+            return text
         value = getattr(s, field)
         return f"{field} = {value} is out of range: allowed {rule}{' ' + unit if unit else ''}"
 

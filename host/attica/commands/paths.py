@@ -4,6 +4,10 @@ Without options it prints every location; one option prints that one value alone
 
     cc $(attica paths --cflags) -O2 -I"$(attica paths --include)" -c $(attica paths --sources)
     cmake -DATTICA_DIR="$(attica paths --firmware)" ...     # add_subdirectory(${ATTICA_DIR} attica)
+
+``--cflags`` prints the flags firmware/attica.mk compiles attica's sources with (``$(ATTICA_CFLAGS)
+$(ATTICA_WARNINGS)``, as CMake does): cflags.txt line 1, ``-fno-lto -ffunction-sections
+-fdata-sections``, cflags.txt line 2 (:func:`attica.resources.compile_flags`).
 """
 
 from __future__ import annotations
@@ -50,7 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         dest="only",
         action="store_const",
         const="cflags",
-        help="print the flags of cflags.txt on one line",
+        help="print the flags to compile attica's sources with, on one line: cflags.txt line 1, -fno-lto "
+        "-ffunction-sections -fdata-sections, cflags.txt line 2 (the same as attica.mk and CMake)",
     )
     g.add_argument(
         "--extension",
@@ -77,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         values: dict[str, str] = {k: str(fn()) for k, (_, fn) in _ITEMS.items()}
     except resources.FirmwareNotFoundError as exc:
         raise CliError(str(exc)) from None
-    values["cflags"] = " ".join(shlex.quote(f) for f in resources.cflags())
+    values["cflags"] = " ".join(shlex.quote(f) for f in resources.compile_flags())
     values["extension"] = _extension()
     sources = [str(s) for s in resources.sources()]
     if args.only == "sources":
