@@ -295,7 +295,7 @@ def test_docs_tables_and_example() -> None:
     if cc is None:  # pragma: no cover - the build needs a compiler anyway
         pytest.skip("no C compiler")
     stubs = (
-        "void read_imu(att_vec3_t *g, att_vec3_t *a, att_vec3_t *m);\n"
+        "_Bool read_imu(att_sample_t *in);\n"
         "void publish(att_quat_t q, att_vec3_t e, uint32_t flags);\n"
     )
     head = '#include "attica/att_filter.h"\n'
