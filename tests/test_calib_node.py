@@ -294,10 +294,7 @@ def test_docs_tables_and_example() -> None:
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:  # pragma: no cover - the build needs a compiler anyway
         pytest.skip("no C compiler")
-    stubs = (
-        "_Bool read_imu(att_sample_t *in);\n"
-        "void publish(att_quat_t q, att_vec3_t e, uint32_t flags);\n"
-    )
+    stubs = "_Bool read_imu(att_sample_t *in);\nvoid publish(att_quat_t q, att_vec3_t e, uint32_t flags);\n"
     head = '#include "attica/att_filter.h"\n'
     src = block.group(1).replace(head, head + stubs)
     r = subprocess.run(

@@ -269,6 +269,45 @@ def test_bit_exact_adversarial() -> None:
     assert not (fl_c & Flag.NUMERIC).any()  # no sample can make the state unusable
 
 
+def test_noise_rates_extremes_are_safe() -> None:
+    """Issue 26 R3: with noise_rates the per-step noises q_noise dt and r_noise / dt are no longer
+    range-checked (att_kf.h states the ranges of q_noise, r_noise and dt only). Over those ranges they lie in
+    [1e-18, 1e6] and [1e-12, 1e12], normal floats; the extremes of dt and both noises (with p0, gate and
+    r_accel at theirs) on the adversarial stream above: C equals the reference bit for bit, q stays a unit
+    quaternion, p finite, positive and normal, and no step is NUMERIC (as with the per-step noises)."""
+    m, steps = 64, 3000
+    gyr, acc, _ = motion(m, steps, seed=15, dt=0.02)
+    rng = np.random.default_rng(16)
+    bad = adversarial_floats(steps * m * 3, seed=17).reshape(steps, m, 3)
+    sel = rng.random((steps, m)) < 0.15
+    gyr[sel] = bad[sel]
+    sel = rng.random((steps, m)) < 0.15
+    acc[sel] = bad[rng.permutation(steps)][sel]
+    corner = np.array([(d, q, r) for d in (1e-6, 1.0) for q in (1e-12, 1e6) for r in (1e-12, 1e6)])
+    pick = np.arange(m) % len(corner)
+    per = {
+        "dt": corner[pick, 0],
+        "q_noise": corner[pick, 1],
+        "r_noise": corner[pick, 2],
+        "p0": rng.choice([1e-12, 1e6], m),
+        "gate": rng.choice([0.0, 1e6, 1e-3], m),
+        "r_accel": rng.choice([0.0, 1e6], m),
+        "accel_range": rng.choice([156.9064, 1e4], m),
+        "noise_rates": True,
+    }
+    fs = c_filters(m, per)
+    q_step = np.array([fs[j].c.q_step for j in range(m)], np.float32)
+    r_step = np.array([fs[j].c.r_step for j in range(m)], np.float32)
+    tiny = np.finfo(np.float32).tiny
+    assert (q_step >= tiny).all() and np.isfinite(r_step).all() and (r_step >= tiny).all()
+    assert q_step.min() == np.float32(np.float32(1e-12) * np.float32(1e-6)) and r_step.max() > 1e11
+    q_c, p_c, fl_c = run_both(per, gyr, acc)
+    assert np.isfinite(q_c).all() and np.isfinite(p_c).all() and (p_c >= tiny).all()
+    norm = np.linalg.norm(q_c.astype(np.float64), axis=-1)
+    assert np.abs(norm - 1).max() < 1e-6
+    assert not (fl_c & Flag.NUMERIC).any()
+
+
 def _kf64(gyr: np.ndarray, acc: np.ndarray, s: KfSettings, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The textbook 4x4 KF (float64): x' = A x, P' = A P A^T + Q, z from the same low-passed gravity,
     K = P (P + R)^-1, x += K (z - x), P = (I - K) P, then x /= |x|, P /= |x|^2 (no bias, no gate)."""
@@ -471,9 +510,12 @@ def test_noise_rates_scaled_and_validated() -> None:
     assert lib.att_kf_init(f, c_settings(q_noise=2e-3, r_noise=3e-4)) == lib.ATT_OK
     assert f.c.q_step == np.float32(np.float32(2e-3) * np.float32(DT))
     assert f.c.r_step == np.float32(np.float32(3e-4) / np.float32(DT))
-    # rates whose per-step values leave the valid range are refused
-    assert lib.att_kf_init(f, c_settings(q_noise=1e-11, dt=0.01)) == lib.ATT_ERR_SETTINGS
-    assert lib.att_kf_init(f, c_settings(r_noise=2e4, dt=0.01)) == lib.ATT_ERR_SETTINGS
+    # the per-step values are not range-checked (issue 26 R3: refused before, a limit att_kf.h states
+    # nowhere): q_noise dt down to 1e-18, r_noise / dt up to 1e12
+    for dt, q, r in ((0.01, 1e-12, 2e4), (1e-6, 1e-12, 1e6), (1.0, 1e6, 1e-12), (1e-6, 1e6, 1e-12)):
+        assert lib.att_kf_init(f, c_settings(q_noise=q, r_noise=r, dt=dt)) == lib.ATT_OK
+        assert f.c.q_step == np.float32(np.float32(q) * np.float32(dt))
+        assert f.c.r_step == np.float32(np.float32(r) / np.float32(dt))
 
 
 def test_seed_preset_is_the_literal_filter() -> None:

@@ -30,6 +30,8 @@ import pytest
 import attica
 from attica import _build, kinds, native, reference
 from attica.native import ffi, lib
+from attica.reference import detmath as dm
+from attica.reference import sensor
 from attica.settings import ArsSettings, FilterKind, MarsSettings, Preset
 from attica.sim import SimConfig, simulate
 
@@ -318,16 +320,10 @@ def test_mars_gain_beside_time_constant_is_ignored(gain: str, tau: str) -> None:
 
 # --- the headers' stated ranges -------------------------------------------------------------------
 
-STATED_DIFFERS: dict[str, str] = {
-    "kf.q_noise": "noise_rates: q_noise * dt must also be in [1e-12, 1e6]",
-    "kf.r_noise": "noise_rates: r_noise / dt must also be in [1e-12, 1e6]",
-    **{f"ekf.{n}": f"noise_rates: {n} * dt must also be in [1e-20, 1e6]" for n in ("q_phi", "q_theta")},
-    **{f"ekf.{n}": f"noise_rates: {n} * dt must also be in [1e-20, 1e6]" for n in ("q_psi", "q_bias")},
-    **{f"ekf.{n}": f"noise_rates: {n} / dt must also be in [1e-20, 1e6]" for n in ("r_phi", "r_theta")},
-    "mars.m0_init": "stated |m0_init| <= mag_range, tested per component (|m0_init| up to sqrt(3) mag_range)",
-    "mekf.m0_init": "stated |m0_init| <= mag_range, tested per component (|m0_init| up to sqrt(3) mag_range)",
-}
-"""Fields whose enforced range is not the one their header states (issue 26 will make them one)."""
+STATED_DIFFERS: dict[str, str] = {}
+"""Fields whose enforced range is not the one their header states. Empty since issue 26 (R2: mars and
+mekf checked m0_init per component, up to sqrt(3) mag_range; R3: kf and ekf with noise_rates also
+range-checked q dt and r / dt): keep it so."""
 
 _STATED = re.compile(r"([\[(])\s*([-\w.^/]+),\s*([-\w.^/]+)\s*([\])])")
 
@@ -401,16 +397,77 @@ def test_stated_ranges_are_enforced(kind: FilterKind) -> None:
             if (v.name == name) == accepted:  # refused where the header accepts, or accepted where it refuses
                 differs.add(f"{kind.label}.{name}")
         checked += 1
-    # m0_init: stated "|m0_init| in [1e-3, mag_range]"; tested: each component within mag_range
+    # m0_init: stated "zero = ...; else |m0_init| in [1e-3, mag_range]" (a vector: probed here)
     if kind in (FilterKind.MARS, FilterKind.MEKF):
         r = float(member.mag_range)
-        s = _copy(base)
-        getattr(s, kind.label).m0_init = (r, r, 0.0)  # |m0_init| = sqrt(2) mag_range: outside the stated
-        if Verdict(kind, s).ok:
-            differs.add(f"{kind.label}.m0_init")
+        for m0, accepted in (
+            ((r, 0.0, 0.0), True),
+            ((0.0, 0.0, -1e-3), True),
+            ((0.0, 0.0, 0.0), True),
+            ((r, r, 0.0), False),  # |m0_init| = sqrt(2) mag_range, each component within it
+            ((_next(r, math.inf), 0.0, 0.0), False),
+            ((0.0, _next(1e-3, 0.0), 0.0), False),
+        ):
+            s = _copy(base)
+            getattr(s, kind.label).m0_init = m0
+            v = Verdict(kind, s)
+            if v.ok != accepted or (not v.ok and v.name != "m0_init"):
+                differs.add(f"{kind.label}.m0_init")
     assert checked >= 2
     expected = {k for k in STATED_DIFFERS if k.startswith(kind.label + ".")}
     assert differs == expected, sorted(differs ^ expected)
+
+
+@pytest.mark.parametrize("kind", [FilterKind.MARS, FilterKind.MEKF], ids=lambda k: k.label)
+def test_m0_init_is_checked_by_its_norm(kind: FilterKind) -> None:
+    """Issue 26 R2: m0_init was checked per component, so |m0_init| up to sqrt(3) mag_range passed, and every
+    magnetometer sample (|m| <= mag_range) was then rejected against it. Now a non-zero m0_init is accepted
+    exactly when sqrtf(m0 . m0) is in [1e-3, mag_range], computed as the reference's (and C's) mag sample
+    check measures |m|: an accepted reference field is a sample the filter takes as within range. Random
+    vectors on both sides of both spheres, at several ranges (among them 1e5, the largest)."""
+    rng = np.random.default_rng(26)
+    base = _c(kind, 0.01, init_from_sensors=False, q_init=(1.0, 0.0, 0.0, 0.0))
+    member = getattr(base, kind.label)
+    seen = {True: 0, False: 0}
+    for mag_range in (1000.0, 48.5, 0.01, 1e5):
+        member.mag_range = mag_range
+        r = float(F32(mag_range))
+        d = rng.normal(size=(300, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        radius = np.concatenate(
+            [r * (1 + rng.uniform(-3e-7, 3e-7, 200)), 1e-3 * (1 + rng.uniform(-3e-7, 3e-7, 100))]
+        )
+        vecs = (d * radius[:, None]).astype(F32)
+        vecs[:8] = F32(r / math.sqrt(3)) * np.sign(rng.normal(size=(8, 3))).astype(F32)  # |m| ~ mag_range
+        vecs[8:12] = F32(r)  # |m0_init| = sqrt(3) mag_range, each component at it: accepted before the fix
+        with np.errstate(all="ignore"):
+            v3 = (vecs[:, 0], vecs[:, 1], vecs[:, 2])
+            norm = dm.sqrtf(dm.vec3_dot(v3, v3))
+            flags, _ = sensor.check_mag(v3, F32(mag_range))
+        for k, v in enumerate(vecs):
+            s = _copy(base)
+            getattr(s, kind.label).m0_init = tuple(float(x) for x in v)
+            verdict = Verdict(kind, s)
+            expected = bool(norm[k] >= F32(1e-3) and norm[k] <= F32(mag_range))
+            assert verdict.ok == expected, (mag_range, v, float(norm[k]))
+            assert verdict.ok or (verdict.name, verdict.min, verdict.max) == ("m0_init", float(F32(1e-3)), r)
+            if norm[k] >= F32(1e-3):  # the sample check of the same vector agrees (range only)
+                assert verdict.ok == (int(flags[k]) == 0), (mag_range, v)
+            seen[verdict.ok] += 1
+    assert seen[True] > 300 and seen[False] > 300, seen
+    # the issue's case: an accepted reference field, and samples of its own norm are used (none rejected as
+    # beyond the range)
+    s = _copy(base)
+    getattr(s, kind.label).m0_init = (30.0, 0.0, -40.0)
+    getattr(s, kind.label).mag_range = 50.0
+    assert Verdict(kind, s).ok
+    getattr(s, kind.label).m0_init = (40.0, 0.0, -40.0)  # |m0| 56.6 > 50, components within it
+    v = Verdict(kind, s)
+    assert (
+        not v.ok
+        and v.field == f"{kind.label}.m0_init"
+        and v.rule == "zero, or |m0_init| in [1e-3, mag_range]"
+    )
 
 
 # --- the names stay out of the images that do not ask --------------------------------------------

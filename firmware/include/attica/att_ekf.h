@@ -64,7 +64,12 @@
  *  and updated in place, so that no copy of it is on the stack) restarts at its start values p0,
  *  p0_bias; a step flagged NUMERIC keeps the angles and bias from before it, except after a prediction
  *  not taken, which restarts the bias too (bias_init: a bias estimate run beyond any gyro's range would
- *  keep every later prediction out of the wrap's range); with every conditioning of P (below) the bias
+ *  keep every later prediction out of the wrap's range; zero when the prediction ran with bias_init, so
+ *  that a start value that is no gyro's bias cannot do so either). After a step flagged NUMERIC the
+ *  filter is not ready (ATT_FLAG_NOT_READY, initialised false) until the next usable accel sample
+ *  re-initialises roll and pitch from it, the yaw kept, P restarted and the stages started from it
+ *  (ATT_FLAG_INITIALISED, no prediction that step): the failed step left the state as it was, which
+ *  with a constant sample would fail again at every step; with every conditioning of P (below) the bias
  *  is limited to +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts). Every 16 steps, at every
  *  step flagged GIMBAL and after a roll or pitch increment beyond 1/16 rad, P is conditioned: variances
  *  above p_max (the bias variances above min(p_max, max(gyro_range^2, p0_bias)): a bias beyond the
@@ -73,8 +78,9 @@
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
  *
  * Noises: with noise_rates (default) the q_* are rates (added as q dt per step) and r_* densities
- * (R = r / dt per sample), so the time constants do not depend on dt; without, per step / per sample
- * as in the notes (the seed preset). The quaternion of the output is derived from the angles on request
+ * (R = r / dt per sample), so the time constants do not depend on dt (the per-step values, in
+ * [1e-26, 1e6] and [1e-20, 1e12] over the ranges below, are not range-checked themselves); without,
+ * per step / per sample as in the notes (the seed preset). The quaternion of the output is derived from the angles on request
  * (att_filter_output); att_filter_step fills the Euler angles and the bias.
  *
  * Units: rad, rad/s, m/s^2, s, variances rad^2 and (rad/s)^2. Frames: gyro/accel in the sensor frame.
@@ -157,6 +163,8 @@ typedef struct {
                                each update) */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
+    bool recover;         /**< a step flagged NUMERIC set initialised false: the next usable accel sample
+                               re-initialises roll and pitch, the yaw kept, P restarted */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     bool initialised;     /**< euler holds a valid attitude */

@@ -78,7 +78,8 @@ typedef struct {
     float tau_acc_lp;          /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     bool init_from_accel;      /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_quat_t q_init;         /**< initial attitude when init_from_accel is false; finite, |q|^2 in [2^-20, 2^20] */
-    bool noise_rates;          /**< true: Q = q_noise dt, R = r_noise / dt (rate-independent); false: per step */
+    bool noise_rates;          /**< true: Q = q_noise dt, R = r_noise / dt (rate-independent; these per-step values
+                                    are not range-checked themselves: docs/filters.md); false: per step */
 } att_kf_settings_t;
 
 /** Coefficients derived from the settings by att_kf_init: what a step needs, and the reset values. */

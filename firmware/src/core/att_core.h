@@ -100,6 +100,16 @@ static inline bool att_i_vec3_within(att_vec3_t v, float lim)
     return att_i_in(v.x, -lim, lim) && att_i_in(v.y, -lim, lim) && att_i_in(v.z, -lim, lim);
 }
 
+/**
+ * A vector setting zero, or with |v| in [lo, hi]: |v| = sqrtf(v.v) compared as att_i_sensor_check_mag
+ * compares a sample's (a reference field accepted with hi = mag_range is a sample the filter takes as
+ * within range); false for NaN and +-Inf (and a v.v that overflows: |v| = +Inf).
+ */
+static inline bool att_i_vec3_zero_or_norm_in(att_vec3_t v, float lo, float hi)
+{
+    return (v.x == 0.0f && v.y == 0.0f && v.z == 0.0f) || att_i_in(att_i_vec3_norm(v), lo, hi);
+}
+
 /** An initial quaternion: finite with |q|^2 in [2^-20, 2^20] (it is normalised by the filter). */
 static inline bool att_i_quat_init_ok(att_quat_t q)
 {
@@ -149,6 +159,8 @@ static inline bool att_i_quat_init_ok(att_quat_t q)
 #define ATT_CK_OO(C, f, lo, hi, rule, unit) C(#f, s->f > (lo) && s->f < (hi), lo, hi, rule, unit)
 /** every component of a vector field in [-lim, lim] */
 #define ATT_CK_VEC(C, f, lim, rule, unit) C(#f, att_i_vec3_within(s->f, lim), -(lim), lim, rule, unit)
+/** a vector field zero, or with its norm in [lo, hi] (att_i_vec3_zero_or_norm_in) */
+#define ATT_CK_NORM0(C, f, lo, hi, rule, unit) C(#f, att_i_vec3_zero_or_norm_in(s->f, lo, hi), lo, hi, rule, unit)
 /** a bool field holds 0 or 1 */
 #define ATT_CK_BOOL(C, f) C(#f, att_i_bool_ok(&s->f), 0.0f, 1.0f, "0 or 1 (bool)", "")
 /** an initial quaternion (att_i_quat_init_ok) */

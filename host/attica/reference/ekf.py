@@ -209,6 +209,7 @@ class Ekf:
         "st.lp_psi": "f32",
         "st.lp_ready": "bool",
         "st.converging": "bool",
+        "st.recover": "bool",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.initialised": "bool",
@@ -302,6 +303,7 @@ class Ekf:
         self.lp_psi = np.copy(self.euler[2])
         self.lp_ready = np.zeros(self.n, np.bool_)
         self.converging = np.zeros(self.n, np.bool_)
+        self.recover = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
@@ -576,7 +578,8 @@ class Ekf:
             waiting = ~self.initialised
             init_now = waiting & accel_ok
             t = sensor.tilt(a)
-            start = (dm.wrap_pi(t[0]), t[1], z)
+            # the first start: yaw 0; a re-initialisation after a step flagged NUMERIC: the yaw kept
+            start = (dm.wrap_pi(t[0]), t[1], np.where(self.recover, self.euler[2], z).astype(np.float32))
             _, q_tilt = dm.quat_normalize_bounded(dm.quat_from_euler(start[0], start[1], z))
             lp_start = dm.quat_rotate(q_tilt, a)
             flags = flags | np.where(
@@ -594,8 +597,11 @@ class Ekf:
             # (estimate's heading frame) are stale
             self.lp_ready = self.lp_ready & ~(run & (~gyro_ok | ~taken_p))
             # a prediction not taken also restarts the bias (a bias run beyond any gyro's range could
-            # keep every later prediction out of the wrap's range: docs/robustness.md F10)
-            self.bias = dm.vec3_where(run & ~taken_p, self.bias_init, self.bias)
+            # keep every later prediction out of the wrap's range: docs/robustness.md F10): at bias_init,
+            # or at zero when the prediction ran with bias_init (att_ekf_out_of_range)
+            b, bi = self.bias, self.bias_init
+            from_init = (b[0] == bi[0]) & (b[1] == bi[1]) & (b[2] == bi[2])
+            self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig
@@ -615,8 +621,10 @@ class Ekf:
             self.lp1 = dm.vec3_where(take_u, lp1_u, self.lp1)
             self.lp2 = dm.vec3_where(take_u, lp2_u, self.lp2)
             self.lp_psi = np.where(take_u & self.lp_on, e_p[2], self.lp_psi).astype(np.float32)
-            # NUMERIC: the attitude from before the step (P restarted if it was unusable)
-            self.euler = dm.vec3_where(run & ((flags & _u(Flag.NUMERIC)) != _U0), e_before, self.euler)
+            # NUMERIC: the attitude from before the step (P restarted if it was unusable); the next usable
+            # accel sample re-initialises roll and pitch (not ready until then)
+            numeric = run & ((flags & _u(Flag.NUMERIC)) != _U0)
+            self.euler = dm.vec3_where(numeric, e_before, self.euler)
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
@@ -636,13 +644,17 @@ class Ekf:
             limit = cond & ~inside
             self.bias = dm.vec3_where(limit, lim, b)
             flags = flags | np.where(limit & moved, _u(Flag.CLAMPED), _U0)
+            # a re-initialisation also restarts P (att_ekf_start)
+            reinit = init_now & self.recover
+            self.p = [np.where(reinit, restart[i], self.p[i]).astype(np.float32) for i in range(21)]
             self.euler = dm.vec3_where(init_now, start, self.euler)
             self.lp1 = dm.vec3_where(init_now, lp_start, self.lp1)
             self.lp2 = dm.vec3_where(init_now, lp_start, self.lp2)
-            self.lp_psi = np.where(init_now, z, self.lp_psi).astype(np.float32)
+            self.lp_psi = np.where(init_now, start[2], self.lp_psi).astype(np.float32)
             self.lp_ready = self.lp_ready | init_now
             self.converging = self.converging & ~init_now
-        self.initialised = self.initialised | init_now
+        self.recover = (self.recover & ~init_now) | numeric
+        self.initialised = (self.initialised | init_now) & ~numeric
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags

@@ -79,9 +79,6 @@ att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
         return ATT_ERR_NULL;
     }
     ok = true ATT_EKF_CHECKS(ATT_CHECK_AND);
-    if (ok && s->noise_rates) {
-        ok = true ATT_EKF_RATE_CHECKS(ATT_CHECK_AND);
-    }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 
@@ -170,6 +167,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.lp_psi = f->st.euler.z;
     f->st.lp_ready = false;
     f->st.converging = false;
+    f->st.recover = false;
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.initialised = !f->c.init_from_accel;
@@ -344,6 +342,25 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
 static ATT_NOINLINE uint32_t att_ekf_check(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
 {
     return att_ekf_usable(st->euler, st->p) ? 0u : att_ekf_p_restart(c, st->p);
+}
+
+/*
+ * A prediction whose increments leave the wrap's range (adversarial rates, dt, cos_min, or a bias
+ * estimate run beyond any gyro's range): the angles are kept by the caller; P, the bias and the stages
+ * restart (the rotation was not followed, and a bias that left it could do so at every step:
+ * docs/robustness.md F10). The bias restarts at bias_init, or at zero when the prediction already ran
+ * with bias_init: a start value that itself takes the prediction out of the range (|w - b| dt / cos
+ * beyond 8192 rad) is no gyro bias, and kept it would fail the prediction after every re-initialisation
+ * (issue 26 R1). Returns ATT_FLAG_NUMERIC.
+ */
+static ATT_NOINLINE uint32_t att_ekf_out_of_range(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
+{
+    const att_vec3_t b = st->bias;
+    const att_vec3_t b0 = c->bias_init;
+    const bool from_init = b.x == b0.x && b.y == b0.y && b.z == b0.z;
+    st->lp_ready = false;
+    st->bias = from_init ? att_i_vec3(0.0f, 0.0f, 0.0f) : b0;
+    return att_ekf_p_restart(c, st->p);
 }
 
 /* sin and cos of roll and pitch (cos(theta) not guarded): of the state, or of the prediction */
@@ -622,13 +639,7 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
     flipped = att_ekf_canon(&e, pn);
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
-        /* increments beyond the wrap's range (adversarial rates, dt, cos_min, or a bias estimate run
-         * beyond any gyro's range): the angles kept; P, the bias and the stages restart (the rotation was
-         * not followed, and a bias that left it could do so at every step: docs/robustness.md F10); no
-         * update follows (tr unused) */
-        st->lp_ready = false;
-        st->bias = c->bias_init;
-        return flags | att_ekf_p_restart(c, pn);
+        return flags | att_ekf_out_of_range(c, st); /* no update follows (tr unused) */
     }
     /* sin/cos of the predicted roll and pitch for the update: by angle addition from the increments
      * (as wrapped: the same sin/cos; done in att_ekf_propagate), directly after a flip to the
@@ -946,16 +957,27 @@ static ATT_NOINLINE uint32_t att_ekf_bias_limit(const att_ekf_coeffs_t *c, att_e
     return (l.x != b.x || l.y != b.y || l.z != b.z) ? ATT_FLAG_CLAMPED : 0u;
 }
 
-/* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
-static ATT_NOINLINE void att_ekf_start(att_ekf_state_t *st, att_vec3_t acc)
+/*
+ * First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it (heading
+ * frame: the sample turned by roll and pitch). After a step flagged NUMERIC (recover) the same from the
+ * next usable sample, with the yaw kept and P restarted (p0, p0_bias): the failed step kept the state
+ * from before it, which with a constant sample would fail again at every step (issue 26 R1), while the
+ * attitude of the sample cannot (its innovation is zero).
+ */
+static ATT_NOINLINE void att_ekf_start(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t acc)
 {
     const att_vec3_t t = att_sensor_tilt(acc);
+    const float yaw = st->recover ? st->euler.z : 0.0f;
     att_quat_t q;
-    st->euler = att_i_vec3(att_wrap_pi(t.x), t.y, 0.0f); /* atan2 may give -pi */
+    if (st->recover) {
+        att_ekf_p_diag(st->p, c->p0, c->p0_bias);
+        st->recover = false;
+    }
+    st->euler = att_i_vec3(att_wrap_pi(t.x), t.y, yaw); /* atan2 may give -pi */
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(st->euler.x, st->euler.y, 0.0f), &q);
     st->lp1 = att_i_quat_rotate(q, acc);
     st->lp2 = st->lp1;
-    st->lp_psi = 0.0f;
+    st->lp_psi = yaw;
     st->lp_ready = true;
     st->converging = false;
     st->initialised = true;
@@ -989,7 +1011,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     }
     if (!st->initialised) {
         if (accel_ok) {
-            att_ekf_start(st, acc);
+            att_ekf_start(c, st, acc);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
@@ -1010,7 +1032,11 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         flags |= att_ekf_check(c, st);
     }
     if ((flags & ATT_FLAG_NUMERIC) != 0u) {
-        st->euler = e0; /* NUMERIC: the attitude from before the step (P restarted if it was unusable) */
+        /* NUMERIC: the attitude from before the step (P restarted if it was unusable); the next usable
+         * accel sample re-initialises roll and pitch (att_ekf_start), not ready until then */
+        st->euler = e0;
+        st->initialised = false;
+        st->recover = true;
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:

@@ -15,8 +15,5 @@
 att_status_t att_ekf_settings_check(const att_ekf_settings_t *s, att_settings_error_t *why)
 {
     ATT_EKF_CHECKS(ATT_EKF_WHY)
-    if (s->noise_rates) {
-        ATT_EKF_RATE_CHECKS(ATT_EKF_WHY)
-    }
     return ATT_OK;
 }

@@ -48,9 +48,6 @@ att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
         return ATT_ERR_NULL;
     }
     ok = true ATT_KF_CHECKS(ATT_CHECK_AND);
-    if (ok && s->noise_rates) {
-        ok = true ATT_KF_RATE_CHECKS(ATT_CHECK_AND);
-    }
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 

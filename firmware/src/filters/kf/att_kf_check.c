@@ -15,8 +15,5 @@
 att_status_t att_kf_settings_check(const att_kf_settings_t *s, att_settings_error_t *why)
 {
     ATT_KF_CHECKS(ATT_KF_WHY)
-    if (s->noise_rates) {
-        ATT_KF_RATE_CHECKS(ATT_KF_WHY)
-    }
     return ATT_OK;
 }

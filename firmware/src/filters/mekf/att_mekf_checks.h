@@ -28,8 +28,8 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
 /*
  * The settings contract (att_mekf.h), in the order of the tests: att_mekf_settings_validate accepts
  * exactly the settings that pass every line, att_mekf_settings_check names the first line that fails
- * (att_core.h: ATT_CHECK_AND, ATT_CHECK_WHY). m0_init: each component within mag_range, then a norm of
- * at least 1e-3 unless zero (the header's |m0_init| <= mag_range is not what is tested).
+ * (att_core.h: ATT_CHECK_AND, ATT_CHECK_WHY). m0_init: zero, or its norm (as the mag sample check
+ * measures one) within [1e-3, mag_range].
  */
 #define ATT_MEKF_CHECKS(C)                                                                                    \
     ATT_CK_IN(C, dt, ATT_DT_MIN, ATT_DT_MAX, "[1e-6, 1]", "s")                                                 \
@@ -62,9 +62,8 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
     ATT_CK_BOOL(C, use_mag)                                                                                    \
     ATT_CK_BOOL(C, init_from_sensors)                                                                          \
     ATT_CK_QUAT(C, q_init)                                                                                     \
-    ATT_CK_VEC(C, m0_init, s->mag_range, "each component in [-mag_range, mag_range]", "uT")                    \
-    C("m0_init", att_mekf_vec3_is_zero(s->m0_init) || att_i_vec3_norm(s->m0_init) >= ATT_MEKF_M0_MIN,           \
-      ATT_MEKF_M0_MIN, INFINITY, "zero, or |m0_init| >= 1e-3", "uT")                                           \
+    ATT_CK_NORM0(C, m0_init, ATT_MEKF_M0_MIN, s->mag_range, "zero, or |m0_init| in [1e-3, mag_range]",         \
+                 "uT")                                                                                         \
     ATT_CK_VEC(C, bias_init, s->gyro_range, "each component in [-gyro_range, gyro_range]", "rad/s")
 
 #endif /* ATT_MEKF_CHECKS_H */
