@@ -179,6 +179,19 @@ static inline bool att_i_quat_init_ok(att_quat_t q)
     ATT_CK_IN(C, rest_accel, 0.0f, s->gravity, "[0, gravity]", "m/s^2")                                       \
     ATT_CK_IN(C, rest_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
 
+/** The sensor limits of every fusion filter: gravity, accel rejection and saturation, gyro range (lines). */
+#define ATT_CK_INERTIAL(C)                                                                                    \
+    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
+    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
+    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
+    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")
+
+/** The magnetometer limits of the 9-axis filters (lines; pi: the kind's float pi). */
+#define ATT_CK_MAG(C, pi)                                                                                     \
+    ATT_CK_OC(C, mag_range, 0.0f, ATT_MAG_RANGE_MAX, "(0, 1e5]", "uT")                                         \
+    ATT_CK_IN(C, mag_norm_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                        \
+    ATT_CK_IN(C, mag_dip_reject, 0.0f, pi, "[0, pi]", "rad")
+
 /** why (may be NULL) names field, its bounds and rule; returns ATT_ERR_SETTINGS (the checks' one exit). */
 static inline att_status_t att_i_settings_refused(att_settings_error_t *why, const char *field, float lo, float hi,
                                                  const char *rule, const char *unit)

@@ -5,6 +5,7 @@
  */
 #include "../math/att_fp.h"
 
+#include "../core/att_core.h"
 #include "../filters/att_kinds.h"
 
 #include <string.h>
@@ -29,19 +30,6 @@ typedef char att_node_check_gains[((int)ATT_GAIN_TAU_ACC == (int)ATT_CAN_GAIN_TA
                                    (int)ATT_GAIN_EKF_R == (int)ATT_CAN_GAIN_EKF_R)
                                       ? 1
                                       : -1];
-
-/* A bool field holds 0 or 1 (read as bytes: another value would make reading it undefined). */
-static bool att_i_bool_ok_node(const bool *b)
-{
-    const unsigned char *p = (const unsigned char *)b;
-    size_t i;
-    for (i = 1u; i < sizeof *b; i++) {
-        if (p[i] != 0u) {
-            return false;
-        }
-    }
-    return p[0] <= 1u;
-}
 
 /* att_config.h checks the ring sizes; this is the same bound written with att_node.h's name. */
 #if ATT_NODE_TX_RING < ATT_NODE_SET_MAX
@@ -73,9 +61,10 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
 }
 
 /*
- * The node's own settings, one line per condition (name, condition, bounds, rule, unit): att_node_init
- * accepts settings only when every line holds (att_node_rates_ok), and att_node_settings_check reports
- * the first line that fails, so the two cannot disagree. fd is checked as a bool first: reading a
+ * The node's own settings, one line per condition, in the form of the kinds' tables (att_core.h):
+ * att_node_init accepts settings only when every line holds (att_node_rates_ok, ATT_CHECK_AND), and
+ * att_node_settings_check reports the first line that fails (ATT_CHECK_WHY), so the two cannot
+ * disagree. fd is checked as a bool first: reading a
  * bool that holds another byte value would be undefined.
  */
 #define ATT_NODE_CHECKS(C)                                                                                    \
@@ -86,7 +75,7 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
     C("data_bitrate",                                                                                         \
       s->data_bitrate == 0u || (s->data_bitrate >= s->bitrate && s->data_bitrate <= ATT_NODE_MAX_DATA_BITRATE), \
       (float)s->bitrate, (float)ATT_NODE_MAX_DATA_BITRATE, "0 (classic only) or [bitrate, 16000000]", "bit/s") \
-    C("fd", att_i_bool_ok_node(&s->fd), 0.0f, 1.0f, "0 or 1 (bool)", "")                                     \
+    C("fd", att_i_bool_ok(&s->fd), 0.0f, 1.0f, "0 or 1 (bool)", "")                                          \
     C("fd", !s->fd || (s->data_bitrate != 0u && ATT_NODE_WITH_FD != 0), 0.0f, (float)ATT_NODE_WITH_FD,        \
       ATT_NODE_WITH_FD ? "true needs data_bitrate > 0" : "false (this build has no CAN FD: ATT_NODE_WITH_FD 0)", \
       "")                                                                                                     \
@@ -94,15 +83,13 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
       (float)ATT_NODE_ID_OFFSET_MIN, (float)ATT_NODE_ID_OFFSET_MAX, "[-256, 1279] (every ID stays 11-bit)", "") \
     C("output_divider", s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER, 1.0f,           \
       (float)ATT_NODE_MAX_DIVIDER, "[1, 65535]", "")                                                          \
-    C("accel_out", att_i_bool_ok_node(&s->accel_out), 0.0f, 1.0f, "0 or 1 (bool)", "")                       \
+    C("accel_out", att_i_bool_ok(&s->accel_out), 0.0f, 1.0f, "0 or 1 (bool)", "")                            \
     C("accel_out", ATT_WITH_CALIB || !s->accel_out, 0.0f, (float)ATT_WITH_CALIB,                              \
       ATT_WITH_CALIB ? "0 or 1 (bool)" : "false (this build has no stages: ATT_WITH_CALIB 0)", "")
 
-#define ATT_NODE_CK_AND(name, cond, lo, hi, rule, unit) &&(cond)
-
 static bool att_node_rates_ok(const att_node_settings_t *s)
 {
-    return true ATT_NODE_CHECKS(ATT_NODE_CK_AND);
+    return true ATT_NODE_CHECKS(ATT_CHECK_AND);
 }
 
 float att_node_bus_load(const att_node_settings_t *s)
@@ -220,33 +207,15 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     return ATT_OK;
 }
 
-#define ATT_NODE_CK_REPORT(name, cond, lo, hi, rule, unit)                                                   \
-    if (!(cond)) {                                                                                            \
-        return att_node_refused(why, name, lo, hi, rule, unit);                                               \
-    }
-
-static att_status_t att_node_refused(att_settings_error_t *why, const char *field, float lo, float hi,
-                                     const char *rule, const char *unit)
-{
-    if (why != NULL) {
-        why->field = field;
-        why->min = lo;
-        why->max = hi;
-        why->rule = rule;
-        why->unit = unit;
-    }
-    return ATT_ERR_SETTINGS;
-}
-
 att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_error_t *why)
 {
     att_status_t st;
     float load;
-    (void)att_node_refused(why, NULL, 0.0f, 0.0f, "", "");
+    (void)att_i_settings_refused(why, NULL, 0.0f, 0.0f, "", "");
     if (s == NULL) {
         return ATT_ERR_NULL;
     }
-    ATT_NODE_CHECKS(ATT_NODE_CK_REPORT)
+    ATT_NODE_CHECKS(ATT_CHECK_WHY)
     st = att_filter_settings_check(s->kind, &s->filter, why);
     if (st != ATT_OK) {
         return st;
@@ -255,17 +224,17 @@ att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_
     {
         const att_calib_error_t e = att_calib_settings_check(&s->calib);
         if (e != ATT_CALIB_OK) {
-            return att_node_refused(why, "calib", (float)e, (float)e, att_calib_error_name(e), "");
+            return att_i_settings_refused(why, "calib", (float)e, (float)e, att_calib_error_name(e), "");
         }
     }
 #endif
     if (!att_node_dt_matches(s)) {
-        return att_node_refused(why, "filter.dt", 0.999f / s->sample_rate, 1.001f / s->sample_rate,
+        return att_i_settings_refused(why, "filter.dt", 0.999f / s->sample_rate, 1.001f / s->sample_rate,
                                 "1 / sample_rate within 1e-3 (relative)", "s");
     }
     load = att_node_bus_load(s);
     if (!(load >= 0.0f) || load > 1.0f) {
-        return att_node_refused(why, "bus load", 0.0f, 1.0f,
+        return att_i_settings_refused(why, "bus load", 0.0f, 1.0f,
                                 "the periodic outputs need at most the whole bus (raise output_divider or "
                                 "bitrate, or use fd)",
                                 "");

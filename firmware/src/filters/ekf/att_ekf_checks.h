@@ -40,10 +40,7 @@ static inline bool att_ekf_noise_ok(float v)
     ATT_CK_IN(C, p_max, ATT_EKF_PMAX_MIN, ATT_EKF_VAR_MAX, "[1e-6, 1e6]", "rad^2")                             \
     ATT_CK_IN(C, p0, ATT_EKF_PMAX_MIN, s->p_max, "[1e-6, p_max]", "rad^2")                                     \
     ATT_CK_IN(C, p0_bias, ATT_EKF_NOISE_MIN, s->p_max, "[1e-20, p_max]", "(rad/s)^2")                          \
-    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
-    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
-    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
-    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")                                    \
+    ATT_CK_INERTIAL(C)                                                                                    \
     ATT_CK_OO(C, cos_min, 0.0f, 1.0f, "(0, 1)", "")                                                            \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
     ATT_CK_BOOL(C, init_from_accel)                                                                            \

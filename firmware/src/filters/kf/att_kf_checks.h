@@ -32,10 +32,7 @@ static inline bool att_kf_noise_valid(float v)
     ATT_CK_IN(C, r_accel, 0.0f, ATT_GAIN_C_MAX, "[0, 1e6]", "")                                                \
     ATT_CK_IN(C, gate, 0.0f, ATT_GAIN_C_MAX, "[0, 1e6]", "")                                                   \
     ATT_KF_NOISE(C, p0)                                                                                        \
-    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
-    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
-    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
-    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")                                    \
+    ATT_CK_INERTIAL(C)                                                                                    \
     ATT_CK_BIAS(C)                                                                                             \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
     ATT_CK_BOOL(C, init_from_accel)                                                                            \

@@ -32,13 +32,8 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, tau_mag, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                                  \
     C("mag_mode", s->mag_mode == ATT_MARS_MAG_HORIZONTAL || s->mag_mode == ATT_MARS_MAG_FULL, 0.0f, 1.0f,      \
       "HORIZONTAL (0) or FULL (1)", "")                                                                        \
-    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
-    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
-    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
-    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")                                    \
-    ATT_CK_OC(C, mag_range, 0.0f, ATT_MAG_RANGE_MAX, "(0, 1e5]", "uT")                                         \
-    ATT_CK_IN(C, mag_norm_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                        \
-    ATT_CK_IN(C, mag_dip_reject, 0.0f, ATT_MARS_PI_F, "[0, pi]", "rad")                                        \
+    ATT_CK_INERTIAL(C)                                                                                    \
+    ATT_CK_MAG(C, ATT_MARS_PI_F)                                                                           \
     ATT_CK_BIAS(C)                                                                                             \
     ATT_CK_BOOL(C, init_from_sensors)                                                                          \
     ATT_CK_QUAT(C, q_init)                                                                                     \

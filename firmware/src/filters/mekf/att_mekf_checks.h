@@ -45,13 +45,8 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, p_max, ATT_MEKF_PMAX_MIN, ATT_MEKF_PMAX_MAX, "[1e-6, 1000]", "rad^2")                         \
     ATT_CK_IN(C, p0_att, ATT_MEKF_VAR_MIN, s->p_max, "[1e-12, p_max]", "rad^2")                                \
     ATT_CK_IN(C, p0_bias, ATT_MEKF_VAR_MIN, ATT_MEKF_PBIAS_MAX, "[1e-12, 100]", "(rad/s)^2")                   \
-    ATT_CK_IN(C, gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                               \
-    ATT_CK_IN(C, accel_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                           \
-    ATT_CK_OC(C, accel_range, s->gravity, ATT_ACCEL_RANGE_MAX, "(gravity, 1e4]", "m/s^2")                      \
-    ATT_CK_OC(C, gyro_range, 0.0f, ATT_GYRO_RANGE_MAX, "(0, 1e3]", "rad/s")                                    \
-    ATT_CK_OC(C, mag_range, 0.0f, ATT_MAG_RANGE_MAX, "(0, 1e5]", "uT")                                         \
-    ATT_CK_IN(C, mag_norm_reject, 0.0f, ATT_REJECT_MAX, "[0, 1e3]", "")                                        \
-    ATT_CK_IN(C, mag_dip_reject, 0.0f, ATT_MEKF_PI_F, "[0, pi]", "rad")                                        \
+    ATT_CK_INERTIAL(C)                                                                                    \
+    ATT_CK_MAG(C, ATT_MEKF_PI_F)                                                                           \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
     ATT_CK_IN(C, rest_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f, "[1e-7, 1]", "rad/s/sqrt(Hz)")                     \
     ATT_CK_IN(C, rest_gyro, 0.0f, s->gyro_range, "[0, gyro_range]", "rad/s")                                   \
