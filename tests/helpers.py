@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -103,3 +105,20 @@ def adversarial_floats(n: int, seed: int) -> np.ndarray:
     idx = rng.integers(0, n, n // 4)
     out[idx] = sv[rng.integers(0, sv.size, idx.size)]
     return out
+
+
+HOST_ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+"""The environment of a subprocess that imports attica from this checkout."""
+
+
+def cantools_decode(log: Path, dbc: Path) -> list[str]:
+    """``cantools decode --single-line DBC < LOG`` (cantools' own command line): its output lines."""
+    with open(log) as fh:
+        return subprocess.run(
+            [sys.executable, "-m", "cantools", "decode", "--single-line", str(dbc)],
+            stdin=fh,
+            capture_output=True,
+            text=True,
+            check=True,
+            env=HOST_ENV,
+        ).stdout.splitlines()

@@ -35,7 +35,7 @@ from attica.can.verify import INPUT_FAULTS, assemble, frames_of, verify_frames, 
 from attica.settings import FilterKind
 from attica.sim import SimConfig, simulate
 
-from helpers import ROOT, need
+from helpers import ROOT, cantools_decode, need
 
 RATE = 285.714
 ENV = {**os.environ, "PYTHONPATH": str(ROOT / "host") + os.pathsep + os.environ.get("PYTHONPATH", "")}
@@ -589,15 +589,7 @@ def test_monitor_logs_round_trip_and_cantools_agrees(tmp_path: Path, fd: bool) -
     assert rep.input_faults["dlc_errors"] == 1 and rep.corrupted == 1  # the bad frames at the end
     # cantools decode (its CLI) and the monitor (its CLI) decode every frame the same
     dbc = ROOT / "firmware" / "can" / "attica.dbc"
-    with open(paths[".log"]) as fh:
-        ref = subprocess.run(
-            [sys.executable, "-m", "cantools", "decode", "--single-line", str(dbc)],
-            stdin=fh,
-            capture_output=True,
-            text=True,
-            check=True,
-            env=ENV,
-        ).stdout.splitlines()
+    ref = cantools_decode(paths[".log"], dbc)
     mon = subprocess.run(
         [sys.executable, "-m", "attica.cli", "monitor", "--log", str(paths[".log"])],
         capture_output=True,

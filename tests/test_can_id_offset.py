@@ -47,7 +47,7 @@ from attica.native import lib
 from attica.settings import FilterKind
 from attica.sim import SimConfig, simulate
 
-from helpers import ROOT
+from helpers import ROOT, cantools_decode
 
 RATE = 285.714
 OFFSET = 0x20
@@ -416,15 +416,7 @@ def test_monitor_an_offset_log(offset_log: Path, tmp_path: Path) -> None:
 def test_cantools_decodes_an_offset_log_with_the_moved_dbc(offset_log: Path, tmp_path: Path) -> None:
     dbc = tmp_path / "moved.dbc"
     assert main(["dbc", "--id-offset", "0x20", "-o", str(dbc)]) == 0
-    with open(offset_log) as fh:
-        ref = subprocess.run(
-            [sys.executable, "-m", "cantools", "decode", "--single-line", str(dbc)],
-            stdin=fh,
-            capture_output=True,
-            text=True,
-            check=True,
-            env=ENV,
-        ).stdout.splitlines()
+    ref = cantools_decode(offset_log, dbc)
     ours = _monitor("--log", str(offset_log), "--id-offset", "0x20").stdout.splitlines()
     assert len(ref) == len(ours) > 0
     for line, theirs in zip(ours, ref):
@@ -437,13 +429,5 @@ def test_cantools_decodes_an_offset_log_with_the_moved_dbc(offset_log: Path, tmp
         assert t_values.keys() == values.keys()
         assert all(same_value(values[k], t_values[k].split(" ")[0]) for k in values), (line, theirs)
     # the original DBC knows none of these IDs
-    with open(offset_log) as fh:
-        plain = subprocess.run(
-            [sys.executable, "-m", "cantools", "decode", "--single-line", str(resources.dbc_path())],
-            stdin=fh,
-            capture_output=True,
-            text=True,
-            check=True,
-            env=ENV,
-        ).stdout.splitlines()
+    plain = cantools_decode(offset_log, resources.dbc_path())
     assert not any(re.search(r" :: \w+\(", ln) for ln in plain)

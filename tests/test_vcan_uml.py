@@ -40,7 +40,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import IN_CI, ROOT, need
+from helpers import IN_CI, ROOT, cantools_decode, need
 
 UML = shutil.which("linux.uml") or ("/usr/bin/linux.uml" if os.path.exists("/usr/bin/linux.uml") else None)
 BOOT = ROOT / "tests" / "uml" / "boot.sh"
@@ -264,15 +264,7 @@ def _cantools_vs_monitor(log: Path, id_offset: str = "0") -> int:
             check=True,
             env=ENV,
         )
-    with open(log) as fh:
-        ref = subprocess.run(
-            [sys.executable, "-m", "cantools", "decode", "--single-line", str(dbc)],
-            stdin=fh,
-            capture_output=True,
-            text=True,
-            check=True,
-            env=ENV,
-        ).stdout.splitlines()
+    ref = cantools_decode(log, dbc)
     ours = subprocess.run(
         [sys.executable, "-m", "attica.cli", "monitor", "--log", str(log), "--id-offset", id_offset],
         capture_output=True,
