@@ -13,7 +13,6 @@ tests/test_quickstart.py checks the targets.
 
 from __future__ import annotations
 
-import re
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -63,23 +62,20 @@ def build(out: Path = OUT) -> Path:
 
 def measure(out: Path = OUT) -> AppSizes:
     """Build and attribute the application's image."""
-    map_file = build(out)
-    lib = map_sizes(map_file)
+    sizes = map_sizes(build(out))
     port, app = Sizes(), Sizes()
-    text = map_file.read_text()
-    start = text.index("Linker script and memory map")
-    for m in re.finditer(
-        r"^ (\.\S+)\s*(?:\n\s+)?(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+(\S+\.o)$", text[start:], re.M
-    ):
-        sec, size, origin = m.group(1), int(m.group(3), 16), Path(m.group(4))
-        if "(" in origin.name or int(m.group(2), 16) == 0 and size == 0:
+    for origin, s in sizes.other_objects.items():
+        obj = Path(origin)
+        if obj.parent.name == "ports" and obj.stem in PORT_OBJECTS:
+            target = port
+        elif obj.parent == out:
+            target = app
+        else:
             continue
-        stem = origin.stem
-        if origin.parent.name == "ports" and stem in PORT_OBJECTS:
-            port.add(sec, size)
-        elif origin.parent == out:
-            app.add(sec, size)
-    return AppSizes(lib.attica, port, app, lib.libc, out / "can_node.elf")
+        target.text += s.text
+        target.data += s.data
+        target.bss += s.bss
+    return AppSizes(sizes.attica, port, app, sizes.libc, out / "can_node.elf")
 
 
 def report(s: AppSizes) -> str:

@@ -221,11 +221,21 @@ class ConfigSizes:
     types: dict[str, int]
 
 
-def config_sizes(opt: str = "-Os", out: Path = OUT, names: Sequence[str] | None = None) -> list[ConfigSizes]:
-    """Library .text/.data/.bss of the images of each configuration (CONFIGS), and state sizes."""
+def config_sizes(
+    opt: str = "-Os",
+    out: Path = OUT,
+    names: Sequence[str] | None = None,
+    configs: dict[str, tuple[list[str], str, int]] | None = None,
+) -> list[ConfigSizes]:
+    """Library .text/.data/.bss of the images of each configuration, and state sizes.
+
+    ``configs``: name -> (att_config.h flags, the kind the image runs, ATT_IMAGE), :data:`CONFIGS` by
+    default; ``names`` chooses some of them.
+    """
+    configs = CONFIGS if configs is None else configs
     result = []
-    for name in names if names is not None else CONFIGS:
-        defines, kind, image = CONFIGS[name]
+    for name in names if names is not None else configs:
+        defines, kind, image = configs[name]
         slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
         d = out / "configs" / f"{slug}{opt}"
         objs = cross.library_objects(opt, d / "obj", defines=defines)
@@ -287,6 +297,8 @@ class ImageSizes:
     """newlib, libgcc (memcpy, memset, compiler helpers)."""
     other: Sizes = field(default_factory=Sizes)
     """start-up, the image's main, state."""
+    other_objects: dict[str, Sizes] = field(default_factory=dict)
+    """``other`` by input object (its path as the map names it)."""
     libc_symbols: set[str] = field(default_factory=set)
 
 
@@ -342,6 +354,7 @@ def map_sizes(map_file: Path, archive: str = "libattica", members: set[str] | No
                 out.libc_symbols.add(f"{member.group(1)}{'' if name in ('text', '') else ':' + name}")
         else:
             out.other.add(sec, size)
+            out.other_objects.setdefault(origin, Sizes()).add(sec, size)
     return out
 
 

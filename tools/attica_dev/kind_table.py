@@ -29,7 +29,7 @@ from pathlib import Path
 
 from attica import _build
 from attica.kinds import KINDS, KindInfo
-from attica_dev import cross, cycles, footprint
+from attica_dev import cycles, footprint
 
 ROOT = _build.ROOT
 DOC = ROOT / "docs" / "firmware-quickstart.md"
@@ -53,19 +53,11 @@ class KindRow:
 
 def sizes(kinds: Sequence[KindInfo] = KINDS, out: Path = OUT) -> dict[str, tuple[int, int]]:
     """Label -> (library .text of the kind's image, sizeof att_filter_t), M4F -Os, the kind alone."""
-    result = {}
-    for k in kinds:
-        name = k.kind.name
-        defines = footprint.only(name, calib=False)
-        d = out / k.label
-        objs = cross.library_objects("-Os", d / "obj", defines=defines)
-        lib = cross.archive(objs, d / "libattica.a")
-        _, map_file = footprint.link_image(
-            f"{k.label} alone", 13, lib, "-Os", d, defines=[*defines, f"-DATT_IMAGE_KIND=ATT_FILTER_{name}"]
-        )
-        ram = footprint.sizeof(["att_filter_t"], defines, d)["att_filter_t"]
-        result[k.label] = (footprint.map_sizes(map_file).attica.text, ram)
-    return result
+    configs = {k.label: (footprint.only(k.kind.name, calib=False), k.kind.name, 13) for k in kinds}
+    return {
+        c.name: (c.sizes.attica.text, c.types["att_filter_t"])
+        for c in footprint.config_sizes("-Os", out, configs=configs)
+    }
 
 
 def instructions(out: Path = OUT) -> dict[str, float]:
