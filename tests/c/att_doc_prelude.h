@@ -7,7 +7,8 @@
  *   about x (rad/s, m/s^2, uT; sensor frame; the field of a place at 60 deg dip, north along +y);
  * - your CAN driver: can_receive / can_tx_free / can_send exchange frames with a simulated host that
  *   sends that IMU's samples as IMU_GYRO/ACC/MAG frames and decodes the node's outputs;
- * - your application: publish(q, v, flags) keeps the last values.
+ * - your application: publish(q, v, flags) keeps the last values; log_refused(field, rule, unit) prints
+ *   a refused setting.
  * After ATT_DOC_SAMPLES samples the program ends (exit 0) and prints one report line:
  *   "report samples=N published=P q=w,x,y,z v=x,y,z flags=0x.. sent=S quat_frames=Q"
  * att_doc_fail() stands for the "{ ... }" of an error branch: reaching it prints and exits 3.
@@ -99,6 +100,12 @@ static void publish(att_quat_t q, att_vec3_t v, uint32_t flags)
     att_doc_q = q;
     att_doc_v = v;
     att_doc_flags = flags;
+}
+
+/** Your log: a refused setting, its rule and unit (prints "field: rule unit"). */
+static void log_refused(const char *field, const char *rule, const char *unit)
+{
+    printf("%s: %s %s\n", field, rule, unit);
 }
 
 /* --- a simulated CAN bus with a host that sends IMU frames and reads the outputs ------------------- */

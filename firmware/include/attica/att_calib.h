@@ -14,7 +14,7 @@
  * cs.remap = att_calib_remap_parse("+y+x-z");           // the board is mounted rotated
  * cs.convention = ATT_CONV_NED;
  * if (att_filter_calibrate(&f, &cs) != ATT_OK) {        // refused: the filter is unchanged
- *     printf("%s\n", att_calib_error_name(att_calib_settings_check(&cs)));   // "gyro matrix" ...
+ *     log_refused("calib", att_calib_error_name(att_calib_settings_check(&cs)), "");   // "gyro matrix" ...
  * }
  * @endcode
  *

@@ -200,7 +200,7 @@ att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filt
  * att_filter_settings_default(ATT_FILTER_ARS, 0.01f, &s);
  * s.ars.tau_acc_lp = -1.0f;                       // out of range
  * if (att_filter_settings_check(ATT_FILTER_ARS, &s, &why) == ATT_ERR_SETTINGS) {
- *     printf("%s: %s %s\n", why.field, why.rule, why.unit);   // "ars.tau_acc_lp: [0, 1e4] s"
+ *     log_refused(why.field, why.rule, why.unit);   // your log: "ars.tau_acc_lp", "[0, 1e4]", "s"
  * }
  * @endcode
  *

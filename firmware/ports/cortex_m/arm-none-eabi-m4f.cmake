@@ -1,9 +1,8 @@
 # CMake toolchain file: Cortex-M4F with the GNU Arm Embedded toolchain (arm-none-eabi-gcc). From the
 # repository root (docs/integration.md; tests/test_cross.py runs this line as written):
-#   cmake -S firmware -B build/m4f -DCMAKE_TOOLCHAIN_FILE=firmware/ports/cortex_m/arm-none-eabi-m4f.cmake
-# A relative path works there because firmware/CMakeLists.txt resolves it from the directory cmake runs
-# in; cmake itself looks for a relative toolchain file in the build directory, then the source
-# directory. In a project of your own give an absolute path, e.g.
+#   cmake -S firmware -B build/m4f -DCMAKE_TOOLCHAIN_FILE="$PWD/firmware/ports/cortex_m/arm-none-eabi-m4f.cmake"
+# Always an absolute path: cmake looks for a relative toolchain file in the build directory. From an
+# installed attica:
 #   -DCMAKE_TOOLCHAIN_FILE="$(attica paths --firmware)/ports/cortex_m/arm-none-eabi-m4f.cmake"
 set(CMAKE_SYSTEM_NAME Generic)
 set(CMAKE_SYSTEM_PROCESSOR arm)
