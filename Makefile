@@ -15,7 +15,7 @@ all: build
 $(STAMP): pyproject.toml setup.py firmware/include/attica/att_version.h
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev,eval,peers]'
+	$(PY) -m pip install -q -e '.[dev,eval,peers,recordings,dask]'
 	@touch $(STAMP)
 
 setup: $(STAMP)
