@@ -127,6 +127,12 @@ def filter_settings(
 
     """
     k = FilterKind.parse(kind)
+    if "dt" in overrides:  # retune(dt=...) and Filter(kind, settings=s, dt=...) name the period as a field
+        overrides = dict(overrides)
+        field_dt = overrides.pop("dt")
+        if dt is not None and field_dt is not None and field_dt != dt:
+            raise TypeError(f"{who}: dt given twice ({dt!r} and dt={field_dt!r})")
+        dt = field_dt if field_dt is not None else dt
     if dt is not None and not _is_real(dt):
         if dataclasses.is_dataclass(dt) and not isinstance(dt, type):
             if settings is not None:

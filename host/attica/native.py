@@ -46,6 +46,10 @@ def _load() -> tuple[Any, Any]:
 ffi, lib = _load()
 
 
+_STEP_BLOCK = 256
+"""Output records allocated at once by :meth:`Filter.step`."""
+
+
 def _f32(x: Any) -> NDArray[np.float32]:
     return np.ascontiguousarray(x, dtype=np.float32)
 
@@ -367,7 +371,13 @@ class Filter:
         what = f"att_filter_init({self.kind.label})"
         _check_settings(self.kind, self._s, what)
         _check(lib.att_filter_init(self._f, int(self.kind), self._s), what)
-        self._in = ffi.new("att_sample_t *")
+        self._block: Outputs
+        self._block_ptr: Any
+        self._slot: int
+        self._new_block()
+        self._last = np.zeros((), OUTPUT_DTYPE).view(Outputs)
+        self._last_plain = self._last.view(np.ndarray)
+        self._last_ptr = ffi.from_buffer("att_output_t *", self._last)
         if calibration is not None or accel_outputs:
             self.calibrate(calibration, float(getattr(self.settings, "gravity", 9.80665)), accel_outputs)
 
@@ -418,24 +428,86 @@ class Filter:
         lib.att_filter_output(self._f, ffi.from_buffer("att_output_t[]", out))
         return as_outputs(out)
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True) -> Outputs:
+    def step(self, gyr: Any, acc: Any, mag: Any = None, full: bool = True, n: int = 1) -> Outputs:
         """One step; 3-sequences gyr (rad/s), acc (m/s^2), mag (uT, None = absent). Returns a record.
 
         With ``full`` (default) the record is the whole att_filter_output after the step (Euler angles
         and covariance included); otherwise only what att_filter_step fills (see the ``valid`` field).
+        ``n`` > 1: ``att_filter_step_n``, the sample held over n periods after n - 1 lost samples (its
+        flags are the OR over them).
+
+        The per-sample path for live loops: one C call with the nine values, the record a slot of a
+        block allocated every 256 steps (each returned record is its own memory; a kept record keeps
+        its block alive).
         """
+        if n != 1 and (type(n) is not int or not 1 <= n <= 0xFFFFFFFF):
+            self._step_args(gyr, acc, mag, n)
+        try:
+            gx, gy, gz = gyr.tolist() if type(gyr) is np.ndarray else gyr
+            ax, ay, az = acc.tolist() if type(acc) is np.ndarray else acc
+            if mag is None:
+                mx = my = mz = 0.0
+            else:
+                mx, my, mz = mag.tolist() if type(mag) is np.ndarray else mag
+            i = self._slot
+            if i == _STEP_BLOCK:
+                self._new_block()
+                i = 0
+            self._slot = i + 1
+            lib.att_host_step9(
+                self._f, gx, gy, gz, ax, ay, az, mx, my, mz, n, 1 if full else 0, self._block_ptr + i
+            )
+        except (TypeError, ValueError, OverflowError):
+            self._step_args(gyr, acc, mag, n)
+            raise
+        return self._block[i, ...]  # type: ignore[no-any-return]
+
+    def update(self, gyr: Any, acc: Any, mag: Any = None, n: int = 1) -> int:
+        """One step, the lean per-sample path (as vqf's ``update``): returns the ATT_FLAG_* bits.
+
+        The same step as :meth:`step` with ``full=False``; the record stays in the filter: :attr:`last`
+        (overwritten by the next update), :attr:`quat` its attitude. For live loops in Python that
+        read the attitude now and then; :meth:`step` returns a record of its own every call.
+        """
+        if n != 1 and (type(n) is not int or not 1 <= n <= 0xFFFFFFFF):
+            self._step_args(gyr, acc, mag, n)
+        try:
+            gx, gy, gz = gyr.tolist() if type(gyr) is np.ndarray else gyr
+            ax, ay, az = acc.tolist() if type(acc) is np.ndarray else acc
+            if mag is None:
+                mx = my = mz = 0.0
+            else:
+                mx, my, mz = mag.tolist() if type(mag) is np.ndarray else mag
+            return lib.att_host_step9(  # type: ignore[no-any-return]
+                self._f, gx, gy, gz, ax, ay, az, mx, my, mz, n, 0, self._last_ptr
+            )
+        except (TypeError, ValueError, OverflowError):
+            self._step_args(gyr, acc, mag, n)
+            raise
+
+    @property
+    def last(self) -> Outputs:
+        """The record of the last :meth:`update` (live: the next update overwrites it; copy to keep)."""
+        return self._last
+
+    @property
+    def quat(self) -> NDArray[np.float32]:
+        """The attitude after the last :meth:`update`: (4,) float32 w, x, y, z sensor-to-earth (a copy)."""
+        return self._last_plain["q"].copy()
+
+    def _new_block(self) -> None:
+        self._block = np.zeros(_STEP_BLOCK, OUTPUT_DTYPE).view(Outputs)
+        self._block_ptr = ffi.from_buffer("att_output_t[]", self._block)
+        self._slot = 0
+
+    def _step_args(self, gyr: Any, acc: Any, mag: Any, n: Any) -> None:
+        """Raise the error that says what is wrong with step()'s arguments (if anything is)."""
         for name, v in (("gyr", gyr), ("acc", acc), ("mag", mag if mag is not None else (0.0, 0.0, 0.0))):
             a = _f32(v)
             if a.shape != (3,):
                 raise ValueError(f"{name} must have 3 components, got shape {a.shape}")
-            dst = getattr(self._in, name)
-            dst.x, dst.y, dst.z = float(a[0]), float(a[1]), float(a[2])
-        out = np.zeros((), OUTPUT_DTYPE)
-        buf = ffi.from_buffer("att_output_t[]", out)
-        lib.att_filter_step(self._f, self._in, buf)
-        if full:
-            lib.att_filter_output(self._f, buf)
-        return as_outputs(out)
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 0xFFFFFFFF:
+            raise ValueError(f"n must be a whole number of periods >= 1, got {n!r}")
 
     def retune(self, settings: Any = None, **changes: Any) -> None:
         """New settings, the state kept: ``att_filter_retune`` (the attitude, bias and rest memories go on).
@@ -486,6 +558,7 @@ class Filter:
         snapshot_every: int = 0,
         full: bool = True,
         check_units: bool = True,
+        steps: Any = None,
     ) -> Any:
         """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
 
@@ -507,11 +580,15 @@ class Filter:
         check_units
             Warn (:class:`attica.UnitWarning`) when the median magnitudes look like deg/s, g, gauss or
             nT; False skips the check.
+        steps
+            (N,) integers >= 1: the sample periods each row advances (``att_filter_step_n``: n after n - 1
+            lost samples, e.g. :attr:`attica.data.Recording.steps`); that row's flags are the OR over
+            them. None: 1 each.
 
         Raises
         ------
         ValueError
-            Inputs not all of shape (N, 3) with the same N.
+            Inputs not all of shape (N, 3) with the same N; steps of another length or below 1.
         TypeError
             Inputs that are not real numbers (bool, complex, object, text).
 
@@ -520,6 +597,7 @@ class Filter:
         g, a, m = imu_arrays(gyr, acc, mag, who)
         if check_units:
             warn_units(g, a, m, who)
+        st = step_counts(steps, g.shape[0], who)
         out = np.zeros(g.shape[0], OUTPUT_DTYPE)
         every = max(int(snapshot_every), 0)
         snaps = ffi.new("att_filter_t[]", -(-g.shape[0] // every)) if every else ffi.NULL
@@ -528,6 +606,7 @@ class Filter:
             _fptr(g),
             _fptr(a),
             _fptr(m) if m is not None else ffi.NULL,
+            ffi.from_buffer("uint32_t[]", st) if st is not None else ffi.NULL,
             g.shape[0],
             ffi.from_buffer("att_output_t[]", out),
             1 if full else 0,
@@ -548,6 +627,7 @@ class Filter:
         flags: Literal[False] = ...,
         out: NDArray[np.float32] | None = ...,
         check_units: bool = ...,
+        steps: Any = ...,
     ) -> NDArray[np.float32]: ...
 
     @overload
@@ -560,6 +640,7 @@ class Filter:
         flags: Literal[True],
         out: NDArray[np.float32] | None = ...,
         check_units: bool = ...,
+        steps: Any = ...,
     ) -> tuple[NDArray[np.float32], NDArray[np.uint32]]: ...
 
     def run_q(
@@ -571,6 +652,7 @@ class Filter:
         flags: bool = False,
         out: NDArray[np.float32] | None = None,
         check_units: bool = True,
+        steps: Any = None,
     ) -> NDArray[np.float32] | tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """N steps in C returning only the attitude: the lean batch path, for throughput.
 
@@ -593,6 +675,8 @@ class Filter:
             return), e.g. to reuse one buffer over chunks of a long stream; must not overlap the inputs.
         check_units
             Warn (:class:`attica.UnitWarning`) when the inputs look like deg/s, g, gauss or nT.
+        steps
+            (N,) integers >= 1, the sample periods each row advances (as for :meth:`run`); None: 1 each.
 
         Returns
         -------
@@ -617,6 +701,7 @@ class Filter:
         g, a, m = imu_arrays(gyr, acc, mag, who)
         n = g.shape[0]
         q = _q_buffer(out, n, (g, a, m), who)
+        st = step_counts(steps, n, who)
         if check_units:
             warn_units(g, a, m, who)
         fl = np.empty(n, np.uint32) if flags else None
@@ -625,6 +710,7 @@ class Filter:
             _fptr(g),
             _fptr(a),
             _fptr(m) if m is not None else ffi.NULL,
+            ffi.from_buffer("uint32_t[]", st) if st is not None else ffi.NULL,
             n,
             _fptr(q),
             ffi.from_buffer("uint32_t[]", fl) if fl is not None else ffi.NULL,
@@ -632,6 +718,30 @@ class Filter:
         if fl is not None:
             return q, fl
         return q
+
+
+def step_counts(steps: Any, n: int, who: str) -> NDArray[np.uint32] | None:
+    """``steps`` as a C-contiguous (n,) uint32 array of periods per row (None stays None).
+
+    Raises
+    ------
+    ValueError
+        Another length, a value below 1 or above ``ATT_FILTER_STEP_N_MAX``, or not integers.
+
+    """
+    if steps is None:
+        return None
+    arr = np.asarray(steps)
+    if arr.shape != (n,):
+        raise ValueError(f"{who}: steps must have shape ({n},), got {arr.shape}")
+    if arr.dtype.kind not in "iu":
+        if arr.dtype.kind != "f" or not np.all(np.isfinite(arr)) or np.any(arr != np.rint(arr)):
+            raise ValueError(f"{who}: steps must be whole numbers of sample periods")
+    if n and (arr.min() < 1 or arr.max() > lib.ATT_FILTER_STEP_N_MAX):
+        raise ValueError(
+            f"{who}: steps must be in 1..{lib.ATT_FILTER_STEP_N_MAX}, got {arr.min()}..{arr.max()}"
+        )
+    return np.ascontiguousarray(arr, dtype=np.uint32)
 
 
 def _q_buffer(out: Any, n: int, inputs: tuple[Any, ...], who: str) -> NDArray[np.float32]:

@@ -228,6 +228,17 @@ void att_filter_reset(att_filter_t *f);
  * (ATT_FLAG_BAD_ARG for NULL/uninitialised).
  */
 uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *out);
+/** The largest n of att_filter_step_n; a larger n is clamped to it (ATT_FLAG_CLAMPED). */
+enum { ATT_FILTER_STEP_N_MAX = 65535 };
+/**
+ * A step after n sample periods (n - 1 samples lost, e.g. an E2E counter gap or a timestamp gap): the
+ * sample is held over the n periods, so the kind's fixed-period step runs n times on it (the gyro is
+ * integrated over the whole gap, the corrections act for as long as they would have). Returns the OR
+ * of the n steps' flags; out (may be NULL) gets the last step's fields with those flags. n = 1 is
+ * att_filter_step; n = 0 does nothing and returns ATT_FLAG_BAD_ARG (out cleared); n above
+ * ATT_FILTER_STEP_N_MAX is clamped and flagged ATT_FLAG_CLAMPED. Costs n steps.
+ */
+uint32_t att_filter_step_n(att_filter_t *f, const att_sample_t *in, uint32_t n, att_output_t *out);
 /** The whole output record of the current state (flags and steps of the last step), valid = ATT_OUT_ALL. */
 void att_filter_output(const att_filter_t *f, att_output_t *out);
 /**

@@ -358,6 +358,27 @@ uint32_t att_filter_step(att_filter_t *f, const att_sample_t *in, att_output_t *
     return att_filter_step_slow(f, in, out);
 }
 
+uint32_t att_filter_step_n(att_filter_t *f, const att_sample_t *in, uint32_t n, att_output_t *out)
+{
+    uint32_t flags = 0u;
+    uint32_t k;
+    if (n == 0u) {
+        return att_filter_bad_arg(out);
+    }
+    if (n > (uint32_t)ATT_FILTER_STEP_N_MAX) {
+        n = (uint32_t)ATT_FILTER_STEP_N_MAX;
+        flags = (uint32_t)ATT_FLAG_CLAMPED;
+    }
+    for (k = 1u; k < n; k++) {
+        flags |= att_filter_step(f, in, NULL);
+    }
+    flags |= att_filter_step(f, in, out);
+    if (out != NULL) {
+        out->flags = flags;
+    }
+    return flags;
+}
+
 /* --- input and output stages ----------------------------------------------------------------- */
 
 att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s)

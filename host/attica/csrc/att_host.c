@@ -179,22 +179,36 @@ static ATT_HOST_INLINE void att_host_sample_load(att_sample_t *in, const float *
     }
 }
 
-/* Steps i0 .. i1 - 1 into the records out[i0 .. i1 - 1]. */
+/* Steps i0 .. i1 - 1 into the records out[i0 .. i1 - 1]; steps (or NULL: 1 each) periods per row. */
 static void att_host_run_records(att_filter_t *f, att_sample_t *in, const float *gyr, const float *acc,
-                                 const float *mag, size_t i0, size_t i1, att_output_t *out, int full)
+                                 const float *mag, const uint32_t *steps, size_t i0, size_t i1,
+                                 att_output_t *out, int full)
 {
     size_t i;
+    if (steps == NULL) {
+        for (i = i0; i < i1; i++) {
+            att_host_sample_load(in, gyr, acc, mag, i);
+            (void)att_filter_step(f, in, out + i);
+            if (full != 0) {
+                att_filter_output(f, out + i);
+            }
+        }
+        return;
+    }
     for (i = i0; i < i1; i++) {
+        uint32_t flags;
         att_host_sample_load(in, gyr, acc, mag, i);
-        (void)att_filter_step(f, in, out + i);
+        flags = att_filter_step_n(f, in, steps[i], out + i);
         if (full != 0) {
             att_filter_output(f, out + i);
+            out[i].flags = flags; /* the OR over the n steps, as att_filter_step_n reports it */
         }
     }
 }
 
-size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out, int full, size_t every, att_filter_t *snaps)
+size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
+                           const uint32_t *steps, size_t n, att_output_t *out, int full, size_t every,
+                           att_filter_t *snaps)
 {
     size_t i;
     att_sample_t in;
@@ -203,20 +217,20 @@ size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, 
     }
     att_host_sample_clear(&in);
     if (snaps == NULL || every == 0u) {
-        att_host_run_records(f, &in, gyr, acc, mag, 0u, n, out, full);
+        att_host_run_records(f, &in, gyr, acc, mag, steps, 0u, n, out, full);
         return n;
     }
     /* a snapshot, then a run of every steps without a test per step */
     for (i = 0u; i < n; i += every) {
         const size_t end = (n - i > every) ? i + every : n;
         snaps[i / every] = *f;
-        att_host_run_records(f, &in, gyr, acc, mag, i, end, out, full);
+        att_host_run_records(f, &in, gyr, acc, mag, steps, i, end, out, full);
     }
     return n;
 }
 
-size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                             float *q, uint32_t *flags)
+size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
+                             const uint32_t *steps, size_t n, float *q, uint32_t *flags)
 {
     size_t i;
     att_sample_t in;
@@ -228,7 +242,11 @@ size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc
     for (i = 0u; i < n; i++) {
         float *qi = q + 4u * i;
         att_host_sample_load(&in, gyr, acc, mag, i);
-        (void)att_filter_step(f, &in, &o);
+        if (steps == NULL) {
+            (void)att_filter_step(f, &in, &o);
+        } else {
+            (void)att_filter_step_n(f, &in, steps[i], &o);
+        }
         if ((o.valid & ATT_OUT_Q) == 0u) {
             /* the Euler-state EKF: q on request, exactly as att_filter_output derives it */
             o.q = att_quat_from_euler(o.euler.x, o.euler.y, o.euler.z);
@@ -242,4 +260,33 @@ size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc
         }
     }
     return n;
+}
+
+uint32_t att_host_step9(att_filter_t *f, float gx, float gy, float gz, float ax, float ay, float az, float mx,
+                        float my, float mz, uint32_t n, int full, att_output_t *out)
+{
+    att_sample_t in;
+    uint32_t flags;
+    in.gyr.x = gx;
+    in.gyr.y = gy;
+    in.gyr.z = gz;
+    in.acc.x = ax;
+    in.acc.y = ay;
+    in.acc.z = az;
+    in.mag.x = mx;
+    in.mag.y = my;
+    in.mag.z = mz;
+    flags = (n == 1u) ? att_filter_step(f, &in, out) : att_filter_step_n(f, &in, n, out);
+    if (out == NULL || (flags & (uint32_t)ATT_FLAG_BAD_ARG) != 0u) {
+        return flags;
+    }
+    if (full != 0) {
+        att_filter_output(f, out);
+        out->flags = flags;
+    } else if ((out->valid & ATT_OUT_Q) == 0u) {
+        /* the Euler-state EKF: q as att_filter_output derives it (as att_host_filter_run_q) */
+        out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
+        out->valid |= ATT_OUT_Q;
+    }
+    return flags;
 }

@@ -41,22 +41,34 @@ void att_host_atan2(const float *a, const float *b, float *y, size_t n);
 /** Row-wise kernel: in rows of in_width floats, out rows of out_width; -1 for bad fn/widths. */
 int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t out_width, size_t n);
 /**
- * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); out gets n records: the
+ * n steps of any filter: gyr, acc (n x 3); mag (n x 3) or NULL (absent); steps (n) the periods each row
+ * advances (att_filter_step_n; its flags are the OR over them), or NULL for 1 each; out gets n records: the
  * per-step fields of att_filter_step, or with full != 0 the whole record of att_filter_output after
  * each step. With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before
  * step j * every (ceil(n / every) snapshots). Returns n, or 0 when f or an input is NULL.
  */
-size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                           att_output_t *out, int full, size_t every, att_filter_t *snaps);
+size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
+                           const uint32_t *steps, size_t n, att_output_t *out, int full, size_t every,
+                           att_filter_t *snaps);
 /**
- * n steps of any filter, the lean batch: gyr, acc (n x 3); mag (n x 3) or NULL (absent). q (n x 4)
+ * n steps of any filter, the lean batch: gyr, acc (n x 3); mag (n x 3) or NULL (absent); steps as for
+ * att_host_filter_run (NULL: 1 each). q (n x 4)
  * gets the attitude after each step (w, x, y, z: the q of att_filter_output, bit for bit; the
  * Euler-state EKF's q is derived from its angles as att_filter_output does) and flags (n, or NULL)
  * the ATT_FLAG_* of each step. No output record is written. Returns n, or 0 when f, gyr, acc or q is
  * NULL (nothing done).
  */
-size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag, size_t n,
-                             float *q, uint32_t *flags);
+size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
+                             const uint32_t *steps, size_t n, float *q, uint32_t *flags);
+/**
+ * One step from nine floats (the Python binding's per-sample path: no sample struct to fill from
+ * Python): gyr (rad/s), acc (m/s^2), mag (uT; zeros: absent), n periods (att_filter_step_n; 1 is
+ * att_filter_step). With full != 0 out is the whole att_filter_output after the step, its flags the
+ * step's; else the step's fields, q always among them (the EKF's derived from its angles as
+ * att_filter_output does). Returns the flags.
+ */
+uint32_t att_host_step9(att_filter_t *f, float gx, float gy, float gz, float ax, float ay, float az, float mx,
+                        float my, float mz, uint32_t n, int full, att_output_t *out);
 /* ATT_CDEF_END */
 
 #endif /* ATT_HOST_H */

@@ -5,15 +5,27 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 import warnings
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.data import timing
 from attica.data.recording import _ACC, _GYR, _MAG, _QUAT, CSV_COLUMNS, PathLike, Recording
 
 _RATE_TOLERANCE = 0.01
+
+_TIME_NAME = re.compile(r"^(t|time|timestamp|stamp)([ _\[(].*)?$")
+
+
+def _time_column(header: list[str]) -> str | None:
+    """The time column: ``t``, ``time``, ``timestamp`` or ``stamp``, with an optional unit suffix."""
+    for name in header:
+        if _TIME_NAME.match(name):
+            return name
+    return None
 
 
 def _parse_bool(text: str) -> float:
@@ -133,7 +145,10 @@ def load_csv(path: PathLike) -> Recording:
             )
 
     body = "\n".join(lines[body_start:])
-    known = [c for c in CSV_COLUMNS if c in col]  # other columns are ignored
+    tcol = _time_column(header)
+    known = [c for c in CSV_COLUMNS if c in col and c != "t"]  # other columns are ignored
+    if tcol is not None:
+        known.insert(0, tcol)
     usecols = [col[c] for c in known]
     pos = {c: i for i, c in enumerate(known)}  # column of the table
     mov_j = col.get("movement")
@@ -142,6 +157,7 @@ def load_csv(path: PathLike) -> Recording:
         table = _slow_table(p, body, body_start, header, usecols, mov_j)
 
     def cols(names: tuple[str, ...]) -> NDArray[np.float64]:
+        assert table is not None
         return table[:, [pos[c] for c in names]]
 
     f32_max = float(np.finfo(np.float32).max)
@@ -167,23 +183,34 @@ def load_csv(path: PathLike) -> Recording:
             raise ValueError(f"{p}: cannot parse '# rate={meta['rate']}'") from None
         if not math.isfinite(rate) or rate <= 0.0:
             raise ValueError(f"{p}: rate must be finite and > 0, got {meta['rate']}")
-    if "t" in pos:
-        t = table[:, pos["t"]]
-        if t.size >= 2:
-            dt = np.diff(t)
-            if not np.all(np.isfinite(dt)) or np.any(dt <= 0.0):
-                raise ValueError(f"{p}: column t must be finite and strictly increasing")
-            rate_t = 1.0 / float(np.median(dt))
-            if rate is None:
-                rate = rate_t
-            elif abs(rate_t - rate) > _RATE_TOLERANCE * rate:
-                raise ValueError(f"{p}: '# rate={meta['rate']}' disagrees with column t ({rate_t:.6g} Hz)")
+    time: NDArray[np.float64] | None = None
+    clk: timing.Clock | None = None
+    if tcol is not None:
+        unit = meta.get("time_unit")
+        try:
+            clk = timing.clock(
+                table[:, pos[tcol]],
+                unit=unit,
+                rate=rate,
+                name=tcol,
+                source=f"{p.name} {tcol}",
+                default_unit="s",
+            )
+        except ValueError as exc:
+            raise ValueError(f"{p}: {exc}") from None
+        rate_t = clk.timing.rate if rate is None else 1.0 / float(np.median(np.diff(clk.time)))
+        if rate is None:
+            rate = rate_t
+        elif abs(rate_t - rate) > _RATE_TOLERANCE * rate:
+            raise ValueError(f"{p}: '# rate={meta['rate']}' disagrees with column {tcol} ({rate_t:.6g} Hz)")
+        table = table[clk.keep]
+        time = clk.time
     if rate is None:
         raise ValueError(f"{p}: no sampling rate: add a '# rate=<Hz>' line or a t column with >= 2 rows")
 
     groups = tuple(g.strip() for g in meta.get("groups", "").split(";") if g.strip())
     try:
-        return Recording(
+        rec = Recording(
             gyr=cols(_GYR).astype(np.float32),
             acc=cols(_ACC).astype(np.float32),
             mag=(cols(_MAG) if _MAG[0] in col else np.full((table.shape[0], 3), np.nan)).astype(np.float32),
@@ -192,6 +219,11 @@ def load_csv(path: PathLike) -> Recording:
             movement=table[:, pos["movement"]].astype(np.bool_) if "movement" in pos else None,
             name=meta.get("name", p.stem),
             groups=groups,
+            time=time,
+            timing=clk.timing if clk is not None else None,
         )
     except ValueError as exc:
         raise ValueError(f"{p}: {exc}") from None
+    if clk is not None:
+        timing.report(clk.timing)
+    return rec

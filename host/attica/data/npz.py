@@ -61,6 +61,7 @@ def load_npz(path: PathLike) -> Recording:
             rate=float(rate_arr.reshape(())),
             quat_true=data.get("opt_quat"),
             movement=data.get("movement"),
+            time=data.get("time"),
             name=name,
             groups=groups,
         )

@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.data.timing import Timing, steps_for
+
 PathLike = str | os.PathLike[str]
 
 
@@ -68,6 +70,11 @@ class Recording:
         Trial name.
     groups : tuple of str
         Group labels (BROAD: ``undisturbed``, ``rotation``, ``tapping`` ...).
+    time : ndarray, float64, shape (N,), or None
+        Time of each sample in s as recorded (any origin), strictly increasing; None: a sample every
+        ``1 / rate`` s. Where an interval spans n periods, n - 1 samples were lost (:attr:`steps`).
+    timing : attica.data.timing.Timing or None
+        What the loader found in the time column (unit, jitter, gaps, dropped rows), when it read one.
 
     """
 
@@ -79,6 +86,8 @@ class Recording:
     movement: NDArray[np.bool_] | None = None
     name: str = ""
     groups: tuple[str, ...] = field(default_factory=tuple)
+    time: NDArray[np.float64] | None = None
+    timing: Timing | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         self.gyr = _array(self.gyr, "gyr", np.float32, 3)
@@ -109,6 +118,16 @@ class Recording:
                 raise ValueError(f"{what}: {arr.shape[0]} samples, but gyr has {n}")
         if self.movement is not None and self.movement.shape[0] != n:
             raise ValueError(f"movement: {self.movement.shape[0]} samples, but gyr has {n}")
+        if self.time is not None:
+            self.time = _array(self.time, "time", np.float64, None)
+            if self.time.shape[0] != n:
+                raise ValueError(f"time: {self.time.shape[0]} samples, but gyr has {n}")
+            if not np.all(np.isfinite(self.time)):
+                raise ValueError("time: must be finite")
+            if np.any(np.diff(self.time) <= 0.0):
+                raise ValueError(
+                    "time: must be strictly increasing (attica.data.timing.clock drops the rest)"
+                )
 
     def __len__(self) -> int:
         return int(self.gyr.shape[0])
@@ -125,8 +144,22 @@ class Recording:
 
     @property
     def t(self) -> NDArray[np.float64]:
-        """Time of each sample in s, starting at 0 (``arange(n) / rate``)."""
+        """Time of each sample in s, starting at 0 (``time - time[0]``, or ``arange(n) / rate``)."""
+        if self.time is not None:
+            return self.time - self.time[0] if self.n else self.time.copy()
         return np.arange(self.n, dtype=np.float64) / self.rate
+
+    @property
+    def steps(self) -> NDArray[np.uint32]:
+        """Periods each sample advances the filter: 1, or n after n - 1 lost samples (from :attr:`time`)."""
+        if self.time is None:
+            return np.ones(self.n, np.uint32)
+        return steps_for(self.time, self.dt)
+
+    @property
+    def lost(self) -> int:
+        """Samples lost in gaps of :attr:`time` (0 without it)."""
+        return int(np.sum(self.steps, dtype=np.int64)) - self.n
 
     @property
     def has_mag(self) -> bool:
@@ -170,12 +203,14 @@ class Recording:
             arrays["opt_quat"] = self.quat_true
         if self.movement is not None:
             arrays["movement"] = self.movement
+        if self.time is not None:
+            arrays["time"] = self.time
         assert all(np.ndim(v) == 0 or np.shape(v)[0] == n for k, v in arrays.items() if k != "groups")
         with open(path, "wb") as f:  # a file object: numpy must not append another ".npz"
             np.savez(f, **arrays)
 
     def _save_csv(self, path: Path) -> None:
-        cols: list[NDArray[Any]] = [self.t, self.gyr, self.acc]
+        cols: list[NDArray[Any]] = [self.time if self.time is not None else self.t, self.gyr, self.acc]
         names: list[str] = ["t", *_GYR, *_ACC]
         fmts: list[str] = ["%.9f"] + ["%.9g"] * 6
         if self.has_mag:

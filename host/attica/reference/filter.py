@@ -14,7 +14,10 @@ from attica.reference import calib as rc
 from attica.reference import detmath as dm
 from attica.reference._common import as_batch, c_state_values, load_c_state, split3, stack, state_values
 from attica.results import Outputs, as_outputs
-from attica.settings import FilterKind
+from attica.settings import FilterKind, Flag
+
+STEP_N_MAX = 65535
+"""ATT_FILTER_STEP_N_MAX: the largest n of one att_filter_step_n."""
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -161,10 +164,7 @@ class Filter:
         out["valid"] = np.uint32(OUT_ALL)
         return as_outputs(out)
 
-    def step(self, gyr: Any, acc: Any, mag: Any = None) -> Outputs:
-        """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records."""
-        if mag is None:
-            mag = np.zeros(3, np.float32)
+    def _step_once(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         st = self.stages
         if st.active & (rc.ACTIVE_INPUT | rc.ACTIVE_ACC):
             g3, a3, m3 = st.apply(split3(gyr, self.n), split3(acc, self.n), split3(mag, self.n))
@@ -172,13 +172,37 @@ class Filter:
             if st.active & rc.ACTIVE_ACC:
                 st.acc_body = a3
         self._step_impl(gyr, acc, mag)
-        return self.output()
+        return np.asarray(self.impl.flags, np.uint32)
 
-    def run(self, gyr: Any, acc: Any, mag: Any = None, check_units: bool = True) -> Outputs:
+    def step(self, gyr: Any, acc: Any, mag: Any = None, n: int = 1) -> Outputs:
+        """One step of every instance; inputs (n, 3) or (3,). Returns (n,) output records.
+
+        ``n`` > 1: att_filter_step_n, the sample held over n periods (n steps, flags ORed over them;
+        above ``STEP_N_MAX`` clamped and flagged CLAMPED).
+        """
+        if mag is None:
+            mag = np.zeros(3, np.float32)
+        count = int(n)
+        if count < 1:
+            raise ValueError(f"{self.kind.label} reference Filter.step: n must be >= 1, got {n}")
+        flags = np.zeros(self.n, np.uint32)
+        if count > STEP_N_MAX:
+            count = STEP_N_MAX
+            flags |= np.uint32(Flag.CLAMPED)
+        for _ in range(count):
+            flags |= self._step_once(gyr, acc, mag)
+        out = self.output()
+        out["flags"] = flags
+        return out
+
+    def run(
+        self, gyr: Any, acc: Any, mag: Any = None, check_units: bool = True, steps: Any = None
+    ) -> Outputs:
         """Step through N samples: inputs (N, 3) (all instances fed the same) or (N, n, 3).
 
         Returns (N,) records for n == 1 and 2-D inputs, else (N, n). ``check_units``: warn
-        (:class:`attica.UnitWarning`) when the inputs look like deg/s, g, gauss or nT.
+        (:class:`attica.UnitWarning`) when the inputs look like deg/s, g, gauss or nT. ``steps``: (N,)
+        periods each row advances (see :meth:`step`), the same for every instance; None: 1 each.
         """
         if check_units:
             warn_units(gyr, acc, mag, f"{self.kind.label} reference Filter.run")
@@ -187,9 +211,12 @@ class Filter:
         m = as_batch(mag, 3)[0] if mag is not None else np.zeros((g.shape[0], 1, 3), np.float32)
         if a.shape[0] != g.shape[0] or m.shape[0] != g.shape[0]:
             raise ValueError("gyr, acc and mag must have the same number of samples")
+        counts = np.ones(g.shape[0], np.int64) if steps is None else np.asarray(steps, np.int64)
+        if counts.shape != (g.shape[0],):
+            raise ValueError(f"steps must have shape ({g.shape[0]},), got {counts.shape}")
         out = np.empty((g.shape[0], self.n), OUTPUT_DTYPE)
         for i in range(g.shape[0]):
-            out[i] = self.step(g[i], a[i], m[i])
+            out[i] = self.step(g[i], a[i], m[i], int(counts[i]))
         if not multi and self.n == 1:
             return as_outputs(out[:, 0])
         return as_outputs(out)
