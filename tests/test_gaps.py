@@ -227,3 +227,30 @@ def test_recording_time_round_trip(tmp_path: Path) -> None:
         assert np.array_equal(back.steps, rec.steps)
     with pytest.raises(ValueError, match="strictly increasing"):
         Recording(np.zeros((3, 3)), np.zeros((3, 3)), None, 50.0, time=[0.0, 0.0, 1.0])
+
+
+def test_run_reports_and_integrates_gaps(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from attica.cli import main
+
+    t = np.delete(np.arange(600) / 100.0, [100, 101, 400])
+    _csv(tmp_path / "r.csv", "t", t)
+    with pytest.warns(tm.TimingWarning, match="3 sample"):
+        assert (
+            main(
+                [
+                    "run",
+                    "--filter",
+                    "ars",
+                    "--data",
+                    str(tmp_path / "r.csv"),
+                    "-q",
+                    "-o",
+                    str(tmp_path / "o.npz"),
+                ]
+            )
+            == 0
+        )
+    text = capsys.readouterr().out
+    assert "2 gap(s) with 3 sample(s) lost" in text
+    with np.load(tmp_path / "o.npz") as d:
+        assert int(d["steps"][-1]) == 600  # the lost periods were stepped

@@ -28,7 +28,7 @@ from attica.commands._common import (
     progress,
     warn_calibrated_truth,
 )
-from attica.kinds import KINDS, axes, uses_mag
+from attica.kinds import axes, uses_mag
 from attica.outputs import OUTPUT_DTYPE
 from attica.settings import FilterKind, describe_flags
 
@@ -37,10 +37,6 @@ HELP = "run C filters over simulated or recorded data, print the attitude error 
 
 CHUNK = 20_000
 """Samples per C batch (the progress bar moves between batches)."""
-
-USES_MAG = frozenset(k.kind for k in KINDS if k.uses_mag())
-"""Kinds that use the magnetometer with their default settings (a view of :data:`attica.kinds.KINDS`);
-:func:`error_line` asks :func:`attica.kinds.uses_mag` with the settings of the run."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -58,7 +54,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_calibration_argument(p, "the C filters (and the reference with --check)")
     p.add_argument("--check", action="store_true", help="also run the numpy reference and compare the bits")
-    p.add_argument("-o", "--output", help="write the outputs to this .npz (several filters: NAME_<kind>.npz)")
+    p.add_argument(
+        "-o",
+        "--output",
+        metavar="FILE",
+        help="write the outputs to FILE: .npz (arrays), .csv (time, q, Euler, bias, covariance, flags) or "
+        ".mcap (ROS 2 sensor_msgs/Imu and /tf for Foxglove; needs attica[recordings]); several filters: "
+        "NAME_<kind>.ext (docs/recordings.md)",
+    )
     add_unit_check_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
@@ -66,15 +69,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run_native(
     kind: FilterKind, rec: Any, settings: Any, show_progress: bool, calibration: Any = None
 ) -> NDArray[np.void]:
-    """Run the C filter over a recording in chunks (for the progress bar); (N,) output records."""
+    """Run the C filter over a recording in chunks (for the progress bar); (N,) output records.
+
+    Each sample steps the filter over the periods since the one before (:attr:`Recording.steps`).
+    """
     from attica import native
 
     f = native.Filter(kind, settings=settings, calibration=calibration)
     out = np.zeros(len(rec.gyr), OUTPUT_DTYPE)
+    steps = rec.steps  # n after n - 1 lost samples (Recording.time): the gap is integrated
     with progress(len(rec.gyr), f"{kind.label} (C)", show_progress) as bar:
         for start in range(0, len(rec.gyr), CHUNK):
             sl = slice(start, start + CHUNK)
-            out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False)
+            out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl])
             bar.update(len(out[sl]))
     return out
 
@@ -136,13 +143,40 @@ def crosscheck_line(
 
 
 def output_paths(path: Path, kinds: list[FilterKind]) -> dict[FilterKind, Path]:
-    """Where each filter's outputs go (checked before any work)."""
+    """Where each filter's outputs go, the format by suffix (checked before any work; no suffix: .npz)."""
+    from attica.data.export import output_format
+
     if path.is_dir():
-        raise CliError(f"output {path} is a directory (give a file name, e.g. {path / 'out.npz'})")
+        raise CliError(f"output {path} is a directory (give a file name, e.g. {path / 'out.csv'})")
     base = path if path.suffix else path.with_name(path.name + ".npz")
+    try:
+        output_format(base)
+    except ValueError as exc:
+        raise CliError(f"-o {exc}") from None
     if len(kinds) == 1:
         return {kinds[0]: check_output_file(base)}
     return {k: check_output_file(base.with_name(f"{base.stem}_{k.label}{base.suffix}")) for k in kinds}
+
+
+def check_outputs(outputs: dict[FilterKind, Path], rec: Any) -> None:
+    """Refuse, before the filters run, outputs that could not be written (.mcap: packages, stamps)."""
+    from attica.data.export import check_output
+
+    for path in outputs.values():
+        try:
+            check_output(path, rec)
+        except (ValueError, ImportError) as exc:
+            raise CliError(str(exc)) from None
+
+
+def write_output(path: Path, kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any) -> None:
+    """Write one filter's outputs in the format of the suffix (:func:`attica.data.export.write_outputs`)."""
+    from attica.data.export import write_outputs
+
+    try:
+        write_outputs(path, out, rec, kind, settings)
+    except OSError as exc:
+        raise CliError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -153,8 +187,11 @@ def run(args: argparse.Namespace) -> int:
     overrides = plan_overrides(kinds, args.set or [])
     cal = load_calibration(args)
     rec = load_data(args)
+    check_outputs(outputs, rec)
     settings = {k: filter_settings(k, rec.rate, overrides[k]) for k in kinds}  # all checked before running
     print(f"{describe_source(args)}: {len(rec.gyr)} samples at {rec.rate:g} Hz")
+    if rec.timing is not None:
+        print(f"        {rec.timing.summary()}")
     if cal is not None:
         print(describe_calibration(cal, args.calibration))
         if rec.quat_true is not None:
@@ -172,7 +209,6 @@ def run(args: argparse.Namespace) -> int:
             print("\n".join(lines))
             status = status or (0 if ok else 1)
         if kind in outputs:
-            arrays: dict[str, Any] = {name: out[name] for name in out.dtype.names or ()}
-            np.savez_compressed(outputs[kind], **arrays)
+            write_output(outputs[kind], kind, rec, out, settings[kind])
             print(f"        wrote {outputs[kind]}")
     return status
