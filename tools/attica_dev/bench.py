@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from attica import _build
 from attica.kinds import labels
-from attica_dev import golden
+from attica_dev import bench_live, golden
 
 BENCH_SOURCE = golden.ROOT / "tests" / "c" / "att_bench.c"
 
@@ -462,6 +462,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(host_goal_line(lean, ns))
         for n in notes:
             print(f"note: {n}")
+        if not args.no_peers:
+            print()
+            live = min(args.samples, 20_000)
+            print(
+                "\n".join(
+                    bench_live.live_lines(imu[0][:live], imu[1][:live], imu[2][:live], 0.01, args.repeat)
+                )
+            )
         if not have_valgrind:
             print(
                 "note: valgrind is not installed, so there is no instructions/step column "
