@@ -254,3 +254,16 @@ def test_run_reports_and_integrates_gaps(tmp_path: Path, capsys: pytest.CaptureF
     assert "2 gap(s) with 3 sample(s) lost" in text
     with np.load(tmp_path / "o.npz") as d:
         assert int(d["steps"][-1]) == 600  # the lost periods were stepped
+
+
+def test_recordings_doc_time_block_runs() -> None:
+    import re
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "recordings.md").read_text()
+    part = text.split("## Time in recordings", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"```python\n(.*?)```", part, re.S)
+    assert blocks
+    ns: dict[str, object] = {}
+    for block in blocks:
+        exec(compile(block, "docs/recordings.md", "exec"), ns)
+    assert ns["lossy"].lost == 60  # type: ignore[attr-defined]
