@@ -94,7 +94,7 @@ cross: deps setup
 	$(DEV) -m attica_dev.cross golden
 
 clean:
-	rm -rf build dist host/attica/_native*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \
+	rm -rf build dist host/attica/_native*.so host/attica/_live*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \
 		.pytest_cache .mypy_cache .ruff_cache
 
 # --- robustness: fuzzing, sanitizers, soak (docs/robustness.md) ---------------------------------

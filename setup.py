@@ -67,6 +67,10 @@ class BuildExt(build_ext):
 
 setup(
     version=VERSION,
-    ext_modules=[Extension("attica._native", sources=["host/attica/csrc/att_host.c"])],
+    ext_modules=[
+        Extension("attica._native", sources=["host/attica/csrc/att_host.c"]),
+        # the CPython method behind Filter.update (Python's flags; it calls attica._native's step)
+        Extension("attica._live", sources=["host/attica/csrc/py/att_live.c"]),
+    ],
     cmdclass={"build_py": BuildPy, "build_ext": BuildExt},
 )

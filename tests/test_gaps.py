@@ -267,3 +267,37 @@ def test_recordings_doc_time_block_runs() -> None:
     for block in blocks:
         exec(compile(block, "docs/recordings.md", "exec"), ns)
     assert ns["lossy"].lost == 60  # type: ignore[attr-defined]
+
+
+def test_update_inputs_and_errors() -> None:
+    import gc
+
+    from attica import _live  # built beside attica._native: the path Filter.update takes
+
+    assert _live is not None
+    f = native.Filter("mars", 0.01)
+    ref = native.Filter("mars", 0.01)
+    rows = [
+        (np.float32([0.1, -0.2, 0.3]), np.float32([0.5, 0.1, 9.7]), np.float32([20, 1, -40])),
+        ([1, 0, 0], (0, 0, 10), None),  # ints, tuples, no mag
+        (np.array([1e300, 0, 0]), [0.0, 0.0, 9.8], [20.0, 0.0, -40.0]),  # beyond float32: Inf, as numpy
+        (np.array([0.1, 0.2, 0.3])[::-1].copy(), np.array([0.0, 0.0, 9.8]), np.array([np.nan] * 3)),
+    ]
+    for g, a, m in rows:
+        flags = f.update(g, a, m)
+        rec = ref.step(g, a, m, full=False)
+        assert flags == int(rec["flags"])
+        assert np.array_equal(f.quat.view(np.uint32), rec["q"].view(np.uint32))
+    with pytest.raises(ValueError, match="gyr must have 3 components"):
+        f.update([1, 2], [0, 0, 9.8])
+    with pytest.raises(TypeError, match="acc must hold real numbers"):
+        f.update([0, 0, 0], "abc")
+    with pytest.raises(TypeError, match="real numbers"):
+        f.update([True, 0, 0], [0, 0, 9.8])
+    for bad in (0, -1, True, 2**40, 1.5):
+        with pytest.raises(ValueError, match="n must be"):
+            f.update([0, 0, 0], [0, 0, 9.8], None, bad)
+    # a bound update keeps its filter alive
+    u = native.Filter("ars", 0.01).update
+    gc.collect()
+    assert u([0, 0, 0], [0, 0, 9.8]) & Flag.NOT_READY == 0

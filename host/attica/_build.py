@@ -39,6 +39,8 @@ FIRMWARE = ROOT / "firmware"
 INCLUDE = FIRMWARE / "include"
 CSRC = PKG / "csrc"
 BUILD = ROOT / "build" / "native"
+LIVE_SOURCE = CSRC / "py" / "att_live.c"
+"""attica._live: the CPython method behind ``Filter.update`` (Python's flags; no filter arithmetic)."""
 STAMP = PKG / "_native.stamp"
 VERSION_HEADER = INCLUDE / "attica" / "att_version.h"
 """The version (read by setup.py and attica.__version__ through attica._version)."""
@@ -161,7 +163,7 @@ def cdef_text() -> str:
 def inputs_digest() -> str:
     """Hash over everything the extension is built from (sources, headers, flags, this file)."""
     h = hashlib.sha256()
-    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + private_headers()
+    files = firmware_sources() + headers() + sorted(CSRC.glob("*.c")) + private_headers() + [LIVE_SOURCE]
     for f in files + [FIRMWARE / "cflags.txt", Path(__file__)]:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -247,7 +249,32 @@ def build(verbose: bool = False) -> Path:
     tmp_target = target.with_name(target.name + f".{os.getpid()}.tmp")
     shutil.copy2(built, tmp_target)
     os.replace(tmp_target, target)
+    build_live(cc)
     STAMP.write_text(inputs_digest() + "\n")
+    return target
+
+
+def build_live(cc: str) -> Path:
+    """Build ``attica._live`` in place with Python's include path (what setup.py's build_ext does)."""
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    target = PKG / ("_live" + suffix)
+    tmp_target = target.with_name(target.name + f".{os.getpid()}.tmp")
+    cmd = [
+        *shlex.split(cc),
+        "-O2",
+        "-std=c99",
+        "-fPIC",
+        "-shared",
+        "-Wall",
+        "-Werror",
+        "-I",
+        sysconfig.get_paths()["include"],
+        str(LIVE_SOURCE),
+        "-o",
+        str(tmp_target),
+    ]
+    subprocess.run(cmd, check=True)
+    os.replace(tmp_target, target)
     return target
 
 

@@ -46,6 +46,20 @@ def _load() -> tuple[Any, Any]:
 ffi, lib = _load()
 
 
+try:  # the CPython method behind Filter.update (built beside attica._native; absent: the cffi path)
+    from attica import _live
+except ImportError:  # pragma: no cover - a build without it (another interpreter)
+    _live = None
+
+
+def _stepper(f: Any, out: Any, keep: Any) -> Any:
+    """An ``attica._live.Stepper`` for filter ``f`` writing record ``out`` (None without _live)."""
+    if _live is None:
+        return None
+    addr = int(ffi.cast("uintptr_t", ffi.addressof(lib, "att_host_step9")))
+    return _live.Stepper(addr, int(ffi.cast("uintptr_t", f)), int(ffi.cast("uintptr_t", out)), keep)
+
+
 _STEP_BLOCK = 256
 """Output records allocated at once by :meth:`Filter.step`."""
 
@@ -378,6 +392,7 @@ class Filter:
         self._last = np.zeros((), OUTPUT_DTYPE).view(Outputs)
         self._last_plain = self._last.view(np.ndarray)
         self._last_ptr = ffi.from_buffer("att_output_t *", self._last)
+        self._live = _stepper(self._f, self._last_ptr, (self._f, self._last))
         if calibration is not None or accel_outputs:
             self.calibrate(calibration, float(getattr(self.settings, "gravity", 9.80665)), accel_outputs)
 
@@ -469,6 +484,8 @@ class Filter:
         (overwritten by the next update), :attr:`quat` its attitude. For live loops in Python that
         read the attitude now and then; :meth:`step` returns a record of its own every call.
         """
+        if self._live is not None:
+            return self._live.update(gyr, acc, mag, n)  # type: ignore[no-any-return]
         if n != 1 and (type(n) is not int or not 1 <= n <= 0xFFFFFFFF):
             self._step_args(gyr, acc, mag, n)
         try:
