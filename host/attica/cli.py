@@ -5,6 +5,8 @@
 - ``attica run``: run C filters over simulated or recorded data, print their error against truth.
 - ``attica sim``: write a simulated IMU recording with ground truth (.npz, BROAD layout).
 - ``attica eval``: accuracy on recorded trials with the BROAD metrics, peers side by side.
+- ``attica info``: what a recording file holds (ROS bags, MCAP, ULog, EuRoC, phone exports ...): streams,
+  rates, time report, sensors.
 - ``attica paths``: where the firmware sources, headers, flags and DBC of this installation are.
 - ``attica dbc``: attica's DBC with every CAN ID moved by an ID offset (a node with ``--id-offset``).
 - ``attica node | replay | monitor | verify``: the CAN tools (python-can buses); ``--id-offset N`` for a

@@ -9,5 +9,18 @@ can be known before it (output paths, names, empty selections).
 
 from __future__ import annotations
 
-COMMANDS = ("demo", "run", "sim", "eval", "calibrate", "paths", "dbc", "node", "replay", "monitor", "verify")
+COMMANDS = (
+    "demo",
+    "run",
+    "sim",
+    "eval",
+    "info",
+    "calibrate",
+    "paths",
+    "dbc",
+    "node",
+    "replay",
+    "monitor",
+    "verify",
+)
 """Subcommand modules, in the order ``attica --help`` lists them."""

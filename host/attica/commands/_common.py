@@ -7,6 +7,7 @@ import dataclasses
 import enum
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -139,15 +140,25 @@ def check_data_or_sim(args: argparse.Namespace) -> None:
 def load_data(args: argparse.Namespace) -> Any:
     """The recording of ``--data`` or the simulation of the options."""
     from attica.data import load_recording
+    from attica.data.timing import TimingWarning
 
     if getattr(args, "data", None):
         path = Path(args.data)
         if not path.exists():
             raise CliError(f"no such recording: {path}")
-        try:
-            return load_recording(path)
-        except ValueError as exc:
-            raise CliError(f"{path}: {exc}") from None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", TimingWarning)
+            try:
+                rec = load_recording(path)
+            except (ValueError, ImportError) as exc:
+                msg = str(exc)
+                raise CliError(msg if str(path) in msg or path.name in msg else f"{path}: {msg}") from None
+        for w in caught:  # the time report's problems (gaps, dropped rows, a guessed unit) as CLI warnings
+            if issubclass(w.category, TimingWarning):
+                warn(str(w.message))
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return rec
     return simulate(args)
 
 

@@ -55,61 +55,100 @@ key               shape       meaning
 The name is the file stem. The groups come from a ``trials.json`` next to the file (BROAD ships one in
 ``data_mat/``) when it lists the trial, otherwise from the name (:func:`broad_groups`).
 
+Recordings of other tools load through readers (docs/recordings.md, "Readers"): ROS 1 bags, ROS 2 bags
+(sqlite3 or MCAP storage) and bare MCAP files with ``sensor_msgs/Imu`` / ``MagneticField``
+(:mod:`attica.data.rosbag`, :mod:`attica.data.mcapfile`), PX4 ULog (:mod:`attica.data.ulog`), EuRoC/ASL
+folders (:mod:`attica.data.euroc`), Sensor Logger and Android-style per-sensor CSV folders
+(:mod:`attica.data.phone`) and phyphox exports (:mod:`attica.data.phyphox`). Each converts units and
+frames to the ones above and keeps every sample's time (``Recording.time``, ``Recording.timing``): the
+gyro's clock, accel held, magnetometer placed (:mod:`attica.data.streams`). The bag, MCAP and ULog
+readers need the optional packages of ``pip install 'attica[recordings]'`` (rosbags, mcap, pyulog); an
+ImportError says so. :func:`read_recording` returns a recording with a description of the file
+(what ``attica info`` prints).
+
 The code: :mod:`attica.data.recording` (the :class:`Recording` and its writers),
-:mod:`attica.data.npz`, :mod:`attica.data.csvfile`, :mod:`attica.data.broad` (the loaders).
+:mod:`attica.data.npz`, :mod:`attica.data.csvfile`, :mod:`attica.data.broad` (the loaders),
+:mod:`attica.data.readers` (which reader a path needs).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from attica.data.broad import BROAD_KEYS, broad_groups, load_broad
 from attica.data.csvfile import load_csv
 from attica.data.npz import NPZ_REQUIRED, load_npz
+from attica.data.readers import FORMATS, detect, read_recording
 from attica.data.recording import CSV_COLUMNS, PathLike, Recording
 
 __all__ = [
     "BROAD_KEYS",
     "CSV_COLUMNS",
+    "FORMATS",
     "NPZ_REQUIRED",
     "Recording",
     "broad_groups",
+    "detect",
     "load_broad",
     "load_csv",
     "load_npz",
     "load_recording",
+    "read_recording",
 ]
 
 
-def load_recording(path: PathLike) -> Recording:
-    """Load a recording from a ``.npz`` (BROAD layout) or ``.csv`` file, chosen by suffix.
+def load_recording(path: PathLike, **options: Any) -> Recording:
+    """Load a recording of any format attica reads, chosen by suffix and content (:func:`detect`).
+
+    ``.npz`` (BROAD layout), ``.csv`` (attica's columns), ``.hdf5``/``.h5``/``.mat`` (original BROAD);
+    ``.bag``, ``.db3``, a ROS 2 bag folder, ``.mcap``; ``.ulg``; an EuRoC/ASL folder or zip; a Sensor
+    Logger or Android-style folder or zip; a phyphox ``.zip``, folder or ``.csv``. Problems with the time
+    column (gaps, dropped rows, a guessed unit) and the reader's (rows before the first accel sample
+    ...) are emitted as :class:`attica.data.timing.TimingWarning`.
 
     Parameters
     ----------
     path : str or os.PathLike
-        File to read.
+        File or folder to read.
+    **options
+        The reader's options (docs/recordings.md): ``topic``, ``mag_topic``, ``stamp``, ``orientation``,
+        ``frd`` for bags and MCAP; ``mag``, ``mag_instance``, ``attitude`` for ULog; ``truth`` for EuRoC.
+        attica's own formats take none.
 
     Returns
     -------
     Recording
-        Sensor data as float32, ground truth as float64.
+        Sensor data as float32 in attica's units and the sensor frame, ground truth as float64.
 
     Raises
     ------
     ValueError
-        Unknown suffix, missing keys or columns, wrong shapes, inconsistent lengths or a bad rate.
+        An unknown suffix or folder, an empty or corrupt file, missing keys, columns or topics (the
+        message names the file and lists the candidates), wrong shapes, inconsistent lengths or a bad
+        rate.
     FileNotFoundError
-        If the file does not exist.
+        If the path does not exist.
     ImportError
-        For ``.hdf5``/``.h5`` without h5py or ``.mat`` without scipy.
+        For ``.hdf5``/``.h5`` without h5py or ``.mat`` without scipy; for bags, MCAP and ULog without
+        the packages of ``pip install 'attica[recordings]'``.
+    TypeError
+        An option the format does not take.
 
     """
+    from attica.data import readers
+    from attica.data.streams import report
+
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix == ".npz":
-        return load_npz(p)
-    if suffix == ".csv":
+    if p.is_file() and suffix in (".npz", ".hdf5", ".h5", ".mat"):
+        if options:
+            raise TypeError(f"{p}: {suffix} files take no options (got {', '.join(options)})")
+        return load_npz(p) if suffix == ".npz" else load_broad(p)
+    if p.is_file() and suffix == ".csv" and readers.detect(p) == "csv":
+        if options:
+            raise TypeError(f"{p}: attica .csv files take no options (got {', '.join(options)})")
         return load_csv(p)
-    if suffix in (".hdf5", ".h5", ".mat"):
-        return load_broad(p)
-    raise ValueError(f"{p}: unknown suffix {p.suffix!r}; expected .npz, .csv, .hdf5, .h5 or .mat")
+    rec, contents = readers.read_recording(p, **options)
+    report(rec, contents)  # the warnings point at the caller
+    return rec
