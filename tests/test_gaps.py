@@ -289,3 +289,26 @@ def test_update_inputs_and_errors() -> None:
     u = native.Filter("ars", 0.01).update
     gc.collect()
     assert u([0, 0, 0], [0, 0, 9.8]) & Flag.NOT_READY == 0
+
+
+def test_resample_unclocked_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from attica.cli import main
+    from attica.data.resample import resample
+
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.002, 0.018, 800))  # a phone-like clock: jitter of many periods
+    n = t.size
+    gyr = np.column_stack([np.sin(t), np.cos(t), 0 * t])
+    mag = np.full((n, 3), np.nan)
+    mag[::5] = [20.0, 0.0, -40.0]
+    rec = Recording(gyr, np.tile([0, 0, 9.8], (n, 1)), mag, 100.0, time=t, movement=np.ones(n, bool))
+    r = resample(rec, 100.0)
+    assert np.allclose(np.diff(r.time), 0.01) and r.lost == 0 and r.time[0] == t[0]
+    k = 37
+    assert r.gyr[k, 0] == pytest.approx(np.interp(r.time[k], t, gyr[:, 0]), abs=1e-6)
+    assert np.isfinite(r.mag).all(axis=1).sum() <= np.isfinite(mag).all(axis=1).sum()  # placed, never made up
+    assert r.timing is not None and "linear interpolation" in r.timing.source
+    rec.save(tmp_path / "p.csv")
+    assert main(["run", "--filter", "ars", "--data", str(tmp_path / "p.csv"), "--resample", "100", "-q"]) == 0
+    assert "resampled to 100 Hz" in capsys.readouterr().out
+    assert main(["run", "--filter", "ars", "--data", str(tmp_path / "p.csv"), "--resample", "-1", "-q"]) == 2

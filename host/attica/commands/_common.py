@@ -158,8 +158,27 @@ def load_data(args: argparse.Namespace) -> Any:
                 warn(str(w.message))
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        hz = getattr(args, "resample", None)
+        if hz is not None:
+            from attica.data.resample import resample
+
+            try:
+                rec = resample(rec, hz)
+            except ValueError as exc:
+                raise CliError(f"--resample: {exc}") from None
         return rec
     return simulate(args)
+
+
+def add_resample_argument(p: argparse.ArgumentParser) -> None:
+    """``--resample HZ``: a log without a usable clock onto a uniform grid (attica.data.resample)."""
+    p.add_argument(
+        "--resample",
+        type=float,
+        metavar="HZ",
+        help="put a recording that is not clocked onto a uniform HZ grid (gyro/accel linear interpolation, "
+        "mag placed once, truth nearest; docs/recordings.md); a clocked log with gaps is better stepped",
+    )
 
 
 def check_units(rec: Any, args: argparse.Namespace, what: str = "") -> None:

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from attica.commands._common import (
     CliError,
     add_calibration_argument,
+    add_resample_argument,
     add_sim_arguments,
     add_unit_check_argument,
     check_data_or_sim,
@@ -62,6 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         ".mcap (ROS 2 sensor_msgs/Imu and /tf for Foxglove; needs attica[recordings]); several filters: "
         "NAME_<kind>.ext (docs/recordings.md)",
     )
+    add_resample_argument(p)
     add_unit_check_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
