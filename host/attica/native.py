@@ -496,7 +496,7 @@ class Filter:
             else:
                 mx, my, mz = mag.tolist() if type(mag) is np.ndarray else mag
             return lib.att_host_step9(  # type: ignore[no-any-return]
-                self._f, gx, gy, gz, ax, ay, az, mx, my, mz, n, 0, self._last_ptr
+                self._f, gx, gy, gz, ax, ay, az, mx, my, mz, n, 2, self._last_ptr
             )
         except (TypeError, ValueError, OverflowError):
             self._step_args(gyr, acc, mag, n)

@@ -280,10 +280,10 @@ uint32_t att_host_step9(att_filter_t *f, float gx, float gy, float gz, float ax,
     if (out == NULL || (flags & (uint32_t)ATT_FLAG_BAD_ARG) != 0u) {
         return flags;
     }
-    if (full != 0) {
+    if (full == 1) {
         att_filter_output(f, out);
         out->flags = flags;
-    } else if ((out->valid & ATT_OUT_Q) == 0u) {
+    } else if (full == 2 && (out->valid & ATT_OUT_Q) == 0u) {
         /* the Euler-state EKF: q as att_filter_output derives it (as att_host_filter_run_q) */
         out->q = att_quat_from_euler(out->euler.x, out->euler.y, out->euler.z);
         out->valid |= ATT_OUT_Q;

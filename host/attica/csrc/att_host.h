@@ -63,9 +63,9 @@ size_t att_host_filter_run_q(att_filter_t *f, const float *gyr, const float *acc
 /**
  * One step from nine floats (the Python binding's per-sample path: no sample struct to fill from
  * Python): gyr (rad/s), acc (m/s^2), mag (uT; zeros: absent), n periods (att_filter_step_n; 1 is
- * att_filter_step). With full != 0 out is the whole att_filter_output after the step, its flags the
- * step's; else the step's fields, q always among them (the EKF's derived from its angles as
- * att_filter_output does). Returns the flags.
+ * att_filter_step). full = 1: out is the whole att_filter_output after the step, its flags the
+ * step's; 0: the step's fields (att_filter_step); 2: those and q always (the EKF's derived from its
+ * angles as att_filter_output does). Returns the flags.
  */
 uint32_t att_host_step9(att_filter_t *f, float gx, float gy, float gz, float ax, float ay, float az, float mx,
                         float my, float mz, uint32_t n, int full, att_output_t *out);

@@ -131,7 +131,7 @@ static PyObject *att_live_update(PyObject *self_obj, PyObject *const *args, Py_s
         }
     }
     return PyLong_FromUnsignedLong(
-        self->step(self->filter, g[0], g[1], g[2], a[0], a[1], a[2], m[0], m[1], m[2], (uint32_t)n, 0, self->out));
+        self->step(self->filter, g[0], g[1], g[2], a[0], a[1], a[2], m[0], m[1], m[2], (uint32_t)n, 2, self->out));
 }
 
 static PyObject *att_live_new(PyTypeObject *type, PyObject *args, PyObject *kwds)
