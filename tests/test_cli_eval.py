@@ -1,8 +1,9 @@
 """attica eval's output: tables within 110 columns (or --wide), plots readable at a glance.
 
-The plots are checked on the figures themselves: 6-axis inclination and 9-axis total on separate
-charts, a log scale on the chart where one method dominates (linear elsewhere), every legend right of
-its chart's data, 1600 px wide.
+The plots are checked on the figures themselves: each panel's title against what it draws (the methods
+in its legend, the flags in its rows, the bias values, the movement phases the caption says are
+shaded), a log scale only where the values span more than two decades (linear elsewhere), every legend
+right of its chart's data, 1600 px wide.
 """
 
 from __future__ import annotations
@@ -16,8 +17,9 @@ import pytest
 from attica import kinds
 from attica.cli import main
 from attica.data import Recording, broad_groups
-from attica.evaluate import VARIANTS, Method, run_methods
+from attica.evaluate import VARIANTS, Estimate, Method, run_methods
 from attica.metrics import quat_mul
+from attica.settings import Flag
 from attica.sim import SimConfig, simulate
 
 from helpers import need
@@ -48,56 +50,110 @@ def _tilted(name: str, deg: float, nine: bool) -> Method:
     return Method(name, "test", nine, "default", run)
 
 
+def _flagged(name: str) -> Method:
+    """2 deg off, at rest over the first 30 % of the samples, initialised at the first, a constant bias."""
+
+    def run(rec: Any) -> Estimate:
+        n = len(rec)
+        flags = np.zeros(n, np.uint32)
+        flags[: int(0.3 * n)] |= np.uint32(Flag.AT_REST)
+        flags[0] |= np.uint32(Flag.INITIALISED)
+        bias = np.tile(np.radians([0.5, -0.2, 0.0]), (n, 1))
+        return Estimate(
+            quat_mul(_qx(2.0), np.asarray(rec.quat_true, np.float64)), flags=flags, gyro_bias=bias
+        )
+
+    return Method(name, "test", True, "default", run)
+
+
 @pytest.fixture(scope="module")
 def report_and_recs() -> tuple[Any, list[Recording]]:
-    # 6-axis: one method 40x worse than the other (log scale); 9-axis: close together (linear)
+    # inclination: one method 150x worse than another (log scale); heading (all 0) and 9-axis RMSE: linear
     methods = [
         _tilted("good6", 1.0, False),
-        _tilted("bad6", 40.0, False),
+        _tilted("bad6", 150.0, False),
         _tilted("a9", 2.0, True),
         _tilted("b9", 3.0, True),
+        _flagged("flagged9"),
     ]
     recs = _recs()
     return run_methods(methods, recs, progress=False, curves=True), recs
 
 
-def _check_figure(fig: Any, titles: list[str], legends: list[list[str]], scales: list[str]) -> None:
+def _check_figure(fig: Any, titles: list[str], legends: list[list[str]], scales: list[str | None]) -> None:
     fig.canvas.draw()
     assert round(fig.get_size_inches()[0] * fig.dpi) == 1600
     axes = fig.get_axes()
     assert [ax.get_title(loc="left") for ax in axes] == titles
     for ax, names, scale in zip(axes, legends, scales, strict=True):
         leg = ax.get_legend()
-        assert [t.get_text() for t in leg.get_texts()] == names
-        assert ax.get_yscale() == scale, (ax.get_title(loc="left"), ax.get_yscale())
+        assert [t.get_text() for t in leg.get_texts()] == names, ax.get_title(loc="left")
+        if scale is not None:
+            assert ax.get_yscale() == scale, (ax.get_title(loc="left"), ax.get_yscale())
         # the legend is right of the data, inside the figure
         box, data = leg.get_window_extent(), ax.get_window_extent()
         assert box.x0 >= data.x1 - 0.5 and box.x1 <= fig.bbox.x1 + 0.5
 
 
-def test_plots_separate_six_and_nine_axis_with_fitting_scales(report_and_recs: Any) -> None:
+def test_trial_figure_draws_what_its_titles_say(report_and_recs: Any) -> None:
     need_mpl()
-    from attica.evaluate.plots import _pyplot, groups_figure, trial_figure
+    from attica.evaluate.plots import _pyplot, trial_figure
+    from attica.evaluate.trialplot import TITLES
 
     report, recs = report_and_recs
     plt = _pyplot()
+    every, nine = ["good6", "bad6", "a9", "b9", "flagged9"], ["a9", "b9", "flagged9"]
     fig = trial_figure(report, recs[0])
     try:
         _check_figure(
             fig,
-            ["6-axis: inclination error", "9-axis: total error"],
-            [["good6", "bad6"], ["a9", "b9"]],
-            ["log", "linear"],
+            [TITLES[k] for k in ("roll", "pitch", "yaw", "inclination", "heading", "flags", "bias")],
+            [["truth", *every], ["truth", *every], ["truth", *nine], every, nine, ["flagged9"], ["flagged9"]],
+            [None, None, None, "log", "linear", None, "linear"],
         )
-        assert fig.get_axes()[1].get_ylim()[0] == 0.0  # a linear error axis starts at 0
+        axes = fig.get_axes()
+        # the yaw panel: no 6-axis method's line; the flags panel: a row per flag set, marks in it
+        assert [ln.get_label() for ln in axes[2].get_lines()] == ["truth", *nine]
+        assert [t.get_text() for t in axes[5].get_yticklabels()] == ["at rest", "initialised"]
+        assert len(axes[5].collections) == 2
+        # the bias panel: x, y, z of the one method that estimates a bias, in deg/s
+        ys = [float(np.nanmean(ln.get_ydata())) for ln in axes[6].get_lines()[:3]]
+        assert np.allclose(ys, [0.5, -0.2, 0.0], atol=1e-6)
+        # the caption says the movement phases are shaded, and they are: one span per phase in each panel
+        rec = recs[0]
+        phases = int(np.count_nonzero(np.diff(np.r_[0, rec.movement.astype(int)]) == 1))
+        assert axes[-1].get_xlabel() == "time (s); movement phases (the samples scored) shaded"
+        assert all(len(ax.patches) == phases for ax in axes) and phases == 3
+        assert fig.get_axes()[4].get_ylim()[0] == 0.0  # a linear error axis starts at 0
     finally:
         plt.close(fig)
+    # no 9-axis method, no flags: no yaw, heading, flags or bias panel; no movement marked: no shading
+    bare = Recording(recs[1].gyr, recs[1].acc, recs[1].mag, recs[1].rate, recs[1].quat_true, None, "bare")
+    rep = run_methods([_tilted("good6", 1.0, False)], [bare], progress=False, curves=True)
+    fig = trial_figure(rep, bare)
+    try:
+        axes = fig.get_axes()
+        assert [ax.get_title(loc="left") for ax in axes] == [
+            TITLES[k] for k in ("roll", "pitch", "inclination")
+        ]
+        assert all(not ax.patches for ax in axes)
+        assert "marks no movement phases" in axes[-1].get_xlabel() and "shaded" not in axes[-1].get_xlabel()
+    finally:
+        plt.close(fig)
+
+
+def test_groups_figure_separates_six_and_nine_axis_with_fitting_scales(report_and_recs: Any) -> None:
+    need_mpl()
+    from attica.evaluate.plots import _pyplot, groups_figure
+
+    report, _ = report_and_recs
+    plt = _pyplot()
     fig = groups_figure(report)
     try:
         _check_figure(
             fig,
             ["6-axis: inclination RMSE", "9-axis: total RMSE"],
-            [["good6", "bad6"], ["a9", "b9"]],
+            [["good6", "bad6"], ["a9", "b9", "flagged9"]],
             ["log", "linear"],
         )
         labels = [t.get_text() for t in fig.get_axes()[0].get_xticklabels()]

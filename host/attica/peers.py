@@ -31,6 +31,9 @@ from the first sample; we use the libraries' own start-up).
 
 Settings: each peer runs with its defaults (``default``) and with one tuned setting (``tuned``),
 documented in :data:`TUNED` with the reason.
+
+Rows without a magnetometer sample: :data:`MISSING_MAG` (no interpolation; 9-axis ahrs filters start at
+the first sample; the notes of ``attica eval`` say what was done on each trial).
 """
 
 from __future__ import annotations
@@ -45,8 +48,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.data import Recording
+from attica.evaluate.estimate import Estimate
 
-__all__ = ["Peer", "PEERS", "TUNED", "available_peers", "peer_by_name", "PeerMissingError"]
+__all__ = [
+    "MISSING_MAG",
+    "Peer",
+    "PEERS",
+    "TUNED",
+    "available_peers",
+    "peer_by_name",
+    "PeerMissingError",
+]
 
 F64 = NDArray[np.float64]
 
@@ -73,34 +85,47 @@ def _qmul_left(a: F64, q: F64) -> F64:
     )
 
 
-def _inputs(rec: Recording) -> tuple[F64, F64, F64]:
+def _inputs(rec: Recording) -> tuple[F64, F64, F64, NDArray[np.bool_]]:
+    """Gyro, accel, mag as float64 with the rows without a mag sample zeroed, and which rows have one.
+
+    A row has a mag sample when its three values are finite and not all zero (attica's convention:
+    NaN or zero rows are "no sample", as in phone logs whose magnetometer runs slower than the gyro).
+    """
     g = np.ascontiguousarray(rec.gyr, dtype=np.float64)
     a = np.ascontiguousarray(rec.acc, dtype=np.float64)
-    m = np.ascontiguousarray(rec.mag, dtype=np.float64)
-    # peers cannot take "no sample" rows: hold the last valid one (BROAD has none missing)
-    bad = ~np.isfinite(m).all(axis=1)
-    if bad.any():
-        idx = np.where(~bad, np.arange(len(m)), 0)
-        np.maximum.accumulate(idx, out=idx)
-        m = m[idx]
-        m[~np.isfinite(m)] = 0.0
-    return g, a, m
+    m = np.array(rec.mag, dtype=np.float64, order="C")
+    present = np.isfinite(m).all(axis=1) & (m != 0.0).any(axis=1)
+    m[~present] = 0.0
+    return g, a, m, present
 
 
-def _run_vqf(rec: Recording, nine: bool, params: dict[str, Any], basic: bool) -> F64:
+def _zero_note(library: str, present: NDArray[np.bool_]) -> tuple[str, ...]:
+    """The note of a peer that takes a zero field as "no sample" (VQF, Fusion)."""
+    missing = int(np.count_nonzero(~present))
+    if missing == 0:
+        return ()
+    if missing == len(present):
+        return (f"no mag sample in the recording: {library} ran without mag updates (heading not observed)",)
+    return (f"{missing} of {len(present)} rows without a mag sample: given to {library} as zero (no sample)",)
+
+
+def _run_vqf(rec: Recording, nine: bool, params: dict[str, Any], basic: bool) -> Estimate:
     import vqf
 
-    g, a, m = _inputs(rec)
+    g, a, m, present = _inputs(rec)
     cls = vqf.BasicVQF if basic else vqf.VQF
     est = cls(1.0 / rec.rate, **params)
     out = est.updateBatch(g, a, m) if nine else est.updateBatch(g, a)
-    return np.asarray(out["quat9D" if nine else "quat6D"], dtype=np.float64)
+    q = np.asarray(out["quat9D" if nine else "quat6D"], dtype=np.float64)
+    bias = None if basic else np.asarray(out["bias"], dtype=np.float64)
+    notes = _zero_note("BasicVQF" if basic else "VQF", present) if nine else ()
+    return Estimate(q, gyro_bias=bias, notes=notes)
 
 
-def _run_fusion(rec: Recording, nine: bool, params: dict[str, Any]) -> F64:
+def _run_fusion(rec: Recording, nine: bool, params: dict[str, Any]) -> Estimate:
     import imufusion
 
-    g, a, m = _inputs(rec)
+    g, a, m, present = _inputs(rec)
     settings = imufusion.AhrsSettings()
     settings.convention = imufusion.CONVENTION_ENU
     settings.sample_rate = float(rec.rate)
@@ -127,33 +152,77 @@ def _run_fusion(rec: Recording, nine: bool, params: dict[str, Any]) -> F64:
         else:
             ahrs.update_no_magnetometer(w, ag[i])
         out[i] = ahrs.get_quaternion()
-    return out
+    return Estimate(out, notes=_zero_note("Fusion", present) if nine else ())
 
 
-def _dip_deg(rec: Recording) -> float:
-    """Magnetic dip from the first samples (angle of the field below the horizontal), degrees."""
-    k = min(len(rec.acc), 50)
-    a = rec.acc[:k].astype(np.float64).mean(axis=0)
-    m = np.nanmean(rec.mag[:k].astype(np.float64), axis=0)
+def _dip_deg(acc: F64, mag: F64) -> float:
+    """Magnetic dip from the first (up to 50) samples (angle of the field below the horizontal), degrees."""
+    k = min(len(acc), 50)
+    a = acc[:k].mean(axis=0)
+    m = mag[:k].mean(axis=0)
     c = float(np.dot(a, m) / (np.linalg.norm(a) * np.linalg.norm(m)))
     return float(np.degrees(np.arcsin(np.clip(-c, -1.0, 1.0))))
 
 
-def _run_ahrs(rec: Recording, nine: bool, name: str, params: dict[str, Any]) -> F64:
+def _run_ahrs(rec: Recording, nine: bool, name: str, params: dict[str, Any]) -> Estimate:
+    """An ahrs filter in batch mode; see :data:`MISSING_MAG` for the rows without a mag sample."""
     import ahrs.filters
 
-    g, a, m = _inputs(rec)
-    kw: dict[str, Any] = {"gyr": g, "acc": a, "frequency": float(rec.rate), **params}
+    g, a, m, present = _inputs(rec)
+    n = len(g)
+    notes: list[str] = []
+    start = 0
     if nine:
-        kw["mag"] = m
+        rows = np.flatnonzero(present)
+        if rows.size == 0:
+            note = f"no mag sample in the recording: not run (ahrs {name} starts from the first row's field)"
+            return Estimate(np.full((n, 4), np.nan), scored=np.zeros(n, np.bool_), notes=(note,))
+        start = int(rows[0])
+        if start:
+            notes.append(
+                f"rows 0-{start - 1} ({start / rec.rate:.2f} s) before the first mag sample: no estimate, "
+                f"not scored (ahrs {name} starts from the first row's field)"
+            )
+        later = int(np.count_nonzero(~present[start:]))
+        if later and name == "EKF":
+            held = np.maximum.accumulate(np.where(present, np.arange(n), 0))
+            m = m[held]
+            notes.append(
+                f"{later} later rows without a mag sample: the last sample held (ahrs EKF needs one)"
+            )
+        elif later:
+            notes.append(
+                f"{later} later rows without a mag sample: a 6-axis update there (ahrs {name}'s own)"
+            )
+    kw: dict[str, Any] = {"gyr": g[start:], "acc": a[start:], "frequency": float(rec.rate), **params}
+    if nine:
+        kw["mag"] = m[start:]
     if name == "EKF" and nine and "magnetic_ref" not in kw:
         # its default is a fixed location's field; in NED mode with our +g-up accelerometer its earth frame
         # comes out z-up (NWU), so the field's elevation is given as seen from there: -dip
-        kw["magnetic_ref"] = -_dip_deg(rec)
-    q = np.asarray(getattr(ahrs.filters, name)(**kw).Q, dtype=np.float64)
+        kw["magnetic_ref"] = -_dip_deg(a[present], m[present])
+    q = np.full((n, 4), np.nan)
+    q[start:] = np.asarray(getattr(ahrs.filters, name)(**kw).Q, dtype=np.float64)
     if name in ("Madgwick", "EKF") or not nine:
-        q = _qmul_left(_QZ90, q)
-    return q
+        q[start:] = _qmul_left(_QZ90, q[start:])
+    scored = None
+    if start:
+        scored = np.arange(n) >= start
+    return Estimate(q, scored=scored, notes=tuple(notes))
+
+
+MISSING_MAG = """Rows without a magnetometer sample (NaN or zero, e.g. a phone's slower magnetometer):
+
+- VQF, BasicVQF, Fusion (9-axis): the row is given as a zero field, which these libraries take as "no
+  sample" (no mag update on that row);
+- ahrs Madgwick, Mahony, EKF (9-axis): their batch mode starts from the first row's field, so they run
+  from the first row with a sample on; the rows before have no estimate and are not scored (the table's
+  notes say how many). Later rows without a sample: Madgwick and Mahony get a zero field, on which they
+  make their 6-axis update; the EKF, which needs a field on every row, gets the last sample held;
+- no sample at all: VQF and Fusion run without mag updates, the ahrs filters do not run (NaN scores).
+
+Nothing is interpolated, and the last sample is held only for the ahrs EKF."""
+"""What the peers are given for rows without a mag sample (``attica eval --peers`` prints the notes)."""
 
 
 @dataclass(frozen=True)
@@ -171,9 +240,12 @@ class Peer:
     setting : str
         ``default`` or ``tuned``.
     runner : callable
-        ``runner(recording) -> (N, 4)`` quaternions sensor-to-ENU.
+        ``runner(recording)`` -> :class:`~attica.evaluate.estimate.Estimate` (quaternions sensor-to-ENU,
+        rows scored, notes; VQF also its gyro bias).
     note : str
         What the setting is.
+
+    Rows without a magnetometer sample are handled as :data:`MISSING_MAG` describes.
 
     """
 
@@ -181,7 +253,7 @@ class Peer:
     library: str
     nine_axis: bool
     setting: str
-    runner: Callable[[Recording], F64] = field(compare=False, repr=False)
+    runner: Callable[[Recording], Estimate] = field(compare=False, repr=False)
     note: str = ""
 
     @property
@@ -190,12 +262,43 @@ class Peer:
         return importlib.util.find_spec(self.library) is not None
 
     def run(self, rec: Recording) -> F64:
-        """Quaternions ``(N, 4)`` w,x,y,z sensor-to-ENU for a recording."""
+        """Quaternions ``(N, 4)`` w,x,y,z sensor-to-ENU for a recording (NaN rows: no estimate)."""
+        return self.estimate(rec).q
+
+    def estimate(self, rec: Recording) -> Estimate:
+        """The :class:`~attica.evaluate.estimate.Estimate` of a recording (the ``run`` of ``attica eval``)."""
         if not self.installed:
             raise PeerMissingError(
                 f"{self.name} needs the Python package {self.library!r}: pip install '.[peers]'"
             )
-        return self.runner(rec)
+        if not rec.lost:
+            return self.runner(rec)
+        return _over_gaps(self.runner, rec)
+
+
+def _over_gaps(runner: Callable[[Recording], Estimate], rec: Recording) -> Estimate:
+    """A peer over a recording with lost samples: each sample held over its periods, as attica steps it.
+
+    The peers take one fixed period per call; a sample that stands for n periods is given n times
+    (gyro held over the gap, mag only the first time), and its row scores the estimate after the last.
+    """
+    steps = rec.steps.astype(np.int64)
+    idx = np.repeat(np.arange(rec.n), steps)
+    first = np.ones(idx.size, np.bool_)
+    first[1:] = idx[1:] != idx[:-1]
+    mag = rec.mag[idx].copy()
+    mag[~first] = np.nan  # one mag sample is one sample, not n
+    held = Recording(rec.gyr[idx], rec.acc[idx], mag, rec.rate, name=rec.name, groups=rec.groups)
+    est = runner(held)
+    last = np.cumsum(steps) - 1
+    note = f"{rec.lost} lost sample(s): each sample held over its periods, as attica steps it"
+    return Estimate(
+        est.q[last],
+        scored=est.scored[last] if est.scored is not None else None,
+        flags=est.flags[last] if est.flags is not None else None,
+        gyro_bias=est.gyro_bias[last] if est.gyro_bias is not None else None,
+        notes=(*est.notes, note),
+    )
 
 
 TUNED: dict[str, tuple[dict[str, Any], str]] = {

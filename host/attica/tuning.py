@@ -13,7 +13,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +21,9 @@ from numpy.typing import NDArray
 from attica.data import Recording
 from attica.metrics import Errors
 from attica.settings import FilterKind, Preset
+
+if TYPE_CHECKING:
+    from attica.evaluate.parallel import TrialPool
 
 __all__ = ["GridResult", "LeaveOneOut", "grid_points", "grid_scores", "leave_one_out"]
 
@@ -134,21 +137,24 @@ def grid_scores(
     grid: dict[str, list[Any]],
     variant: str = "",
     progress: bool = True,
+    pool: TrialPool | None = None,
 ) -> GridResult:
-    """Run every point of ``grid`` (overrides on the defaults of ``kind`` or of ``variant``) on ``recs``."""
-    from attica.evaluate.core import VARIANTS, _progress, attica_method, run_methods
+    """Run every point of ``grid`` (overrides on the defaults of ``kind`` or of ``variant``) on ``recs``.
+
+    ``pool`` (:class:`~attica.evaluate.parallel.TrialPool`) runs the points' trials in parallel; the
+    errors are the serial run's bit for bit. The progress bar counts trials (points x recordings).
+    """
+    from attica.evaluate.core import VARIANTS, attica_method, run_methods
     from attica.kinds import uses_mag
 
     nine = VARIANTS[variant][2] if variant else uses_mag(kind)
     if variant:
         kind = VARIANTS[variant][0]
     points = grid_points(grid)
+    methods = [attica_method(kind, Preset.DEFAULT, over, variant=variant) for over in points]
+    report = run_methods(methods, recs, progress=progress, pool=pool, desc=f"grid {variant or kind.label}")
     errors = np.full((len(points), len(recs), 3), np.nan)
-    with _progress(len(points), f"grid {variant or kind.label}", progress) as bar:
-        for i, over in enumerate(points):
-            method = attica_method(kind, Preset.DEFAULT, over, variant=variant)
-            res = run_methods([method], recs, progress=False).results[0]
-            for j, t in enumerate(res.trials):
-                errors[i, j] = (t.errors.total, t.errors.heading, t.errors.inclination)
-            bar.update(1)
+    for i, res in enumerate(report.results):
+        for j, t in enumerate(res.trials):
+            errors[i, j] = (t.errors.total, t.errors.heading, t.errors.inclination)
     return GridResult(points, [r.name for r in recs], errors, "total" if nine else "inclination")

@@ -4,14 +4,21 @@ Runs attica's C filters (and with ``--peers`` other people's filters) over every
 directory, prints the RMSE per trial, per group and on average (6-axis methods by inclination, 9-axis
 methods by total error, in tables that fit 110 columns; ``--wide`` for one table each), and with
 ``--out`` writes results.json and PNG plots. ``--grid`` runs the grid search that chose the defaults.
+
+Trials run in parallel (``--jobs N`` processes, every core by default) or on a Dask cluster
+(``--scheduler tcp://host:port``); the figures are the serial run's bit for bit
+(:mod:`attica.evaluate.parallel`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib.util
 import json
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +43,7 @@ HELP = "accuracy on recorded trials (BROAD metrics): tables, plots, JSON, peers 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``attica eval``."""
     from attica.evaluate import VARIANTS
+    from attica.evaluate.parallel import DASK_HINT, default_jobs
 
     choices = ", ".join([k.label for k in implemented_kinds()] + list(VARIANTS))
     p.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds and variants ({choices})")
@@ -51,12 +59,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--peers",
         nargs="?",
         const="all",
-        help="also run other people's filters: all installed ones, or comma-separated names (vqf9,fusion9)",
+        help="also run other people's filters: all installed ones, or comma-separated names (vqf9,fusion9). "
+        "Rows without a mag sample: VQF and Fusion get a zero field (their 'no sample'); the 9-axis ahrs "
+        "filters start at the first mag sample (earlier rows not scored), the ahrs EKF holds the last "
+        "sample; the notes under the tables say what was done per trial",
     )
     add_calibration_argument(p, "attica's filters (not with --peers or --grid)")
     p.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
     p.add_argument("--limit", type=int, help="only the first N trials")
     p.add_argument("--wide", action="store_true", help="one table per kind of method, however wide")
+    p.add_argument(
+        "-j",
+        "--jobs",
+        type=int,
+        help="worker processes for the trials (default: every core, here "
+        f"{default_jobs()}; 1: in this process); the figures are the same whatever the number",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the trials on a Dask cluster, e.g. tcp://host:8786 (the dask.distributed client: "
+        f"{DASK_HINT}); its workers must have the same attica installed",
+    )
     p.add_argument("--no-plots", action="store_true", help="write no PNGs")
     add_unit_check_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -93,9 +117,16 @@ def _peers(spec: str | None) -> list[Any]:
 def run(args: argparse.Namespace) -> int:
     """``attica eval``."""
     from attica.evaluate import format_summary, format_tables, load_trials, run_methods
+    from attica.evaluate.parallel import DASK_HINT
 
     if args.limit is not None and args.limit < 1:
         raise CliError("--limit must be >= 1")
+    if args.jobs is not None and args.jobs < 1:
+        raise CliError("--jobs must be >= 1")
+    if args.scheduler is not None and args.jobs is not None:
+        raise CliError("--jobs and --scheduler exclude each other (the cluster decides how many workers run)")
+    if args.scheduler is not None and importlib.util.find_spec("distributed") is None:
+        raise CliError(f"--scheduler needs the Dask client (dask.distributed): {DASK_HINT}")
     if args.calibration and (args.peers is not None or args.grid):
         what = "--peers (the peers would not get the calibration)" if args.peers is not None else "--grid"
         raise CliError(f"--calibration applies to attica's filters only; drop it or {what}")
@@ -129,11 +160,13 @@ def run(args: argparse.Namespace) -> int:
         warn_calibrated_truth(cal)
     for rec in recs:
         check_units(rec, args)
-    if args.grid:
-        return _grid(args, names, recs, out)
-    t0 = time.perf_counter()
-    report = run_methods(methods, recs, progress=not args.quiet, curves=plots)
-    print(f"{len(methods)} methods x {len(recs)} trials in {time.perf_counter() - t0:.1f} s\n")
+    with _pool(args) as pool:
+        if args.grid:
+            return _grid(args, names, recs, out, pool)
+        t0 = time.perf_counter()
+        report = run_methods(methods, recs, progress=not args.quiet, curves=plots, pool=pool)
+        where = pool.describe()
+    print(f"{len(methods)} methods x {len(recs)} trials in {time.perf_counter() - t0:.1f} s ({where})\n")
     print(format_tables(report, wide=args.wide))
     print(format_summary(report))
     if out is not None:
@@ -149,6 +182,22 @@ def run(args: argparse.Namespace) -> int:
             written = write_plots(report, recs, out)
             print(f"wrote {len(written)} plots to {out} (error_*.png, groups*.png)")
     return 0
+
+
+@contextlib.contextmanager
+def _pool(args: argparse.Namespace) -> Iterator[Any]:
+    """The :class:`~attica.evaluate.parallel.TrialPool` of ``--jobs`` / ``--scheduler`` (errors: CliError)."""
+    from attica.evaluate.parallel import TrialPool
+
+    try:  # DaskMissingError is a RuntimeError
+        pool = TrialPool(args.jobs, args.scheduler)
+        pool.__enter__()
+    except (ConnectionError, RuntimeError) as exc:
+        raise CliError(f"--scheduler: {exc}") from None
+    try:
+        yield pool
+    finally:
+        pool.close()
 
 
 def _method_names(spec: str) -> list[str]:
@@ -195,7 +244,7 @@ def _attica(name: str, preset: Preset, calibration: Any = None) -> Any:
     return attica_method(FilterKind.parse(name), preset, calibration=calibration)
 
 
-def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None) -> int:
+def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None, pool: Any) -> int:
     """``attica eval --grid``: every grid (kinds and variants), best five, in-sample and leave-one-out."""
     from attica.evaluate import GRIDS, METRICS, VARIANT_GRIDS, VARIANTS
     from attica.tuning import grid_scores, leave_one_out
@@ -207,7 +256,7 @@ def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path
         variant = name if name in VARIANT_GRIDS else ""
         kind = VARIANTS[name][0] if variant else FilterKind.parse(name)
         grid = VARIANT_GRIDS[name] if variant else GRIDS[kind]
-        res = grid_scores(kind, recs, grid, variant=variant, progress=not args.quiet)
+        res = grid_scores(kind, recs, grid, variant=variant, progress=not args.quiet, pool=pool)
         rows = res.ranked()
         print(f"\ngrid {name} ({len(rows)} points, ranked by mean {res.metric} RMSE); best 5:")
         for over, e in rows[:5]:

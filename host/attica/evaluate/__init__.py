@@ -2,8 +2,13 @@
 
 - :mod:`attica.evaluate.core`: methods (attica's C filters, the peers), scores per trial and group,
   the grid search of the defaults;
-- :mod:`attica.evaluate.tables`: text tables that fit 110 columns (6-axis and 9-axis apart);
-- :mod:`attica.evaluate.plots`: PNG plots (1600 px, 6-axis and 9-axis charts apart).
+- :mod:`attica.evaluate.estimate`: what a method returns (attitude, rows scored, flags, bias, notes);
+- :mod:`attica.evaluate.parallel`: the trials on worker processes or a Dask cluster, bit for bit the
+  serial figures;
+- :mod:`attica.evaluate.trace`: thinned per-sample curves for the plots;
+- :mod:`attica.evaluate.tables`: text tables that fit 110 columns (6-axis and 9-axis apart), notes;
+- :mod:`attica.evaluate.plots`, :mod:`attica.evaluate.trialplot`: PNG plots (1600 px): per trial the
+  angles against the truth, the errors, flags and bias over time; per group the RMSE bars.
 """
 
 from __future__ import annotations
@@ -26,10 +31,13 @@ from attica.evaluate.core import (
     peer_methods,
     run_methods,
 )
-from attica.evaluate.tables import format_summary, format_tables
+from attica.evaluate.estimate import Estimate
+from attica.evaluate.parallel import TrialPool
+from attica.evaluate.tables import format_notes, format_summary, format_tables
 
 __all__ = [
     "DATA_SUFFIXES",
+    "Estimate",
     "GRIDS",
     "GROUP_ORDER",
     "METRICS",
@@ -37,10 +45,12 @@ __all__ = [
     "Method",
     "MethodResult",
     "Report",
+    "TrialPool",
     "TrialScore",
     "VARIANTS",
     "VARIANT_GRIDS",
     "attica_method",
+    "format_notes",
     "format_summary",
     "format_tables",
     "grid_search",

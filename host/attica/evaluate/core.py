@@ -18,7 +18,6 @@ all trials, ranked by the mean over trials (the dataset authors' "TAGP").
 from __future__ import annotations
 
 import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,8 +28,12 @@ from numpy.typing import NDArray
 
 from attica.checks import implied_gains
 from attica.data import Recording, load_recording
+from attica.evaluate.estimate import Estimate
+from attica.evaluate.parallel import TrialPool
+from attica.evaluate.trace import Trace
 from attica.kinds import KINDS, uses_mag
-from attica.metrics import Errors, error_angles, evaluate
+from attica.metrics import Errors
+from attica.outputs import OUT_BIAS
 from attica.settings import FilterKind, Preset, make_settings, preset_settings
 
 __all__ = [
@@ -38,6 +41,7 @@ __all__ = [
     "GROUP_ORDER",
     "METRICS",
     "NINE_AXIS",
+    "Estimate",
     "Method",
     "MethodResult",
     "Report",
@@ -148,9 +152,16 @@ class Method:
     setting : str
         ``default``, ``seed`` or ``tuned``.
     run : callable
-        ``run(recording) -> (N, 4)`` float64 quaternions sensor-to-ENU.
+        ``run(recording)`` -> ``(N, 4)`` float64 quaternions sensor-to-ENU (or an
+        :class:`~attica.evaluate.estimate.Estimate`).
     note : str
         Description of the setting.
+    estimate : callable, optional
+        ``estimate(recording)`` -> :class:`~attica.evaluate.estimate.Estimate` (the quaternions with the
+        rows scored, flags, gyro bias, notes); the evaluation calls it instead of ``run`` when given.
+
+    To run on worker processes (``jobs`` > 1) ``run`` and ``estimate`` must pickle: module-level
+    functions, ``functools.partial`` objects of them, or (methods of) instances of module-level classes.
 
     """
 
@@ -158,13 +169,56 @@ class Method:
     family: str
     nine_axis: bool
     setting: str
-    run: Callable[[Recording], F64] = field(compare=False, repr=False)
+    run: Callable[[Recording], F64 | Estimate] = field(compare=False, repr=False)
     note: str = ""
+    estimate: Callable[[Recording], Estimate] | None = field(default=None, compare=False, repr=False)
+
+    def outcome(self, rec: Recording) -> F64 | Estimate:
+        """What the evaluation scores: :attr:`estimate` of the recording when given, else :attr:`run`."""
+        return self.estimate(rec) if self.estimate is not None else self.run(rec)
 
     @property
     def score_metric(self) -> str:
         """``total`` for 9-axis methods, ``inclination`` for 6-axis ones."""
         return "total" if self.nine_axis else "inclination"
+
+
+@dataclass(frozen=True)
+class AtticaRun:
+    """The ``run`` of :func:`attica_method`: a module-level class, so that it pickles for worker processes.
+
+    Calling it returns the quaternions; :meth:`estimate` also the filter's flags and (when it estimates
+    one) gyro bias.
+    """
+
+    kind: FilterKind
+    preset: Preset
+    overrides: dict[str, Any]
+    calibration: Any = None
+
+    def __call__(self, rec: Recording) -> F64:
+        """The quaternions ``(N, 4)`` float64 of the C filter run over the recording in batch."""
+        return self.estimate(rec).q
+
+    def estimate(self, rec: Recording) -> Estimate:
+        """The C filter run over the recording in batch: quaternions, flags, gyro bias."""
+        from attica import native
+
+        settings = preset_settings(self.kind, self.preset, dt=1.0 / rec.rate)
+        if self.overrides:  # a time constant set here takes over from the preset's per-sample gain
+            settings = make_settings(
+                self.kind, settings, **implied_gains(self.kind, settings, self.overrides)
+            )
+        f = native.Filter(self.kind, settings=settings, calibration=self.calibration)
+        steps = rec.steps if rec.lost else None  # lost samples are stepped over (Recording.steps)
+        out = f.run(rec.gyr, rec.acc, rec.mag, check_units=False, steps=steps)
+        bias = np.asarray(out["gyro_bias"])
+        has_bias = bool(np.all(out["valid"] & OUT_BIAS)) and bool(np.any(bias != 0.0))
+        return Estimate(
+            np.asarray(out["q"], dtype=np.float64),
+            flags=np.asarray(out["flags"], dtype=np.uint32),
+            gyro_bias=bias if has_bias else None,
+        )
 
 
 def attica_method(
@@ -185,24 +239,14 @@ def attica_method(
         overrides = {**base, **(overrides or {})}
     p = Preset.parse(preset)
     extra = dict(overrides or {})
-
-    def run(rec: Recording) -> F64:
-        from attica import native
-
-        settings = preset_settings(kind, p, dt=1.0 / rec.rate)
-        if extra:  # a time constant set here takes over from the preset's per-sample gain
-            settings = make_settings(kind, settings, **implied_gains(kind, settings, extra))
-        f = native.Filter(kind, settings=settings, calibration=calibration)
-        out = f.run(rec.gyr, rec.acc, rec.mag, check_units=False)
-        return np.asarray(out["q"], dtype=np.float64)
-
+    run = AtticaRun(kind, p, extra, calibration)
     label = variant or kind.label
     name = label if p == Preset.DEFAULT else f"{label}@{p.label}"
     shown = {k: v for k, v in extra.items() if not variant or k not in VARIANTS[variant][1]}
     if shown:
         name += "[" + ",".join(f"{k}={v}" for k, v in shown.items()) + "]"
     note = f"attica {label}, preset {p.label}" + (", calibrated" if calibration is not None else "")
-    return Method(name, "attica", nine, p.label, run, note)
+    return Method(name, "attica", nine, p.label, run, note, estimate=run.estimate)
 
 
 def peer_methods(names: Sequence[str] | None = None) -> list[Method]:
@@ -210,7 +254,7 @@ def peer_methods(names: Sequence[str] | None = None) -> list[Method]:
     from attica.peers import available_peers
 
     chosen = available_peers(list(names) if names is not None else None)
-    return [Method(p.name, p.library, p.nine_axis, p.setting, p.run, p.note) for p in chosen]
+    return [Method(p.name, p.library, p.nine_axis, p.setting, p.run, p.note, p.estimate) for p in chosen]
 
 
 def load_trials(path: str | Path, limit: int | None = None) -> list[Recording]:
@@ -244,6 +288,8 @@ class TrialScore:
     groups: tuple[str, ...]
     errors: Errors
     seconds: float
+    notes: tuple[str, ...] = ()
+    """What the method did to this trial's input or scoring (a peer started late, a sample held ...)."""
 
 
 @dataclass
@@ -274,8 +320,8 @@ class Report:
     results: list[MethodResult]
     trials: list[str]
     groups: list[str]
-    curves: dict[tuple[str, str], tuple[F64, F64]] = field(default_factory=dict)
-    """(method, trial) -> (per-sample score error in deg, per-sample inclination error in deg)."""
+    traces: dict[tuple[str, str], Trace] = field(default_factory=dict)
+    """(method, trial) -> thinned per-sample curves for the plots (``run_methods(curves=True)``)."""
 
     def result(self, name: str) -> MethodResult:
         """The result of a method by name."""
@@ -300,7 +346,11 @@ class Report:
                 "note": m.note,
                 "score_metric": m.score_metric,
                 "trials": {
-                    t.trial: {**{k: clean(getattr(t.errors, k)) for k in METRICS}, "n": t.errors.n}
+                    t.trial: {
+                        **{k: clean(getattr(t.errors, k)) for k in METRICS},
+                        "n": t.errors.n,
+                        **({"notes": list(t.notes)} if t.notes else {}),
+                    }
                     for t in r.trials
                 },
                 "groups": {g: {k: clean(r.mean(k, g)) for k in METRICS} for g in self.groups},
@@ -329,6 +379,10 @@ def run_methods(
     recs: Sequence[Recording],
     progress: bool = True,
     curves: bool = False,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    pool: TrialPool | None = None,
+    desc: str = "eval",
 ) -> Report:
     """Score every method on every recording (each needs ``quat_true``; ``movement`` when given).
 
@@ -339,40 +393,61 @@ def run_methods(
     recs : sequence of Recording
         Trials with ground truth.
     progress : bool
-        Show a progress bar (only when stderr is a terminal).
+        Show a progress bar (only when stderr is a terminal), advancing as trials finish.
     curves : bool
-        Keep the per-sample errors (for the plots).
+        Keep thinned per-sample curves (:class:`~attica.evaluate.trace.Trace`) for the plots.
+    jobs : int
+        Worker processes (1: in this process); ignored when ``pool`` is given.
+    scheduler : str, optional
+        A Dask scheduler's address to run on; ignored when ``pool`` is given.
+    pool : TrialPool, optional
+        Where to run (kept open by the caller across calls, as ``--grid`` does).
+    desc : str
+        Progress bar label.
 
     Returns
     -------
     Report
-        Per method and trial the BROAD errors, plus group names and optional curves.
+        Per method and trial the BROAD errors, plus group names and optional traces; identical whatever
+        runs the tasks (but for the measured ``seconds``).
 
     Raises
     ------
     ValueError
-        When a recording has no ground truth.
+        When a recording has no ground truth, or a method cannot be sent to worker processes.
 
     """
     for r in recs:
         if r.quat_true is None:
             raise ValueError(f"{r.name}: no ground truth (opt_quat / quat_* columns)")
     report = Report([MethodResult(m) for m in methods], [r.name for r in recs], _groups_of(recs))
-    with _progress(len(methods) * len(recs), "eval", progress) as bar:
-        for res in report.results:
-            for rec in recs:
-                bar.set_postfix_str(f"{res.method.name} {rec.name[:24]}")
-                t0 = time.perf_counter()
-                q = res.method.run(rec)
-                elapsed = time.perf_counter() - t0
-                assert rec.quat_true is not None
-                errors = evaluate(q, rec.quat_true, rec.movement)
-                res.trials.append(TrialScore(rec.name, rec.groups, errors, elapsed))
-                if curves:
-                    total, _, incl = error_angles(q, rec.quat_true)
-                    score = total if res.method.nine_axis else incl
-                    report.curves[(res.method.name, rec.name)] = (np.degrees(score), np.degrees(incl))
-                bar.update(1)
+    if pool is None:
+        with TrialPool(jobs, scheduler) as own:
+            return _fill(report, methods, recs, progress, curves, own, desc)
+    return _fill(report, methods, recs, progress, curves, pool, desc)
+
+
+def _fill(
+    report: Report,
+    methods: Sequence[Method],
+    recs: Sequence[Recording],
+    progress: bool,
+    curves: bool,
+    pool: TrialPool,
+    desc: str,
+) -> Report:
+    with _progress(len(methods) * len(recs), desc, progress) as bar:
+
+        def done(i: int, j: int) -> None:
+            bar.set_postfix_str(f"{methods[i].name} {recs[j].name[:24]}", refresh=False)
+            bar.update(1)
+
+        outcomes = pool.run(methods, recs, curves, done)
+    for res, row in zip(report.results, outcomes, strict=True):
+        for rec, o in zip(recs, row, strict=True):
+            res.trials.append(TrialScore(rec.name, rec.groups, o.errors, o.seconds, o.notes))
+            if o.trace is not None:
+                report.traces[(res.method.name, rec.name)] = o.trace
     return report
 
 
@@ -384,13 +459,16 @@ def grid_search(
     recs: Sequence[Recording],
     grid: dict[str, list[Any]] | None = None,
     progress: bool = True,
+    jobs: int = 1,
 ) -> list[tuple[dict[str, Any], Errors]]:
     """Score every point of ``grid`` (default :data:`GRIDS`), applied to the default settings.
 
     Returns ``(overrides, mean errors over trials)`` sorted best first (9-axis kinds by total error, the
-    others by inclination error): one parameter set for all trials, as BROAD's authors tune.
+    others by inclination error): one parameter set for all trials, as BROAD's authors tune. ``jobs``:
+    worker processes, as for :func:`run_methods`.
     """
     from attica.tuning import grid_scores
 
     g = grid if grid is not None else GRIDS[kind]
-    return grid_scores(kind, recs, g, progress=progress).ranked()
+    with TrialPool(jobs) as pool:
+        return grid_scores(kind, recs, g, progress=progress, pool=pool).ranked()

@@ -7,13 +7,14 @@ each repeating the trial names, unless ``wide`` is asked for.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 
 import numpy as np
 
 from attica.evaluate.core import MethodResult, Report
 
-__all__ = ["TABLE_WIDTH", "format_summary", "format_tables"]
+__all__ = ["TABLE_WIDTH", "format_notes", "format_summary", "format_tables"]
 
 TABLE_WIDTH = 110
 """Columns a table may use unless ``wide``."""
@@ -101,6 +102,28 @@ def format_tables(report: Report, width: int | None = TABLE_WIDTH, wide: bool = 
         lines += _table(report, "6-axis: inclination RMSE (deg)", "inclination", six, w)
     if nine:
         lines += _table(report, "9-axis: total RMSE (deg)", "total", nine, w)
+    notes = format_notes(report, width or TABLE_WIDTH)
+    if notes:
+        lines += [notes, ""]
+    return "\n".join(lines)
+
+
+def format_notes(report: Report, width: int = TABLE_WIDTH) -> str:
+    """What methods did to a trial's input or scoring (``TrialScore.notes``); empty when there is none.
+
+    One entry per trial and note, naming the methods it concerns, wrapped to ``width`` columns.
+    """
+    entries: dict[tuple[str, str], list[str]] = {}
+    for r in report.results:
+        for t in r.trials:
+            for note in t.notes:
+                entries.setdefault((t.trial, note), []).append(r.method.name)
+    if not entries:
+        return ""
+    lines = ["notes (the input the methods got, and what was scored):"]
+    for (trial, note), names in entries.items():
+        text = f"{', '.join(names)} on {trial}: {note}"
+        lines += textwrap.wrap(text, width, initial_indent="- ", subsequent_indent="  ")
     return "\n".join(lines)
 
 
