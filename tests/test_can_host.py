@@ -89,7 +89,8 @@ def test_virtual_bus_1e5_steps_bit_exact() -> None:
     print("\n".join(rep.lines()))
     print(f"virtual bus, in-process: {rep.frames_sent + rep.frames_received} frames in {elapsed:.1f} s")
     assert rep.reference_ok, rep.reference_detail
-    assert rep.samples_sent == n and rep.steps_expected == n and rep.sets_expected == n
+    assert rep.samples_sent == n and rep.samples_stepped == n and rep.steps_expected == n
+    assert rep.sets_expected == n
     assert rep.sets_ok == n, rep.first_mismatch
     assert (rep.mismatched, rep.missing, rep.corrupted, rep.duplicates, rep.unexpected) == (0, 0, 0, 0, 0)
     assert rep.skipped == []
@@ -326,7 +327,9 @@ class Injector:
     def _plan_outputs(self) -> None:
         e = self.expect
         for j, f in self.out_plan.items():
-            step = j + 1
+            # set j is of the (j + lost)-th sample (the losses are all before it); the node integrated
+            # every lost sample, so its step count is its sample index + 1
+            step = j + len(e.lost_samples) + 1
             if f == "dup_set":
                 e.duplicate_sets += 1
             else:
@@ -476,7 +479,11 @@ def test_fault_injection_every_fault_counted() -> None:
     # the model of the node's assembly, fed what the node received, predicts the same
     asm = assemble(frames_of(m for m in seen if m.arbitration_id not in verify_outputs_ids()))
     assert asm.counters == e.counters
-    assert len(asm) == n - len(e.lost_samples) == stats["steps"]
+    assert len(asm) == n - len(e.lost_samples) == stats["samples"]
+    # ... and the periods the node stepped each sample over: every lost sample integrated by the next
+    kept = np.setdiff1d(np.arange(n), e.lost_samples)
+    assert asm.steps.tolist() == np.diff(kept, prepend=-1).tolist()
+    assert asm.periods == n == stats["steps"]
     # no silent loss: every sample that did not step the filter is one the faults destroyed, and verify
     # found exactly those by aligning the node's outputs with the samples sent
     assert rep.skipped == e.lost_samples
@@ -514,7 +521,8 @@ def test_fault_injection_with_tap_model() -> None:
         node.close()
     print("\n".join(rep.lines()))
     assert rep.input_faults == inj.expect.counters
-    assert rep.steps_expected == n - len(inj.expect.lost_samples)
+    assert rep.samples_stepped == n - len(inj.expect.lost_samples)
+    assert rep.steps_expected == n  # the lost samples integrated
     assert rep.mismatched == 0 and rep.unexpected == 0 and rep.lost == 0
     assert rep.corrupted == inj.expect.corrupted_sets
 

@@ -56,15 +56,37 @@ def test_monitor_reports_lost_samples_beyond_the_alive_counter(lost: int) -> Non
     assert whole.stats.samples_behind <= 0 and whole.stats.missing_sets == 0 and not whole.lost_anything
     assert "0 output sets missing" in text and "LOST" not in text
     # every frame of `lost` samples gone in a burst (a socket buffer overflowing): the 4-bit counters see
-    # lost % 16 of them per ID (none for 32), the node's step counter all of them
+    # lost % 16 of them per ID (none for 32), the node's step counter all of them: the sets missing
+    # exactly, the samples beyond those the IMU counters show
     kept = [m for k, s in enumerate(session) if not 100 <= k < 100 + lost for m in s]
     mon, text = _summary(kept)
     assert mon.stats.missing_frames == 6 * (lost % 16)  # 3 IMU and 3 output IDs carry counters
     assert mon.stats.missing_sets == lost
-    assert mon.stats.samples_behind == lost
+    beyond = lost - lost % 16
+    assert mon.stats.samples_behind == beyond
     assert f"{lost} output sets missing by the node's step counter" in text
-    assert f"at least {lost} IMU samples the node stepped with are not in this view (LOST" in text
+    assert f"at least {beyond} IMU sample periods the node stepped over are not in this view" in text
     assert mon.lost_anything
+
+
+@pytest.mark.parametrize("fd", [False, True])
+def test_monitor_lost_inputs_integrated_by_the_node_are_no_lost_outputs(fd: bool) -> None:
+    """Samples lost before the node (and the monitor): the node integrates them, sends no set for them."""
+    n = 300
+    rec = simulate(SimConfig(duration=n / RATE + 0.5, rate=RATE, seed=7))
+    node = Node("mars" if fd else "ars", sample_rate=RATE, fd=fd, data_bitrate=2_000_000 if fd else 0)
+    imu = codec.encode_imu(rec.gyr[:n], rec.acc[:n], rec.mag[:n], fd=fd).reshape(n, -1)
+    lost = {40, 41, 42, *range(100, 120), *range(200, 215)}  # runs of 3, 20 and 15
+    msgs = []
+    for k in range(n):
+        if k in lost:
+            continue
+        out, _ = node.run(imu[k])
+        msgs += to_messages(np.concatenate([imu[k], out]), channel="can0")
+    mon, text = _summary(msgs)
+    assert node.stats()["sets"] == mon.stats.sets == n - len(lost) - 1  # 215: a duplicate of 199
+    assert mon.stats.missing_sets == 0 and mon.stats.samples_behind <= 0
+    assert "0 output sets missing" in text and "LOST" not in text
 
 
 def test_monitor_reports_inputs_missing_at_the_end() -> None:
@@ -76,7 +98,7 @@ def test_monitor_reports_inputs_missing_at_the_end() -> None:
     mon, text = _summary(msgs)
     assert mon.stats.counter_gaps == 0  # nothing for the alive counters to see
     assert mon.stats.samples_behind == 39
-    assert "at least 39 IMU samples" in text
+    assert "at least 39 IMU sample periods" in text
 
 
 def test_monitor_names_flags_and_claims_fd_only_for_fd() -> None:

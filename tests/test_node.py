@@ -11,6 +11,7 @@ import pytest
 
 from attica import kinds, native, sim
 from attica.can import codec as c
+from attica.can.compare import expected_outputs
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
 from attica.settings import FilterKind, make_settings
@@ -41,11 +42,22 @@ def _recording(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @functools.cache
 def _reference(kind: str, n: int, seed: int, keep: bytes | None = None) -> np.ndarray:
-    """Reference outputs (checked bit for bit against the reference filter) for the dequantised samples."""
+    """Reference outputs (checked bit for bit against the reference filter) for the dequantised samples.
+
+    ``keep``: the samples the node stepped (a bool mask); each steps over the periods since the one kept
+    before it, as the node derives them from the counters (runs of fewer than 15 lost samples here).
+    """
     g, a, m = c.imu_values(*_recording(n, seed))
     if keep is not None:
         mask = np.frombuffer(keep, np.bool_)
         g, a, m = g[mask], a[mask], m[mask]
+        per = np.diff(np.concatenate([[-1], np.nonzero(mask)[0]]))
+        per[0] = 1
+        assert per.max() < 16
+        exp = expected_outputs(FilterKind.parse(kind), RATE, g, a, m, steps=per)
+        assert exp.reference_ok, exp.reference_detail
+        assert (exp.records["steps"] == np.cumsum(per)).all()
+        return exp.records
     res = crosscheck(kind, [Stream(g, a, m)], make_settings(FilterKind.parse(kind), None, DT), segment=500)
     assert res.ok, res.first_mismatch
     assert res.steps == g.shape[0]
@@ -296,7 +308,8 @@ def test_fault_injection_counted_and_stream_stays_bit_exact(fd: bool) -> None:
     assert node.rx_pending() == 0
     out = np.concatenate(outs)
     st = node.stats()
-    assert steps == st["steps"] == int(accepted.sum())
+    # every sample stepped the filter or was integrated over by the next one: n filter steps in all
+    assert steps == st["steps"] == n and st["samples"] == int(accepted.sum())
     for e in ERRORS:
         assert st[e] == want[e], (e, st[e], want[e], used)
     assert st["tx_overflows"] == 0
@@ -334,10 +347,12 @@ def test_rx_overflow_and_tx_backpressure() -> None:
     ref = _reference("ars", n, 5)[:21]
     assert_same_bits(sets["q"], ref["q"], "q after backpressure")
     # frames 64..99 were refused: sample 21 has only its gyro frame, 22..32 are gone, 33 lost its gyro
-    # frame; the rest: 21 and 33 are stale partials, 21 -> 33 is a gap, 34..39 are stepped
+    # frame; the rest: 21 and 33 are stale partials, 21 -> 33 is a gap, 34..39 are stepped: 34 over the
+    # 14 periods since 20 (21..33 lost), 35..39 one each
     rest, steps = node.run(frames[100:])
     st = node.stats()
-    assert (st["stale_partials"], st["counter_gaps"], steps, st["steps"]) == (2, 1, 6, 27)
+    assert (st["stale_partials"], st["counter_gaps"], steps, st["steps"], st["samples"]) == (2, 1, 19, 40, 27)
+    assert c.decode_outputs(rest).sets["steps"].tolist() == [35, 36, 37, 38, 39, 40]
 
 
 def test_counters_saturate_on_the_bus() -> None:

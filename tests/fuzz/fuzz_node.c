@@ -15,7 +15,10 @@
  *   unknown commands answer UNKNOWN_CMD; a select answered OK runs the asked kind from step 0.
  * - N4 a set-gain answered OK keeps the filter's state: att_filter_output is bit for bit unchanged.
  * - N5 a clean sample (the next counter, no partial pending) runs exactly one step.
- * - N6 steps == samples, tx_overflows == 0, rx_frames + rx_overflows == frames pushed.
+ * - N6 samples <= steps <= 15 samples (a sample steps over 1 .. 15 periods), tx_overflows == 0,
+ *   rx_frames + rx_overflows == frames pushed; a frame that completes a sample steps the filter over
+ *   n = (its counter - the last stepped sample's) mod 16 periods, 1 for the first sample and for 0
+ *   (stats.steps and the filter's step count both advance by n).
  * - N7 determinism: a second node, filled with other bytes before init, sends the same bytes.
  * The -msan build adds: no branch and no sent byte depends on uninitialised memory.
  */
@@ -131,7 +134,8 @@ static void push(att_node_t *n, tracker_t *t, const att_can_frame_t *f)
 
 static void check_stats(const att_node_t *n, const tracker_t *t)
 {
-    FZ_CHECK(n->stats.steps == n->stats.samples, "steps %u != samples %u", n->stats.steps, n->stats.samples);
+    FZ_CHECK(n->stats.steps >= n->stats.samples && n->stats.steps - n->stats.samples <= 14u * n->stats.samples,
+             "steps %u for %u samples", n->stats.steps, n->stats.samples);
     FZ_CHECK(n->stats.tx_overflows == 0u, "tx_overflows %u", n->stats.tx_overflows);
     FZ_CHECK(n->stats.rx_frames + n->stats.rx_overflows == t->pushed, "rx_frames %u + overflows %u != pushed %u",
              n->stats.rx_frames, n->stats.rx_overflows, t->pushed);
@@ -183,6 +187,8 @@ static void one_frame(att_node_t *n, tracker_t *t, const att_can_frame_t *f, boo
     att_filter_kind_t kind0 = n->kind;
     bool queued_empty = n->rx_head == n->rx_tail && att_node_tx_pending(n) + ATT_NODE_SET_MAX <= ATT_NODE_TX_RING;
     att_can_cmd_t cmd;
+    const bool have_last0 = n->have_last;
+    const uint8_t last0 = n->last_counter;
     filter_out(n, &o0);
     push(n, t, f);
     (void)att_node_poll(n);
@@ -249,6 +255,15 @@ static void one_frame(att_node_t *n, tracker_t *t, const att_can_frame_t *f, boo
         if (cmd.cmd == ATT_CAN_CMD_RESET) {
             FZ_CHECK(result == ATT_CAN_ACK_OK && o1.steps == 0u, "reset");
         }
+        return;
+    }
+    if (n->stats.samples != s0.samples) { /* this frame completed a sample: N6, its periods */
+        uint32_t want = have_last0 ? ((uint32_t)att_can_counter(f) - (uint32_t)last0) & 15u : 1u;
+        if (want == 0u) want = 1u;
+        FZ_CHECK(n->stats.samples == s0.samples + 1u && n->stats.steps == s0.steps + want &&
+                     o1.steps == o0.steps + want,
+                 "a sample with counter %u after %u stepped %u periods (filter %u), want %u", (unsigned)att_can_counter(f),
+                 (unsigned)last0, n->stats.steps - s0.steps, o1.steps - o0.steps, want);
     }
 }
 

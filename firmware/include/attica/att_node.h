@@ -22,23 +22,35 @@
  * the controller's acceptance filter; `attica dbc --id-offset N` writes the matching DBC). The E2E
  * data ID of a message stays 0x0A00 + its DBC ID whatever the offset.
  *
- * Input: IMU_GYRO + IMU_ACC + IMU_MAG with one counter (any order) or one IMU_FD form a sample; a
- * complete sample steps the filter exactly once (att_filter_step). Both input formats are accepted in
- * either output mode (IMU_FD only in builds with ATT_NODE_WITH_FD: otherwise it is an unknown ID). Every frame is checked in this order: known ID (else unknown_ids), length and
- * classic/FD format (dlc_errors), E2E CRC (crc_errors); then the sample assembly:
+ * Input: IMU_GYRO + IMU_ACC + IMU_MAG with one counter (any order) or one IMU_FD form a sample. A
+ * complete sample steps the filter over the sample periods since the last sample stepped, as the E2E
+ * counters tell them: att_filter_step_n with n = (counter - last sample's counter) mod 16, so 1 for the
+ * next sample and k + 1 after k lost samples (whole or discarded partial ones: a lost sample is
+ * integrated, held from the next one, not ignored); 1 for the first sample and for a distance of 0 (a
+ * re-sent sample after a stale partial). The counters are 4 bits: after 15 lost whole samples the
+ * next one has the last counter and is dropped as a duplicate, and a run of 15 or more lost samples is
+ * integrated short by a multiple of 16 periods. Both input formats are accepted in either output mode
+ * (IMU_FD only in builds with ATT_NODE_WITH_FD: otherwise it is an unknown ID). Every frame is checked
+ * in this order: known ID (else unknown_ids), length and classic/FD format (dlc_errors), E2E CRC
+ * (crc_errors); then the sample assembly:
  * - a classic IMU frame whose counter differs from the sample being assembled discards that partial
  *   sample (stale_partials) and starts a new one;
  * - a frame of a part already present, or of the sample just completed, is dropped (duplicates);
  * - a new sample whose counter is not the previous sample's + 1 (mod 16) is accepted and counted once
- *   in counter_gaps (one or more whole samples were lost).
+ *   in counter_gaps (one or more whole samples were lost); it steps over the periods since the last
+ *   sample stepped (above).
  * Rejected frames never touch the filter.
  *
- * Output, every output_divider-th step: classic QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS, or one
- * ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set. The counter of a
- * set is the set index mod 16 (= step index mod 16 when output_divider is 1). att_node_poll only takes
- * a frame from the rx ring while the tx ring has room for a whole set plus a command answer
- * (ATT_NODE_SET_MAX frames): the node never drops outputs; if the application does not drain tx, the
- * rx ring fills and further frames are counted in rx_overflows.
+ * Output, every output_divider-th filter step: classic QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS, or
+ * one ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set. A sample
+ * stepped over n periods queues at most one set, after its last step, when its steps reach or pass a
+ * multiple of output_divider (the filter's step count: from init, a reset or a select); the set's flags
+ * are the OR over the n steps, its steps field the filter's step count. The counter of a set is the set
+ * index mod 16 (= sample index mod 16 when output_divider is 1 and no sample was lost), so a receiver
+ * sees consecutive counters. att_node_poll only takes a frame from the rx ring while the tx ring has
+ * room for a whole set plus a command answer (ATT_NODE_SET_MAX frames): the node never drops outputs;
+ * if the application does not drain tx, the rx ring fills and further frames are counted in
+ * rx_overflows.
  *
  * Commands (CMD): 1 select filter (arg = kind: a fresh filter; the init settings when it is the init
  * kind, else att_filter_settings_default(kind, 1 / sample_rate)), 2 reset (att_filter_reset), 3 set
@@ -129,15 +141,16 @@ typedef struct {
 typedef struct {
     uint32_t rx_frames;      /**< frames accepted into the rx ring */
     uint32_t crc_errors;     /**< E2E CRC mismatch (inputs and commands) */
-    uint32_t counter_gaps;   /**< new sample not following the previous one (whole samples lost) */
+    uint32_t counter_gaps;   /**< new sample not following the previous one (whole samples lost; integrated) */
     uint32_t dlc_errors;     /**< wrong length or classic/FD format for the ID */
     uint32_t unknown_ids;    /**< IDs the node does not receive (incl. its own output IDs) */
     uint32_t duplicates;     /**< repeated part of a sample or of the sample just completed */
     uint32_t stale_partials; /**< partial samples discarded because a newer counter arrived */
     uint32_t rx_overflows;   /**< frames refused by att_node_rx (ring full) */
     uint32_t tx_overflows;   /**< frames dropped because the tx ring was full (should stay 0) */
-    uint32_t samples;        /**< complete samples assembled */
-    uint32_t steps;          /**< filter steps run (== samples) */
+    uint32_t samples;        /**< complete samples stepped (assembled from frames, or att_node_push_sample) */
+    uint32_t steps;          /**< filter steps run, one per sample period: samples + the periods of lost samples
+                                  integrated (>= samples; == samples when no sample was lost) */
     uint32_t sets;           /**< output sets queued */
     uint32_t tx_frames;      /**< frames handed out by att_node_tx */
     uint32_t commands;       /**< commands executed (good CRC) */
@@ -149,13 +162,13 @@ typedef struct {
     att_filter_kind_t kind;                    /**< filter kind now running */
     att_filter_settings_t fs;                  /**< settings of the running filter */
     att_filter_t f;                            /**< the filter */
-    att_output_t out;                          /**< output of the last step */
+    att_output_t out;                          /**< output of the last sample (flags ORed over its periods) */
     att_sample_t part;                         /**< sample being assembled */
     uint8_t part_mask;                         /**< parts present: 1 gyro, 2 acc, 4 mag; 0 = none */
-    uint8_t part_counter;                      /**< counter of the sample being assembled */
-    uint8_t last_counter;                      /**< counter of the newest sample started */
-    bool have_last;                            /**< last_counter is valid */
-    uint32_t div_count;                        /**< steps since the last emitted set */
+    uint8_t part_counter;                      /**< counter of the sample being assembled (part_mask != 0) */
+    uint8_t last_counter;                      /**< counter of the last sample stepped from frames */
+    bool have_last;                            /**< last_counter is valid (a sample was stepped from frames) */
+    uint32_t div_count;                        /**< filter steps since the last output_divider multiple (0 at init, reset, select) */
     uint32_t rx_head;                          /**< rx ring write count */
     uint32_t rx_tail;                          /**< rx ring read count */
     uint32_t tx_head;                          /**< tx ring write count */
@@ -213,7 +226,8 @@ bool att_node_rx(att_node_t *n, const att_can_frame_t *f);
 /**
  * Give the node a sample from an IMU on its own board (no CAN frame): it is stepped at once, with the
  * same filter checks, counters (samples, steps, sets) and output frames as a sample that arrived as an
- * IMU_FD frame, bit for bit (gyro rad/s, accel m/s^2, mag uT, sensor frame; NaN or zero mag = absent).
+ * IMU_FD frame with the next counter, bit for bit (gyro rad/s, accel m/s^2, mag uT, sensor frame; NaN or
+ * zero mag = absent). It has no counter: always one sample period (the counters of frames are not touched).
  * Frames still waiting in the rx ring are processed first (att_node_poll), so the order of arrival
  * holds. False: NULL, or the tx ring has no room for a whole output set (the application has not
  * drained att_node_tx): the sample is not used and is counted in rx_overflows.
@@ -224,7 +238,8 @@ bool att_node_push_sample(att_node_t *n, const att_sample_t *in);
  * FD, CMD; each + id_offset), for a port's acceptance filter. Returns how many (0 for NULL).
  */
 size_t att_node_rx_ids(const att_node_t *n, uint32_t ids[ATT_NODE_RX_IDS_MAX]);
-/** Process queued rx frames: check, assemble, step, answer, queue tx. Returns the steps run. */
+/** Process queued rx frames: check, assemble, step, answer, queue tx. Returns the filter steps run
+ * (sample periods: more than the samples when lost samples were integrated). */
 size_t att_node_poll(att_node_t *n);
 /** Register (or with NULL remove) the persistence hook of the calibration. */
 void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx);

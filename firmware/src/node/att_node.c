@@ -427,39 +427,71 @@ static void att_node_emit(att_node_t *n)
     }
 }
 
-static size_t att_node_step(att_node_t *n, const att_sample_t *in)
+/*
+ * One sample held over `periods` sample periods (att_filter_step_n: the filter steps that many times;
+ * 1 unless samples were lost). The output record is att_filter_output's (the frames carry Euler angles
+ * and covariance too) with the flags ORed over the periods, as att_filter_step_n reports them. A set is
+ * queued when the step count reaches or passes a multiple of output_divider (div_count: the steps past
+ * the last multiple; at most one set per sample, the sets stay on the step grid). Returns the filter
+ * steps run.
+ */
+static size_t att_node_step(att_node_t *n, const att_sample_t *in, uint32_t periods)
 {
-    (void)att_filter_step(&n->f, in, &n->out);
-    att_filter_output(&n->f, &n->out); /* the frames carry Euler angles and covariance too */
+    const uint32_t flags = att_filter_step_n(&n->f, in, periods, &n->out);
+    att_filter_output(&n->f, &n->out);
+    n->out.flags = flags;
     n->stats.samples++;
-    n->stats.steps++;
-    n->div_count++;
+    n->stats.steps += periods;
+    n->div_count += periods;
     if (n->div_count >= n->s.output_divider) {
-        n->div_count = 0u;
+        n->div_count %= n->s.output_divider;
         att_node_emit(n);
     }
-    return 1u;
+    return (size_t)periods;
+}
+
+/*
+ * The sample periods since the last sample stepped from frames, from the E2E counter c of the sample
+ * now complete: (c - last) mod 16, i.e. 1 for the next sample and k + 1 after k lost samples (whole
+ * samples missing or partial samples discarded), at most 15. 1 for the first sample, and 1 when the
+ * distance is 0 (a re-sent sample accepted after a stale partial: no time to integrate; 16 periods
+ * cannot be told from 0). c becomes the last counter.
+ */
+static uint32_t att_node_periods(att_node_t *n, uint8_t c)
+{
+    uint32_t periods = 1u;
+    if (n->have_last) {
+        periods = ((uint32_t)c - (uint32_t)n->last_counter) & 0x0Fu;
+        if (periods == 0u) {
+            periods = 1u;
+        }
+    }
+    n->have_last = true;
+    n->last_counter = c;
+    return periods;
 }
 
 /* --- sample assembly ------------------------------------------------------------------------- */
 
-/** A frame with counter c starts a new sample. False: it belongs to the sample just completed. */
+/**
+ * A frame with counter c starts a new sample. False: it belongs to the sample just completed. The
+ * sample started before it is the partial one when there is one (discarded here), else the last stepped.
+ */
 static bool att_node_begin(att_node_t *n, uint8_t c)
 {
-    bool replaced = false;
-    if (n->part_mask != 0u) {
+    const bool replaced = n->part_mask != 0u;
+    const bool have_prev = replaced || n->have_last;
+    const uint8_t prev = replaced ? n->part_counter : n->last_counter;
+    if (replaced) {
         n->stats.stale_partials++;
         n->part_mask = 0u;
-        replaced = true;
     } else if (n->have_last && c == n->last_counter) {
         n->stats.duplicates++;
         return false;
     }
-    if (n->have_last && c != (uint8_t)((n->last_counter + 1u) & 0x0Fu) && !(replaced && c == n->last_counter)) {
+    if (have_prev && c != (uint8_t)((prev + 1u) & 0x0Fu) && !(replaced && c == prev)) {
         n->stats.counter_gaps++;
     }
-    n->have_last = true;
-    n->last_counter = c;
     return true;
 }
 
@@ -495,17 +527,18 @@ static size_t att_node_part(att_node_t *n, const att_can_frame_t *f)
         return 0u;
     }
     n->part_mask = 0u;
-    return att_node_step(n, &n->part);
+    return att_node_step(n, &n->part, att_node_periods(n, c));
 }
 
 #if ATT_NODE_WITH_FD
 static size_t att_node_fd_sample(att_node_t *n, const att_can_frame_t *f)
 {
     att_sample_t in;
-    if (!att_can_decode_imu_fd(f, &in) || !att_node_begin(n, att_can_counter(f))) {
+    const uint8_t c = att_can_counter(f);
+    if (!att_can_decode_imu_fd(f, &in) || !att_node_begin(n, c)) {
         return 0u;
     }
-    return att_node_step(n, &in);
+    return att_node_step(n, &in, att_node_periods(n, c));
 }
 #endif
 
@@ -537,6 +570,7 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
     n->kind = kind;
     n->fs = fs;
     n->f = f;
+    n->div_count = 0u; /* the sets restart on the new filter's step grid */
     att_filter_output(&n->f, &n->out);
     return (uint8_t)ATT_CAN_ACK_OK;
 }
@@ -691,6 +725,7 @@ static void att_node_command(att_node_t *n, const att_can_frame_t *f)
         break;
     case ATT_CAN_CMD_RESET:
         att_filter_reset(&n->f);
+        n->div_count = 0u; /* steps restart at 0: so do the sets' steps grid */
         att_filter_output(&n->f, &n->out);
         result = (uint8_t)ATT_CAN_ACK_OK;
         break;
@@ -779,6 +814,6 @@ bool att_node_push_sample(att_node_t *n, const att_sample_t *in)
         n->stats.rx_overflows++; /* tx not drained: no room for the outputs of this sample */
         return false;
     }
-    (void)att_node_step(n, in);
+    (void)att_node_step(n, in, 1u); /* no counter: one sample period */
     return true;
 }

@@ -1,10 +1,12 @@
 """What a node should have sent, and what it did: expected outputs, collected frames, the comparison.
 
-- :func:`expected_outputs`: the outputs of every step for the node's input, from the C filter and the
-  numpy reference in lockstep (they must agree bit for bit);
+- :func:`expected_outputs`: the outputs of every sample for the node's input (each stepped over its
+  sample periods, as the node derives them from the E2E counters), from the C filter and the numpy
+  reference in lockstep (they must agree bit for bit);
 - :class:`OutputCollector`: the node's output frames from received messages, with its step count;
 - :func:`sort_outputs`, :func:`compare`: split the frames into sets and compare every set field by
   field with the set the reference's outputs encode to (:class:`VerifyReport`);
+- :func:`node_steps`: which whole samples the node steps, and over how many periods (att_node.c);
 - :func:`align_inputs`: which sent samples the node stepped with, found from its outputs.
 """
 
@@ -17,7 +19,7 @@ from typing import Any
 
 import can
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from attica.can import codec
 from attica.can.assembly import INPUT_FAULTS, INPUT_IDS, OUTPUT_IDS
@@ -51,9 +53,46 @@ def node_dt(rate: float) -> float:
 class Expected:
     """The reference's outputs for a node input, and whether C and numpy agreed on them."""
 
-    records: NDArray[np.void]  # OUTPUT_DTYPE, one per step
+    records: NDArray[np.void]  # OUTPUT_DTYPE, one per sample stepped (its last period; flags ORed)
     reference_ok: bool
     reference_detail: str = ""
+
+
+def node_steps(
+    counters: ArrayLike, have_last: bool = False, last: int = 0
+) -> tuple[NDArray[np.int64], NDArray[np.uint32]]:
+    """Which of the whole samples reaching the node in this order (their E2E counters) it steps, and how.
+
+    att_node.c: a sample steps the filter over (counter - counter of the last sample stepped) mod 16
+    periods: 1 for the next one, k + 1 after k lost samples, 1 for the first one. A sample whose counter
+    equals the last stepped one (after 15 lost samples, 16 periods cannot be told from 0) is a duplicate
+    and not stepped; the distance of the next one counts from the last sample stepped. ``have_last``,
+    ``last``: the node stepped a sample with counter ``last`` before these.
+
+    Returns (positions of the stepped samples among ``counters``, sample periods of each).
+    """
+    c = np.asarray(counters, np.int64).reshape(-1) & 0xF
+    if c.shape[0] == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.uint32)
+    prev = np.concatenate([[last], c[:-1]])
+    n = (c - prev) & 0xF
+    if not have_last:
+        n[0] = 1
+    if not (n == 0).any():
+        return np.arange(c.shape[0], dtype=np.int64), n.astype(np.uint32)
+    keep: list[int] = []
+    per: list[int] = []
+    for i, ci in enumerate(c.tolist()):
+        if have_last:
+            d = (ci - last) & 0xF
+            if d == 0:
+                continue  # the node drops it as a duplicate of the sample just stepped
+        else:
+            d = 1
+        keep.append(i)
+        per.append(d)
+        have_last, last = True, ci
+    return np.array(keep, np.int64), np.array(per, np.uint32)
 
 
 def expected_outputs(
@@ -65,28 +104,59 @@ def expected_outputs(
     settings: Any = None,
     progress: Callable[[int, int], None] | None = None,
     calibration: Any = None,
+    steps: ArrayLike | None = None,
 ) -> Expected:
-    """Outputs of every step for the node input (the floats the node steps with).
+    """Outputs of every sample for the node input (the floats the node steps with).
 
-    ``calibration`` is the node's (a Calibration or StageSettings; None: identity, ENU).
+    ``calibration`` is the node's (a Calibration or StageSettings; None: identity, ENU). ``steps``: the
+    sample periods the node steps each sample over (:attr:`Assembly.steps`, :func:`node_steps`; None:
+    1 each); a record is the output after the sample's last period with the flags ORed over its
+    periods, as the node sends it (att_filter_step_n, then att_filter_output).
 
     Runs :func:`attica.crosscheck.crosscheck`: the C filter and the numpy reference must agree bit for
-    bit, else ``reference_ok`` is False and ``reference_detail`` says where.
+    bit, else ``reference_ok`` is False and ``reference_detail`` says where. With steps, they run over
+    every period (each sample repeated over its periods) and the records of the node's path
+    (``native.Filter.run(..., steps=...)``) must equal those periods' last records with the ORed flags.
     """
-    from attica.crosscheck import Stream, crosscheck
+    from attica import native
+    from attica.crosscheck import Stream, crosscheck, records_equal
 
     s = make_settings(kind, settings, dt=node_dt(rate))
-    if gyr.shape[0] == 0:
+    n = int(gyr.shape[0])
+    if n == 0:
         from attica.outputs import OUTPUT_DTYPE
 
         return Expected(np.zeros(0, OUTPUT_DTYPE), True)
+    per = None
+    if steps is not None:
+        per = np.asarray(steps, np.int64)
+        if per.shape != (n,) or (per < 1).any():
+            raise ValueError(f"steps must be ({n},) integers >= 1")
+        if (per == 1).all():
+            per = None
+    idx = np.arange(n) if per is None else np.repeat(np.arange(n), per)
     # many short lockstep segments: the reference steps all of them at once (vectorised)
-    segment = max(50, min(1000, int(gyr.shape[0]) // 400))
-    r = crosscheck(
-        kind, [Stream(gyr, acc, mag, "can")], s, segment=segment, progress=progress, calibration=calibration
-    )
+    segment = max(50, min(1000, int(idx.shape[0]) // 400))
+    stream = Stream(gyr, acc, mag, "can") if per is None else Stream(gyr[idx], acc[idx], mag[idx], "can")
+    r = crosscheck(kind, [stream], s, segment=segment, progress=progress, calibration=calibration)
     detail = "" if r.ok else f"{r.mismatched_steps} steps differ; {r.first_mismatch}"
-    return Expected(r.c_outputs[0], r.ok, detail)
+    if per is None:
+        return Expected(r.c_outputs[0], r.ok, detail)
+    every = r.c_outputs[0]
+    ends = np.cumsum(per) - 1
+    records = every[ends].copy()
+    records["flags"] = np.bitwise_or.reduceat(every["flags"], ends - per + 1)
+    node_path = native.Filter(kind, s, calibration=calibration).run(
+        gyr, acc, mag, steps=per.astype(np.uint32), check_units=False
+    )
+    same = records_equal(np.asarray(node_path), records)
+    if not same.all():
+        i = int(np.argmin(same))
+        detail = (detail + "; " if detail else "") + (
+            f"att_filter_step_n differs from its {int(per[i])} single steps at sample {i}: "
+            f"{np.asarray(node_path)[i]!r} vs {records[i]!r}"
+        )
+    return Expected(records, r.ok and bool(same.all()), detail)
 
 
 def input_values(stream: ImuStream, fd: bool) -> tuple[NDArray[np.float32], ...]:
@@ -140,7 +210,8 @@ class VerifyReport:
     kind: FilterKind
     fd: bool
     samples_sent: int = 0
-    steps_expected: int = 0
+    samples_stepped: int = 0  # samples that stepped the filter (one output record each)
+    steps_expected: int = 0  # filter steps: their sample periods (lost samples integrated)
     sets_expected: int = 0
     sets_ok: int = 0
     mismatched: int = 0
@@ -178,8 +249,8 @@ class VerifyReport:
 
     @property
     def samples_lost(self) -> int:
-        """Samples sent that never stepped the filter."""
-        return max(self.samples_sent - self.steps_expected, 0)
+        """Samples sent that never stepped the filter (the node integrated their periods when it could)."""
+        return max(self.samples_sent - self.samples_stepped, 0)
 
     @property
     def ok(self) -> bool:
@@ -194,9 +265,11 @@ class VerifyReport:
     def lines(self) -> list[str]:
         """Human-readable report."""
         mode = "CAN FD" if self.fd else "classic CAN"
+        held = self.steps_expected - self.samples_stepped
+        over = f" (+{held} periods of lost samples integrated)" if held > 0 else ""
         out = [
-            f"{self.kind.label} over {mode}: {self.samples_sent} samples sent, "
-            f"{self.steps_expected} filter steps, {self.sets_expected} output sets expected"
+            f"{self.kind.label} over {mode}: {self.samples_sent} samples sent, {self.samples_stepped} "
+            f"stepped, {self.steps_expected} filter steps{over}, {self.sets_expected} output sets expected"
         ]
         out.append(
             f"  received: {self.sets_ok} bit-exact, {self.mismatched} mismatched, {self.missing} missing "
@@ -207,7 +280,8 @@ class VerifyReport:
             shown = ", ".join(str(i) for i in self.skipped[:10]) + (" ..." if len(self.skipped) > 10 else "")
             out.append(
                 f"  {len(self.skipped)} samples never reached the filter (lost on the way; sample {shown}); "
-                "the comparison uses the samples the node did step with"
+                "the comparison uses the samples the node did step with, over the periods it derived "
+                "from the E2E counters"
             )
         if self.input_faults:
             faults = ", ".join(f"{k} {v}" for k, v in self.input_faults.items())
@@ -372,14 +446,22 @@ def compare(
     outputs: NDArray[np.void] | Received,
     output_divider: int = 1,
 ) -> VerifyReport:
-    """Compare output frames (arrival order) with the expected per-step outputs."""
+    """Compare output frames (arrival order) with the expected per-sample outputs.
+
+    The node queues a set after a sample whose filter steps reach or pass a multiple of ``output_divider``
+    (every sample with divider 1); a received set is matched to the expected one by its steps field.
+    """
     rep = VerifyReport(kind=kind, fd=fd)
     recs = expected.records
-    steps = int(recs.shape[0])
-    rep.steps_expected = steps
+    total = recs["steps"].astype(np.int64)  # the filter's steps after each sample
+    rep.samples_stepped = int(recs.shape[0])
+    rep.steps_expected = int(total[-1]) if total.shape[0] else 0
     rep.reference_ok = expected.reference_ok
     rep.reference_detail = expected.reference_detail
-    chosen = recs[output_divider - 1 :: output_divider]
+    before = np.concatenate([np.zeros(1, np.int64), total[:-1]])
+    emits = total // output_divider > before // output_divider
+    chosen = recs[emits]
+    set_steps = total[emits]
     rep.sets_expected = int(chosen.shape[0])
     want = (
         codec.decode_outputs(codec.encode_outputs(chosen, kind, fd=fd)).sets
@@ -397,17 +479,22 @@ def compare(
     if rx.sets.shape[0] and not fd:
         rep.error_count = int(rx.sets["error_count"][-1])
     full = rx.step
-    valid = (full >= 1) & (full <= steps) & (full % output_divider == 0)
+    where = np.searchsorted(set_steps, full)
+    at = np.minimum(where, max(rep.sets_expected - 1, 0))
+    valid = (where < rep.sets_expected) & (set_steps[at] == full if rep.sets_expected else False)
     rep.unexpected = int((~valid).sum())
     if rep.unexpected:
         bad = int(full[~valid][0])
-        rep.first_mismatch = f"a set for step {bad}, which should not exist (steps 1..{steps})"
+        rep.first_mismatch = (
+            f"a set for step {bad}, which should not exist (steps 1..{rep.steps_expected}, "
+            f"{rep.sets_expected} sets)"
+        )
     idx = np.nonzero(valid)[0]
-    j = full[idx] // output_divider - 1
+    j = at[idx]
     _, first = np.unique(j, return_index=True)
     rep.duplicates = int(idx.shape[0] - first.shape[0])
     idx = idx[np.sort(first)]
-    j = full[idx] // output_divider - 1
+    j = at[idx]
     seen = np.zeros(rep.sets_expected, np.bool_)
     seen[j] = True
     if idx.shape[0]:
@@ -437,22 +524,27 @@ def align_inputs(
     max_skip: int = 32,
     max_losses: int = 256,
     calibration: Any = None,
-) -> tuple[NDArray[np.int64], list[int]]:
-    """Which sent samples the node stepped with, found from its outputs (output divider 1 only).
+) -> tuple[NDArray[np.int64], list[int], NDArray[np.uint32]]:
+    """Which sent samples the node stepped with, and over how many periods, found from its outputs.
 
-    Samples lost on the way to the node (dropped frames, full socket buffers) shift every later step.
-    Starting from "no loss", at the first step whose received set differs from the C filter's, this
-    tries skipping 1..max_skip samples there and keeps the skip that makes that set bit-identical.
-    Returns (indices of the stepped samples, indices of the skipped samples). The final proof is the
-    comparison with the reference over the stepped samples; alignment only uses the C filter.
+    Output divider 1 only; sample i was sent with E2E counter i mod 16 (:func:`attica.can.replay.replay`).
+    Samples lost on the way to the node (dropped frames, full socket buffers) are integrated by the node
+    over the counter distance (:func:`node_steps`), so a set's steps field tells its sample's period and
+    the sets after a loss differ in their values. Starting from "no loss", at the first received set that
+    the C filter does not give (by its steps field, then bit for bit), this tries removing a run of
+    1..max_skip whole samples after the last set that agreed (first the runs that leave the fewest output
+    sets unseen), models the node's steps over the rest and keeps the run that makes that set
+    bit-identical. Returns (indices of the stepped samples, indices of the samples not stepped, the
+    periods of each stepped sample). The final proof is the comparison with the reference over the
+    stepped samples; alignment only uses the C filter.
     """
     from attica import native
 
     n = int(gyr.shape[0])
-    seq = np.arange(n, dtype=np.int64)
-    skipped: list[int] = []
+    arrived = np.arange(n, dtype=np.int64)  # samples taken to reach the node whole
+    pos, per = node_steps(arrived)
     if rx.sets.shape[0] == 0 or n == 0:
-        return seq, skipped
+        return arrived[pos], [], per
     s = make_settings(kind, settings, dt=node_dt(rate))
     by_step: dict[int, int] = {}
     for i, st in enumerate(rx.step.tolist()):
@@ -460,48 +552,74 @@ def align_inputs(
     steps_rx = np.array(sorted(by_step), np.int64)
     rows = np.array([by_step[int(k)] for k in steps_rx], np.int64)
     offset: int | None = None
-    start = 0  # steps before this are known to match
+
+    def encoded(out: NDArray[np.void], counter0: int) -> NDArray[np.void]:
+        return codec.decode_outputs(codec.encode_outputs(out, kind, counter0=counter0, fd=fd)).sets
+
     for _ in range(max_losses):
-        m = seq.shape[0]
+        pos, per = node_steps(arrived)
+        stepped = arrived[pos]
         f = native.Filter(kind, s, calibration=calibration)
-        out = f.run(gyr[seq], acc[seq], mag[seq])
-        want = codec.decode_outputs(codec.encode_outputs(out, kind, fd=fd)).sets
-        sel = (steps_rx >= max(start, 1)) & (steps_rx <= m)
-        if not sel.any():
+        out = f.run(gyr[stepped], acc[stepped], mag[stepped], steps=per, check_units=False)
+        total = out["steps"].astype(np.int64)
+        want = encoded(out, 0)  # divider 1: set index = record index
+        where = np.searchsorted(total, steps_rx)
+        at = np.minimum(where, total.shape[0] - 1)
+        have = (where < total.shape[0]) & (total[at] == steps_rx)
+        if not have.any():
             break
-        st = steps_rx[sel]
-        got = rx.sets[rows[sel]]
-        w = want[st - 1]
+        got = rx.sets[rows]
         if offset is None:
-            offset = (int(got["counter"][0]) - int(w["counter"][0])) & 0xF
-        eq = _equal_rows(got, w, offset)
+            k0 = int(np.argmax(have))
+            offset = (int(got["counter"][k0]) - int(want["counter"][at[k0]])) & 0xF
+        eq = have.copy()
+        eq[have] = _equal_rows(got[have], want[at[have]], offset)
         if eq.all():
             break
-        k = int(np.argmin(eq))
-        bad_step = int(st[k])
+        k = int(np.argmin(eq))  # every received set before it agrees
+        s_k = int(steps_rx[k])
         target = got[k : k + 1]
-        # state just before the bad step
+        pa = int(at[k - 1]) if k > 0 else -1  # the record of the last set that agreed
+        ia = int(pos[pa]) if pa >= 0 else -1  # its sample's place among the arrived ones
+        s_a = int(total[pa]) if pa >= 0 else 0
         f = native.Filter(kind, s, calibration=calibration)
-        if bad_step > 1:
-            f.run(gyr[seq[: bad_step - 1]], acc[seq[: bad_step - 1]], mag[seq[: bad_step - 1]])
+        if pa >= 0:
+            f.run(
+                gyr[stepped[: pa + 1]],
+                acc[stepped[: pa + 1]],
+                mag[stepped[: pa + 1]],
+                steps=per[: pa + 1],
+                check_units=False,
+            )
         snap = f.state.copy()
+        last = int(stepped[pa]) & 0xF if pa >= 0 else 0
+        rest = arrived[ia + 1 :]
+        gap = s_k - s_a - 1  # samples between the two sets when none was lost at all
+        tried: set[tuple[int, int]] = set()
+        order = [(x, d) for d in range(min(gap, max_skip), 0, -1) for x in range(0, gap - d + 1)]
+        order += [(x, d) for x in range(0, gap + 17) for d in range(1, max_skip + 1)]
         fixed = False
-        for d in range(1, max_skip + 1):
-            if bad_step - 1 + d >= m:
-                break
-            cand = int(seq[bad_step - 1 + d])
+        for x, d in order:
+            if (x, d) in tried or x + d > rest.shape[0]:
+                continue
+            tried.add((x, d))
+            cand = np.concatenate([rest[:x], rest[x + d : x + d + gap + 33]])
+            cpos, cper = node_steps(cand, pa >= 0, last)
+            cum = s_a + np.cumsum(cper, dtype=np.int64)
+            hit = np.nonzero(cum == s_k)[0]
+            if hit.shape[0] == 0:
+                continue
+            t = int(hit[0])
+            smp = cand[cpos[: t + 1]]
             f.state[0] = snap[0]
-            rec = f.run(gyr[cand : cand + 1], acc[cand : cand + 1], mag[cand : cand + 1])
-            rec["steps"] = bad_step  # the node's step count does not see the skipped samples
-            ws = codec.decode_outputs(
-                codec.encode_outputs(rec, kind, counter0=int(w["counter"][k]), fd=fd)
-            ).sets
-            if _equal_rows(target, ws, offset).all():
-                skipped.extend(seq[bad_step - 1 : bad_step - 1 + d].tolist())
-                seq = np.concatenate([seq[: bad_step - 1], seq[bad_step - 1 + d :]])
+            rec = f.run(gyr[smp], acc[smp], mag[smp], steps=cper[: t + 1], check_units=False)
+            if _equal_rows(target, encoded(rec[t : t + 1], (pa + 1 + t) & 0xF), offset).all():
+                arrived = np.concatenate([arrived[: ia + 1 + x], arrived[ia + 1 + x + d :]])
                 fixed = True
                 break
         if not fixed:
             break  # a real mismatch: leave it to the comparison
-        start = bad_step
-    return seq, skipped
+    pos, per = node_steps(arrived)
+    stepped = arrived[pos]
+    skipped = np.setdiff1d(np.arange(n, dtype=np.int64), stepped).tolist()
+    return stepped, skipped, per

@@ -16,10 +16,14 @@ watching a bus, every ``stats_every`` seconds.
 Flags (ATT_STATUS, ATT_OUT_FD) are shown by name (``flags=AT_REST|BIAS_UPDATED``, ``flags=none``).
 
 Lost frames: the alive counters are 4 bits, so they see gaps modulo 16 only; the monitor also follows
-the node's 16-bit step counter (ATT_STATUS / ATT_OUT_FD), which counts every output set missing, and
-compares it with the IMU samples seen: the node cannot step without a sample, so when it reports more
-steps than the samples this view holds, the difference is samples lost from the view (a log cut short,
-a monitor that could not keep up) and the summary says so.
+the node's 16-bit step counter (ATT_STATUS / ATT_OUT_FD). The node steps once per sample period: a
+sample lost before it is integrated by the next one over the counter distance (att_node.h), so its
+steps advance by the IMU sample periods, seen or not. The monitor compares them with the IMU sample
+periods of this view (the samples seen and those the IMU counters show missing): when the node reports
+more, the difference is samples lost from the view beyond what the alive counters show (a log cut
+short, a monitor that could not keep up) and the summary says so. Output sets missing between two sets
+seen: the set counter's count (modulo 16) that best fits the steps between them less the sample periods
+the node integrated, as far as the IMU counters seen tell.
 
 Watching a bus, a receive thread takes the frames off the socket as they come
 (:class:`attica.can.bus.BusReader`), so a burst faster than decoding and printing waits in memory instead
@@ -138,12 +142,13 @@ class MonitorStats:
     first_ts: float | None = None
     last_ts: float | None = None
     imu_samples: int = 0  # IMU samples begun (IMU_GYRO or IMU_FD frames with a good CRC)
+    imu_periods: int = 0  # their sample periods by the counters (those seen + those missing, mod 16)
     sets: int = 0  # output sets with a good CRC (ATT_STATUS of a set, ATT_OUT_FD)
     first_step: int | None = None  # the node's step count (unwrapped) at the first and last set seen
     last_step: int | None = None
     step_divider: int = 0  # smallest step increase between sets (the node's output divider)
-    missing_sets: int = 0  # output sets missing by the node's step counter
-    samples_behind: int = 0  # most steps the node reported beyond the IMU samples seen (see module doc)
+    missing_sets: int = 0  # output sets missing by the node's step and set counters (see module doc)
+    samples_behind: int = 0  # most steps the node reported beyond the IMU sample periods seen (module doc)
     dropped: int = 0  # frames the monitor had to drop (receive backlog full)
 
     @property
@@ -213,7 +218,10 @@ class Monitor:
         self._quat: dict[int, can.Message] = {}
         self._step_low: int | None = None
         self._step_base = 0  # node steps before this view's samples (see _node_step)
-        self._imu_offset = 0  # IMU samples seen before the node's last reset
+        self._imu_offset = 0  # IMU sample periods seen before the node's last reset
+        self._imu_last: int | None = None  # counter of the last IMU sample seen
+        self._imu_missing = 0  # IMU samples missing by their counters since the last output set
+        self._set_counter: int | None = None  # counter of the last output set seen
 
     def _dbc_id(self, msg: can.Message) -> int:
         """The DBC's ID of a bus frame: bus ID - the node's offset + the DBC's own offset."""
@@ -243,32 +251,58 @@ class Monitor:
             )
         return codec.classic_bits(n) / self.bitrate
 
-    def _node_step(self, low: int) -> None:
-        """Follow the node's 16-bit step count of a good output set."""
+    def _imu_sample(self, counter: int) -> None:
+        """An IMU sample begun (IMU_GYRO or IMU_FD with a good CRC): its periods by the counter."""
+        st = self.stats
+        st.imu_samples += 1
+        d = 1 if self._imu_last is None else (counter - self._imu_last) & 0xF  # 0: a repeat
+        st.imu_periods += d
+        self._imu_missing += max(d - 1, 0)
+        self._imu_last = counter
+
+    def _missing_sets(self, delta: int, counter: int) -> int:
+        """Output sets missing between the last set and one ``delta`` steps later with ``counter``.
+
+        At most delta // divider - 1; the set counter gives the count modulo 16; of those values the one
+        nearest to the steps less the periods the node integrated over the IMU samples the counters show
+        missing meanwhile (exact when this view lost no IMU sample the node had).
+        """
+        most = delta // self.stats.step_divider - 1
+        if most <= 0 or self._set_counter is None:
+            return max(most, 0)
+        by_counter = (counter - self._set_counter - 1) & 0xF
+        guess = most - self._imu_missing // self.stats.step_divider
+        options = range(by_counter, most + 1, 16)
+        return min(options, key=lambda m: abs(m - guess)) if options else most
+
+    def _node_step(self, low: int, counter: int) -> None:
+        """Follow the node's 16-bit step count (and the set counter) of a good output set."""
         st = self.stats
         st.sets += 1
         if self._step_low is None or st.last_step is None:
             full = low
-            # a node that started within this view reports no more steps than the samples seen; one
-            # that ran before: count from its first set (a lower bound of the loss, never a false one)
-            self._step_base = 0 if low <= st.imu_samples - self._imu_offset else low
+            # a node that started within this view reports no more steps than the sample periods seen;
+            # one that ran before: count from its first set (a lower bound of the loss, never a false one)
+            self._step_base = 0 if low <= st.imu_periods - self._imu_offset else low
             st.first_step = full
         else:
             delta = (low - self._step_low) & 0xFFFF
             if delta >= 0x8000:  # backwards: a reset or an old frame; restart the tracking
                 self._step_low = None
                 st.last_step = None
-                self._node_step(low)
+                self._node_step(low, counter)
                 st.sets -= 1
                 return
             full = st.last_step + delta
             if delta:
                 st.step_divider = delta if not st.step_divider else min(st.step_divider, delta)
                 if delta > st.step_divider:
-                    st.missing_sets += delta // st.step_divider - 1
+                    st.missing_sets += self._missing_sets(delta, counter)
         self._step_low = low
         st.last_step = full
-        behind = (full - self._step_base) - (st.imu_samples - self._imu_offset)
+        self._set_counter = counter
+        self._imu_missing = 0
+        behind = (full - self._step_base) - (st.imu_periods - self._imu_offset)
         st.samples_behind = max(st.samples_behind, behind)
 
     def check(self, msg: can.Message) -> list[str]:
@@ -302,20 +336,20 @@ class Monitor:
                 st.crc_errors += 1
                 probs.append("!CRC")
             else:
-                self._node_step(data[4] | data[5] << 8)
+                self._node_step(data[4] | data[5] << 8, data[1] & 0xF)
             self._quat.clear()
         elif res == codec.Check.CRC:
             st.crc_errors += 1
             probs.append("!CRC")
         elif can_id == codec.ID_OUT_FD:
-            self._node_step(data[6] | data[7] << 8)
+            self._node_step(data[6] | data[7] << 8, data[1] & 0xF)
         elif can_id in (codec.ID_IMU_GYRO, codec.ID_IMU_FD):
-            st.imu_samples += 1
+            self._imu_sample(data[1] & 0xF)
         if answer and (data[7] & 0xF) == int(codec.Cmd.RESET) and not probs:
             self._step_low = None  # the node restarts at step 0
             st.last_step = None
             self._step_base = 0
-            self._imu_offset = st.imu_samples
+            self._imu_offset = st.imu_periods
         if (
             can_id not in codec.NO_CRC
             and can_id not in (codec.ID_DIAG, codec.ID_CMD)
@@ -395,8 +429,9 @@ class Monitor:
             lost = [f"{st.missing_sets} output sets missing by the node's step counter"]
             if st.samples_behind > 0:
                 lost.append(
-                    f"at least {st.samples_behind} IMU samples the node stepped with are not in this view "
-                    "(LOST: a log cut short, or frames dropped before they were seen)"
+                    f"at least {st.samples_behind} IMU sample periods the node stepped over are not in "
+                    "this view, beyond those the alive counters show (LOST: a log cut short, or frames "
+                    "dropped before they were seen)"
                 )
             out.append(
                 f"IMU samples seen {st.imu_samples}; output sets {st.sets} for node steps "

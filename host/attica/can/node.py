@@ -205,7 +205,7 @@ class Node:
         return [int(ids[i]) for i in range(int(lib.att_node_rx_ids(self._n, ids)))]
 
     def poll(self) -> int:
-        """att_node_poll: returns the steps run."""
+        """att_node_poll: returns the filter steps run (sample periods: k + 1 for a sample after k lost)."""
         return int(self._native.lib.att_node_poll(self._n))
 
     def pop(self) -> NDArray[np.void]:
@@ -223,7 +223,7 @@ class Node:
         return int(self._n.rx_head - self._n.rx_tail) & 0xFFFFFFFF
 
     def flush(self) -> tuple[NDArray[np.void], int]:
-        """Poll and pop until the rx ring is empty; returns (frames sent, steps run)."""
+        """Poll and pop until the rx ring is empty; returns (frames sent, filter steps run)."""
         outs = [self.pop()]
         steps = 0
         while True:
@@ -233,7 +233,11 @@ class Node:
                 return np.concatenate(outs), steps
 
     def run(self, fr: NDArray[np.void]) -> tuple[NDArray[np.void], int]:
-        """Feed frames as a port does (rx, poll, drain tx after each); returns (frames sent, steps run)."""
+        """Feed frames as a port does (rx, poll, drain tx after each); returns (frames sent, filter steps).
+
+        The filter steps are sample periods: ``stats()["samples"]`` counts the samples, ``["steps"]`` the
+        periods (a sample after k lost ones steps k + 1, att_node.h).
+        """
         fr = np.ascontiguousarray(np.atleast_1d(fr), FRAME_DTYPE)
         ffi, lib = self._native.ffi, self._native.lib
         cap = 8 * fr.shape[0] + 128

@@ -1,7 +1,9 @@
 """Check a node's CAN output bit for bit against the numpy reference fed the same input.
 
 The node's input is what it got on the bus: the samples as the IMU frames carry them (classic frames:
-int16 scaled, so :func:`attica.can.codec.imu_values`; CAN FD: float32, exact). The reference run is
+int16 scaled, so :func:`attica.can.codec.imu_values`; CAN FD: float32, exact), each stepped over the
+sample periods the node derives from the E2E counters (1, or k + 1 after k lost samples:
+att_filter_step_n; :func:`node_steps`, :attr:`Assembly.steps`). The reference run is
 :func:`attica.crosscheck.crosscheck`: the C filter over those inputs and the numpy reference in
 lockstep segments must agree bit for bit (outputs and full state); then every output set received
 from the bus is compared field by field (every bit of every float, the int16 codes, flags, steps,
@@ -48,6 +50,7 @@ from attica.can.compare import (
     expected_outputs,
     input_values,
     node_dt,
+    node_steps,
     sort_outputs,
 )
 from attica.can.idoffset import silent_node_hint
@@ -71,6 +74,7 @@ __all__ = [
     "frames_of",
     "input_values",
     "node_dt",
+    "node_steps",
     "reset_node",
     "sort_outputs",
     "verify_frames",
@@ -277,22 +281,24 @@ def verify_live(
         )
     drain_tap()
     faults: dict[str, int] = {}
+    periods: NDArray[np.uint32] | None = None
     if tap is not None:
         # everything the node received (on a shared bus a node does not receive its own frames)
         asm = assemble(from_messages([m for m in tap_msgs if m.arbitration_id not in OUTPUT_IDS]))
         gyr, acc, mag = asm.gyr, asm.acc, asm.mag
         faults = asm.counters
+        periods = asm.steps
     rx = sort_outputs(coll.frames())
     skipped: list[int] = []
     if tap is None:
         gyr, acc, mag = input_values(stream, fd)
         faults = {}
         if output_divider == 1:
-            seq, skipped = align_inputs(
+            seq, skipped, periods = align_inputs(
                 kind, stream.rate, gyr, acc, mag, rx, fd, settings, calibration=calibration
             )
             gyr, acc, mag = gyr[seq], acc[seq], mag[seq]
-    exp = expected_outputs(kind, stream.rate, gyr, acc, mag, settings, calibration=calibration)
+    exp = expected_outputs(kind, stream.rate, gyr, acc, mag, settings, calibration=calibration, steps=periods)
     rep = compare(exp, kind, fd, rx, output_divider)
     rep.samples_sent = len(stream)
     rep.input_faults = faults
@@ -331,9 +337,13 @@ def verify_frames(
     if fd is None:
         fd = bool((ids == codec.ID_OUT_FD).any())
     asm = assemble(inputs)
-    exp = expected_outputs(kind, rate, asm.gyr, asm.acc, asm.mag, settings, calibration=calibration)
+    exp = expected_outputs(
+        kind, rate, asm.gyr, asm.acc, asm.mag, settings, calibration=calibration, steps=asm.steps
+    )
     rep = compare(exp, kind, fd, outputs, output_divider)
-    rep.samples_sent = asm.started  # samples begun; whole samples missing show as counter_gaps
+    # samples sent as far as the log tells: the periods the node integrated (whole samples missing
+    # included, by the counters), or the samples begun when more (a partial one at the end)
+    rep.samples_sent = max(asm.started, asm.periods)
     rep.input_faults = asm.counters
     rep.frames_received = int(fr.shape[0])
     return rep

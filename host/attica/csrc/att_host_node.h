@@ -12,7 +12,8 @@
 /**
  * Feed n_in frames to the node the way a port does: for each frame att_node_rx, att_node_poll, then
  * att_node_tx into out until it is empty or out holds max_out frames. Stores the number of frames
- * written in *n_out and returns the filter steps run. NULL pointers: returns 0, *n_out untouched.
+ * written in *n_out and returns the filter steps run (the sum of att_node_poll's: sample periods, lost
+ * samples integrated). NULL pointers: returns 0, *n_out untouched.
  */
 size_t att_host_node_run(att_node_t *node, const att_can_frame_t *in, size_t n_in, att_can_frame_t *out,
                          size_t max_out, size_t *n_out);
