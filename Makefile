@@ -15,7 +15,7 @@ all: build
 $(STAMP): pyproject.toml setup.py firmware/include/attica/att_version.h
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev,eval,peers,recordings,dask]'
+	$(PY) -m pip install -q -e '.[dev,eval,peers,recordings,dask,view,foxglove]'
 	@touch $(STAMP)
 
 setup: $(STAMP)
@@ -82,9 +82,11 @@ footprint: deps setup
 	$(DEV) -m attica_dev.footprint
 
 # The computed tables of docs/firmware-quickstart.md (flash, RAM, instructions, BROAD accuracy per kind;
-# the quickstart node's size): python -m attica_dev.kind_table --update
-docs-figures: deps setup
+# the quickstart node's size): python -m attica_dev.kind_table --update; docs/img/view.png, the screenshot of
+# docs/view.md, made by the browser test of attica view (tests/test_view_browser.py)
+docs-figures: deps build
 	$(DEV) -m attica_dev.kind_table --update
+	ATTICA_DOCS_FIGURES=1 $(VENV)/bin/pytest -q -n 0 tests/test_view_browser.py -k demo_page
 
 cycles: deps setup
 	$(DEV) -m attica_dev.cycles $(if $(PROFILE),--profile $(PROFILE)) $(CYCLES_ARGS)
@@ -92,6 +94,13 @@ cycles: deps setup
 # The golden comparison on every CPU as one table (the same checks as tests/test_cross.py).
 cross: deps setup
 	$(DEV) -m attica_dev.cross golden
+
+# attica view under a 1 kHz node for 10 minutes (the test suite runs 20 s of it: tests/test_view_soak.py);
+# VIEW_SOAK_SECONDS sets the length. It prints the figures of docs/view.md.
+VIEW_SOAK_SECONDS ?= 600
+.PHONY: view-soak
+view-soak: build
+	ATTICA_VIEW_SOAK_SECONDS=$(VIEW_SOAK_SECONDS) $(VENV)/bin/pytest -q -s -n 0 tests/test_view_soak.py
 
 clean:
 	rm -rf build dist host/attica/_native*.so host/attica/_live*.so host/attica/_native.stamp host/attica/_firmware host/*.egg-info \

@@ -11,6 +11,7 @@
 - ``attica dbc``: attica's DBC with every CAN ID moved by an ID offset (a node with ``--id-offset``).
 - ``attica node | replay | monitor | verify``: the CAN tools (python-can buses); ``--id-offset N`` for a
   node whose CAN IDs are the DBC's + N.
+- ``attica view``: the attitude, the node and the bus on a local web page (live bus, log, ``--demo``).
 
 Every user error is one ``attica: error: ...`` line on stderr and exit status 2.
 """

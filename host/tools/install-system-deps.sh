@@ -32,6 +32,9 @@ command -v insmod >/dev/null 2>&1 || want+=(kmod)
 command -v cppcheck >/dev/null 2>&1 || want+=(cppcheck)
 command -v clang-tidy >/dev/null 2>&1 || want+=(clang-tidy)
 [ -f /usr/include/x86_64-linux-gnu/gnu/stubs-32.h ] || want+=(libc6-dev-i386)
+# attica view's browser test (tests/test_view_browser.py): Debian's chromium, headless, driven through the
+# DevTools protocol (no browser download).
+command -v chromium >/dev/null 2>&1 || want+=(chromium)
 ls /usr/lib/gcc/x86_64-linux-gnu/*/32/libgcc.a >/dev/null 2>&1 || want+=(lib32gcc-12-dev)
 for extra in "$@"; do
   case "$extra" in

@@ -22,5 +22,6 @@ COMMANDS = (
     "replay",
     "monitor",
     "verify",
+    "view",
 )
 """Subcommand modules, in the order ``attica --help`` lists them."""
