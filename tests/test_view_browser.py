@@ -39,8 +39,8 @@ from websockets.sync.client import connect
 
 from attica.can.bus import resolve_config
 from attica.sim import SimConfig, simulate_with_truth
+from attica.view.demo import ImuSource
 from attica.view.server import ViewServer
-from attica.view.sources import ImuSource
 from attica.view.state import ViewState
 
 from helpers import ROOT

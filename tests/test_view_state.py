@@ -20,7 +20,8 @@ from attica.can.logs import open_writer
 from attica.can.node import Node
 from attica.can.runner import NodeRunner
 from attica.settings import Flag
-from attica.view.sources import BusSource, LogSource, SourceError
+from attica.view.playback import LogSource
+from attica.view.sources import BusSource, SourceError
 from attica.view.state import ViewState
 
 G = 9.80665

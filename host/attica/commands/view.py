@@ -176,7 +176,9 @@ def _bus_config(args: argparse.Namespace) -> Any:
 def _source(args: argparse.Namespace) -> tuple[Any, float | None]:
     """The source of the options and the |m| reference it brings."""
     from attica.commands._common import load_data, sim_config
-    from attica.view.sources import BusSource, ImuSource, LogSource, SourceError
+    from attica.view.demo import ImuSource
+    from attica.view.playback import LogSource
+    from attica.view.sources import BusSource, SourceError
 
     speed = args.speed if args.speed is not None else 1.0
     if args.log:

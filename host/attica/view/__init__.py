@@ -3,8 +3,9 @@
 One process serves the page (plain JavaScript and Canvas 2D, shipped in this package: no CDN, nothing
 fetched) and feeds it from any source the CAN tools read:
 
-- :mod:`attica.view.sources`: a live python-can bus, a log played back (pause, seek, speed), or the
-  simulator (or a recording) through the C node on a bus (``attica view --demo``);
+- :mod:`attica.view.sources` (a live python-can bus), :mod:`attica.view.playback` (a log played back:
+  pause, seek, speed) and :mod:`attica.view.demo` (the simulator or a recording through the C node on a
+  bus, ``attica view --demo``);
 - :mod:`attica.view.state`: every frame checked and counted by ``attica monitor``'s
   :class:`~attica.can.monitor.Monitor`, the latest output set, DIAG and IMU sample kept and decoded at
   display rate;
@@ -17,7 +18,9 @@ Needs the ``view`` extra (``pip install 'attica[view]'``; the Foxglove bridge ``
 
 from __future__ import annotations
 
-from attica.view.sources import BusSource, ImuSource, LogSource, Source, SourceError
+from attica.view.demo import ImuSource
+from attica.view.playback import LogSource
+from attica.view.sources import BusSource, Source, SourceError
 from attica.view.state import ViewState
 
 __all__ = ["BusSource", "ImuSource", "LogSource", "Source", "SourceError", "ViewServer", "ViewState"]
