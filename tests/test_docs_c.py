@@ -92,6 +92,9 @@ class Spec:
     why: str = ""
     expect: str = ""
     """A regular expression the program's output must match (what the snippet's comment says it prints)."""
+    sources: tuple[str, ...] = ()
+    """More C files (paths from the checkout's root) the snippet is built with, their directories on the
+    include path: an example's code the snippet uses (examples/c/persist/att_persist.c)."""
 
 
 def _level_roll(r: Report, heading: bool = False) -> None:
@@ -118,6 +121,13 @@ SPECS: dict[tuple[str, int], Spec] = {
     ("docs/firmware-quickstart.md", 0): Spec("file", _level_roll, ("attitude_init", "imu_sample_ready")),
     ("docs/firmware-quickstart.md", 1): Spec("config"),
     ("docs/firmware-quickstart.md", 2): Spec("arm", why="the bxCAN peripheral at its STM32 address"),
+    ("docs/firmware-quickstart.md", 3): Spec(
+        "file",
+        _node_outputs,
+        ("node_start", "node_loop"),
+        expect=r"^configuration: none \(save 0\)$",
+        sources=("examples/c/persist/att_persist.c",),
+    ),
     ("firmware/include/attica/att_filter.h", 0): Spec("body", _level_roll),
     ("firmware/include/attica/att_filter.h", 1): Spec("body", expect=r"^ars\.tau_acc_lp: \[0, 1e4\] s$"),
     ("firmware/include/attica/att_calib.h", 0): Spec("body", expect=r"\A\Z"),  # accepted: prints nothing
@@ -230,8 +240,13 @@ def test_snippet_compiles_and_runs(key: tuple[str, int], library: Path, tmp_path
         return
     src.write_text(_program(s, spec))
     exe = tmp_path / "snippet"
+    extra = [ROOT / x for x in spec.sources]
+    for path in extra:
+        inc += ["-I", str(path.parent)]
     proc = subprocess.run(
-        ["cc", *USER_FLAGS, *inc, str(src), str(library), "-o", str(exe)], capture_output=True, text=True
+        ["cc", *USER_FLAGS, *inc, str(src), *map(str, extra), str(library), "-o", str(exe)],
+        capture_output=True,
+        text=True,
     )
     assert proc.returncode == 0, f"{s.source}:{s.line}: the snippet does not compile\n{proc.stderr}"
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)

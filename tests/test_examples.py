@@ -1,8 +1,10 @@
 """examples/: the Python quickstart runs; the C main loop builds with add_subdirectory, with
 find_package(attica) against an installed attica, and with firmware/attica.mk, all printing the
 same bits; the umbrella header attica/attica.h holds the whole public API and compiles on its own; the
-flash persistence example (examples/c/persist) keeps the node's calibration over a reboot and survives
-torn writes on a RAM-backed fake flash page, and compiles for the Cortex-M4F."""
+flash persistence example (examples/c/persist) keeps the node's configuration (kind, filter settings,
+calibration) in two alternating flash slots over a reboot and survives a power cut at every byte of a save
+and a flipped bit anywhere on RAM-backed fake flash pages, and compiles for the Cortex-M4F (also without
+the calibration stages)."""
 
 from __future__ import annotations
 
@@ -286,10 +288,14 @@ PERSIST = EXAMPLES / "c" / "persist"
 
 
 def test_persistence_example(tmp_path: Path) -> None:
-    """examples/c/persist on the host with the strict firmware flags, against a fake flash page: an erased
-    page gives the defaults; calibration commands over CAN frames are persisted through the node's hook
-    and loaded at the next start; a power loss after any byte of the record, a flipped bit anywhere in
-    it, another version or length, settings the firmware refuses: never loaded, the defaults instead."""
+    """examples/c/persist on the host with the strict firmware flags, against two fake flash pages: erased
+    pages give the firmware's configuration; SET_CONVENTION, SET_GAIN, a calibration session, SELECT and
+    SET_REMAP over CAN frames are saved (the node's hook, att_persist_poll) into alternating slots and loaded
+    whole at the next start. A power cut before, during (11 points) and after every byte of the erase and
+    programming of six saves, and every bit of both slots flipped: each reboot runs the old or the new
+    configuration bit for bit, never a mix, and reports which (sequence number, slot, source new/old/none).
+    Records of another version, refused by att_node_init, a wrong magic, the sequence wrap, unreadable or
+    too small pages, NULL arguments."""
     _tool("cc")
     prog = golden.build_program(
         [PERSIST / "att_persist.c", PERSIST / "att_persist_test.c"],
@@ -303,20 +309,29 @@ def test_persistence_example(tmp_path: Path) -> None:
     print(out)
     assert "FAIL" not in out and out.rstrip().endswith("0 failure(s)")
     for case in (
-        "EMPTY",
-        "LOADED",
-        "power loss after each of",
-        "bit flipped",
-        "LAYOUT",
-        "INVALID",
-        "CORRUPT",
+        "erased pages: source none",
+        "each change (SET_CONVENTION, SET_GAIN, a calibration session, SELECT, SET_REMAP) is saved",
+        "the saves alternate between slot 0 and slot 1",
+        "a power cut at every byte of 6 saves",
+        "none with a mix",
+        "each reboot reports which",
+        "never reported as saved",
+        "every bit of both slots flipped",
+        "layout, not loaded",
+        "att_node_init refuses",
+        "across the wrap",
+        "wrong magic: corrupt",
+        "pages that cannot be read",
     ):
         assert case in out, case
+    cuts = re.search(r"(\d+) reboots, (\d+) with the old configuration, (\d+) with the new one", out)
+    assert cuts is not None and int(cuts[1]) > 6 * 377 and int(cuts[1]) == int(cuts[2]) + int(cuts[3]), out
 
 
 def test_persistence_example_builds_for_m4f(tmp_path: Path) -> None:
-    """The persistence example compiles for the Cortex-M4F with the strict flags, needing nothing but the
-    node, the calibration checks and memcpy/memset/memcmp."""
+    """The persistence example compiles for the Cortex-M4F with the strict flags and at most 1 KB of stack
+    per function, needing nothing but att_node_init, att_node_set_persist and memcpy/memset/memcmp; also
+    in a build without the calibration stages (ATT_WITH_CALIB 0)."""
     _tool("arm-none-eabi-gcc")
     _tool("arm-none-eabi-nm")
     obj = tmp_path / "att_persist.o"
@@ -343,13 +358,39 @@ def test_persistence_example_builds_for_m4f(tmp_path: Path) -> None:
     undefined = {
         line.split()[-1] for line in _run(["arm-none-eabi-nm", "-u", str(obj)]).splitlines() if line.strip()
     }
-    allowed = {
-        "att_calib_settings_check",
-        "att_calib_settings_default",
-        "att_node_init",
-        "att_node_set_persist",
-    }
+    allowed = {"att_node_init", "att_node_set_persist"}
     assert undefined <= allowed | {"memcpy", "memset", "memcmp"}, undefined
+    # without the calibration stages it keeps the kind and the filter settings (no hook to register)
+    (tmp_path / "nocal.h").write_text("#define ATT_WITH_CALIB 0\n")
+    _run(
+        [
+            "arm-none-eabi-gcc",
+            *_build.cflags(),
+            "-Os",
+            "-mcpu=cortex-m4",
+            "-mthumb",
+            "-mfpu=fpv4-sp-d16",
+            "-mfloat-abi=hard",
+            "-Wstack-usage=1024",
+            '-DATT_CONFIG_HEADER="nocal.h"',
+            "-I",
+            str(tmp_path),
+            "-I",
+            str(ROOT / "firmware" / "include"),
+            "-I",
+            str(PERSIST),
+            "-c",
+            str(PERSIST / "att_persist.c"),
+            "-o",
+            str(tmp_path / "nocal.o"),
+        ]
+    )
+    undefined = {
+        line.split()[-1]
+        for line in _run(["arm-none-eabi-nm", "-u", str(tmp_path / "nocal.o")]).splitlines()
+        if line.strip()
+    }
+    assert undefined <= {"att_node_init", "memcpy", "memset", "memcmp"}, undefined
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,9 @@
  * - your CAN driver: can_receive / can_tx_free / can_send exchange frames with a simulated host that
  *   sends that IMU's samples as IMU_GYRO/ACC/MAG frames and decodes the node's outputs;
  * - your application: publish(q, v, flags) keeps the last values; log_refused(field, rule, unit) prints
- *   a refused setting.
+ *   a refused setting;
+ * - your flash driver: flash_erase / flash_program / flash_read on two RAM pages of 2 KB, erased at the
+ *   start (the persistence example's att_flash_io_t).
  * After ATT_DOC_SAMPLES samples the program ends (exit 0) and prints one report line:
  *   "report samples=N published=P q=w,x,y,z v=x,y,z flags=0x.. sent=S quat_frames=Q"
  * att_doc_fail() stands for the "{ ... }" of an error branch: reaching it prints and exits 3.
@@ -106,6 +108,60 @@ static void publish(att_quat_t q, att_vec3_t v, uint32_t flags)
 static void log_refused(const char *field, const char *rule, const char *unit)
 {
     printf("%s: %s %s\n", field, rule, unit);
+}
+
+/* --- your flash driver: two pages of 2 KB (here in RAM, erased at the start) ----------------------- */
+
+#define ATT_DOC_PAGE_BYTES 2048u
+static uint8_t att_doc_flash[2][ATT_DOC_PAGE_BYTES];
+static bool att_doc_flash_ready;
+
+static bool att_doc_page_ok(uint32_t page, uint32_t offset, uint32_t n)
+{
+    if (!att_doc_flash_ready) {
+        memset(att_doc_flash, 0xff, sizeof att_doc_flash);
+        att_doc_flash_ready = true;
+    }
+    return page < 2u && offset <= ATT_DOC_PAGE_BYTES && n <= ATT_DOC_PAGE_BYTES - offset;
+}
+
+/** Your flash driver: erase a page (its bytes read 0xFF). */
+static bool flash_erase(void *ctx, uint32_t page)
+{
+    (void)ctx;
+    if (!att_doc_page_ok(page, 0u, 0u)) {
+        return false;
+    }
+    memset(att_doc_flash[page], 0xff, ATT_DOC_PAGE_BYTES);
+    return true;
+}
+
+/** Your flash driver: program n bytes (whole 8-byte units of erased bytes) at offset of a page. */
+static bool flash_program(void *ctx, uint32_t page, uint32_t offset, const uint8_t *data, uint32_t n)
+{
+    uint32_t i;
+    (void)ctx;
+    if (!att_doc_page_ok(page, offset, n) || offset % 8u != 0u || n % 8u != 0u) {
+        return false;
+    }
+    for (i = 0u; i < n; i++) {
+        if (att_doc_flash[page][offset + i] != 0xffu) {
+            return false;
+        }
+        att_doc_flash[page][offset + i] = data[i];
+    }
+    return true;
+}
+
+/** Your flash driver: read n bytes at offset of a page. */
+static bool flash_read(void *ctx, uint32_t page, uint32_t offset, uint8_t *data, uint32_t n)
+{
+    (void)ctx;
+    if (!att_doc_page_ok(page, offset, n)) {
+        return false;
+    }
+    memcpy(data, att_doc_flash[page] + offset, n);
+    return true;
 }
 
 /* --- a simulated CAN bus with a host that sends IMU frames and reads the outputs ------------------- */

@@ -21,8 +21,13 @@
  * - EULER_RANGE     when valid: roll and yaw in [-pi, pi], pitch in [-pi/2, pi/2] (float32 pi, pi/2).
  * - BIAS_BOUND      ars/mars: every bias component within max(|bias_init|, gyro_range) (+ 1e-5 relative).
  * - NUMERIC_KEPT    a step flagged NUMERIC leaves q bit for bit as before the step.
- * - STUCK           after the fuzzed samples, FZ_RECOVER good samples (rest, |a| = the kind's gravity)
- *                   clear NUMERIC and NOT_READY and give a valid unit q.
+ * - STUCK           the recovery contract (fz_recovery, tests/test_recovery.py): after the fuzzed samples,
+ *                   good samples at rest (|a| = the kind's gravity): from the kind's n-th on, every one is
+ *                   neither NUMERIC nor NOT_READY nor invalid, its output valid (FZ_HOLD more checked);
+ *                   for a kind marked isolated (ekf) one of the first n is good and a later bad sample is
+ *                   an isolated NUMERIC step (never two bad in a row, never NOT_READY). The same rule holds
+ *                   during the roll below when it is a clean sample (gyro_range > 1 rad/s, accel_range >
+ *                   1.01 g).
  * - FROZEN          then the attitude moves again: 16 samples of a 0.5 rad/s roll seen consistently by
  *                   gyro, accel and mag change q (checked when gyro_range > 1 rad/s, accel_range > 1.01 g,
  *                   the roll reaches 1e-3 rad and the rest detector does not take the roll for rest).
@@ -32,7 +37,9 @@
  * ATT_FUZZ_KNOWN="kf:P_SPD,gyro:Q_FINITE" (or a file with one class per line, ATT_FUZZ_KNOWN=@path)
  * counts them instead of aborting (ATT_FUZZ_KNOWN="*": every class, for triage); ATT_FUZZ_FINDINGS=dir saves the first input of each class there.
  * Anything else aborts (a crash artifact for libFuzzer). ATT_FUZZ_BREAK_AT=N overwrites the filter with NaN
- * bytes before the N-th fuzzed sample: the self test that a broken filter is reported.
+ * bytes before the N-th fuzzed sample: the self test that a broken filter is reported. ATT_FUZZ_BREAK_RECOVERY=N
+ * (0-based) resets the filter before the N-th and every later good sample at rest and gives it a NaN accel:
+ * the self test of STUCK (a filter left NOT_READY).
  */
 #include <stdbool.h>
 #include <stddef.h>
@@ -46,9 +53,63 @@
 #define FZ_INVALID ((uint32_t)(ATT_FLAG_NOT_READY | ATT_FLAG_BAD_ARG))
 #endif
 #define FZ_Q_TOL 1e-5
-#define FZ_RECOVER 8
+#define FZ_HOLD 8 /* good samples at rest checked after a kind's recovery bound */
 #define FZ_MAX_STEPS 256
 #define FZ_G 9.80665f
+
+/* --- the recovery contract (tests/test_recovery.py checks this table against its own) -------------- */
+
+/** Within n good samples the output is good again; isolated: later a NUMERIC step may recur, never two
+ * bad samples in a row; else every sample from the n-th on is good. */
+typedef struct {
+    unsigned n;
+    bool isolated;
+} fz_recovery_t;
+
+static const fz_recovery_t fz_recovery[] = {
+    [ATT_FILTER_NONE] = {2u, false},
+    [ATT_FILTER_ARS] = {2u, false},
+    [ATT_FILTER_MARS] = {2u, false},
+    [ATT_FILTER_KF] = {2u, false},
+    [ATT_FILTER_EKF] = {4u, true},
+    [ATT_FILTER_GYRO] = {2u, false},
+    [ATT_FILTER_TILT] = {2u, false},
+    [ATT_FILTER_MEKF] = {2u, false},
+};
+
+/** Tracks the recovery contract over a run of good samples; true when the sample just stepped breaks it. */
+typedef struct {
+    fz_recovery_t rule;
+    unsigned seen;      /* good samples stepped */
+    unsigned first_ok;  /* the first whose output was good (1-based; 0: none yet) */
+    bool last_bad;      /* the previous one's output was bad */
+    char why[160];
+} fz_recover_t;
+
+static bool recover_breaks(fz_recover_t *r, uint32_t flags)
+{
+    const uint32_t badf = (uint32_t)(ATT_FLAG_NUMERIC | ATT_FLAG_NOT_READY) | FZ_INVALID;
+    const bool bad = (flags & badf) != 0u;
+    bool broken = false;
+    r->seen++;
+    if (!bad && r->first_ok == 0u) {
+        r->first_ok = r->seen;
+    }
+    if (!r->rule.isolated) {
+        broken = bad && r->seen >= r->rule.n;
+    } else if (r->first_ok == 0u) {
+        broken = r->seen >= r->rule.n;
+    } else if (bad) {
+        broken = r->last_bad || (flags & ((uint32_t)ATT_FLAG_NOT_READY | FZ_INVALID)) != 0u;
+    }
+    if (broken) {
+        snprintf(r->why, sizeof r->why, "flags %04x at good sample %u (recovery bound %u%s; first good output %u)",
+                 flags, r->seen, r->rule.n, r->rule.isolated ? ", isolated NUMERIC allowed after" : "",
+                 r->first_ok);
+    }
+    r->last_bad = bad;
+    return broken;
+}
 
 /* --- settings fields ---------------------------------------------------------------------------- */
 
@@ -262,6 +323,7 @@ typedef struct {
 
 static int g_verbose;
 static long g_break_at = -1; /* ATT_FUZZ_BREAK_AT=N: self test, the state is overwritten with NaN bytes before step N */
+static long g_break_recovery = -1; /* ATT_FUZZ_BREAK_RECOVERY=N: self test of STUCK, see the recovery loop */
 
 static void dump_settings(att_filter_kind_t kind, const att_filter_settings_t *s, const fields_t *fs)
 {
@@ -575,6 +637,9 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
     g_findings_dir = getenv("ATT_FUZZ_FINDINGS");
     g_verbose = getenv("ATT_FUZZ_VERBOSE") != NULL;
     if (getenv("ATT_FUZZ_BREAK_AT") != NULL) g_break_at = strtol(getenv("ATT_FUZZ_BREAK_AT"), NULL, 10);
+    if (getenv("ATT_FUZZ_BREAK_RECOVERY") != NULL) {
+        g_break_recovery = strtol(getenv("ATT_FUZZ_BREAK_RECOVERY"), NULL, 10);
+    }
     atexit(report_known);
     return 0;
 }
@@ -640,22 +705,37 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
     }
 
-    /* recovery: good samples at rest, then the attitude must move again */
+    /* recovery: good samples at rest (the recovery contract), then the attitude must move again */
     {
         att_sample_t in = rest_sample(g);
         uint32_t flags = 0u;
-        for (i = 0; i < FZ_RECOVER; ++i) {
-            flags = step(&c, &f, &in, &prev, &o);
+        fz_recover_t rec;
+        memset(&rec, 0, sizeof rec);
+        rec.rule = fz_recovery[kind];
+        for (i = 0; i < rec.rule.n + FZ_HOLD; ++i) {
+            if (g_break_recovery >= 0 && (long)i >= g_break_recovery) {
+                /* self test: a filter that never recovers, as seen from outside (reset before every
+                   sample, whose accel is NaN: NOT_READY at every step) */
+                att_sample_t broken = in;
+                broken.acc.x = NAN;
+                att_filter_reset(&f);
+                att_filter_output(&f, &prev);
+                flags = step(&c, &f, &broken, &prev, &o);
+            } else {
+                flags = step(&c, &f, &in, &prev, &o);
+            }
+            if (c.failed) return 0;
+            if (recover_breaks(&rec, flags)) {
+                char d[240];
+                snprintf(d, sizeof d, "at rest (|a| = %a): %s", (double)g, rec.why);
+                violation(kind, "STUCK", d);
+                return 0;
+            }
+        }
+        if ((flags & (ATT_FLAG_NUMERIC | ATT_FLAG_NOT_READY | FZ_INVALID)) == 0u) {
+            check_valid_output(&c, &f, &o);
             if (c.failed) return 0;
         }
-        if ((flags & (ATT_FLAG_NUMERIC | ATT_FLAG_NOT_READY | FZ_INVALID)) != 0u) {
-            char d[160];
-            snprintf(d, sizeof d, "flags %04x after %d good samples at rest (|a| = %a)", flags, FZ_RECOVER, (double)g);
-            violation(kind, "STUCK", d);
-            return 0;
-        }
-        check_valid_output(&c, &f, &o);
-        if (c.failed) return 0;
         {
             /* a roll at 0.5 rad/s seen consistently by gyro, accel and mag: whatever the gains, q moves */
             float range = (kind == ATT_FILTER_TILT) ? 1e30f : get_f32(&s, &c.fs, "gyro_range");
@@ -664,15 +744,25 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             att_quat_t q0 = o.q;
             uint32_t seen = 0u;
             double phi = 0.0;
+            const bool clean = range > 1.0f && arange > g * 1.01f; /* the roll's samples are valid */
+            rec.seen = rec.rule.n; /* recovered: from here on the rule after the bound */
             for (i = 0; i < 16; ++i) {
+                uint32_t fl;
                 phi += 0.5 * (double)dtk;
                 in.gyr.x = 0.5f;
                 in.acc.y = (float)((double)g * sin(phi));
                 in.acc.z = (float)((double)g * cos(phi));
                 in.mag.y = (float)(20.0 * cos(phi) - 40.0 * sin(phi));
                 in.mag.z = (float)(-20.0 * sin(phi) - 40.0 * cos(phi));
-                seen |= step(&c, &f, &in, &prev, &o);
+                fl = step(&c, &f, &in, &prev, &o);
+                seen |= fl;
                 if (c.failed) return 0;
+                if (clean && recover_breaks(&rec, fl)) {
+                    char d[240];
+                    snprintf(d, sizeof d, "during a 0.5 rad/s roll (dt %a), after recovering: %s", (double)dtk, rec.why);
+                    violation(kind, "STUCK", d);
+                    return 0;
+                }
             }
             if (range > 1.0f && arange > g * 1.01f && phi >= 1e-3 && (seen & ATT_FLAG_AT_REST) == 0u &&
                 memcmp(&q0, &o.q, sizeof q0) == 0) {
