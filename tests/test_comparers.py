@@ -129,8 +129,8 @@ def _derived(kind: str, fname: str) -> bool:
 
 def _missed_state_fields(monkeypatch: pytest.MonkeyPatch, kind: str, derived: bool) -> list[str]:
     """State fields whose flipped lowest bit the crosscheck's segment-end state check does not report."""
-    st = _stream(120)
-    assert cc.crosscheck(kind, [st], dt=0.01, segment=60).ok
+    st = _stream(40)  # two segment ends: every field is compared at each
+    assert cc.crosscheck(kind, [st], dt=0.01, segment=20).ok
     missed = []
     for fname, off in _state_fields(kind):
         if _derived(kind, fname) != derived:
@@ -147,7 +147,7 @@ def _missed_state_fields(monkeypatch: pytest.MonkeyPatch, kind: str, derived: bo
                 return s
 
         monkeypatch.setattr(native, "Filter", FlipState)
-        r = cc.crosscheck(kind, [st], dt=0.01, segment=60)
+        r = cc.crosscheck(kind, [st], dt=0.01, segment=20)
         monkeypatch.undo()
         if r.ok or r.state_mismatches != 1:
             missed.append(fname)
