@@ -86,6 +86,7 @@ footprint: deps setup
 # docs/view.md, made by the browser test of attica view (tests/test_view_browser.py)
 docs-figures: deps build
 	$(DEV) -m attica_dev.kind_table --update
+	$(DEV) -m attica_dev.settings_doc --update
 	ATTICA_DOCS_FIGURES=1 $(VENV)/bin/pytest -q -n 0 tests/test_view_browser.py -k demo_page
 
 cycles: deps setup

@@ -7,6 +7,8 @@
 - ``attica eval``: accuracy on recorded trials with the BROAD metrics, peers side by side.
 - ``attica info``: what a recording file holds (ROS bags, MCAP, ULog, EuRoC, phone exports ...): streams,
   rates, time report, sensors.
+- ``attica settings``: every setting of a filter kind, the stages and the node, with its default,
+  accepted values and unit, read from the C library's checks.
 - ``attica paths``: where the firmware sources, headers, flags and DBC of this installation are.
 - ``attica dbc``: attica's DBC with every CAN ID moved by an ID offset (a node with ``--id-offset``).
 - ``attica node | replay | monitor | verify``: the CAN tools (python-can buses); ``--id-offset N`` for a

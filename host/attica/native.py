@@ -398,14 +398,18 @@ class Filter:
 
     def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
         """att_filter_calibrate: new input/output stages, the state kept (NativeError says why if refused)."""
+        from attica.contract import calib_rules
         from attica.reference.calib import as_stage_settings
 
         cs = ffi.new("att_calib_settings_t *")
-        fill_c(cs, as_stage_settings(calibration, gravity, accel_outputs))
+        stages = as_stage_settings(calibration, gravity, accel_outputs)
+        fill_c(cs, stages)
         problem = lib.att_calib_settings_check(cs)
         if problem != lib.ATT_CALIB_OK:
             why = ffi.string(lib.att_calib_error_name(problem)).decode()
-            raise NativeError(f"att_filter_calibrate: {why}")
+            line = next((r for r in calib_rules(stages) if not r.holds), None)
+            where = f" ({line.name}: {line.text})" if line is not None else ""
+            raise NativeError(f"att_filter_calibrate: {why}{where}")
         _check(lib.att_filter_calibrate(self._f, cs), "att_filter_calibrate")
 
     def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]] | None:

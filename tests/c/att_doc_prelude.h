@@ -8,7 +8,7 @@
  * - your CAN driver: can_receive / can_tx_free / can_send exchange frames with a simulated host that
  *   sends that IMU's samples as IMU_GYRO/ACC/MAG frames and decodes the node's outputs;
  * - your application: publish(q, v, flags) keeps the last values; log_refused(field, rule, unit) prints
- *   a refused setting;
+ *   a refused setting, print_rule(field, rule, unit, holds) a line of a settings contract;
  * - your flash driver: flash_erase / flash_program / flash_read on two RAM pages of 2 KB, erased at the
  *   start (the persistence example's att_flash_io_t).
  * After ATT_DOC_SAMPLES samples the program ends (exit 0) and prints one report line:
@@ -108,6 +108,12 @@ static void publish(att_quat_t q, att_vec3_t v, uint32_t flags)
 static void log_refused(const char *field, const char *rule, const char *unit)
 {
     printf("%s: %s %s\n", field, rule, unit);
+}
+
+/** Your print: one line of a settings contract ("field: rule unit", "(fails)" when it does not hold). */
+static void print_rule(const char *field, const char *rule, const char *unit, bool holds)
+{
+    printf("%s: %s %s%s\n", field, rule, unit, holds ? "" : " (fails)");
 }
 
 /* --- your flash driver: two pages of 2 KB (here in RAM, erased at the start) ----------------------- */

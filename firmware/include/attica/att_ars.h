@@ -66,13 +66,13 @@ typedef struct {
     float accel_reject;            /**< skip correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never skip */
     float accel_range;             /**< |a| above this is saturation: correction skipped, m/s^2; (gravity, 1e4] */
     float gyro_range;              /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
-    att_bias_mode_t bias_mode;     /**< gyro bias estimation mode */
+    att_bias_mode_t bias_mode;     /**< gyro bias estimation: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;           /**< cap on n in the running mean; [1, 2^24] */
-    att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame; |component| <= gyro_range */
+    att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro, rad/s, [0, gyro_range] ... */
     float rest_accel;              /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;               /**< ... for at least rest_time, s, [0, 1e4] */
-    att_integration_t integration; /**< ROTVEC or EULER */
+    att_integration_t integration; /**< ROTVEC (0) or EULER (1) */
     bool init_from_accel;          /**< take roll/pitch from the first valid accel sample (yaw 0) */
     att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth;
                                         finite, |q|^2 in [2^-20, 2^20] (normalised by init) */

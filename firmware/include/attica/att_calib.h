@@ -64,15 +64,18 @@ typedef enum {
 
 /** Inertial sensor model v = M (s * (raw - o)) of a gyro (rad/s) or an accelerometer (m/s^2). */
 typedef struct {
-    float misalignment[9];  /**< M, row-major, unitless; |M_ij| <= 1e3, well conditioned (see check) */
-    att_vec3_t sensitivity; /**< s, per-axis scale, unitless; each in (0, 1e3] */
-    att_vec3_t offset;      /**< o, sensor frame, the sensor's unit; |o_i| <= 1e3 rad/s (gyro), 1e4 m/s^2 */
+    float misalignment[9];  /**< M, row-major, unitless; finite, |entries| <= 1e3, |det| >= 2^-60, Frobenius
+                                 condition number <= 3100 */
+    att_vec3_t sensitivity; /**< s, per-axis scale, unitless; each component in (0, 1e3] */
+    att_vec3_t offset;      /**< o, sensor frame, the sensor's unit; gyro: each component in [-1e3, 1e3] rad/s,
+                                 accel: each component in [-1e4, 1e4] m/s^2 */
 } att_calib_inertial_t;
 
 /** Magnetometer model m = S (raw - h), uT. */
 typedef struct {
-    float soft_iron[9];   /**< S, row-major, unitless; |S_ij| <= 1e3, well conditioned (see check) */
-    att_vec3_t hard_iron; /**< h, uT, sensor frame; |h_i| <= 1e5 */
+    float soft_iron[9];   /**< S, row-major, unitless; finite, |entries| <= 1e3, |det| >= 2^-60, Frobenius
+                               condition number <= 3100 */
+    att_vec3_t hard_iron; /**< h, uT, sensor frame; each component in [-1e5, 1e5] */
 } att_calib_mag_t;
 
 /** Everything the input and output stages need (att_calib_settings_default: identity, ENU). */
@@ -80,9 +83,11 @@ typedef struct {
     att_calib_inertial_t gyro;   /**< gyro model, rad/s */
     att_calib_inertial_t accel;  /**< accel model, m/s^2 */
     att_calib_mag_t mag;         /**< magnetometer model, uT */
-    uint32_t remap;              /**< mounting as an axis remap 1 .. 24 (att_calib_remap_parse); 0 = quaternion */
-    att_quat_t mounting;         /**< body <- sensor (w, x, y, z) when remap == 0; |q| within 1e-3 of 1 */
-    att_convention_t convention; /**< earth frame of the outputs */
+    uint32_t remap;              /**< mounting as an axis remap 1 .. 24 (att_calib_remap_parse); [0, 24] (0: the
+                                      mounting quaternion) */
+    att_quat_t mounting;         /**< body <- sensor (w, x, y, z); when remap is 0: finite, |mounting|^2 in
+                                      [0.997, 1.003] */
+    att_convention_t convention; /**< earth frame of the outputs: ENU (0), NED (1) or NWU (2) */
     float gravity;               /**< g for the acceleration outputs, m/s^2; [1, 100] */
     bool accel_outputs;          /**< keep each step's body-frame accel for att_filter_accel (3 stores/step) */
 } att_calib_settings_t;
@@ -147,6 +152,13 @@ typedef struct {
 void att_calib_settings_default(att_calib_settings_t *s);
 /** The first problem of the settings (ATT_CALIB_OK when they are valid). */
 att_calib_error_t att_calib_settings_check(const att_calib_settings_t *s);
+/**
+ * The stages' settings contract, line by line (as att_filter_settings_rule): line index of the table
+ * att_calib_settings_check is written from, in its order ("calib.gyro.sensitivity", the bounds, the
+ * rule in words, the unit); ATT_OK when it holds for s, ATT_ERR_SETTINGS when not; past the last line
+ * out->field is NULL. ATT_ERR_NULL (field NULL) for a NULL argument.
+ */
+att_status_t att_calib_settings_rule(const att_calib_settings_t *s, uint32_t index, att_settings_error_t *out);
 /** ATT_OK, or ATT_ERR_SETTINGS / ATT_ERR_NULL (att_calib_settings_check says why). */
 att_status_t att_calib_settings_validate(const att_calib_settings_t *s);
 /** Validate and fold the settings into c; on error c is unchanged. */

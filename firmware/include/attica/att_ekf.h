@@ -114,7 +114,7 @@ typedef struct {
     float gate;            /**< chi-square gate on the normalised innovation (2 dof); [0, 1e6]; 0 = off */
     float p0;              /**< initial variance of each angle, rad^2; [1e-6, p_max] */
     float p0_bias;         /**< initial variance of each bias component, (rad/s)^2; [1e-20, p_max] */
-    float p_max;           /**< cap on each variance (numeric guard); [1e-6, 1e6] */
+    float p_max;           /**< cap on each variance (numeric guard), rad^2; [1e-6, 1e6] */
     float gravity;         /**< g, m/s^2; [1, 100] */
     float accel_reject;    /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
     float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
@@ -122,8 +122,8 @@ typedef struct {
     float cos_min;         /**< guard on |cos(theta)|; (0, 1) */
     float tau_acc_lp;      /**< low-pass time constant of the heading-frame accel, s, [0, 1e4]; 0 = off */
     bool init_from_accel;  /**< take roll/pitch from the first usable accel sample (yaw 0) */
-    att_vec3_t euler_init; /**< start angles without init_from_accel, rad; |phi|, |psi| <= 8192, |theta| <= pi/2 */
-    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+    att_vec3_t euler_init; /**< start angles without init_from_accel, rad; x (phi), z (psi) in [-8192, 8192], y (theta) in [-pi/2, pi/2] */
+    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     bool noise_rates;      /**< true: q_* rates (Q = q dt), r_* densities (R = r / dt); false: per step */
 } att_ekf_settings_t;
 

@@ -211,6 +211,28 @@ att_status_t att_filter_settings_validate(att_filter_kind_t kind, const att_filt
 att_status_t att_filter_settings_check(att_filter_kind_t kind, const att_filter_settings_t *settings,
                                        att_settings_error_t *why);
 /**
+ * The kind's settings contract, line by line: line index of the table att_filter_settings_validate and
+ * att_filter_settings_check are written from, in their order, in *rule (field, the bounds for these
+ * settings, rule in words, unit); ATT_OK when the line holds for settings, ATT_ERR_SETTINGS when not.
+ * Past the last line rule->field is NULL (ATT_OK). ATT_ERR_NULL / ATT_ERR_KIND / ATT_ERR_DISABLED for a
+ * bad call. The host's settings tables, the command line's help and docs/settings.md are made from it.
+ *
+ * @code
+ * att_filter_settings_t s;
+ * att_settings_error_t r;
+ * att_filter_settings_default(ATT_FILTER_ARS, 0.01f, &s);
+ * for (uint32_t i = 0u;; i++) {
+ *     const att_status_t st = att_filter_settings_rule(ATT_FILTER_ARS, &s, i, &r);
+ *     if (r.field == NULL) {
+ *         break;                                          // past the last line (or a bad call)
+ *     }
+ *     print_rule(r.field, r.rule, r.unit, st == ATT_OK);  // your print: "ars.dt", "[1e-6, 1]", "s" ...
+ * }
+ * @endcode
+ */
+att_status_t att_filter_settings_rule(att_filter_kind_t kind, const att_filter_settings_t *settings, uint32_t index,
+                                      att_settings_error_t *rule);
+/**
  * Initialise f as the given kind, with identity input/output stages (ENU); on error f is unchanged.
  * ATT_ERR_DISABLED for a kind compiled out of this build (att_config.h).
  */

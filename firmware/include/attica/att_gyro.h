@@ -29,7 +29,7 @@ typedef struct {
     float dt;              /**< sample period, s; [1e-6, 1] */
     float gyro_range;      /**< any |w_i| above this: step skipped, rad/s; (0, 1e3] */
     float cos_min;         /**< guard on |cos(theta)|, (0, 1) */
-    att_vec3_t euler_init; /**< initial (phi, theta, psi), rad; |phi|, |psi| <= 8192, |theta| <= pi/2 */
+    att_vec3_t euler_init; /**< initial (phi, theta, psi), rad; x (phi), z (psi) in [-8192, 8192], y (theta) in [-pi/2, pi/2] */
 } att_gyro_settings_t;
 
 /** Dynamic state of the gyro-only baseline. */

@@ -69,9 +69,9 @@ typedef struct {
     float accel_reject;        /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
     float accel_range;         /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
     float gyro_range;          /**< any |w_i| above this: propagation skipped, rad/s; (0, 1e3] */
-    att_bias_mode_t bias_mode; /**< gyro bias from the rest detector (as att_ars.h) */
+    att_bias_mode_t bias_mode; /**< gyro bias as att_ars.h: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;       /**< cap on n in the running mean of the bias; [1, 2^24] */
-    att_vec3_t bias_init;      /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+    att_vec3_t bias_init;      /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     float rest_gyro;           /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
     float rest_accel;          /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;           /**< ... for at least rest_time, s, [0, 1e4] */

@@ -88,7 +88,7 @@ typedef struct {
                                        (alpha_acc is then ignored); 0 = k_acc is alpha_acc */
     float tau_mag;                /**< mag time constant, s, [0, 1e4]; > 0 sets k_mag = dt/(tau_mag+dt)
                                        (alpha_mag is then ignored); 0 = k_mag is alpha_mag */
-    att_mars_mag_mode_t mag_mode; /**< horizontal (yaw only) or full-vector mag correction */
+    att_mars_mag_mode_t mag_mode; /**< HORIZONTAL (0) or FULL (1): yaw-only or full-vector mag correction */
     float gravity;                /**< g, m/s^2; [1, 100] */
     float accel_reject;           /**< skip accel correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never */
     float accel_range;            /**< |a| above this is saturation: correction skipped, m/s^2; (gravity, 1e4] */
@@ -96,16 +96,16 @@ typedef struct {
     float mag_range;              /**< |m| above this: sample invalid, uT; (0, 1e5] */
     float mag_norm_reject;        /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
     float mag_dip_reject;         /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
-    att_vec3_t bias_init;         /**< initial gyro bias b, rad/s, sensor frame; |component| <= gyro_range */
+    att_vec3_t bias_init;         /**< initial gyro bias b, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     bool init_from_sensors;       /**< attitude and m0 from the first valid accel (+ mag) samples */
     att_quat_t q_init;            /**< initial attitude when init_from_sensors is false, sensor-to-earth;
                                        finite, |q|^2 in [2^-20, 2^20] (normalised by init) */
     att_vec3_t m0_init;           /**< reference field when init_from_sensors is false, uT, earth (ENU);
-                                       zero = take it from the first valid mag sample; else
-                                       |m0_init| in [1e-3, mag_range] */
-    att_integration_t integration; /**< ROTVEC (exponential map, default) or FIRST_ORDER (the article) */
+                                       zero, or |m0_init| in [1e-3, mag_range] (zero: take it from the
+                                       first valid mag sample) */
+    att_integration_t integration; /**< ROTVEC (0) or FIRST_ORDER (2): exponential map (default) or the article's */
     float tau_acc_lp;             /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
-    att_bias_mode_t bias_mode;    /**< gyro bias: AT_REST (default), FROZEN (= bias_init), RUNNING, OFF */
+    att_bias_mode_t bias_mode;    /**< gyro bias (default AT_REST; FROZEN: bias_init): OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;          /**< cap on n in the running mean of the bias; [1, 2^24] */
     float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
     float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */

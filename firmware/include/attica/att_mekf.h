@@ -159,14 +159,14 @@ typedef struct {
     float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;       /**< ... for at least rest_time, s, [0, 1e4] */
     float gyro_scale_sd;   /**< prior standard deviation of the gyro scale-factor error, estimated online
-                                (1 = 100 %); [0, ATT_MEKF_SCALE_MAX]; 0 = not estimated */
+                                (1 = 100 %); [0, 0.1] (ATT_MEKF_SCALE_MAX); 0 = not estimated */
     float gyro_scale_init; /**< initial gyro scale-factor error (rate = (1 + s)(w - b)); [-0.1, 0.1] */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
-    att_vec3_t m0_init;    /**< reference field when init_from_sensors is false, uT, earth (ENU); zero =
-                                from the first usable mag sample; else |m0_init| in [1e-3, mag_range] */
-    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; |component| <= gyro_range */
+    att_vec3_t m0_init;    /**< reference field when init_from_sensors is false, uT, earth (ENU); zero, or
+                                |m0_init| in [1e-3, mag_range] (zero: from the first usable mag sample) */
+    att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
 } att_mekf_settings_t;
 
 /** Coefficients derived from the settings by att_mekf_init: what a step needs, and the reset values. */

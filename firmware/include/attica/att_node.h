@@ -125,16 +125,16 @@ typedef struct {
     att_filter_kind_t kind;       /**< filter to run */
     att_filter_settings_t filter; /**< its settings (the member named after kind) */
     float sample_rate;            /**< a rate, Hz, (0, 100000]; the filter's dt (s) must be 1/sample_rate within 1e-3 relative */
-    uint32_t bitrate;             /**< nominal bit/s (e.g. 500000); 1000 .. 1000000 */
-    uint32_t data_bitrate;        /**< CAN FD data phase bit/s, 0 = classic only; else bitrate .. 16000000 */
-    bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets (needs data_bitrate) */
-    uint32_t output_divider;      /**< emit outputs every Nth step (1 = every step); 1 .. 65535 */
-    uint32_t diag_divider;        /**< ATT_DIAG after every Nth emitted set (0 = never) */
+    uint32_t bitrate;             /**< nominal bit/s (e.g. 500000); [1000, 1000000] */
+    uint32_t data_bitrate;        /**< CAN FD data phase, bit/s: 0 (classic only) or [bitrate, 16000000] */
+    bool fd;                      /**< IMU_FD in / ATT_OUT_FD out instead of classic sets; true needs data_bitrate > 0 */
+    uint32_t output_divider;      /**< emit outputs every Nth step (1 = every step); [1, 65535] */
+    uint32_t diag_divider;        /**< ATT_DIAG after every Nth emitted set; any (0: never) */
 #if ATT_WITH_CALIB
     att_calib_settings_t calib;   /**< calibration, mounting, convention (att_calib_settings_default) */
 #endif
     bool accel_out;               /**< ATT_LIN_ACC + ATT_EARTH_ACC (classic) or ATT_ACCEL_FD after each set */
-    int32_t id_offset;            /**< added to every attica CAN ID, in and out (0: the DBC's IDs); ATT_NODE_ID_OFFSET_MIN .. _MAX */
+    int32_t id_offset;            /**< added to every attica CAN ID, in and out (0: the DBC's IDs); [-256, 1279] (every ID stays 11-bit) */
 } att_node_settings_t;
 
 /** Node counters (uint32, wrap; ATT_DIAG/ATT_STATUS carry them saturated to 8 bits). */
@@ -200,12 +200,20 @@ att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate
 /**
  * Which setting makes att_node_init refuse: the status att_node_init would return for s, and for
  * ATT_ERR_SETTINGS in why (may be NULL) the first refused field: a node field ("bitrate",
- * "id_offset", "fd" ...), the filter's ("ars.tau_acc_lp": att_filter_settings_check), "calib" (rule:
- * att_calib_error_name), "filter.dt" (not 1 / sample_rate) or "bus load" (outputs over 100 %), with
- * its bounds, rule and unit; why->field is NULL otherwise. Not called by att_node_init: an image that
- * does not call it carries none of its text.
+ * "id_offset", "fd" ...), the filter's ("ars.tau_acc_lp": att_filter_settings_check), the stages'
+ * ("calib.gyro.sensitivity": att_calib_settings_rule), "filter.dt" (not 1 / sample_rate) or "bus load"
+ * (outputs over 100 %), with its bounds, rule and unit; why->field is NULL otherwise. Not called by
+ * att_node_init: an image that does not call it carries none of its text.
  */
 att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_error_t *why);
+/**
+ * The node's own settings contract, line by line (as att_filter_settings_rule): line index of the table
+ * att_node_init and att_node_settings_check are written from ("sample_rate", "bitrate" ...; the filter's
+ * and the stages' are listed by att_filter_settings_rule and att_calib_settings_rule, the two rules
+ * between them, filter.dt and bus load, are stated above); ATT_OK when it holds for s, ATT_ERR_SETTINGS
+ * when not; past the last line out->field is NULL. ATT_ERR_NULL (field NULL) for a NULL argument.
+ */
+att_status_t att_node_settings_rule(const att_node_settings_t *s, uint32_t index, att_settings_error_t *out);
 /**
  * Validate the settings (incl. the filter's, and bus load <= 100 %) and initialise the node (empty
  * rings, zero counters). ATT_ERR_NULL / ATT_ERR_SETTINGS / ATT_ERR_KIND / ATT_ERR_DISABLED leave n

@@ -96,56 +96,82 @@ static bool att_calib_scale_ok(att_vec3_t s)
            s.z <= ATT_CALIB_ENTRY_MAX;
 }
 
-att_calib_error_t att_calib_settings_check(const att_calib_settings_t *s)
+static bool att_calib_mounting_ok(const att_calib_settings_t *s)
 {
     float q2;
+    if (s->remap != 0u) {
+        return true; /* the remap gives the mounting */
+    }
+    q2 = s->mounting.w * s->mounting.w + s->mounting.x * s->mounting.x + s->mounting.y * s->mounting.y +
+         s->mounting.z * s->mounting.z;
+    return att_i_quat_isfinite(s->mounting) && att_i_in(q2, ATT_CALIB_Q2_LO, ATT_CALIB_Q2_HI);
+}
+
+static bool att_calib_convention_ok(att_convention_t c)
+{
+    return c == ATT_CONV_ENU || c == ATT_CONV_NED || c == ATT_CONV_NWU;
+}
+
+/*
+ * The settings contract of the stages, one line per condition in the order they are tested:
+ *     C(code, name, ok, lo, hi, rule, unit)
+ * code the att_calib_error_t of the line, the rest as in the kinds' tables (att_core.h).
+ * att_calib_settings_check returns the code of the first line that fails, att_calib_settings_rule lists
+ * them (the host's tables, help and docs), att_node_settings_check names the field: one list.
+ */
+#define ATT_CALIB_MATRIX_RULE "finite, |entries| <= 1e3, |det| >= 2^-60, Frobenius condition number <= 3100"
+#define ATT_CALIB_CHECKS(C)                                                                                   \
+    C(ATT_CALIB_ERR_GYRO_MATRIX, "calib.gyro.misalignment", att_calib_matrix_ok(s->gyro.misalignment), 0.0f,   \
+      ATT_CALIB_COND_MAX, ATT_CALIB_MATRIX_RULE, "")                                                          \
+    C(ATT_CALIB_ERR_GYRO_SENSITIVITY, "calib.gyro.sensitivity", att_calib_scale_ok(s->gyro.sensitivity), 0.0f, \
+      ATT_CALIB_ENTRY_MAX, "each component in (0, 1e3]", "")                                                  \
+    C(ATT_CALIB_ERR_GYRO_OFFSET, "calib.gyro.offset", att_i_vec3_within(s->gyro.offset, ATT_CALIB_GYRO_OFFSET_MAX), \
+      -ATT_CALIB_GYRO_OFFSET_MAX, ATT_CALIB_GYRO_OFFSET_MAX, "each component in [-1e3, 1e3]", "rad/s")        \
+    C(ATT_CALIB_ERR_ACCEL_MATRIX, "calib.accel.misalignment", att_calib_matrix_ok(s->accel.misalignment), 0.0f, \
+      ATT_CALIB_COND_MAX, ATT_CALIB_MATRIX_RULE, "")                                                          \
+    C(ATT_CALIB_ERR_ACCEL_SENSITIVITY, "calib.accel.sensitivity", att_calib_scale_ok(s->accel.sensitivity),    \
+      0.0f, ATT_CALIB_ENTRY_MAX, "each component in (0, 1e3]", "")                                            \
+    C(ATT_CALIB_ERR_ACCEL_OFFSET, "calib.accel.offset",                                                       \
+      att_i_vec3_within(s->accel.offset, ATT_CALIB_ACCEL_OFFSET_MAX), -ATT_CALIB_ACCEL_OFFSET_MAX,            \
+      ATT_CALIB_ACCEL_OFFSET_MAX, "each component in [-1e4, 1e4]", "m/s^2")                                   \
+    C(ATT_CALIB_ERR_MAG_MATRIX, "calib.mag.soft_iron", att_calib_matrix_ok(s->mag.soft_iron), 0.0f,           \
+      ATT_CALIB_COND_MAX, ATT_CALIB_MATRIX_RULE, "")                                                          \
+    C(ATT_CALIB_ERR_MAG_OFFSET, "calib.mag.hard_iron", att_i_vec3_within(s->mag.hard_iron, ATT_CALIB_MAG_OFFSET_MAX), \
+      -ATT_CALIB_MAG_OFFSET_MAX, ATT_CALIB_MAG_OFFSET_MAX, "each component in [-1e5, 1e5]", "uT")             \
+    C(ATT_CALIB_ERR_REMAP, "calib.remap", s->remap <= ATT_CALIB_REMAPS, 0.0f, (float)ATT_CALIB_REMAPS,         \
+      "[0, 24] (0: the mounting quaternion)", "")                                                             \
+    C(ATT_CALIB_ERR_MOUNTING, "calib.mounting", att_calib_mounting_ok(s), ATT_CALIB_Q2_LO, ATT_CALIB_Q2_HI,    \
+      "when remap is 0: finite, |mounting|^2 in [0.997, 1.003]", "")                                          \
+    C(ATT_CALIB_ERR_CONVENTION, "calib.convention", att_calib_convention_ok(s->convention), 0.0f, 2.0f,        \
+      "ENU (0), NED (1) or NWU (2)", "")                                                                      \
+    C(ATT_CALIB_ERR_GRAVITY, "calib.gravity", att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX),          \
+      ATT_GRAVITY_MIN, ATT_GRAVITY_MAX, "[1, 100]", "m/s^2")                                                  \
+    C(ATT_CALIB_ERR_FLAG, "calib.accel_outputs", att_i_bool_ok(&s->accel_outputs), 0.0f, 1.0f, "0 or 1 (bool)", "")
+
+#define ATT_CALIB_CHECK_CODE(code, name, ok, lo, hi, rule, unit)                                              \
+    if (!(ok)) {                                                                                              \
+        return code;                                                                                          \
+    }
+#define ATT_CALIB_CHECK_RULE(code, name, ok, lo, hi, rule, unit) ATT_CHECK_RULE(name, ok, lo, hi, rule, unit)
+
+att_calib_error_t att_calib_settings_check(const att_calib_settings_t *s)
+{
     if (s == NULL) {
         return ATT_CALIB_ERR_NULL;
     }
-    if (!att_calib_matrix_ok(s->gyro.misalignment)) {
-        return ATT_CALIB_ERR_GYRO_MATRIX;
-    }
-    if (!att_calib_scale_ok(s->gyro.sensitivity)) {
-        return ATT_CALIB_ERR_GYRO_SENSITIVITY;
-    }
-    if (!att_i_vec3_within(s->gyro.offset, ATT_CALIB_GYRO_OFFSET_MAX)) {
-        return ATT_CALIB_ERR_GYRO_OFFSET;
-    }
-    if (!att_calib_matrix_ok(s->accel.misalignment)) {
-        return ATT_CALIB_ERR_ACCEL_MATRIX;
-    }
-    if (!att_calib_scale_ok(s->accel.sensitivity)) {
-        return ATT_CALIB_ERR_ACCEL_SENSITIVITY;
-    }
-    if (!att_i_vec3_within(s->accel.offset, ATT_CALIB_ACCEL_OFFSET_MAX)) {
-        return ATT_CALIB_ERR_ACCEL_OFFSET;
-    }
-    if (!att_calib_matrix_ok(s->mag.soft_iron)) {
-        return ATT_CALIB_ERR_MAG_MATRIX;
-    }
-    if (!att_i_vec3_within(s->mag.hard_iron, ATT_CALIB_MAG_OFFSET_MAX)) {
-        return ATT_CALIB_ERR_MAG_OFFSET;
-    }
-    if (s->remap > ATT_CALIB_REMAPS) {
-        return ATT_CALIB_ERR_REMAP;
-    }
-    if (s->remap == 0u) {
-        q2 = s->mounting.w * s->mounting.w + s->mounting.x * s->mounting.x + s->mounting.y * s->mounting.y +
-             s->mounting.z * s->mounting.z;
-        if (!att_i_quat_isfinite(s->mounting) || !att_i_in(q2, ATT_CALIB_Q2_LO, ATT_CALIB_Q2_HI)) {
-            return ATT_CALIB_ERR_MOUNTING;
-        }
-    }
-    if (s->convention != ATT_CONV_ENU && s->convention != ATT_CONV_NED && s->convention != ATT_CONV_NWU) {
-        return ATT_CALIB_ERR_CONVENTION;
-    }
-    if (!att_i_in(s->gravity, ATT_GRAVITY_MIN, ATT_GRAVITY_MAX)) {
-        return ATT_CALIB_ERR_GRAVITY;
-    }
-    if (!att_i_bool_ok(&s->accel_outputs)) {
-        return ATT_CALIB_ERR_FLAG;
-    }
+    ATT_CALIB_CHECKS(ATT_CALIB_CHECK_CODE)
     return ATT_CALIB_OK;
+}
+
+att_status_t att_calib_settings_rule(const att_calib_settings_t *s, uint32_t index, att_settings_error_t *out)
+{
+    uint32_t line = 0u;
+    (void)att_i_settings_end(out);
+    if (s == NULL || out == NULL) {
+        return ATT_ERR_NULL;
+    }
+    ATT_CALIB_CHECKS(ATT_CALIB_CHECK_RULE)
+    return att_i_settings_end(out);
 }
 
 att_status_t att_calib_settings_validate(const att_calib_settings_t *s)

@@ -140,12 +140,21 @@ static inline bool att_i_quat_init_ok(att_quat_t q)
  *   rule    the accepted values in words, a string literal ("[0, 1e4]", "(gravity, 1e4]")
  *   unit    the field's unit, a string literal ("" for none)
  * att_<kind>_settings_validate is the conjunction of the conditions (ATT_CHECK_AND, the expression it
- * always was), att_<kind>_settings_check names the first that fails (ATT_CHECK_WHY): one list, so
- * they cannot disagree. Only the checks use name, rule and unit: an image that does not call
+ * always was), att_<kind>_settings_check names the first that fails (ATT_CHECK_WHY), and
+ * att_<kind>_settings_rule lists the lines (ATT_CHECK_RULE: the host's tables, help and docs are made
+ * from it): one list, so they cannot disagree. Only the checks use name, rule and unit: an image that does not call
  * att_filter_settings_check carries none of the text (--gc-sections drops it with the function).
  * The forms below (ATT_CK_*) write the usual conditions; a line may also call C directly.
  */
 #define ATT_CHECK_AND(name, ok, lo, hi, rule, unit) &&(ok)
+/* ATT_CHECK_RULE: line `index` of the table (att_<kind>_settings_rule), counted in `line`: the rule in *out,
+ * ATT_OK when it holds for s, ATT_ERR_SETTINGS when not. The caller ends with att_i_settings_end. */
+#define ATT_CHECK_RULE(name, ok, lo, hi, rule, unit)                                                          \
+    if (index == line) {                                                                                      \
+        (void)att_i_settings_refused(out, name, lo, hi, rule, unit);                                          \
+        return (ok) ? ATT_OK : ATT_ERR_SETTINGS;                                                              \
+    }                                                                                                         \
+    line++;
 #define ATT_CHECK_WHY(name, ok, lo, hi, rule, unit)                                                           \
     if (!(ok)) {                                                                                              \
         return att_i_settings_refused(why, name, lo, hi, rule, unit);                                         \
@@ -204,6 +213,13 @@ static inline att_status_t att_i_settings_refused(att_settings_error_t *why, con
         why->unit = unit;
     }
     return ATT_ERR_SETTINGS;
+}
+
+/** Past a table's last line: out (may be NULL) gets field NULL; ATT_OK. */
+static inline att_status_t att_i_settings_end(att_settings_error_t *out)
+{
+    (void)att_i_settings_refused(out, NULL, 0.0f, 0.0f, NULL, NULL);
+    return ATT_OK;
 }
 
 #define ATT_ALIGN_A_MIN 0x1p-19f /* full alignment: below this (|v| + v_z) / |v| the vector points down */

@@ -125,6 +125,25 @@ att_status_t att_filter_settings_check(att_filter_kind_t kind, const att_filter_
     }
 }
 
+#define ATT_FILTER_CASE_RULE(NAME, name, num)                                                              \
+    case ATT_FILTER_##NAME:                                                                                  \
+        return att_##name##_settings_rule(&settings->name, index, rule);
+
+/* Not on att_filter_init's path either (the names and rules stay out of images that do not call it). */
+att_status_t att_filter_settings_rule(att_filter_kind_t kind, const att_filter_settings_t *settings, uint32_t index,
+                                      att_settings_error_t *rule)
+{
+    (void)att_i_settings_end(rule);
+    if (settings == NULL || rule == NULL) {
+        return ATT_ERR_NULL;
+    }
+    switch (kind) {
+        ATT_KINDS(ATT_FILTER_CASE_RULE)
+    default:
+        return att_filter_absent(kind);
+    }
+}
+
 #define ATT_FILTER_CASE_INIT(NAME, name, num)                                                              \
     case ATT_FILTER_##NAME:                                                                                  \
         st = att_##name##_init(&f->u.name, &settings->name);                                                 \

@@ -88,6 +88,9 @@ static inline float att_i_gain_for_tau(float tau)
  *                         ATT_ERR_SETTINGS the first refused field in why (may be NULL; untouched
  *                         when accepted): both are written from the kind's one table of checks
  *                         (ATT_<NAME>_CHECKS, att_core.h); called only by att_filter_settings_check
+ *   att_<name>_settings_rule  line index of that table for settings s in out (field NULL past the
+ *                         last); ATT_OK when it holds, ATT_ERR_SETTINGS when not; called only by
+ *                         att_filter_settings_rule
  */
 #define ATT_KIND_HOOKS(NAME, name, num)                                                                    \
     void att_##name##_preset(att_##name##_settings_t *s, att_preset_t preset, float dt);                      \
@@ -98,7 +101,9 @@ static inline float att_i_gain_for_tau(float tau)
     att_heading_t att_##name##_heading_kind(const att_##name##_t *f);                                         \
     att_status_t att_##name##_yaw_to(att_##name##_t *f, float target, float gain);                            \
     bool att_##name##_set_gain(att_##name##_settings_t *s, att_gain_t gain, float value);                      \
-    att_status_t att_##name##_settings_check(const att_##name##_settings_t *s, att_settings_error_t *why);
+    att_status_t att_##name##_settings_check(const att_##name##_settings_t *s, att_settings_error_t *why);    \
+    att_status_t att_##name##_settings_rule(const att_##name##_settings_t *s, uint32_t index,                \
+                                            att_settings_error_t *out);
 
 ATT_KINDS_ALL(ATT_KIND_HOOKS)
 

@@ -83,6 +83,7 @@ float att_node_fd_frame_time(uint32_t len, uint32_t bitrate, uint32_t data_bitra
       (float)ATT_NODE_ID_OFFSET_MIN, (float)ATT_NODE_ID_OFFSET_MAX, "[-256, 1279] (every ID stays 11-bit)", "") \
     C("output_divider", s->output_divider >= 1u && s->output_divider <= ATT_NODE_MAX_DIVIDER, 1.0f,           \
       (float)ATT_NODE_MAX_DIVIDER, "[1, 65535]", "")                                                          \
+    C("diag_divider", true, 0.0f, 4294967295.0f, "any (0: never)", "")                                        \
     C("accel_out", att_i_bool_ok(&s->accel_out), 0.0f, 1.0f, "0 or 1 (bool)", "")                            \
     C("accel_out", ATT_WITH_CALIB || !s->accel_out, 0.0f, (float)ATT_WITH_CALIB,                              \
       ATT_WITH_CALIB ? "0 or 1 (bool)" : "false (this build has no stages: ATT_WITH_CALIB 0)", "")
@@ -207,6 +208,17 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     return ATT_OK;
 }
 
+att_status_t att_node_settings_rule(const att_node_settings_t *s, uint32_t index, att_settings_error_t *out)
+{
+    uint32_t line = 0u;
+    (void)att_i_settings_end(out);
+    if (s == NULL || out == NULL) {
+        return ATT_ERR_NULL;
+    }
+    ATT_NODE_CHECKS(ATT_CHECK_RULE)
+    return att_i_settings_end(out);
+}
+
 att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_error_t *why)
 {
     att_status_t st;
@@ -222,9 +234,13 @@ att_status_t att_node_settings_check(const att_node_settings_t *s, att_settings_
     }
 #if ATT_WITH_CALIB
     {
-        const att_calib_error_t e = att_calib_settings_check(&s->calib);
-        if (e != ATT_CALIB_OK) {
-            return att_i_settings_refused(why, "calib", (float)e, (float)e, att_calib_error_name(e), "");
+        att_settings_error_t r; /* the stages' first line that fails ("calib.gyro.sensitivity" ...) */
+        uint32_t i = 0u;
+        while (att_calib_settings_rule(&s->calib, i, &r) == ATT_OK && r.field != NULL) {
+            i++;
+        }
+        if (r.field != NULL) {
+            return att_i_settings_refused(why, r.field, r.min, r.max, r.rule, r.unit);
         }
     }
 #endif

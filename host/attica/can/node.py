@@ -135,8 +135,8 @@ class Node:
             return f"the filter's dt {self.settings.dt:g} s does not match sample_rate {sample_rate:g} Hz"
         if field == "id_offset":
             return f"id_offset {id_offset} moves an ID out of 0 .. 0x7FF (allowed {rule})"
-        if field == "calib":
-            return f"the calibration is refused: {rule}"
+        if field.startswith("calib."):  # a line of the stages' contract (att_calib_settings_rule)
+            return f"the calibration is refused: {field[6:]} must be {rule}{' ' + unit if unit else ''}"
         if "." in field:  # a field of the filter's settings
             filt = ffi.addressof(s, "filter")
             problem = self._native.settings_problem(self.kind, filt, "the filter's settings")

@@ -15,6 +15,7 @@ COMMANDS = (
     "sim",
     "eval",
     "info",
+    "settings",
     "calibrate",
     "paths",
     "dbc",

@@ -51,7 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--set",
         action="append",
         metavar="NAME=VALUE",
-        help="change a setting (repeatable; with several filters it applies to those that have it)",
+        help="change a setting (repeatable; with several filters it applies to those that have it); "
+        "`attica settings KIND` lists them with their accepted values",
     )
     add_calibration_argument(p, "the C filters (and the reference with --check)")
     p.add_argument("--check", action="store_true", help="also run the numpy reference and compare the bits")

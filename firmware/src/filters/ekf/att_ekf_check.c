@@ -1,9 +1,10 @@
 /**
  * @file att_ekf_check.c
  * @brief att_ekf_settings_check (att_kinds.h): the first field of the settings that
- * att_ekf_settings_validate refuses, from the same table (att_ekf_checks.h). A source of its own, so
+ * att_ekf_settings_validate refuses, from the same table (att_ekf_checks.h); att_ekf_settings_rule:
+ * the table's lines one by one. A source of its own, so
  * that it changes nothing in att_ekf.c's code (not even an inlining decision) and only an image that
- * calls att_filter_settings_check links it.
+ * calls att_filter_settings_check or att_filter_settings_rule links it.
  */
 #include "../../math/att_fp.h"
 
@@ -16,4 +17,13 @@ att_status_t att_ekf_settings_check(const att_ekf_settings_t *s, att_settings_er
 {
     ATT_EKF_CHECKS(ATT_EKF_WHY)
     return ATT_OK;
+}
+
+#define ATT_EKF_RULE(name, ok, lo, hi, rule, unit) ATT_CHECK_RULE("ekf." name, ok, lo, hi, rule, unit)
+
+att_status_t att_ekf_settings_rule(const att_ekf_settings_t *s, uint32_t index, att_settings_error_t *out)
+{
+    uint32_t line = 0u;
+    ATT_EKF_CHECKS(ATT_EKF_RULE)
+    return att_i_settings_end(out);
 }

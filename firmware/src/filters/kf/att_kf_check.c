@@ -1,9 +1,10 @@
 /**
  * @file att_kf_check.c
  * @brief att_kf_settings_check (att_kinds.h): the first field of the settings that
- * att_kf_settings_validate refuses, from the same table (att_kf_checks.h). A source of its own, so
+ * att_kf_settings_validate refuses, from the same table (att_kf_checks.h); att_kf_settings_rule:
+ * the table's lines one by one. A source of its own, so
  * that it changes nothing in att_kf.c's code (not even an inlining decision) and only an image that
- * calls att_filter_settings_check links it.
+ * calls att_filter_settings_check or att_filter_settings_rule links it.
  */
 #include "../../math/att_fp.h"
 
@@ -16,4 +17,13 @@ att_status_t att_kf_settings_check(const att_kf_settings_t *s, att_settings_erro
 {
     ATT_KF_CHECKS(ATT_KF_WHY)
     return ATT_OK;
+}
+
+#define ATT_KF_RULE(name, ok, lo, hi, rule, unit) ATT_CHECK_RULE("kf." name, ok, lo, hi, rule, unit)
+
+att_status_t att_kf_settings_rule(const att_kf_settings_t *s, uint32_t index, att_settings_error_t *out)
+{
+    uint32_t line = 0u;
+    ATT_KF_CHECKS(ATT_KF_RULE)
+    return att_i_settings_end(out);
 }
