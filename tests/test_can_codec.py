@@ -337,6 +337,35 @@ def test_c_decoders_invert_the_encoders() -> None:
         assert int(got["flags"][0]) == int(o["flags"][0]) & 0xFFFF
 
 
+def test_diag_bus_c_encoder_and_the_host_decoders_agree() -> None:
+    """ATT_DIAG_BUS (the ports' CAN controller counters): att_can_encode_diag_bus's frames decode to the
+    same fields in C (att_can_decode_diag_bus), with cantools from the DBC and with decode_outputs;
+    counters saturate at 255, state and lec keep their 2 and 3 bits, E2E good."""
+    rng = np.random.default_rng(26)
+    fields = ("bus_off", "recoveries", "error_passive", "error_warning", "rx_overruns")
+    assert c.DIAG_BUS_FIELDS == fields and lib.ATT_CAN_BUS_OFF == 3 and len(c.BUS_STATES) == 4
+    n = 300
+    fr = c.frames(n)
+    want = []
+    for i in range(n):
+        v = {k: int(rng.choice([0, 1, 254, 255, 256, 70000, int(rng.integers(0, 2**32))])) for k in fields}
+        v["state"], v["lec"] = int(rng.integers(0, 256)), int(rng.integers(0, 256))
+        d = ffi.new("att_can_bus_diag_t *", v)
+        lib.att_can_encode_diag_bus(d, i % 256, ffi.from_buffer("att_can_frame_t[]", fr[i : i + 1]))
+        want.append({**{k: min(v[k], 255) for k in fields}, "state": v["state"] & 3, "lec": v["lec"] & 7})
+    rows = c.decode_outputs(fr).diag_bus
+    assert rows.shape == (n,) and rows["crc_ok"].all() and (rows["counter"] == np.arange(n) % 16).all()
+    back = ffi.new("att_can_bus_diag_t *")
+    for i, w in enumerate(want):
+        assert c.check(fr[i]) == c.Check.OK
+        assert {k: int(rows[k][i]) for k in w} == w
+        name, sig = c.decode(fr[i])
+        assert name == "ATT_DIAG_BUS" and {k: int(sig[k]) for k in w} == w
+        assert lib.att_can_decode_diag_bus(ffi.from_buffer("att_can_frame_t[]", fr[i : i + 1]), back)
+        assert {k: int(getattr(back, k)) for k in w} == w
+    assert c.decode_outputs(fr).other == 0
+
+
 # --- DBC and generated code -----------------------------------------------------------------------
 
 
@@ -413,6 +442,7 @@ def test_dbc_matches_the_c_constants() -> None:
         "ATT_BIAS": lib.ATT_CAN_ID_BIAS,
         "ATT_STATUS": lib.ATT_CAN_ID_STATUS,
         "ATT_DIAG": lib.ATT_CAN_ID_DIAG,
+        "ATT_DIAG_BUS": lib.ATT_CAN_ID_DIAG_BUS,
         "ATT_OUT_FD": lib.ATT_CAN_ID_OUT_FD,
         "CMD": lib.ATT_CAN_ID_CMD,
     }

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from attica import resources
+from attica import native, resources
 from attica.can import codec
 from attica.can.dbcshift import OFFSET_ATTRIBUTE, DbcShiftError, dbc_id_offset, shifted_dbc
 from attica.can.idoffset import ID_OFFSET_MAX, ID_OFFSET_MIN
@@ -36,7 +36,12 @@ def _sample_frames() -> np.ndarray:
         sent, _ = node.run(np.concatenate([codec.encode_cmd(int(codec.Cmd.RESET), counter=1), imu]))
         out += [imu, sent, codec.encode_cmd(4, 0, 0.0, counter=2)]
     cal, _ = codec.Node("mars", sample_rate=RATE).run(codec.encode_cmd(4, 0, 0.0, counter=2))
-    return np.concatenate([*out, cal])
+    # ATT_DIAG_BUS comes from a node on a Cortex-M port (its CAN controller's counters): the C encoder's
+    bus = codec.frames(1)
+    counters = {"state": 3, "lec": 3, "bus_off": 2, "recoveries": 1, "error_passive": 4, "error_warning": 5}
+    d = native.ffi.new("att_can_bus_diag_t *", {**counters, "rx_overruns": 6})
+    native.lib.att_can_encode_diag_bus(d, 7, native.ffi.from_buffer("att_can_frame_t[]", bus))
+    return np.concatenate([*out, cal, bus])
 
 
 @pytest.mark.parametrize("offset", [0, OFFSET, -0x20, ID_OFFSET_MIN, ID_OFFSET_MAX])

@@ -679,6 +679,44 @@ def test_can_hal_small_node(hal: str, tmp_path: Path) -> None:
     assert "exactly the node's 4 reach" in out
 
 
+_DIAG_BUS_LINE = re.compile(r"^diag_bus (\S+) (.+?) data=([0-9a-f]{16}) (.*)$")
+
+
+@pytest.mark.parametrize("hal", list(HALS))
+def test_can_hal_diag_bus_decoded_on_the_host(hal: str, tmp_path: Path) -> None:
+    """The ATT_DIAG_BUS frames the HAL tests' nodes sent (after bus-off, error-passive, overruns; printed
+    by tests/c/att_hal_test_common.h with what the driver counted) decode on the host to those counters:
+    the E2E check, cantools from the DBC, the numpy stream decoder and the monitor's reading agree."""
+    from attica.can import codec
+    from attica.can.monitor import diag_bus_named, diag_bus_values
+
+    need_tools("gcc")
+    out = _run_hal_test(hal, "gcc", tmp_path)
+    seen: set[str] = set()
+    for line in out.splitlines():
+        m = _DIAG_BUS_LINE.match(line)
+        if m is None:
+            continue
+        seen.add(f"{m.group(1)}: {m.group(2)}")
+        want = {k: min(int(v), 255) for k, v in (kv.split("=") for kv in m.group(4).split())}
+        data = bytes.fromhex(m.group(3))
+        f = codec.frames(1)
+        f["id"], f["len"], f["data"][0, :8] = codec.ID_DIAG_BUS, 8, list(data)
+        assert codec.check(f[0]) == codec.Check.OK, line
+        name, sig = codec.decode(f[0])
+        assert name == "ATT_DIAG_BUS" and {k: int(sig[k]) for k in want} == want, (line, sig)
+        row = codec.decode_outputs(f).diag_bus
+        assert row.shape == (1,) and bool(row["crc_ok"][0]), line
+        assert {k: int(row[k][0]) for k in want} == want, line
+        assert diag_bus_values(data) == want
+        named = diag_bus_named(data)
+        assert named["state"] == codec.BUS_STATES[want["state"]]
+        assert named["lec"] == codec.LEC_NAMES[want["lec"]]
+    variants = ("bxcan",) if hal == "bxcan" else ("fdcan-G4", "fdcan-H7")
+    for v in variants:  # a quiet bus, a frame queued during a back-off (state BUS_OFF), after the faults
+        assert {f"{v}: quiet bus", f"{v}: queued during the back-off", f"{v}: after the faults"} <= seen, seen
+
+
 @pytest.mark.parametrize("hal", list(HALS))
 def test_can_hal_compiles_for_m4f(hal: str, tmp_path: Path) -> None:
     """The HAL compiles for the Cortex-M4F with the strict firmware flags, without heap or libm calls."""
@@ -689,7 +727,15 @@ def test_can_hal_compiles_for_m4f(hal: str, tmp_path: Path) -> None:
         ["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True, check=True
     )
     names = {line.split()[-1] for line in undefined.stdout.splitlines() if line.strip()}
-    allowed = {"att_node_rx", "att_node_tx", "att_node_poll", "att_node_rx_ids", "memset", "memcpy"}
+    allowed = {
+        "att_node_rx",
+        "att_node_tx",
+        "att_node_poll",
+        "att_node_rx_ids",
+        "att_node_set_bus_diag",
+        "memset",
+        "memcpy",
+    }
     assert names <= allowed, names
 
 

@@ -130,8 +130,9 @@ def test_set_max_with_and_without_the_stages() -> None:
     )
     assert int(m.group(1)) == lib.ATT_NODE_SET_MAX == int(_macros()["ATT_NODE_SET_MAX"])
     assert int(m.group(2)) == int(_macros(("-DATT_WITH_CALIB=0",))["ATT_NODE_SET_MAX"])
-    # what it counts: 6 (classic set) + 2 (acceleration) + 1 (DIAG) + 1 (answer), without the 2
-    assert _find(r"\((\d+) for a classic set, (\d+) acceleration frames, 1 ATT_DIAG, 1 command answer\)")
+    # what it counts: 6 (classic set) + 2 (acceleration) + 1 (DIAG) + 1 (DIAG_BUS), without the 2; a
+    # command's answer (1) comes instead of a set, never with one
+    assert _find(r"\((\d+) for a classic set, (\d+) acceleration frames, 1 ATT_DIAG, 1 ATT_DIAG_BUS; a ")
     assert lib.ATT_NODE_SET_MAX == 6 + 2 + 1 + 1
 
 

@@ -87,6 +87,47 @@ def test_state_shows_the_node_outputs(fd: bool) -> None:
     assert snap["history_seq"] == 1 and len(st.history_since(0)) == 1
 
 
+def test_state_and_monitor_show_the_can_controller() -> None:
+    """ATT_DIAG_BUS (a node on a Cortex-M port reports its CAN controller): the page's ``diag_bus`` and the
+    monitor's summary line; its counter follows the sets like ATT_DIAG's and is no gap. A node without
+    a port sends none: ``diag_bus`` is None."""
+    msgs, _ = session(kind="ars", n=40)
+    plain = ViewState()
+    plain.feed_many(msgs)
+    assert plain.snapshot()["diag_bus"] is None
+    assert not any("ATT_DIAG_BUS" in line for line in plain.monitor.summary())
+    m = codec.database().get_message_by_name("ATT_DIAG_BUS")
+    extra = []
+    for k in range(3):
+        fields = {"crc": 0, "counter": (5 * k) % 16, "state": 3, "bus_off": 2 + k, "recoveries": 1 + k}
+        fields.update({"error_passive": 4, "error_warning": 5, "rx_overruns": 0, "lec": 3})
+        data = bytearray(m.encode(fields))
+        data[0] = codec.e2e_crc(codec.data_id(codec.ID_DIAG_BUS), bytes(data[1:]))
+        ts = msgs[-1].timestamp + 0.001 * (k + 1)
+        extra.append(
+            can.Message(
+                arbitration_id=codec.ID_DIAG_BUS, data=bytes(data), is_extended_id=False, timestamp=ts
+            )
+        )
+    st = ViewState()
+    st.feed_many(msgs + extra)
+    snap = st.snapshot()
+    json.dumps(snap, allow_nan=False)
+    assert snap["diag_bus"] == {
+        "state": "BUS_OFF",
+        "bus_off": 4,
+        "recoveries": 3,
+        "error_passive": 4,
+        "error_warning": 5,
+        "rx_overruns": 0,
+        "lec": "ACK",
+    }
+    h = snap["health"]
+    assert h["counter_gaps"] == h["crc_errors"] == h["unknown_ids"] == 0
+    want = "node CAN controller (ATT_DIAG_BUS): state BUS_OFF, bus-off 4, recoveries 3, error-passive 4"
+    assert any(line.startswith(want) for line in st.monitor.summary()), st.monitor.summary()
+
+
 def test_state_without_mag_is_json_safe() -> None:
     msgs, _ = session(kind="ars", n=40, mag=None)
     st = ViewState()

@@ -17,10 +17,19 @@
  *   element's data size not stored;
  * - the Tx buffers as a FIFO: free level, put index, TXBAR capturing the element (ID, XTD, RTR, FDF,
  *   BRS, DLC, data) until the test lets the bus take it;
- * - bus-off: PSR.BO with CCCR.INIT set, as the controller does.
+ * - bus-off: PSR.BO with CCCR.INIT set, as the controller does; PSR.EP / EW / LEC set by the test, LEC
+ *   set to 7 by every read of PSR (M_CAN "set on read"); a log of the CCCR writes.
  * A real attica node runs behind the driver: classic IMU frames or IMU_FD frames go in, output sets
  * (classic frames or ATT_OUT_FD) come out and must equal (bit for bit) a filter stepped directly on
  * the decoded samples.
+ *
+ * Controller faults (test_bus_faults, both maps): bus-off -> nothing queued during the back-off nor
+ * during the recovery, the recovery is exactly one CCCR write clearing INIT and CCE (configuration
+ * kept, no protected write refused), the back-off doubles from ATT_FDCAN_HAL_BACKOFF_FIRST to
+ * ATT_FDCAN_HAL_BACKOFF_MAX and starts over after ATT_FDCAN_HAL_BACKOFF_RESET good service calls (not
+ * before, not across an error-passive call), error-passive and warning counted once per entry, IR.RF0L
+ * and IR.RF1L counted and cleared, and the ATT_DIAG_BUS frame after each ATT_DIAG carries them (printed
+ * as "diag_bus ..." lines that tests/test_cross.py decodes with the host's codec).
  *
  * Prints "ok ..." / "FAIL ..." per check; exit status = number of failures.
  */
@@ -69,6 +78,8 @@ typedef struct {
     uint32_t filtered;         /* frames the acceptance filter kept out */
     uint32_t lost;             /* frames lost at a full FIFO */
     uint32_t not_running;      /* frames on the bus while INIT was set */
+    uint32_t cccr_log[16];     /* the first CCCR writes since the test last cleared cccr_n */
+    uint32_t cccr_n;           /* CCCR writes */
 } fake_t;
 
 static fake_t fake;
@@ -228,6 +239,11 @@ static uint32_t fake_read(void *ctx, uint32_t off)
     if (off == ATT_FDCAN_ENDN) {
         return f->endn;
     }
+    if (off == ATT_FDCAN_PSR) {
+        const uint32_t v = f->reg[off / 4u];
+        f->reg[off / 4u] |= ATT_FDCAN_PSR_LEC; /* LEC reads 7 ("no change") until the next bus event */
+        return v;
+    }
     if (off == rxf0s_off(f)) {
         const uint32_t n = cfg_rx_n(f);
         const uint32_t pi = n ? (f->rx_gi + f->rx_fill) % n : 0u;
@@ -288,6 +304,10 @@ static void fake_write(void *ctx, uint32_t off, uint32_t value)
             v |= ATT_FDCAN_CCCR_CSA;
         }
         f->reg[off / 4u] = v;
+        if (f->cccr_n < 16u) {
+            f->cccr_log[f->cccr_n] = value;
+        }
+        f->cccr_n++;
         return;
     }
     if (is_protected(f, off)) {
@@ -1032,37 +1052,258 @@ static void test_full_fifo(att_fdcan_variant_t v)
     }
 }
 
-/* Bus-off: the controller sets INIT; the service counts the episode and starts the recovery. */
-static void test_bus_off(att_fdcan_variant_t v)
+/* ---- controller faults ----------------------------------------------------------------------- */
+
+/* A node with ATT_DIAG (and ATT_DIAG_BUS) after every set, classic, and its HAL. */
+static void bus_setup(att_fdcan_variant_t v)
+{
+    att_node_settings_t s;
+    char what[120];
+    (void)att_node_settings_default(ATT_FILTER_ARS, 100.0f, &s);
+    s.diag_divider = 1u;
+    snprintf(what, sizeof what, "%s faults: node (DIAG after every set) and HAL init, the hook registered", vname(v));
+    check(att_node_init(&node, &s) == ATT_OK && hal_setup(v, 0) == ATT_OK && node.bus_diag == att_fdcan_hal_bus_diag &&
+              node.bus_diag_ctx == (void *)&can,
+          what);
+}
+
+/* One classic IMU sample arrives from the bus (stored while the controller runs). */
+static void bus_sample(uint32_t i)
+{
+    att_sample_t s;
+    att_can_frame_t fr[3];
+    uint32_t j;
+    make_sample(&s);
+    att_can_encode_imu(&s, (uint8_t)(i & 15u), fr);
+    for (j = 0u; j < 3u; j++) {
+        (void)fake_bus_rx(&fake, &fr[j], 0, 0, 0);
+    }
+}
+
+/* The controller goes bus-off: PSR.BO (with esr_extra: EP, EW, LEC) and CCCR.INIT. */
+static void bus_off_now(uint32_t extra)
+{
+    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_BO | extra;
+    fake.reg[ATT_FDCAN_CCCR / 4] |= ATT_FDCAN_CCCR_INIT;
+}
+
+/* n service calls with PSR = psr (LEC 7 unless given). */
+static void bus_calls(uint32_t n, uint32_t psr)
+{
+    uint32_t k;
+    fake.reg[ATT_FDCAN_PSR / 4] = psr;
+    for (k = 0u; k < n; k++) {
+        (void)att_fdcan_hal_service(&can);
+    }
+    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_LEC;
+}
+
+/*
+ * A bus-off episode: service calls from the one that sees it until the driver writes CCCR (clearing
+ * INIT: the recovery), then PSR.BO clears and one more call sees it. Returns the calls after the one
+ * that saw the bus-off (0: no recovery within 5000); *queued: frames put in the Tx FIFO meanwhile.
+ */
+static uint32_t bus_off_episode(uint32_t *queued)
+{
+    uint32_t calls = 0u;
+    const uint32_t tx0 = fake.tx_n + fake.bad_txbar;
+    fake.cccr_n = 0u;
+    bus_off_now(ATT_FDCAN_PSR_EP | ATT_FDCAN_PSR_EW);
+    (void)att_fdcan_hal_service(&can);
+    while (fake.cccr_n == 0u && calls < 5000u) {
+        (void)att_fdcan_hal_service(&can);
+        calls++;
+    }
+    *queued = fake.tx_n + fake.bad_txbar - tx0;
+    bus_calls(1u, 0u);
+    return fake.cccr_n == 0u ? 0u : calls;
+}
+
+/* The ATT_DIAG_BUS frames sent since log index from: each right after its ATT_DIAG, checked, with want. */
+static void bus_diag_frames(att_fdcan_variant_t v, uint32_t from, const att_can_bus_diag_t *want, const char *label)
+{
+    uint32_t j;
+    uint32_t seen = 0u;
+    uint32_t bad = 0u;
+    char what[200];
+    char hal[16];
+    snprintf(hal, sizeof hal, "fdcan-%s", vname(v));
+    for (j = from; j < fake.tx_n; j++) {
+        if (fake.tx_log[j].f.id == (uint32_t)ATT_CAN_ID_DIAG_BUS) {
+            seen++;
+            bad += diag_bus_frame_check(hal, label, j > 0u ? &fake.tx_log[j - 1u].f : NULL, &fake.tx_log[j].f, want);
+        }
+    }
+    snprintf(what, sizeof what, "%s faults: %s: %lu ATT_DIAG_BUS after its ATT_DIAG, E2E good, the driver's counters",
+             vname(v), label, (unsigned long)seen);
+    check(seen > 0u && bad == 0u, what);
+}
+
+/* Bus-off back-off and recovery, error-passive and warning, FIFO overruns, and ATT_DIAG_BUS. */
+static void test_bus_faults(att_fdcan_variant_t v)
 {
     att_can_frame_t fr;
-    char what[200];
+    att_can_bus_diag_t want;
+    uint32_t from;
+    uint32_t queued;
+    uint32_t writes;
+    uint32_t cccr;
+    uint32_t delays[12];
+    uint32_t bad = 0u;
+    uint32_t k;
+    char what[260];
+    const char *vn = vname(v);
     memset(&fr, 0, sizeof fr);
     fr.id = 0x321u;
     fr.len = 8u;
-    check(node_setup(&node, 0, 0) == ATT_OK && hal_setup(v, 0) == ATT_OK, "classic node and HAL for the bus-off test");
-    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_BO;
-    fake.reg[ATT_FDCAN_CCCR / 4] |= ATT_FDCAN_CCCR_INIT;
-    snprintf(what, sizeof what, "%s: while the controller is in INIT (bus-off) nothing is queued for sending",
-             vname(v));
-    check(att_fdcan_hal_send(&can, &fr) == ATT_ERR_STATE && att_fdcan_hal_transmit(&can) == 0u, what);
+    bus_setup(v);
+    bus_sample(0u);
     (void)att_fdcan_hal_service(&can);
-    snprintf(what, sizeof what, "%s: bus-off counted, INIT cleared (recovery started), configuration kept", vname(v));
-    check(can.stats.bus_off == 1u && (r(&fake, ATT_FDCAN_CCCR) & (ATT_FDCAN_CCCR_INIT | ATT_FDCAN_CCCR_CCE)) == 0u &&
+    drain();
+    memset(&want, 0, sizeof want);
+    bus_diag_frames(v, 0u, &want, "quiet bus");
+
+    /* a sample stored, then bus-off: its outputs are held in the node */
+    from = fake.tx_n;
+    bus_sample(1u);
+    fake.cccr_n = 0u;
+    bus_off_now(ATT_FDCAN_PSR_EP | ATT_FDCAN_PSR_EW | 3u);
+    (void)att_fdcan_hal_service(&can);
+    snprintf(what, sizeof what,
+             "%s faults: bus-off seen: counted, the set + DIAG + DIAG_BUS held in the node, nothing queued, INIT "
+             "left set for the back-off",
+             vn);
+    check(can.stats.bus_off == 1u && can.phase == ATT_FDCAN_HAL_BACKOFF && att_node_tx_pending(&node) == 8u &&
+              fake.tx_n == from && fake.cccr_n == 0u && (r(&fake, ATT_FDCAN_CCCR) & ATT_FDCAN_CCCR_INIT) != 0u,
+          what);
+    snprintf(what, sizeof what, "%s faults: error-passive and warning entries counted, last error code 3 kept "
+             "though PSR.LEC now reads 7", vn);
+    check(can.stats.error_passive == 1u && can.stats.error_warning == 1u && can.stats.lec == 3u &&
+              (r(&fake, ATT_FDCAN_PSR) & ATT_FDCAN_PSR_LEC) == 7u,
+          what);
+    cccr = r(&fake, ATT_FDCAN_CCCR);
+    writes = fake.writes;
+    (void)att_fdcan_hal_service(&can); /* ATT_FDCAN_HAL_BACKOFF_FIRST = 1 call later: the recovery */
+    snprintf(what, sizeof what,
+             "%s faults: recovery after %u call: one write, CCCR = 0x%lx (INIT and CCE clear, the rest kept), no "
+             "protected write refused",
+             vn, (unsigned)ATT_FDCAN_HAL_BACKOFF_FIRST, (unsigned long)fake.cccr_log[0]);
+    check(ATT_FDCAN_HAL_BACKOFF_FIRST == 1u && fake.cccr_n == 1u && fake.writes == writes + 1u &&
+              fake.cccr_log[0] == (cccr & ~(ATT_FDCAN_CCCR_INIT | ATT_FDCAN_CCCR_CCE)) && fake.denied == 0u &&
+              can.phase == ATT_FDCAN_HAL_RECOVERING && fake.tx_n == from,
+          what);
+    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_BO | ATT_FDCAN_PSR_EP;
+    snprintf(what, sizeof what, "%s faults: recovering (INIT clear, BO still set): send refused, nothing queued, no "
+             "second write", vn);
+    check(att_fdcan_hal_send(&can, &fr) == ATT_ERR_STATE && att_fdcan_hal_transmit(&can) == 0u, what);
+    bus_calls(3u, ATT_FDCAN_PSR_BO | ATT_FDCAN_PSR_EP);
+    check(fake.cccr_n == 1u && fake.tx_n == from && can.stats.recoveries == 0u && can.stats.error_passive == 1u,
+          "faults: still recovering after 3 calls: nothing queued, no new entry counted");
+    bus_calls(1u, 0u); /* 129 x 11 recessive bits later: PSR.BO clear */
+    drain();
+    snprintf(what, sizeof what, "%s faults: PSR.BO clear: recovery counted, the 8 held frames sent", vn);
+    check(can.stats.recoveries == 1u && can.phase == ATT_FDCAN_HAL_ON && att_node_tx_pending(&node) == 0u &&
+              fake.tx_n == from + 8u && fake.bad_txbar == 0u,
+          what);
+    want.state = (uint8_t)ATT_CAN_BUS_OFF;
+    want.lec = 3u;
+    want.bus_off = 1u;
+    want.error_passive = 1u;
+    want.error_warning = 1u;
+    bus_diag_frames(v, from, &want, "queued during the back-off");
+
+    /* the back-off doubles up to the cap */
+    for (k = 0u; k < 12u; k++) {
+        delays[k] = bus_off_episode(&queued);
+        bad += (uint32_t)(queued != 0u || (fake.cccr_log[0] & (ATT_FDCAN_CCCR_INIT | ATT_FDCAN_CCCR_CCE)) != 0u);
+        bad += (uint32_t)(delays[k] != ((k < 10u) ? (2u << k) : ATT_FDCAN_HAL_BACKOFF_MAX));
+    }
+    snprintf(what, sizeof what,
+             "%s faults: back-off of 12 more episodes: %lu %lu %lu ... %lu %lu %lu calls (2, 4, 8 ... capped at %u), "
+             "INIT cleared once each, nothing queued",
+             vn, (unsigned long)delays[0], (unsigned long)delays[1], (unsigned long)delays[2],
+             (unsigned long)delays[9], (unsigned long)delays[10], (unsigned long)delays[11],
+             (unsigned)ATT_FDCAN_HAL_BACKOFF_MAX);
+    check(ATT_FDCAN_HAL_BACKOFF_MAX == 1024u && bad == 0u && can.stats.bus_off == 13u && can.stats.recoveries == 13u &&
               fake.denied == 0u,
           what);
-    (void)att_fdcan_hal_service(&can); /* still recovering: BO until 129 x 11 recessive bits */
+    bus_calls(ATT_FDCAN_HAL_BACKOFF_RESET - 1u, 0u);
+    check(bus_off_episode(&queued) == ATT_FDCAN_HAL_BACKOFF_MAX,
+          "faults: RESET - 1 good calls: the back-off stays at the cap");
+    bus_calls(ATT_FDCAN_HAL_BACKOFF_RESET, ATT_FDCAN_PSR_EW);
+    check(bus_off_episode(&queued) == ATT_FDCAN_HAL_BACKOFF_FIRST,
+          "faults: RESET good calls (warning counts as good): back to FIRST");
+    bus_calls(ATT_FDCAN_HAL_BACKOFF_RESET - 1u, 0u);
+    bus_calls(1u, ATT_FDCAN_PSR_EP);
+    bus_calls(ATT_FDCAN_HAL_BACKOFF_RESET - 1u, 0u);
+    check(bus_off_episode(&queued) == 2u * ATT_FDCAN_HAL_BACKOFF_FIRST,
+          "faults: an error-passive call breaks the good run: the back-off doubles instead of starting over");
+
+    /* error-passive and warning: once per entry */
+    {
+        const uint32_t p0 = can.stats.error_passive;
+        const uint32_t w0 = can.stats.error_warning;
+        bus_calls(5u, ATT_FDCAN_PSR_EP | ATT_FDCAN_PSR_EW);
+        bus_calls(2u, ATT_FDCAN_PSR_EW);
+        bus_calls(3u, ATT_FDCAN_PSR_EP | ATT_FDCAN_PSR_EW | 6u);
+        bus_calls(2u, 0u);
+        bus_calls(4u, ATT_FDCAN_PSR_EW | 5u);
+        snprintf(what, sizeof what,
+                 "%s faults: error-passive entered twice (%lu), warning twice (%lu); LEC 5 (bit0) kept over the 7s "
+                 "of later reads", vn, (unsigned long)(can.stats.error_passive - p0),
+                 (unsigned long)(can.stats.error_warning - w0));
+        check(can.stats.error_passive == p0 + 2u && can.stats.error_warning == w0 + 2u && can.stats.lec == 5u, what);
+    }
+
+    /* Rx FIFO 0 and 1 message lost: counted once each, cleared */
+    {
+        const uint32_t o0 = can.stats.rx_overruns;
+        const uint32_t rf1l = (v == ATT_FDCAN_G4) ? ATT_FDCAN_G4_IR_RF1L : ATT_FDCAN_H7_IR_RF1L;
+        fake.reg[ATT_FDCAN_IR / 4] |= rf0l_bit(&fake) | rf1l | 1u; /* + RF0N, not ours to clear */
+        (void)att_fdcan_hal_receive(&can);
+        snprintf(what, sizeof what, "%s faults: IR.RF0L and IR.RF1L counted once each and cleared (write 1), RF0N "
+                 "left", vn);
+        check(can.stats.rx_overruns == o0 + 2u && r(&fake, ATT_FDCAN_IR) == 1u, what);
+        fake.reg[ATT_FDCAN_IR / 4] = 0u;
+    }
+
+    /* what the host sees now */
+    from = fake.tx_n;
+    bus_sample(2u);
+    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_EP | ATT_FDCAN_PSR_EW;
+    (void)att_fdcan_hal_service(&can);
+    drain();
+    att_fdcan_hal_bus_diag(&can, &want);
+    check(want.state == (uint8_t)ATT_CAN_BUS_PASSIVE && want.bus_off == 16u && want.recoveries == 16u &&
+              want.lec == 5u && want.rx_overruns == 2u,
+          "faults: the hook reports error-passive, 16 bus-off episodes and recoveries, 2 overruns, LEC 5");
+    bus_diag_frames(v, from, &want, "after the faults");
     fake.reg[ATT_FDCAN_PSR / 4] = 0u;
-    (void)att_fdcan_hal_service(&can);
-    check(can.stats.bus_off == 1u, "one episode counted once");
-    check(att_fdcan_hal_send(&can, &fr) == ATT_OK, "sending again after the recovery");
-    fake_complete_tx(&fake);
-    fake.reg[ATT_FDCAN_PSR / 4] = ATT_FDCAN_PSR_BO;
-    fake.reg[ATT_FDCAN_CCCR / 4] |= ATT_FDCAN_CCCR_INIT;
-    (void)att_fdcan_hal_service(&can);
-    fake.reg[ATT_FDCAN_PSR / 4] = 0u;
-    (void)att_fdcan_hal_service(&can);
-    check(can.stats.bus_off == 2u, "a second episode counted");
+
+    /* back on the bus and bus-off again between two calls: INIT set again while recovering */
+    {
+        const uint32_t off0 = can.stats.bus_off;
+        const uint32_t rec0 = can.stats.recoveries;
+        fake.cccr_n = 0u;
+        bus_off_now(0u);
+        (void)att_fdcan_hal_service(&can);
+        for (k = 0u; k < 5000u && fake.cccr_n == 0u; k++) {
+            (void)att_fdcan_hal_service(&can);
+        }
+        fake.reg[ATT_FDCAN_CCCR / 4] |= ATT_FDCAN_CCCR_INIT; /* PSR.BO still reads 1 */
+        (void)att_fdcan_hal_service(&can);
+        snprintf(what, sizeof what, "%s faults: INIT set again while recovering: a recovery and a new bus-off "
+                 "counted, back-off again (INIT left set)", vn);
+        check(can.phase == ATT_FDCAN_HAL_BACKOFF && can.stats.bus_off == off0 + 2u && can.stats.recoveries == rec0 + 1u &&
+                  fake.cccr_n == 1u && (r(&fake, ATT_FDCAN_CCCR) & ATT_FDCAN_CCCR_INIT) != 0u,
+              what);
+        for (k = 0u; k < 5000u && fake.cccr_n == 1u; k++) {
+            (void)att_fdcan_hal_service(&can);
+        }
+        bus_calls(1u, 0u);
+        check(can.phase == ATT_FDCAN_HAL_ON && can.stats.recoveries == rec0 + 2u && fake.cccr_n == 2u,
+              "faults: and recovers after its back-off");
+    }
 }
 
 int main(void)
@@ -1086,7 +1327,7 @@ int main(void)
 #endif
         test_classic_refuses_fd_send(variants[k]);
         test_full_fifo(variants[k]);
-        test_bus_off(variants[k]);
+        test_bus_faults(variants[k]);
     }
     check(att_fdcan_hal_receive(NULL) == 0u && att_fdcan_hal_transmit(NULL) == 0u && att_fdcan_hal_service(NULL) == 0u,
           "NULL handles");

@@ -123,4 +123,33 @@ static void check_acceptance(const char *label, int32_t offset, accepts_fn accep
     check(bad_other == 0u, what);
 }
 
+/**
+ * One ATT_DIAG_BUS frame f sent right after prev: the E2E check, prev is its ATT_DIAG with the same
+ * counter, and the fields equal want. Prints "diag_bus <hal> <label> data=<hex> <field>=<value> ..."
+ * (want's fields) for tests/test_cross.py, which decodes data with the host's codec. Returns the
+ * problems found (0: good).
+ */
+static uint32_t diag_bus_frame_check(const char *hal, const char *label, const att_can_frame_t *prev,
+                                     const att_can_frame_t *f, const att_can_bus_diag_t *want)
+{
+    att_can_bus_diag_t d;
+    uint32_t bad = 0u;
+    uint32_t b;
+    memset(&d, 0, sizeof d);
+    bad += (uint32_t)(prev == NULL || prev->id != (uint32_t)ATT_CAN_ID_DIAG ||
+                      att_can_counter(prev) != att_can_counter(f));
+    bad += (uint32_t)(att_can_check(f) != ATT_CAN_OK || !att_can_decode_diag_bus(f, &d));
+    bad += (uint32_t)(d.state != want->state || d.lec != want->lec || d.bus_off != want->bus_off ||
+                      d.recoveries != want->recoveries || d.error_passive != want->error_passive ||
+                      d.error_warning != want->error_warning || d.rx_overruns != want->rx_overruns);
+    printf("diag_bus %s %s data=", hal, label);
+    for (b = 0u; b < f->len; b++) {
+        printf("%02x", f->data[b]);
+    }
+    printf(" state=%u lec=%u bus_off=%lu recoveries=%lu error_passive=%lu error_warning=%lu rx_overruns=%lu\n",
+           (unsigned)want->state, (unsigned)want->lec, (unsigned long)want->bus_off, (unsigned long)want->recoveries,
+           (unsigned long)want->error_passive, (unsigned long)want->error_warning, (unsigned long)want->rx_overruns);
+    return bad;
+}
+
 #endif /* ATT_HAL_TEST_COMMON_H */

@@ -10,7 +10,7 @@
  * - C3 pack(unpack(x)) == x & mask, where mask = pack(unpack(all ones)): unpack/pack lose nothing but
  *   unused bits; and a second round trip is the identity.
  * - C4 the codec's decoders invert its encoders on the signal bits: IMU parts (dequantise/quantise),
- *   IMU_FD (float bits), CMD, STATUS, every output frame (att_can_decode_output).
+ *   IMU_FD (float bits), CMD, STATUS, DIAG_BUS, every output frame (att_can_decode_output).
  * - C5 quantise(dequantise(v)) == v for every int16 v and frac in range; quantise of a float is the
  *   round-half-even of x 2^k clamped to +-32767 (checked in double), NaN -> -32768.
  * - C6 a sealed frame checks OK; any single flipped bit in bytes 0..len-1 of a frame with a CRC is a
@@ -41,6 +41,7 @@
     X(att_lin_acc, 0x207, 8)                                                                           \
     X(att_earth_acc, 0x208, 8)                                                                         \
     X(att_cal_ack, 0x209, 8)                                                                           \
+    X(att_diag_bus, 0x20a, 8)                                                                          \
     X(att_accel_fd, 0x211, 64)                                                                         \
     X(att_out_fd, 0x210, 64)                                                                           \
     X(cmd, 0x300, 8)
@@ -162,6 +163,14 @@ static void check_decoders(const att_can_frame_t *f)
             expect_masked(f, &re[0], 1u, 8u, "cal ack");
             FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded cal ack does not check");
         }
+        att_can_bus_diag_t bus;
+        FZ_CHECK(att_can_decode_diag_bus(f, &bus) == (f->id == 0x20Au && f->len >= 8u), "decode_diag_bus acceptance");
+        if (f->id == 0x20Au && f->len >= 8u) {
+            FZ_CHECK(bus.state < 4u && bus.lec < 8u && bus.bus_off < 256u && bus.rx_overruns < 256u, "diag bus ranges");
+            att_can_encode_diag_bus(&bus, counter, &re[0]);
+            expect_masked(f, &re[0], 1u, 8u, "diag bus");
+            FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded diag bus does not check");
+        }
         FZ_CHECK(att_can_decode_accel_part(f, &v) == (is_acc && f->len == 8u), "decode_accel_part acceptance");
         if (is_acc && f->len == 8u) {
             memset(&acc, 0, sizeof acc);
@@ -280,8 +289,8 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
     return 0;
 }
 
-static const uint32_t known_ids[] = {0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204,
-                                     0x205, 0x206, 0x207, 0x208, 0x209, 0x210, 0x211, 0x300};
+static const uint32_t known_ids[] = {0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204, 0x205,
+                                     0x206, 0x207, 0x208, 0x209, 0x20A, 0x210, 0x211, 0x300};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
@@ -299,7 +308,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     lensel = fz_u8(&r);
     memset(&f, 0, sizeof f);
     /* mostly attica IDs (else the decoders are rarely reached), sometimes any 11-bit ID */
-    f.id = (idsel & 0x8000u) ? (uint32_t)(idsel & 0x7FFu) : known_ids[(idsel & 0xFFu) % 17u];
+    f.id = (idsel & 0x8000u) ? (uint32_t)(idsel & 0x7FFu)
+                             : known_ids[(idsel & 0xFFu) % (sizeof known_ids / sizeof known_ids[0])];
     if (lensel & 0x80u) {
         f.len = (uint8_t)(lensel & 0x7Fu); /* up to 127: the decoders must not trust it */
         f.fd = (uint8_t)((lensel >> 6) & 1u);

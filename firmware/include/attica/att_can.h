@@ -45,6 +45,7 @@ enum {
     ATT_CAN_ID_LIN_ACC = 0x207,    /**< node -> host: linear acceleration, body, int16 2^-8 m/s^2 */
     ATT_CAN_ID_EARTH_ACC = 0x208,  /**< node -> host: earth-frame acceleration, int16 2^-8 m/s^2 */
     ATT_CAN_ID_CAL_ACK = 0x209,    /**< node -> host: answer to a calibration command */
+    ATT_CAN_ID_DIAG_BUS = 0x20A,   /**< node -> host: CAN controller counters of the port (after ATT_DIAG) */
     ATT_CAN_ID_ACCEL_FD = 0x211,   /**< node -> host: gravity, linear, earth acceleration, CAN FD 64 B */
     ATT_CAN_ID_CMD = 0x300,        /**< host -> node: command */
     ATT_CAN_DATA_ID_BASE = 0x0A00, /**< E2E data ID = base + CAN ID */
@@ -79,7 +80,11 @@ enum {
     ATT_CAN_ACK_OK = 0,            /**< ack result (bits 4..6): done */
     ATT_CAN_ACK_UNKNOWN_CMD = 1,   /**< ack result: unknown command code */
     ATT_CAN_ACK_BAD_ARG = 2,       /**< ack result: arg not valid (kind / parameter for this filter) */
-    ATT_CAN_ACK_REFUSED = 3        /**< ack result: value refused by the settings validation; no change */
+    ATT_CAN_ACK_REFUSED = 3,       /**< ack result: value refused by the settings validation; no change */
+    ATT_CAN_BUS_ACTIVE = 0,        /**< ATT_DIAG_BUS.state: error-active */
+    ATT_CAN_BUS_WARNING = 1,       /**< error warning: an error counter reached 96 */
+    ATT_CAN_BUS_PASSIVE = 2,       /**< error-passive: an error counter above 127 */
+    ATT_CAN_BUS_OFF = 3            /**< bus-off (the port's back-off or recovery under way) */
 };
 
 /** One CAN or CAN FD frame (classic: len 0..8; FD: len up to 64). */
@@ -107,6 +112,21 @@ typedef struct {
     uint32_t duplicates;
     uint32_t stale_partials;
 } att_can_diag_t;
+
+/**
+ * The CAN controller counters carried by ATT_DIAG_BUS (a port's, through att_node_set_bus_diag; each
+ * counter saturates at 255 on the bus).
+ */
+typedef struct {
+    uint8_t state;          /**< ATT_CAN_BUS_ACTIVE / _WARNING / _PASSIVE / _OFF now */
+    uint8_t lec;            /**< last error code the controller reported: 0 none yet, 1 stuff, 2 form, 3 ack,
+                                 4 bit recessive, 5 bit dominant, 6 CRC */
+    uint32_t bus_off;       /**< bus-off episodes entered */
+    uint32_t recoveries;    /**< bus-off episodes ended (back on the bus after the port's recovery) */
+    uint32_t error_passive; /**< entries into error-passive */
+    uint32_t error_warning; /**< entries into error warning */
+    uint32_t rx_overruns;   /**< receive FIFO overruns (frames lost in the controller) */
+} att_can_bus_diag_t;
 
 /** A command (CMD frame). */
 typedef struct {
@@ -201,6 +221,10 @@ void att_can_encode_status(const att_can_status_t *st, att_can_frame_t *out);
 bool att_can_decode_status(const att_can_frame_t *f, att_can_status_t *st);
 /** Encode ATT_DIAG (counters saturated at 255), sealed. */
 void att_can_encode_diag(const att_can_diag_t *d, uint8_t counter, att_can_frame_t *out);
+/** Encode ATT_DIAG_BUS (counters saturated at 255, state & 3, lec & 7), sealed. */
+void att_can_encode_diag_bus(const att_can_bus_diag_t *d, uint8_t counter, att_can_frame_t *out);
+/** The fields of an ATT_DIAG_BUS frame (no CRC check; counters as on the bus, 0 .. 255). */
+bool att_can_decode_diag_bus(const att_can_frame_t *f, att_can_bus_diag_t *d);
 /** Encode a CMD frame, sealed. */
 void att_can_encode_cmd(const att_can_cmd_t *c, att_can_frame_t *out);
 /** Decode a CMD frame (no CRC check). */

@@ -42,7 +42,8 @@
  * Rejected frames never touch the filter.
  *
  * Output, every output_divider-th filter step: classic QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS, or
- * one ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set. A sample
+ * one ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set, followed by
+ * ATT_DIAG_BUS when a port reports its CAN controller's counters (att_node_set_bus_diag). A sample
  * stepped over n periods queues at most one set, after its last step, when its steps reach or pass a
  * multiple of output_divider (the filter's step count: from init, a reset or a select); the set's flags
  * are the OR over the n steps, its steps field the filter's step count. The counter of a set is the set
@@ -82,10 +83,11 @@ extern "C" {
 
 /* ATT_CDEF_BEGIN */
 /* The ring sizes ATT_NODE_RX_RING and ATT_NODE_TX_RING and ATT_NODE_WITH_FD are options of att_config.h. */
+/* Most frames one rx frame can queue: a set with everything that follows it, or (a command) 1 answer. */
 #if ATT_WITH_CALIB
-#define ATT_NODE_SET_MAX 10 /* most frames one rx frame can queue: 6 (set) + 2 (accel) + 1 (DIAG) + 1 (answer) */
+#define ATT_NODE_SET_MAX 10 /* 6 (set) + 2 (accel) + 1 (DIAG) + 1 (DIAG_BUS) */
 #else
-#define ATT_NODE_SET_MAX 8 /* most frames one rx frame can queue: 6 (set) + 1 (DIAG) + 1 (answer) */
+#define ATT_NODE_SET_MAX 8 /* 6 (set) + 1 (DIAG) + 1 (DIAG_BUS) */
 #endif
 #if ATT_NODE_WITH_FD
 #define ATT_NODE_FRAME_LEN 64 /* data bytes a ring entry holds */
@@ -119,6 +121,15 @@ typedef struct {
  * before att_node_init at start-up.
  */
 typedef bool (*att_node_persist_fn)(void *ctx, const att_calib_settings_t *calib);
+
+/**
+ * Port hook that reports the CAN controller's counters (state, bus-off episodes and recoveries,
+ * error-passive and error-warning entries, receive FIFO overruns, last error code) into d, which the
+ * node has zeroed: called each time the node queues an ATT_DIAG, which it then follows with an
+ * ATT_DIAG_BUS carrying d (same counter). The Cortex-M ports register theirs in their init
+ * (att_can_hal_init, att_fdcan_hal_init): the node knows nothing of the port.
+ */
+typedef void (*att_node_bus_diag_fn)(void *ctx, att_can_bus_diag_t *d);
 
 /** Node settings. */
 typedef struct {
@@ -184,6 +195,8 @@ typedef struct {
 #endif
     att_node_persist_fn persist;               /**< port hook (NULL: none) */
     void *persist_ctx;                         /**< its context */
+    att_node_bus_diag_fn bus_diag;             /**< port hook of ATT_DIAG_BUS (NULL: none, no ATT_DIAG_BUS) */
+    void *bus_diag_ctx;                        /**< its context */
 } att_node_t;
 
 /**
@@ -251,6 +264,14 @@ size_t att_node_rx_ids(const att_node_t *n, uint32_t ids[ATT_NODE_RX_IDS_MAX]);
 size_t att_node_poll(att_node_t *n);
 /** Register (or with NULL remove) the persistence hook of the calibration. */
 void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx);
+/**
+ * Register (or with fn NULL remove) the hook of the CAN controller's counters: with one, every ATT_DIAG
+ * is followed by an ATT_DIAG_BUS (one more classic frame every diag_divider-th set; none with
+ * diag_divider 0). att_node_init removes it. ATT_OK; ATT_ERR_NULL (n NULL); ATT_ERR_SETTINGS, and
+ * nothing registered, when the periodic outputs with that frame would need more than the whole bus
+ * (att_node_bus_load counts without it).
+ */
+att_status_t att_node_set_bus_diag(att_node_t *n, att_node_bus_diag_fn fn, void *ctx);
 /** Pop the next frame to send (false: none). */
 bool att_node_tx(att_node_t *n, att_can_frame_t *f);
 /** Frames waiting in the tx ring. */

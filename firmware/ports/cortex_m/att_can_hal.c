@@ -144,22 +144,31 @@ att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t 
             return ATT_ERR_SETTINGS;
         }
     }
+    /* the node's outputs with ATT_DIAG_BUS must fit the bus (nothing written to the controller yet) */
+    if (att_node_set_bus_diag(node, att_can_hal_bus_diag, h) != ATT_OK) {
+        return ATT_ERR_SETTINGS;
+    }
     memset(h, 0, sizeof *h);
     h->io = io;
     h->node = node;
     h->btr = btr;
+    h->phase = ATT_CAN_HAL_ON;
+    h->backoff = ATT_CAN_HAL_BACKOFF_FIRST;
     /* wake up, enter initialisation mode */
     att_wr(h, ATT_BXCAN_MCR, (att_rd(h, ATT_BXCAN_MCR) & ~ATT_BXCAN_MCR_SLEEP) | ATT_BXCAN_MCR_INRQ);
     if (!att_wait_msr(h, ATT_BXCAN_MSR_INAK | ATT_BXCAN_MSR_SLAK, ATT_BXCAN_MSR_INAK)) {
+        (void)att_node_set_bus_diag(node, NULL, NULL);
         return ATT_ERR_SETTINGS;
     }
-    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_INRQ | ATT_BXCAN_MCR_ABOM | ATT_BXCAN_MCR_TXFP);
+    /* ABOM clear: a bus-off lasts until the driver recovers (att_can_hal_service, after a back-off) */
+    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_INRQ | ATT_BXCAN_MCR_TXFP);
     att_wr(h, ATT_BXCAN_BTR, btr);
     att_wr(h, ATT_BXCAN_IER, 0u); /* polled; enable FMPIE0 (bit 1) yourself to be woken by frames */
     att_filter_banks(h, ids, n_ids);
     /* leave initialisation mode: normal operation once 11 recessive bits were seen on the bus */
-    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_ABOM | ATT_BXCAN_MCR_TXFP);
+    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_TXFP);
     if (!att_wait_msr(h, ATT_BXCAN_MSR_INAK, 0u)) {
+        (void)att_node_set_bus_diag(node, NULL, NULL);
         return ATT_ERR_SETTINGS;
     }
     return ATT_OK;
@@ -186,10 +195,15 @@ size_t att_can_hal_receive(att_can_hal_t *h)
     if (h == NULL || h->node == NULL) {
         return 0u;
     }
+    /* RFxR.FOVRx (bit 4, rc_w1): a frame arrived at a full FIFO and was lost (RM0090 32.7.5, 32.9.2) */
     rf = att_rd(h, ATT_BXCAN_RF0R);
     if ((rf & ATT_BXCAN_RF0R_FOVR0) != 0u) {
         h->stats.rx_overruns++;
         att_wr(h, ATT_BXCAN_RF0R, ATT_BXCAN_RF0R_FOVR0); /* write 1 to clear */
+    }
+    if ((att_rd(h, ATT_BXCAN_RF1R) & ATT_BXCAN_RF0R_FOVR0) != 0u) {
+        h->stats.rx_overruns++;
+        att_wr(h, ATT_BXCAN_RF1R, ATT_BXCAN_RF0R_FOVR0); /* FOVR1: same bit, write 1 to clear */
     }
     while ((att_rd(h, ATT_BXCAN_RF0R) & ATT_BXCAN_RF0R_FMP0) != 0u) {
         const uint32_t rir = att_rd(h, ATT_BXCAN_RI0R);
@@ -220,8 +234,8 @@ size_t att_can_hal_transmit(att_can_hal_t *h)
 {
     size_t sent = 0u;
     uint32_t box;
-    if (h == NULL || h->node == NULL) {
-        return 0u;
+    if (h == NULL || h->node == NULL || h->phase != ATT_CAN_HAL_ON) {
+        return 0u; /* bus-off: the frames wait in the node until the controller is back on the bus */
     }
     for (box = 0u; box < ATT_BXCAN_MAILBOXES; box++) {
         att_can_frame_t f;
@@ -249,18 +263,139 @@ size_t att_can_hal_transmit(att_can_hal_t *h)
     return sent;
 }
 
+/*
+ * Bus-off recovery with ABOM clear (RM0090 32.7.6, error management): software starts it by taking the
+ * controller into initialisation mode and out again; the controller then still waits for 128
+ * occurrences of 11 recessive bits before it leaves bus-off (ESR.BOFF clear, error-active). Enter:
+ * MCR.INRQ (bit 0) set, MSR.INAK (bit 0) acknowledges; leave: INRQ clear. The bit timing and the
+ * filters are kept (initialisation mode does not reset them). False when INAK did not come within
+ * ATT_CAN_HAL_SPIN reads (INRQ is then left set: the next attempt sets it again).
+ */
+static bool att_recover(const att_can_hal_t *h)
+{
+    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_INRQ | ATT_BXCAN_MCR_TXFP);
+    if (!att_wait_msr(h, ATT_BXCAN_MSR_INAK, ATT_BXCAN_MSR_INAK)) {
+        return false;
+    }
+    att_wr(h, ATT_BXCAN_MCR, ATT_BXCAN_MCR_TXFP);
+    return true;
+}
+
+/*
+ * Abort what the mailboxes still hold (RM0090 32.9.2, CAN_TSR: ABRQ0/1/2 at bits 7, 15, 23, set by
+ * software, cleared by hardware once the mailbox is empty, no effect on an empty mailbox; TME0/1/2 at
+ * bits 26..28). With nothing pending the controller cannot transmit, so cannot go bus-off again, until
+ * the driver sees it back on the bus and fills the mailboxes.
+ */
+static void att_abort_mailboxes(att_can_hal_t *h)
+{
+    const uint32_t tsr = att_rd(h, ATT_BXCAN_TSR);
+    uint32_t abrq = 0u;
+    uint32_t box;
+    for (box = 0u; box < ATT_BXCAN_MAILBOXES; box++) {
+        if ((tsr & (ATT_BXCAN_TSR_TME0 << box)) == 0u) {
+            abrq |= ATT_BXCAN_TSR_ABRQ0 << (8u * box);
+            h->stats.tx_aborted++;
+        }
+    }
+    if (abrq != 0u) {
+        att_wr(h, ATT_BXCAN_TSR, abrq); /* the rc_w1 status bits written 0: unchanged */
+    }
+}
+
+/* Wait h->backoff service calls before the next recovery, and double it for the one after (to MAX). */
+static void att_backoff(att_can_hal_t *h)
+{
+    h->phase = ATT_CAN_HAL_BACKOFF;
+    h->wait = h->backoff;
+    h->backoff = (h->backoff > ATT_CAN_HAL_BACKOFF_MAX / 2u) ? ATT_CAN_HAL_BACKOFF_MAX : 2u * h->backoff;
+    h->good = 0u;
+}
+
+/*
+ * The controller's fault confinement state from ESR (RM0090 32.9.2, CAN_ESR at 0x18): EWGF bit 0 (TEC
+ * or REC >= 96), EPVF bit 1 (> 127), BOFF bit 2 (TEC > 255), LEC bits 6:4 (0 no error, 1 stuff, 2 form,
+ * 3 acknowledgment, 4 bit recessive, 5 bit dominant, 6 CRC, 7 set by software); all read only but LEC.
+ */
+static void att_faults(att_can_hal_t *h)
+{
+    const uint32_t esr = att_rd(h, ATT_BXCAN_ESR);
+    const bool off = (esr & ATT_BXCAN_ESR_BOFF) != 0u;
+    const bool passive = (esr & ATT_BXCAN_ESR_EPVF) != 0u;
+    const bool warning = (esr & ATT_BXCAN_ESR_EWGF) != 0u;
+    const uint32_t lec = (esr >> ATT_BXCAN_ESR_LEC_SHIFT) & 7u;
+    if (lec != 0u && lec != 7u) {
+        h->stats.lec = lec;
+    }
+    h->stats.error_passive += (passive && !h->passive) ? 1u : 0u;
+    h->stats.error_warning += (warning && !h->warning) ? 1u : 0u;
+    h->passive = passive;
+    h->warning = warning;
+    switch (h->phase) {
+    case ATT_CAN_HAL_ON:
+        if (off) {
+            h->stats.bus_off++;
+            att_abort_mailboxes(h);
+            att_backoff(h);
+        } else if (passive) {
+            h->good = 0u;
+        } else if (h->good < ATT_CAN_HAL_BACKOFF_RESET) {
+            h->good++;
+            if (h->good == ATT_CAN_HAL_BACKOFF_RESET) {
+                h->backoff = ATT_CAN_HAL_BACKOFF_FIRST; /* a good while on the bus: start over */
+            }
+        }
+        break;
+    case ATT_CAN_HAL_BACKOFF:
+        if (!off) { /* left bus-off without the driver (someone else re-initialised it) */
+            h->stats.recoveries++;
+            h->phase = ATT_CAN_HAL_ON;
+        } else if (h->wait > 1u) {
+            h->wait--;
+        } else if (att_recover(h)) {
+            h->phase = ATT_CAN_HAL_RECOVERING;
+        } else {
+            h->stats.recovery_timeouts++;
+            att_backoff(h);
+        }
+        break;
+    default: /* ATT_CAN_HAL_RECOVERING */
+        if (!off) {
+            h->stats.recoveries++;
+            h->phase = ATT_CAN_HAL_ON;
+        }
+        break;
+    }
+}
+
+void att_can_hal_bus_diag(void *ctx, att_can_bus_diag_t *d)
+{
+    const att_can_hal_t *h = (const att_can_hal_t *)ctx;
+    if (h == NULL || d == NULL) {
+        return;
+    }
+    if (h->phase != ATT_CAN_HAL_ON) {
+        d->state = (uint8_t)ATT_CAN_BUS_OFF;
+    } else if (h->passive) {
+        d->state = (uint8_t)ATT_CAN_BUS_PASSIVE;
+    } else {
+        d->state = (uint8_t)(h->warning ? ATT_CAN_BUS_WARNING : ATT_CAN_BUS_ACTIVE);
+    }
+    d->lec = (uint8_t)h->stats.lec;
+    d->bus_off = h->stats.bus_off;
+    d->recoveries = h->stats.recoveries;
+    d->error_passive = h->stats.error_passive;
+    d->error_warning = h->stats.error_warning;
+    d->rx_overruns = h->stats.rx_overruns;
+}
+
 size_t att_can_hal_service(att_can_hal_t *h)
 {
     size_t steps;
-    bool off;
     if (h == NULL || h->node == NULL) {
         return 0u;
     }
-    off = (att_rd(h, ATT_BXCAN_ESR) & ATT_BXCAN_ESR_BOFF) != 0u;
-    if (off && !h->was_bus_off) {
-        h->stats.bus_off++;
-    }
-    h->was_bus_off = off;
+    att_faults(h);
     (void)att_can_hal_receive(h);
     steps = att_node_poll(h->node);
     (void)att_can_hal_transmit(h);

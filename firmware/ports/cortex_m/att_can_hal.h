@@ -18,7 +18,24 @@
  * offset), so the driver runs unchanged against the real peripheral (att_can_hal_mmio: ctx = the
  * peripheral base address, e.g. (void *)0x40006400 for CAN1 on an STM32F4) and against a fake
  * register block in a host unit test (tests/c/att_can_hal_test.c). No heap, no time source: waits
- * for the controller are bounded loops (ATT_CAN_HAL_SPIN).
+ * for the controller are bounded loops (ATT_CAN_HAL_SPIN), and the bus-off back-off counts service calls.
+ *
+ * Controller faults (att_can_hal_service, every call): automatic bus-off management (MCR.ABOM) is off.
+ * When ESR.BOFF is seen the driver counts the episode, aborts the frames still pending in the mailboxes
+ * (TSR.ABRQx; counted in tx_aborted: a frame left there would be retried after the recovery and could
+ * take the controller bus-off again unseen, and with ABOM clear it would then wait for ever), stops
+ * filling the mailboxes and waits
+ * h->backoff service calls (ATT_CAN_HAL_BACKOFF_FIRST, doubled at each bus-off up to
+ * ATT_CAN_HAL_BACKOFF_MAX, back to FIRST after ATT_CAN_HAL_BACKOFF_RESET calls in a row neither bus-off
+ * nor error-passive); then it starts the recovery (MCR.INRQ set until MSR.INAK, then cleared: the
+ * controller rejoins after 128 x 11 recessive bits, ESR.BOFF clear, counted in recoveries). A node
+ * whose transceiver or bit timing is wrong so rejoins at most once per ATT_CAN_HAL_BACKOFF_MAX calls
+ * instead of flooding the bus with error frames. Error-passive (ESR.EPVF) and error warning (ESR.EWGF)
+ * entries are counted on the edge seen by the service (bus-off holds until the driver recovers, so it
+ * is never missed), receive FIFO overruns (RF0R/RF1R.FOVR) counted and cleared, the last error code
+ * (ESR.LEC) kept. att_can_hal_init registers att_can_hal_bus_diag with the node
+ * (att_node_set_bus_diag): every ATT_DIAG the node sends is followed by an ATT_DIAG_BUS with these
+ * counters. Call the service at a steady rate (each sample, a timer tick) for the delays to be a time.
  *
  * @code
  * static att_node_t node;
@@ -46,12 +63,16 @@
 extern "C" {
 #endif
 
-/** Register offsets (bytes from the base) and bits of the bxCAN controller (RM0090 section 32.9). */
+/**
+ * Register offsets (bytes from the base) and bits of the bxCAN controller (RM0090 section 32.9, "CAN
+ * registers"; the same in RM0008 / RM0033 / RM0390 bxCAN chapters).
+ */
 enum {
     ATT_BXCAN_MCR = 0x000,  /**< master control */
     ATT_BXCAN_MSR = 0x004,  /**< master status */
     ATT_BXCAN_TSR = 0x008,  /**< transmit status */
     ATT_BXCAN_RF0R = 0x00C, /**< receive FIFO 0 */
+    ATT_BXCAN_RF1R = 0x010, /**< receive FIFO 1 (the driver's filter sends nothing there; a bank of yours could) */
     ATT_BXCAN_IER = 0x014,  /**< interrupt enable */
     ATT_BXCAN_ESR = 0x018,  /**< error status */
     ATT_BXCAN_BTR = 0x01C,  /**< bit timing */
@@ -77,15 +98,19 @@ enum {
 #define ATT_BXCAN_MCR_INRQ ((uint32_t)1u << 0)
 #define ATT_BXCAN_MCR_SLEEP ((uint32_t)1u << 1)
 #define ATT_BXCAN_MCR_TXFP ((uint32_t)1u << 2)  /**< transmit in request order (not by ID) */
-#define ATT_BXCAN_MCR_ABOM ((uint32_t)1u << 6)  /**< automatic bus-off recovery */
+#define ATT_BXCAN_MCR_ABOM ((uint32_t)1u << 6)  /**< automatic bus-off management (left clear: the driver recovers) */
 #define ATT_BXCAN_MSR_INAK ((uint32_t)1u << 0)
 #define ATT_BXCAN_MSR_SLAK ((uint32_t)1u << 1)
 #define ATT_BXCAN_TSR_TME0 ((uint32_t)1u << 26) /**< mailbox 0 empty; TME1, TME2 follow */
+#define ATT_BXCAN_TSR_ABRQ0 ((uint32_t)1u << 7) /**< abort request of mailbox 0; mailbox n at bit 7 + 8 n */
 #define ATT_BXCAN_RF0R_FMP0 ((uint32_t)3u << 0) /**< messages pending in FIFO 0 */
 #define ATT_BXCAN_RF0R_FULL0 ((uint32_t)1u << 3)
-#define ATT_BXCAN_RF0R_FOVR0 ((uint32_t)1u << 4) /**< FIFO 0 overrun (write 1 to clear) */
+#define ATT_BXCAN_RF0R_FOVR0 ((uint32_t)1u << 4) /**< FIFO 0 overrun (write 1 to clear); RF1R.FOVR1 the same bit */
 #define ATT_BXCAN_RF0R_RFOM0 ((uint32_t)1u << 5) /**< release the FIFO 0 output mailbox */
-#define ATT_BXCAN_ESR_BOFF ((uint32_t)1u << 2)
+#define ATT_BXCAN_ESR_EWGF ((uint32_t)1u << 0) /**< error warning: TEC or REC >= 96 (read only) */
+#define ATT_BXCAN_ESR_EPVF ((uint32_t)1u << 1) /**< error passive: TEC or REC > 127 (read only) */
+#define ATT_BXCAN_ESR_BOFF ((uint32_t)1u << 2) /**< bus-off: TEC > 255 (read only) */
+#define ATT_BXCAN_ESR_LEC_SHIFT 4u             /**< LEC[2:0] at bits 6:4: 0 none, 1..6 error, 7 set by software */
 #define ATT_BXCAN_TIR_TXRQ ((uint32_t)1u << 0)
 #define ATT_BXCAN_RIR_RTR ((uint32_t)1u << 1)
 #define ATT_BXCAN_RIR_IDE ((uint32_t)1u << 2)
@@ -93,6 +118,25 @@ enum {
 
 /** Busy-wait bound for the controller's acknowledgements (loop iterations). */
 #define ATT_CAN_HAL_SPIN 100000u
+#ifndef ATT_CAN_HAL_BACKOFF_FIRST
+/** Service calls from the first bus-off to its recovery (then 2, 4 ... times this). */
+#define ATT_CAN_HAL_BACKOFF_FIRST 1u
+#endif
+#ifndef ATT_CAN_HAL_BACKOFF_MAX
+/** Longest back-off, service calls (the doubling stops here). */
+#define ATT_CAN_HAL_BACKOFF_MAX 1024u
+#endif
+#ifndef ATT_CAN_HAL_BACKOFF_RESET
+/** Service calls in a row neither bus-off nor error-passive that bring the back-off back to FIRST. */
+#define ATT_CAN_HAL_BACKOFF_RESET 1024u
+#endif
+
+/** Where the driver stands with the bus (att_can_hal_t.phase). */
+typedef enum {
+    ATT_CAN_HAL_ON = 0,        /**< on the bus: the mailboxes are filled from the node */
+    ATT_CAN_HAL_BACKOFF = 1,   /**< bus-off seen: waiting h->wait service calls, nothing written to the mailboxes */
+    ATT_CAN_HAL_RECOVERING = 2 /**< recovery started (INRQ set and cleared): waiting for ESR.BOFF to clear */
+} att_can_hal_phase_t;
 /**
  * Filter banks the driver owns: 0 .. ATT_CAN_HAL_FILTER_BANKS - 1, four of the node's IDs each (16-bit
  * identifier list mode), enough for ATT_NODE_RX_IDS_MAX. Other banks are left as they are (inactive
@@ -115,7 +159,13 @@ typedef struct {
     uint32_t rx_node_full;   /**< frames att_node_rx refused (node rx ring full) */
     uint32_t tx_frames;      /**< frames written to a transmit mailbox */
     uint32_t tx_unsupported; /**< CAN FD / long frames from the node that bxCAN cannot send (dropped) */
-    uint32_t bus_off;        /**< times the controller was seen bus-off */
+    uint32_t tx_aborted;     /**< frames aborted in the mailboxes at a bus-off (lost: the host sees a set cut) */
+    uint32_t bus_off;        /**< bus-off episodes (ESR.BOFF seen set while on the bus) */
+    uint32_t recoveries;     /**< bus-off episodes ended: ESR.BOFF clear again after the driver's recovery */
+    uint32_t recovery_timeouts; /**< recoveries not started: MSR.INAK never came (retried after the next back-off) */
+    uint32_t error_passive;  /**< entries into error-passive (ESR.EPVF seen set after clear) */
+    uint32_t error_warning;  /**< entries into error warning (ESR.EWGF seen set after clear) */
+    uint32_t lec;            /**< the last error code ESR.LEC reported (1 .. 6), 0 none yet */
 } att_can_hal_stats_t;
 
 /** A bxCAN controller serving one attica node. */
@@ -123,7 +173,12 @@ typedef struct {
     att_can_hal_io_t io;       /**< register access */
     att_node_t *node;          /**< the node */
     uint32_t btr;              /**< bit timing register value in use */
-    bool was_bus_off;          /**< bus-off seen at the last service */
+    att_can_hal_phase_t phase; /**< on the bus, in back-off, recovering */
+    uint32_t backoff;          /**< service calls the next bus-off waits (FIRST .. MAX) */
+    uint32_t wait;             /**< ATT_CAN_HAL_BACKOFF: service calls left before the recovery */
+    uint32_t good;             /**< service calls in a row on the bus, not error-passive (up to RESET) */
+    bool passive;              /**< ESR.EPVF at the last service */
+    bool warning;              /**< ESR.EWGF at the last service */
     att_can_hal_stats_t stats; /**< counters */
 } att_can_hal_t;
 
@@ -139,22 +194,37 @@ uint32_t att_can_hal_btr(uint32_t pclk_hz, uint32_t bitrate);
 /**
  * Configure the controller for the node (att_node_init done, classic CAN): init mode, bit timing for
  * the node's bitrate from the CAN kernel clock pclk_hz (Hz; APB1 on STM32F4), automatic bus-off
- * recovery, transmit in request order, the acceptance filter for the node's receive IDs (banks 0 and
- * 1 in 16-bit identifier list mode into FIFO 0, see ATT_CAN_HAL_FILTER_BANKS), then normal mode.
- * Polled: no interrupt is enabled. ATT_ERR_NULL (h, io functions or node NULL), ATT_ERR_SETTINGS (fd
- * node, bitrate not reachable from pclk_hz, a receive ID that is not an 11-bit ID, or the controller
- * did not acknowledge init / normal mode within ATT_CAN_HAL_SPIN reads).
+ * management off (the driver recovers with a back-off), transmit in request order, the acceptance
+ * filter for the node's receive IDs (banks 0 and 1 in 16-bit identifier list mode into FIFO 0, see
+ * ATT_CAN_HAL_FILTER_BANKS), then normal mode; registers att_can_hal_bus_diag with the node. Polled:
+ * no interrupt is enabled. ATT_ERR_NULL (h, io functions or node NULL), ATT_ERR_SETTINGS (fd node,
+ * bitrate not reachable from pclk_hz, a receive ID that is not an 11-bit ID, the node's outputs with
+ * ATT_DIAG_BUS over the bus (att_node_set_bus_diag), or the controller did not acknowledge init /
+ * normal mode within ATT_CAN_HAL_SPIN reads: then the node has no bus diagnostics hook).
  */
 att_status_t att_can_hal_init(att_can_hal_t *h, att_can_hal_io_t io, att_node_t *node, uint32_t pclk_hz);
 
 /** Move every pending FIFO 0 frame into the node (att_node_rx); returns the frames moved. */
 size_t att_can_hal_receive(att_can_hal_t *h);
 
-/** Fill the free transmit mailboxes from the node's tx ring (att_node_tx); returns the frames written. */
+/**
+ * Fill the free transmit mailboxes from the node's tx ring (att_node_tx); returns the frames written.
+ * Nothing while the controller is bus-off (phase not ATT_CAN_HAL_ON): the frames wait in the node.
+ */
 size_t att_can_hal_transmit(att_can_hal_t *h);
 
-/** Receive, att_node_poll, transmit; returns the filter steps run. */
+/**
+ * Controller faults (bus-off back-off and recovery, error-passive, error warning, last error code;
+ * see the file comment), receive, att_node_poll, transmit; returns the filter steps run.
+ */
 size_t att_can_hal_service(att_can_hal_t *h);
+
+/**
+ * The node's hook of ATT_DIAG_BUS (att_node_bus_diag_fn; ctx = the att_can_hal_t): the state (bus-off
+ * while not ATT_CAN_HAL_ON, else error-passive / warning / active by ESR) and the counters of h->stats.
+ * att_can_hal_init registers it; register it again after an att_node_init of the same node.
+ */
+void att_can_hal_bus_diag(void *ctx, att_can_bus_diag_t *d);
 
 #ifdef __cplusplus
 }

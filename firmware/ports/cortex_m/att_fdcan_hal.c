@@ -42,14 +42,17 @@ typedef struct {
     uint32_t rxf0s;
     uint32_t rxf0a;
     uint32_t txbar;
+    uint32_t ir_lost; /* IR: Rx FIFO 0 and Rx FIFO 1 message lost (RF0L | RF1L) */
     uint32_t ir_rf0l; /* IR: Rx FIFO 0 message lost */
     uint32_t ir_all;  /* IR: every flag the map defines */
 } att_fdcan_map_t;
 
 static const att_fdcan_map_t att_map_g4 = {ATT_FDCAN_G4_RXF0S, ATT_FDCAN_G4_RXF0A, ATT_FDCAN_G4_TXBAR,
-                                           ATT_FDCAN_G4_IR_RF0L, 0x00ffffffu};
+                                           ATT_FDCAN_G4_IR_RF0L | ATT_FDCAN_G4_IR_RF1L, ATT_FDCAN_G4_IR_RF0L,
+                                           0x00ffffffu};
 static const att_fdcan_map_t att_map_h7 = {ATT_FDCAN_H7_RXF0S, ATT_FDCAN_H7_RXF0A, ATT_FDCAN_H7_TXBAR,
-                                           ATT_FDCAN_H7_IR_RF0L, 0x3fffffffu};
+                                           ATT_FDCAN_H7_IR_RF0L | ATT_FDCAN_H7_IR_RF1L, ATT_FDCAN_H7_IR_RF0L,
+                                           0x3fffffffu};
 
 static const uint8_t att_dlc_len[16] = {0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u, 12u, 16u, 20u, 24u, 32u, 48u, 64u};
 
@@ -371,37 +374,13 @@ static void att_configure_ram(const att_fdcan_hal_t *h, const uint32_t *ids, siz
     }
 }
 
-att_status_t att_fdcan_hal_init(att_fdcan_hal_t *h, att_fdcan_hal_io_t regs, att_fdcan_hal_io_t ram,
-                                const att_fdcan_layout_t *layout, att_node_t *node, uint32_t kernel_hz)
+/* The controller for the node, from settings att_fdcan_hal_init validated. */
+static att_status_t att_fdcan_setup(att_fdcan_hal_t *h, att_fdcan_hal_io_t regs, att_fdcan_hal_io_t ram,
+                                    const att_fdcan_layout_t *l, att_node_t *node, const att_fdcan_timing_t *tp,
+                                    const uint32_t *ids, size_t n_ids)
 {
-    att_fdcan_timing_t t;
-    uint32_t ids[ATT_NODE_RX_IDS_MAX];
+    const att_fdcan_timing_t t = *tp;
     uint32_t cccr;
-    size_t n_ids;
-    size_t i;
-    const att_fdcan_layout_t *l = (layout != NULL) ? layout : &att_fdcan_layout_g4;
-    if (h == NULL || node == NULL || regs.read == NULL || regs.write == NULL || ram.read == NULL ||
-        ram.write == NULL) {
-        return ATT_ERR_NULL;
-    }
-    if (att_fdcan_hal_layout_check(l) != ATT_OK ||
-        att_fdcan_hal_timing(kernel_hz, node->s.bitrate, node->s.data_bitrate, &t) != ATT_OK ||
-        (node->s.data_bitrate != 0u && l->data_bytes < (uint32_t)ATT_CAN_FD_LEN) ||
-        (node->s.fd && node->s.data_bitrate == 0u)) {
-        return ATT_ERR_SETTINGS;
-    }
-    n_ids = att_node_rx_ids(node, ids);
-    if (n_ids == 0u || (n_ids + 1u) / 2u > l->filters_max) {
-        return ATT_ERR_SETTINGS;
-    }
-    for (i = 0u; i < n_ids; i++) {
-        if (ids[i] > 0x7ffu) {
-            return ATT_ERR_SETTINGS;
-        }
-    }
-    if (regs.read(regs.ctx, ATT_FDCAN_ENDN) != ATT_FDCAN_ENDN_VALUE) {
-        return ATT_ERR_SETTINGS;
-    }
     memset(h, 0, sizeof *h);
     h->regs = regs;
     h->ram = ram;
@@ -411,6 +390,8 @@ att_status_t att_fdcan_hal_init(att_fdcan_hal_t *h, att_fdcan_hal_io_t regs, att
     h->filter_elements = (uint32_t)((n_ids + 1u) / 2u);
     h->fd = node->s.data_bitrate != 0u;
     h->brs = h->fd && node->s.data_bitrate > node->s.bitrate;
+    h->phase = ATT_FDCAN_HAL_ON;
+    h->backoff = ATT_FDCAN_HAL_BACKOFF_FIRST;
     /* out of clock stop, into initialisation mode, configuration change enabled */
     cccr = att_rd(h, ATT_FDCAN_CCCR);
     if ((cccr & ATT_FDCAN_CCCR_CSR) != 0u) {
@@ -444,6 +425,47 @@ att_status_t att_fdcan_hal_init(att_fdcan_hal_t *h, att_fdcan_hal_io_t regs, att
     return ATT_OK;
 }
 
+att_status_t att_fdcan_hal_init(att_fdcan_hal_t *h, att_fdcan_hal_io_t regs, att_fdcan_hal_io_t ram,
+                                const att_fdcan_layout_t *layout, att_node_t *node, uint32_t kernel_hz)
+{
+    att_fdcan_timing_t t;
+    uint32_t ids[ATT_NODE_RX_IDS_MAX];
+    size_t n_ids;
+    size_t i;
+    const att_fdcan_layout_t *l = (layout != NULL) ? layout : &att_fdcan_layout_g4;
+    if (h == NULL || node == NULL || regs.read == NULL || regs.write == NULL || ram.read == NULL ||
+        ram.write == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (att_fdcan_hal_layout_check(l) != ATT_OK ||
+        att_fdcan_hal_timing(kernel_hz, node->s.bitrate, node->s.data_bitrate, &t) != ATT_OK ||
+        (node->s.data_bitrate != 0u && l->data_bytes < (uint32_t)ATT_CAN_FD_LEN) ||
+        (node->s.fd && node->s.data_bitrate == 0u)) {
+        return ATT_ERR_SETTINGS;
+    }
+    n_ids = att_node_rx_ids(node, ids);
+    if (n_ids == 0u || (n_ids + 1u) / 2u > l->filters_max) {
+        return ATT_ERR_SETTINGS;
+    }
+    for (i = 0u; i < n_ids; i++) {
+        if (ids[i] > 0x7ffu) {
+            return ATT_ERR_SETTINGS;
+        }
+    }
+    if (regs.read(regs.ctx, ATT_FDCAN_ENDN) != ATT_FDCAN_ENDN_VALUE) {
+        return ATT_ERR_SETTINGS;
+    }
+    /* the node's outputs with ATT_DIAG_BUS must fit the bus (nothing written to the controller yet) */
+    if (att_node_set_bus_diag(node, att_fdcan_hal_bus_diag, h) != ATT_OK) {
+        return ATT_ERR_SETTINGS;
+    }
+    if (att_fdcan_setup(h, regs, ram, l, node, &t, ids, n_ids) != ATT_OK) {
+        (void)att_node_set_bus_diag(node, NULL, NULL);
+        return ATT_ERR_SETTINGS;
+    }
+    return ATT_OK;
+}
+
 size_t att_fdcan_hal_receive(att_fdcan_hal_t *h)
 {
     const att_fdcan_map_t *m;
@@ -454,10 +476,12 @@ size_t att_fdcan_hal_receive(att_fdcan_hal_t *h)
         return 0u;
     }
     m = att_map(h);
-    st = att_rd(h, m->rxf0s);
-    if ((st & ATT_FDCAN_RXFS_RFL) != 0u) {
-        h->stats.rx_overruns++;
-        att_wr(h, ATT_FDCAN_IR, m->ir_rf0l); /* clears RF0L in IR and its copy in RXF0S */
+    /* IR.RF0L / IR.RF1L (G0/G4 bits 2 / 5, H7 / M_CAN bits 3 / 7; write 1 to clear; RXF0S.RF0L is a copy):
+       a frame arrived at a full FIFO (blocking mode) and was lost */
+    st = att_rd(h, ATT_FDCAN_IR) & m->ir_lost;
+    if (st != 0u) {
+        h->stats.rx_overruns += ((st & m->ir_rf0l) != 0u ? 1u : 0u) + ((st & ~m->ir_rf0l) != 0u ? 1u : 0u);
+        att_wr(h, ATT_FDCAN_IR, st);
     }
     for (k = 0u; k < h->layout.rx_fifo0_n; k++) {
         uint32_t gi;
@@ -520,12 +544,12 @@ static bool att_sendable(const att_fdcan_hal_t *h, const att_can_frame_t *f)
     return f->len <= 8u;
 }
 
-/* Put index of a free Tx FIFO element, or -1 (full, or not in normal operation). */
+/* Put index of a free Tx FIFO element, or -1 (full, bus-off, or not in normal operation). */
 static int32_t att_tx_slot(const att_fdcan_hal_t *h)
 {
     uint32_t q;
     uint32_t pi;
-    if ((att_rd(h, ATT_FDCAN_CCCR) & ATT_FDCAN_CCCR_INIT) != 0u) {
+    if (h->phase != ATT_FDCAN_HAL_ON || (att_rd(h, ATT_FDCAN_CCCR) & ATT_FDCAN_CCCR_INIT) != 0u) {
         return -1;
     }
     q = att_rd(h, ATT_FDCAN_TXFQS);
@@ -609,25 +633,116 @@ size_t att_fdcan_hal_transmit(att_fdcan_hal_t *h)
     return sent;
 }
 
+/* Wait h->backoff service calls before the next recovery, and double it for the one after (to MAX). */
+static void att_backoff(att_fdcan_hal_t *h)
+{
+    h->phase = ATT_FDCAN_HAL_BACKOFF;
+    h->wait = h->backoff;
+    h->backoff = (h->backoff > ATT_FDCAN_HAL_BACKOFF_MAX / 2u) ? ATT_FDCAN_HAL_BACKOFF_MAX : 2u * h->backoff;
+    h->good = 0u;
+}
+
+/*
+ * Bus-off recovery (RM0440 FDCAN operating modes; Bosch M_CAN user's manual, PSR note): at bus-off the
+ * controller sets CCCR.INIT of its own accord and stops; once the CPU clears INIT it waits for 129
+ * occurrences of 11 recessive bits, then resets its error counters and clears PSR.BO. Clearing INIT
+ * clears CCE with it; the configuration (bit timing, filters, RAM) is kept.
+ */
+static void att_recover(const att_fdcan_hal_t *h)
+{
+    const uint32_t cccr = att_rd(h, ATT_FDCAN_CCCR);
+    if ((cccr & ATT_FDCAN_CCCR_INIT) != 0u) {
+        att_wr(h, ATT_FDCAN_CCCR, cccr & ~(ATT_FDCAN_CCCR_INIT | ATT_FDCAN_CCCR_CCE));
+    }
+}
+
+/*
+ * The fault confinement state from PSR (0x44 in both maps): LEC bits 2:0 (0 none, 1 stuff, 2 form, 3
+ * acknowledgment, 4 bit1, 5 bit0, 6 CRC; 7 "no change": set to 7 by every read), EP bit 5, EW bit 6,
+ * BO bit 7.
+ */
+static void att_faults(att_fdcan_hal_t *h)
+{
+    const uint32_t psr = att_rd(h, ATT_FDCAN_PSR);
+    const bool off = (psr & ATT_FDCAN_PSR_BO) != 0u;
+    const bool passive = (psr & ATT_FDCAN_PSR_EP) != 0u;
+    const bool warning = (psr & ATT_FDCAN_PSR_EW) != 0u;
+    const uint32_t lec = psr & ATT_FDCAN_PSR_LEC;
+    if (lec != 0u && lec != 7u) {
+        h->stats.lec = lec;
+    }
+    h->stats.error_passive += (passive && !h->passive) ? 1u : 0u;
+    h->stats.error_warning += (warning && !h->warning) ? 1u : 0u;
+    h->passive = passive;
+    h->warning = warning;
+    switch (h->phase) {
+    case ATT_FDCAN_HAL_ON:
+        if (off) {
+            h->stats.bus_off++;
+            att_backoff(h);
+        } else if (passive) {
+            h->good = 0u;
+        } else if (h->good < ATT_FDCAN_HAL_BACKOFF_RESET) {
+            h->good++;
+            if (h->good == ATT_FDCAN_HAL_BACKOFF_RESET) {
+                h->backoff = ATT_FDCAN_HAL_BACKOFF_FIRST; /* a good while on the bus: start over */
+            }
+        }
+        break;
+    case ATT_FDCAN_HAL_BACKOFF:
+        if (!off) { /* left bus-off without the driver (someone else cleared INIT) */
+            h->stats.recoveries++;
+            h->phase = ATT_FDCAN_HAL_ON;
+        } else if (h->wait > 1u) {
+            h->wait--;
+        } else {
+            att_recover(h);
+            h->phase = ATT_FDCAN_HAL_RECOVERING;
+        }
+        break;
+    default: /* ATT_FDCAN_HAL_RECOVERING */
+        if (!off) {
+            h->stats.recoveries++;
+            h->phase = ATT_FDCAN_HAL_ON;
+        } else if ((att_rd(h, ATT_FDCAN_CCCR) & ATT_FDCAN_CCCR_INIT) != 0u) {
+            /* INIT set again: back on the bus and bus-off again between two calls (frames pending in
+               the Tx buffers since before were retried): an episode ended, a new one begins */
+            h->stats.recoveries++;
+            h->stats.bus_off++;
+            att_backoff(h);
+        }
+        break;
+    }
+}
+
+void att_fdcan_hal_bus_diag(void *ctx, att_can_bus_diag_t *d)
+{
+    const att_fdcan_hal_t *h = (const att_fdcan_hal_t *)ctx;
+    if (h == NULL || d == NULL) {
+        return;
+    }
+    if (h->phase != ATT_FDCAN_HAL_ON) {
+        d->state = (uint8_t)ATT_CAN_BUS_OFF;
+    } else if (h->passive) {
+        d->state = (uint8_t)ATT_CAN_BUS_PASSIVE;
+    } else {
+        d->state = (uint8_t)(h->warning ? ATT_CAN_BUS_WARNING : ATT_CAN_BUS_ACTIVE);
+    }
+    d->lec = (uint8_t)h->stats.lec;
+    d->bus_off = h->stats.bus_off;
+    d->recoveries = h->stats.recoveries;
+    d->error_passive = h->stats.error_passive;
+    d->error_warning = h->stats.error_warning;
+    d->rx_overruns = h->stats.rx_overruns;
+}
+
 size_t att_fdcan_hal_service(att_fdcan_hal_t *h)
 {
     size_t steps;
-    bool off;
     if (h == NULL || h->node == NULL) {
         return 0u;
     }
-    off = (att_rd(h, ATT_FDCAN_PSR) & ATT_FDCAN_PSR_BO) != 0u;
-    if (off && !h->was_bus_off) {
-        h->stats.bus_off++;
-    }
-    h->was_bus_off = off;
-    if (off) {
-        const uint32_t cccr = att_rd(h, ATT_FDCAN_CCCR);
-        if ((cccr & ATT_FDCAN_CCCR_INIT) != 0u) {
-            /* start the bus-off recovery sequence (129 x 11 recessive bits) */
-            att_wr(h, ATT_FDCAN_CCCR, cccr & ~(ATT_FDCAN_CCCR_INIT | ATT_FDCAN_CCCR_CCE));
-        }
-    }
+    att_faults(h);
     (void)att_fdcan_hal_receive(h);
     steps = att_node_poll(h->node);
     (void)att_fdcan_hal_transmit(h);

@@ -45,7 +45,22 @@
  * when the count is odd); the global filter rejects every other standard frame (ANFS 10), every
  * extended frame (ANFE 10, no extended filter elements) and every remote frame (RRFS, RRFE).
  *
- * att_fdcan_hal_service (= bus-off check, receive, att_node_poll, transmit) must not run concurrently
+ * Controller faults (att_fdcan_hal_service, every call): at bus-off (PSR.BO) the controller sets
+ * CCCR.INIT and stops; the driver counts the episode and waits h->backoff service calls
+ * (ATT_FDCAN_HAL_BACKOFF_FIRST, doubled at each bus-off up to ATT_FDCAN_HAL_BACKOFF_MAX, back to FIRST
+ * after ATT_FDCAN_HAL_BACKOFF_RESET calls in a row neither bus-off nor error-passive) before it clears
+ * INIT, which starts the recovery the protocol prescribes (129 x 11 recessive bits, then PSR.BO clear:
+ * counted in recoveries; INIT seen set again before that is a recovery and a new bus-off in between);
+ * nothing is queued for sending meanwhile (the frames wait in the node). A node
+ * whose transceiver or bit timing is wrong so rejoins at most once per ATT_FDCAN_HAL_BACKOFF_MAX calls
+ * instead of flooding the bus with error frames. Error-passive (PSR.EP) and error warning (PSR.EW)
+ * entries are counted on the edge seen by the service (bus-off holds until the driver recovers, so it
+ * is never missed), Rx FIFO 0 / 1 message-lost flags (IR.RF0L, IR.RF1L) counted and cleared, the last
+ * error code (PSR.LEC) kept. att_fdcan_hal_init registers att_fdcan_hal_bus_diag with the node
+ * (att_node_set_bus_diag): every ATT_DIAG the node sends is followed by an ATT_DIAG_BUS with these
+ * counters. Call the service at a steady rate (each sample, a timer tick) for the delays to be a time.
+ *
+ * att_fdcan_hal_service (= controller faults, receive, att_node_poll, transmit) must not run concurrently
  * with itself or with other calls on the same node: call it from one context. Not done here: the
  * kernel clock (RCC; on G0/G4 also FDCAN_CONFIG CKDIV, which divides it for every instance: leave it
  * at 1 or pass the divided clock), the pins, interrupts (none enabled: polled; enable RF0NE and route
@@ -120,10 +135,17 @@ enum {
 #define ATT_FDCAN_CCCR_CSR ((uint32_t)1u << 4)   /**< clock stop request */
 #define ATT_FDCAN_CCCR_FDOE ((uint32_t)1u << 8)  /**< CAN FD operation enable */
 #define ATT_FDCAN_CCCR_BRSE ((uint32_t)1u << 9)  /**< bit rate switching enable */
+/* PSR (RM0440 "FDCAN protocol status register", M_CAN PSR at 0x44; both maps): LEC 2:0 (set to 7 on
+   read), ACT 4:3, EP 5, EW 6, BO 7. */
+#define ATT_FDCAN_PSR_LEC ((uint32_t)7u)         /**< last error code: 0 none, 1..6 error, 7 no change since read */
+#define ATT_FDCAN_PSR_EP ((uint32_t)1u << 5)     /**< error passive */
+#define ATT_FDCAN_PSR_EW ((uint32_t)1u << 6)     /**< warning status: TEC or REC >= 96 */
 #define ATT_FDCAN_PSR_BO ((uint32_t)1u << 7)     /**< bus-off */
 #define ATT_FDCAN_DBTP_TDC ((uint32_t)1u << 23)  /**< transmitter delay compensation enable */
-#define ATT_FDCAN_G4_IR_RF0L ((uint32_t)1u << 2) /**< Rx FIFO 0 message lost (G0/G4) */
-#define ATT_FDCAN_H7_IR_RF0L ((uint32_t)1u << 3) /**< Rx FIFO 0 message lost (H7 / M_CAN) */
+#define ATT_FDCAN_G4_IR_RF0L ((uint32_t)1u << 2) /**< Rx FIFO 0 message lost (G0/G4, RM0440 FDCAN_IR) */
+#define ATT_FDCAN_G4_IR_RF1L ((uint32_t)1u << 5) /**< Rx FIFO 1 message lost (G0/G4) */
+#define ATT_FDCAN_H7_IR_RF0L ((uint32_t)1u << 3) /**< Rx FIFO 0 message lost (H7 / M_CAN, RM0433 FDCAN_IR) */
+#define ATT_FDCAN_H7_IR_RF1L ((uint32_t)1u << 7) /**< Rx FIFO 1 message lost (H7 / M_CAN) */
 #define ATT_FDCAN_RXFS_RFL ((uint32_t)1u << 25)  /**< RXF0S: message lost (copy of IR.RF0L) */
 #define ATT_FDCAN_TXFQS_TFQF ((uint32_t)1u << 21) /**< TXFQS: Tx FIFO full */
 /** Global filter of both maps: reject non-matching standard and extended frames, reject remote frames. */
@@ -141,6 +163,18 @@ enum {
 
 /** Busy-wait bound for the controller's acknowledgements (loop iterations). */
 #define ATT_FDCAN_HAL_SPIN 100000u
+#ifndef ATT_FDCAN_HAL_BACKOFF_FIRST
+/** Service calls from the first bus-off to its recovery (then 2, 4 ... times this). */
+#define ATT_FDCAN_HAL_BACKOFF_FIRST 1u
+#endif
+#ifndef ATT_FDCAN_HAL_BACKOFF_MAX
+/** Longest back-off, service calls (the doubling stops here). */
+#define ATT_FDCAN_HAL_BACKOFF_MAX 1024u
+#endif
+#ifndef ATT_FDCAN_HAL_BACKOFF_RESET
+/** Service calls in a row neither bus-off nor error-passive that bring the back-off back to FIRST. */
+#define ATT_FDCAN_HAL_BACKOFF_RESET 1024u
+#endif
 /** Standard filter elements the driver writes at most: two IDs each. */
 #define ATT_FDCAN_HAL_FILTERS ((ATT_NODE_RX_IDS_MAX + 1) / 2)
 
@@ -150,6 +184,13 @@ typedef struct {
     uint32_t (*read)(void *ctx, uint32_t offset);              /**< read the word at offset */
     void (*write)(void *ctx, uint32_t offset, uint32_t value); /**< write the word at offset */
 } att_fdcan_hal_io_t;
+
+/** Where the driver stands with the bus (att_fdcan_hal_t.phase). */
+typedef enum {
+    ATT_FDCAN_HAL_ON = 0,        /**< on the bus: the Tx FIFO is filled from the node */
+    ATT_FDCAN_HAL_BACKOFF = 1,   /**< bus-off seen (CCCR.INIT set by the controller): waiting h->wait service calls */
+    ATT_FDCAN_HAL_RECOVERING = 2 /**< INIT cleared: waiting for PSR.BO to clear (129 x 11 recessive bits) */
+} att_fdcan_hal_phase_t;
 
 /** Register map of the controller. */
 typedef enum {
@@ -187,12 +228,16 @@ typedef struct {
     uint32_t rx_frames;      /**< frames moved from Rx FIFO 0 to the node */
     uint32_t rx_fd_frames;   /**< ... of them CAN FD frames */
     uint32_t rx_ignored;     /**< extended-ID or remote frames, or longer than data_bytes (dropped) */
-    uint32_t rx_overruns;    /**< Rx FIFO 0 message-lost events seen (frames lost in the controller) */
+    uint32_t rx_overruns;    /**< Rx FIFO 0 / 1 message-lost events seen (frames lost in the controller) */
     uint32_t rx_node_full;   /**< frames att_node_rx refused (node rx ring full) */
     uint32_t tx_frames;      /**< frames written to the Tx FIFO */
     uint32_t tx_fd_frames;   /**< ... of them CAN FD frames */
     uint32_t tx_unsupported; /**< frames the controller as configured cannot send (dropped, see att_fdcan_hal_send) */
-    uint32_t bus_off;        /**< bus-off episodes (each one restarted by the driver) */
+    uint32_t bus_off;        /**< bus-off episodes (PSR.BO seen set while on the bus) */
+    uint32_t recoveries;     /**< bus-off episodes ended: PSR.BO clear again after the driver cleared INIT */
+    uint32_t error_passive;  /**< entries into error-passive (PSR.EP seen set after clear) */
+    uint32_t error_warning;  /**< entries into error warning (PSR.EW seen set after clear) */
+    uint32_t lec;            /**< the last error code PSR.LEC reported (1 .. 6), 0 none yet */
 } att_fdcan_hal_stats_t;
 
 /** An FDCAN controller serving one attica node. */
@@ -205,7 +250,12 @@ typedef struct {
     uint32_t filter_elements;    /**< standard filter elements written */
     bool fd;                     /**< CAN FD operation (the node has a data bitrate): FDOE, BRSE */
     bool brs;                    /**< FD frames are sent with bit rate switch (data bitrate > nominal) */
-    bool was_bus_off;            /**< bus-off seen at the last service */
+    att_fdcan_hal_phase_t phase; /**< on the bus, in back-off, recovering */
+    uint32_t backoff;            /**< service calls the next bus-off waits (FIRST .. MAX) */
+    uint32_t wait;               /**< ATT_FDCAN_HAL_BACKOFF: service calls left before INIT is cleared */
+    uint32_t good;               /**< service calls in a row on the bus, not error-passive (up to RESET) */
+    bool passive;                /**< PSR.EP at the last service */
+    bool warning;                /**< PSR.EW at the last service */
     att_fdcan_hal_stats_t stats; /**< counters */
 } att_fdcan_hal_t;
 
@@ -254,7 +304,9 @@ uint32_t att_fdcan_len_to_dlc(uint32_t len);
  * data bitrate, the bit timing of att_fdcan_hal_timing for the node's bitrate(s), the message RAM (G4:
  * the instance's RAM cleared; H7: the sections of the layout cleared and configured), the acceptance
  * filter, Rx FIFO 0 blocking (a full FIFO loses new frames: counted in rx_overruns), Tx FIFO mode,
- * interrupts off, then normal operation. layout NULL means att_fdcan_layout_g4.
+ * interrupts off, then normal operation; registers att_fdcan_hal_bus_diag with the node
+ * (att_node_set_bus_diag: ATT_ERR_SETTINGS when the node's outputs with ATT_DIAG_BUS do not fit the
+ * bus; a later failure removes the hook again). layout NULL means att_fdcan_layout_g4.
  * ATT_ERR_NULL (h, node, an io function), ATT_ERR_SETTINGS: the layout (att_fdcan_hal_layout_check);
  * a bitrate the kernel clock cannot make; a CAN FD bus (data_bitrate > 0) with elements under 64 data
  * bytes; a receive ID that is not 11 bits or more filter elements than the layout holds; ENDN does
@@ -274,20 +326,29 @@ size_t att_fdcan_hal_receive(att_fdcan_hal_t *h);
  * controller, a length between two DLC lengths padded with zeros to the next one (e.g. 13 -> 16),
  * with bit rate switch when the data bitrate is above the nominal one. ATT_OK; ATT_ERR_NULL;
  * ATT_ERR_SETTINGS when the frame cannot be sent as configured (counted in tx_unsupported);
- * ATT_ERR_STATE when the Tx FIFO is full or the controller is in initialisation (bus-off).
+ * ATT_ERR_STATE when the Tx FIFO is full, the controller is in initialisation, or bus-off (back-off,
+ * recovery).
  */
 att_status_t att_fdcan_hal_send(att_fdcan_hal_t *h, const att_can_frame_t *f);
 
-/** Fill the free Tx FIFO elements from the node's tx ring (att_node_tx); returns the frames written. */
+/**
+ * Fill the free Tx FIFO elements from the node's tx ring (att_node_tx); returns the frames written.
+ * Nothing while the controller is bus-off (phase not ATT_FDCAN_HAL_ON): the frames wait in the node.
+ */
 size_t att_fdcan_hal_transmit(att_fdcan_hal_t *h);
 
 /**
- * Bus-off handling, receive, att_node_poll, transmit; returns the filter steps run. At bus-off the
- * controller sets CCCR.INIT and stops; the service counts the episode and clears INIT, which starts
- * the recovery the protocol prescribes (129 x 11 recessive bits, then error-active again) - the
- * equivalent of bxCAN's automatic bus-off management. Frames stay in the node's tx ring meanwhile.
+ * Controller faults (bus-off back-off and recovery, error-passive, error warning, last error code;
+ * see the file comment), receive, att_node_poll, transmit; returns the filter steps run.
  */
 size_t att_fdcan_hal_service(att_fdcan_hal_t *h);
+
+/**
+ * The node's hook of ATT_DIAG_BUS (att_node_bus_diag_fn; ctx = the att_fdcan_hal_t): the state (bus-off
+ * while not ATT_FDCAN_HAL_ON, else error-passive / warning / active by PSR) and the counters of
+ * h->stats. att_fdcan_hal_init registers it; register it again after an att_node_init of the same node.
+ */
+void att_fdcan_hal_bus_diag(void *ctx, att_can_bus_diag_t *d);
 
 #ifdef __cplusplus
 }

@@ -111,6 +111,7 @@ uint8_t att_can_msg_len(uint32_t id)
     case ATT_CAN_ID_LIN_ACC:
     case ATT_CAN_ID_EARTH_ACC:
     case ATT_CAN_ID_CAL_ACK:
+    case ATT_CAN_ID_DIAG_BUS:
     case ATT_CAN_ID_CMD:
         return (uint8_t)ATT_CAN_CLASSIC_LEN;
     case ATT_CAN_ID_IMU_FD:
@@ -472,6 +473,43 @@ void att_can_encode_diag(const att_can_diag_t *d, uint8_t counter, att_can_frame
     att_can_frame_start(out, ATT_CAN_ID_DIAG);
     (void)att_can_db_att_diag_pack(out->data, &m, sizeof out->data);
     att_can_seal(out);
+}
+
+void att_can_encode_diag_bus(const att_can_bus_diag_t *d, uint8_t counter, att_can_frame_t *out)
+{
+    struct att_can_db_att_diag_bus_t m;
+    if (d == NULL || out == NULL) {
+        return;
+    }
+    m.crc = 0u;
+    m.counter = att_can_c4(counter);
+    m.state = (uint8_t)(d->state & 0x03u);
+    m.bus_off = att_can_sat8(d->bus_off);
+    m.recoveries = att_can_sat8(d->recoveries);
+    m.error_passive = att_can_sat8(d->error_passive);
+    m.error_warning = att_can_sat8(d->error_warning);
+    m.rx_overruns = att_can_sat8(d->rx_overruns);
+    m.lec = (uint8_t)(d->lec & 0x07u);
+    att_can_frame_start(out, ATT_CAN_ID_DIAG_BUS);
+    (void)att_can_db_att_diag_bus_pack(out->data, &m, sizeof out->data);
+    att_can_seal(out);
+}
+
+bool att_can_decode_diag_bus(const att_can_frame_t *f, att_can_bus_diag_t *d)
+{
+    struct att_can_db_att_diag_bus_t m;
+    if (f == NULL || d == NULL || f->id != ATT_CAN_ID_DIAG_BUS || f->len < (uint8_t)ATT_CAN_CLASSIC_LEN) {
+        return false;
+    }
+    (void)att_can_db_att_diag_bus_unpack(&m, f->data, ATT_CAN_CLASSIC_LEN);
+    d->state = m.state;
+    d->lec = m.lec;
+    d->bus_off = m.bus_off;
+    d->recoveries = m.recoveries;
+    d->error_passive = m.error_passive;
+    d->error_warning = m.error_warning;
+    d->rx_overruns = m.rx_overruns;
+    return true;
 }
 
 void att_can_encode_cmd(const att_can_cmd_t *c, att_can_frame_t *out)

@@ -93,7 +93,8 @@ static bool att_node_rates_ok(const att_node_settings_t *s)
     return true ATT_NODE_CHECKS(ATT_CHECK_AND);
 }
 
-float att_node_bus_load(const att_node_settings_t *s)
+/* The bus load of the periodic outputs with diag_frames classic frames every diag_divider-th set. */
+static float att_node_outputs_load(const att_node_settings_t *s, uint32_t diag_frames)
 {
     float sets_per_s;
     float t_set;
@@ -116,9 +117,14 @@ float att_node_bus_load(const att_node_settings_t *s)
         }
     }
     if (s->diag_divider != 0u) {
-        t_set += t_classic / (float)s->diag_divider;
+        t_set += (float)diag_frames * t_classic / (float)s->diag_divider;
     }
     return sets_per_s * t_set;
+}
+
+float att_node_bus_load(const att_node_settings_t *s)
+{
+    return att_node_outputs_load(s, 1u);
 }
 
 /** The filter's dt agrees with sample_rate (relative 1e-3), or the kind has no dt. */
@@ -265,6 +271,22 @@ void att_node_set_persist(att_node_t *n, att_node_persist_fn fn, void *ctx)
     }
     n->persist = fn;
     n->persist_ctx = ctx;
+}
+
+att_status_t att_node_set_bus_diag(att_node_t *n, att_node_bus_diag_fn fn, void *ctx)
+{
+    if (n == NULL) {
+        return ATT_ERR_NULL;
+    }
+    if (fn != NULL) {
+        const float load = att_node_outputs_load(&n->s, 2u); /* ATT_DIAG and ATT_DIAG_BUS */
+        if (!(load >= 0.0f) || load > 1.0f) {
+            return ATT_ERR_SETTINGS;
+        }
+    }
+    n->bus_diag = fn;
+    n->bus_diag_ctx = (fn != NULL) ? ctx : NULL;
+    return ATT_OK;
 }
 
 /* --- rings ----------------------------------------------------------------------------------- */
@@ -440,6 +462,13 @@ static void att_node_emit(att_node_t *n)
         att_node_diag(n, &d);
         att_can_encode_diag(&d, counter, &set[0]);
         att_node_queue(n, set, 1u);
+        if (n->bus_diag != NULL) {
+            att_can_bus_diag_t b;
+            memset(&b, 0, sizeof b);
+            n->bus_diag(n->bus_diag_ctx, &b);
+            att_can_encode_diag_bus(&b, counter, &set[0]);
+            att_node_queue(n, set, 1u);
+        }
     }
 }
 

@@ -27,6 +27,7 @@ from attica.can.layout import (
     GYR_FRAC,
     ID_CMD,
     ID_DIAG,
+    ID_DIAG_BUS,
     ID_IMU_ACC,
     ID_IMU_FD,
     ID_IMU_GYRO,
@@ -299,6 +300,26 @@ DIAG_FIELDS = ("crc_errors", "counter_gaps", "dlc_errors", "unknown_ids", "dupli
 """The counters of ATT_DIAG, in frame order (bytes 2..7)."""
 
 
+DIAG_BUS_DTYPE = np.dtype(
+    [
+        ("counter", "u1"),
+        ("state", "u1"),
+        ("bus_off", "u1"),
+        ("recoveries", "u1"),
+        ("error_passive", "u1"),
+        ("error_warning", "u1"),
+        ("rx_overruns", "u1"),
+        ("lec", "u1"),
+        ("crc_ok", "?"),
+    ]
+)
+"""One decoded ATT_DIAG_BUS (the CAN controller counters of a node's port)."""
+
+
+DIAG_BUS_FIELDS = ("bus_off", "recoveries", "error_passive", "error_warning", "rx_overruns")
+"""The counters of ATT_DIAG_BUS in frame order, bytes 2..6 (state: byte 1 bits 4..5, lec: byte 7 bits 0..2)"""
+
+
 @dataclass
 class Answer:
     """A command answer (ATT_STATUS with ack bit 7)."""
@@ -315,12 +336,16 @@ class Answer:
 
 @dataclass
 class OutputStream:
-    """A node output stream split into sets, DIAG frames and command answers (each in arrival order)."""
+    """A node output stream split into sets, DIAG frames and command answers (each in arrival order).
+
+    ``diag_bus``: the ATT_DIAG_BUS frames (a node on a Cortex-M port that reports its CAN controller).
+    """
 
     sets: NDArray[np.void]
     diag: NDArray[np.void]
     answers: list[Answer] = field(default_factory=list)
     other: int = 0
+    diag_bus: NDArray[np.void] = field(default_factory=lambda: np.zeros(0, DIAG_BUS_DTYPE))
 
 
 def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
@@ -387,6 +412,16 @@ def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
         for j, name in enumerate(DIAG_FIELDS):
             diag[name] = d[:, 2 + j]
         diag["crc_ok"] = _e2e_rows(ids[di], d[:, 1:8]) == d[:, 0]
+    bi = np.nonzero(ids == ID_DIAG_BUS)[0]
+    diag_bus = np.zeros(bi.shape[0], DIAG_BUS_DTYPE)
+    if bi.shape[0]:
+        d = data[bi]
+        diag_bus["counter"] = d[:, 1] & 0xF
+        diag_bus["state"] = (d[:, 1] >> 4) & 0x3
+        for j, name in enumerate(DIAG_BUS_FIELDS):
+            diag_bus[name] = d[:, 2 + j]
+        diag_bus["lec"] = d[:, 7] & 0x7
+        diag_bus["crc_ok"] = _e2e_rows(ids[bi], d[:, 1:8]) == d[:, 0]
     answers = []
     for i in np.nonzero(answer)[0].tolist():
         d = data[i]
@@ -403,5 +438,5 @@ def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
                 crc_ok=check(fr[i]) == Check.OK,
             )
         )
-    known = np.isin(ids, np.array([*SET_IDS, ID_OUT_FD, ID_DIAG], np.uint32))
-    return OutputStream(sets=sets, diag=diag, answers=answers, other=int((~known).sum()))
+    known = np.isin(ids, np.array([*SET_IDS, ID_OUT_FD, ID_DIAG, ID_DIAG_BUS], np.uint32))
+    return OutputStream(sets=sets, diag=diag, answers=answers, other=int((~known).sum()), diag_bus=diag_bus)

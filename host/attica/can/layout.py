@@ -33,6 +33,7 @@ ID_OUT_FD = 0x210
 ID_LIN_ACC = 0x207
 ID_EARTH_ACC = 0x208
 ID_CAL_ACK = 0x209
+ID_DIAG_BUS = 0x20A
 ID_ACCEL_FD = 0x211
 ID_CMD = 0x300
 DATA_ID_BASE = 0x0A00
@@ -53,6 +54,7 @@ MSG_LEN = {
     ID_LIN_ACC: 8,
     ID_EARTH_ACC: 8,
     ID_CAL_ACK: 8,
+    ID_DIAG_BUS: 8,
     ID_ACCEL_FD: 64,
     ID_CMD: 8,
 }
@@ -71,6 +73,11 @@ FRAC_MIN = -30
 FRAC_MAX = 30
 NA = -32768
 """int16 code of "not available" (decodes to NaN)."""
+
+BUS_STATES = ("ACTIVE", "WARNING", "PASSIVE", "BUS_OFF")
+"""ATT_DIAG_BUS.state by value (``ATT_CAN_BUS_*``): error-active, error warning, error-passive, bus-off."""
+LEC_NAMES = ("NONE", "STUFF", "FORM", "ACK", "BIT1", "BIT0", "CRC")
+"""ATT_DIAG_BUS.lec by value: the CAN controller's last error code (0: none yet)."""
 
 ACK_ANSWER = 0x80
 SET_IDS = (ID_QUAT_A, ID_QUAT_B, ID_QUAT16, ID_EULER, ID_BIAS, ID_STATUS)

@@ -11,7 +11,9 @@ Problems: ``!CRC`` (E2E CRC wrong; for ATT_STATUS of an output set over the set'
 ``!GAP+n`` (n frames of this ID missing by the alive counter), ``!DUP`` (counter repeated),
 ``!DLC`` (length or CAN FD format wrong for the ID), ``!UNKNOWN`` (not in the DBC). The counters and
 the bus load (worst-case bit stuffing, as the node computes it) are summed up at the end and, when
-watching a bus, every ``stats_every`` seconds.
+watching a bus, every ``stats_every`` seconds. A node on a Cortex-M port also reports its CAN
+controller (ATT_DIAG_BUS: bus-off episodes and recoveries, error-passive and warning entries, receive
+overruns, state, last error code): the summary repeats the last one with a good CRC.
 
 Flags (ATT_STATUS, ATT_OUT_FD) are shown by name (``flags=AT_REST|BIAS_UPDATED``, ``flags=none``).
 
@@ -150,6 +152,7 @@ class MonitorStats:
     missing_sets: int = 0  # output sets missing by the node's step and set counters (see module doc)
     samples_behind: int = 0  # most steps the node reported beyond the IMU sample periods seen (module doc)
     dropped: int = 0  # frames the monitor had to drop (receive backlog full)
+    diag_bus: dict[str, int] | None = None  # the node's last good ATT_DIAG_BUS (its CAN controller)
 
     @property
     def span(self) -> float:
@@ -343,6 +346,8 @@ class Monitor:
             probs.append("!CRC")
         elif can_id == codec.ID_OUT_FD:
             self._node_step(data[6] | data[7] << 8, data[1] & 0xF)
+        elif can_id == codec.ID_DIAG_BUS:
+            st.diag_bus = diag_bus_values(data)
         elif can_id in (codec.ID_IMU_GYRO, codec.ID_IMU_FD):
             self._imu_sample(data[1] & 0xF)
         if answer and (data[7] & 0xF) == int(codec.Cmd.RESET) and not probs:
@@ -352,7 +357,7 @@ class Monitor:
             self._imu_offset = st.imu_periods
         if (
             can_id not in codec.NO_CRC
-            and can_id not in (codec.ID_DIAG, codec.ID_CMD)
+            and can_id not in (codec.ID_DIAG, codec.ID_DIAG_BUS, codec.ID_CMD)
             and not answer
             and not probs
         ):
@@ -439,6 +444,8 @@ class Monitor:
             )
         elif st.imu_samples:
             out.append(f"IMU samples seen {st.imu_samples}; no output set from a node")
+        if st.diag_bus is not None:
+            out.append("node CAN controller (ATT_DIAG_BUS): " + diag_bus_text(st.diag_bus))
         if st.dropped:
             out.append(f"DROPPED {st.dropped} frames: the monitor fell too far behind the bus")
         if self.id_offset or self.dbc_offset:
@@ -460,6 +467,33 @@ class Monitor:
         """True when the counters show lost or dropped frames."""
         st = self.stats
         return bool(st.missing_frames or st.missing_sets or st.samples_behind > 0 or st.dropped)
+
+
+def diag_bus_values(data: bytes) -> dict[str, int]:
+    """The fields of an ATT_DIAG_BUS frame's 8 bytes (state, the counters, lec; as in the DBC)."""
+    out = {"state": (data[1] >> 4) & 0x3}
+    out.update({name: int(data[2 + j]) for j, name in enumerate(codec.DIAG_BUS_FIELDS)})
+    out["lec"] = data[7] & 0x7
+    return out
+
+
+def diag_bus_named(data: bytes) -> dict[str, int | str]:
+    """:func:`diag_bus_values`, the state and the last error code by name (ACTIVE .. BUS_OFF, NONE .. CRC)."""
+    v: dict[str, int | str] = dict(diag_bus_values(data))
+    lec = data[7] & 0x7
+    v["state"] = codec.BUS_STATES[(data[1] >> 4) & 0x3]
+    v["lec"] = codec.LEC_NAMES[lec] if lec < len(codec.LEC_NAMES) else str(lec)
+    return v
+
+
+def diag_bus_text(v: dict[str, int]) -> str:
+    """One line of ATT_DIAG_BUS fields: state, bus-off, recoveries, entries, overruns, last error code."""
+    lec = v["lec"]
+    return (
+        f"state {codec.BUS_STATES[v['state'] & 0x3]}, bus-off {v['bus_off']}, recoveries {v['recoveries']}, "
+        f"error-passive {v['error_passive']}, error warning {v['error_warning']}, rx overruns "
+        f"{v['rx_overruns']}, last error {codec.LEC_NAMES[lec] if lec < len(codec.LEC_NAMES) else lec}"
+    )
 
 
 def decoded_fields(line: str) -> tuple[str, str, dict[str, str]]:

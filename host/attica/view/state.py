@@ -4,10 +4,10 @@ Every frame of the source goes through :meth:`ViewState.feed`, which costs a few
 checks and counters are those of ``attica monitor`` (:class:`attica.can.monitor.Monitor`: E2E CRC,
 alive-counter gaps, repeats, DLC, unknown IDs, bus load, output sets lost by the node's step counter),
 and the frames the page needs are only kept, not decoded: the last output set with good CRCs, the last
-ATT_DIAG, the last IMU sample's parts. :meth:`ViewState.snapshot`, called at the display rate, decodes
-those with the codec of :mod:`attica.can.frames` (``decode_outputs``: the same values as the DBC) and
-appends one point to the rolling history of the plots. A 1 kHz node is therefore decoded 30 times a
-second, not 1000, and nothing the page does can hold up the bus reader (latest wins).
+ATT_DIAG and ATT_DIAG_BUS, the last IMU sample's parts. :meth:`ViewState.snapshot`, called at the
+display rate, decodes those with the codec of :mod:`attica.can.frames` (``decode_outputs``: the same
+values as the DBC) and appends one point to the rolling history of the plots. A 1 kHz node is therefore
+decoded 30 times a second, not 1000, and nothing the page does can hold up the bus reader (latest wins).
 
 The snapshot is plain JSON data (NaN and infinities as ``null``); its fields are described in
 docs/view.md.
@@ -29,7 +29,7 @@ import numpy as np
 from attica.can import codec
 from attica.can.calibration import REASONS, SET_CONVENTION, decode_cal_ack
 from attica.can.idoffset import from_bus
-from attica.can.monitor import Monitor
+from attica.can.monitor import Monitor, diag_bus_named
 from attica.settings import FilterKind, Flag
 
 __all__ = [
@@ -171,6 +171,7 @@ class _Latest:
     set_seq: int = 0
     diag: bytes | None = None
     diag_ts: float = 0.0
+    diag_bus: bytes | None = None  # ATT_DIAG_BUS: the CAN controller of a node on a Cortex-M port
     imu: dict[int, bytes] = field(default_factory=dict)
     imu_ts: float = 0.0
     quat: dict[int, bytes] = field(default_factory=dict)
@@ -314,6 +315,8 @@ class ViewState:
         elif can_id == codec.ID_DIAG:
             latest.diag = data
             latest.diag_ts = ts
+        elif can_id == codec.ID_DIAG_BUS:
+            latest.diag_bus = data
         elif can_id == codec.ID_CAL_ACK:
             ack = decode_cal_ack(m)
             if ack is not None:
@@ -596,6 +599,7 @@ class ViewState:
                 "imu": imu,
                 "health": self._health(now),
                 "diag": self._diag(),
+                "diag_bus": None if self._latest.diag_bus is None else diag_bus_named(self._latest.diag_bus),
                 "events": list(self._events)[-20:],
                 "commands": [c.as_json() for c in self._commands],
                 "history_seq": self._history_seq,

@@ -2445,6 +2445,163 @@ bool att_can_db_att_cal_ack_session_is_in_phys_range(float value)
     return ((value >= 0.0f) && (value <= 255.0f));
 }
 
+int att_can_db_att_diag_bus_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_diag_bus_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    dst_p[1] |= pack_left_shift_u8(src_p->state, 4u, 0x30u);
+    dst_p[2] |= pack_left_shift_u8(src_p->bus_off, 0u, 0xffu);
+    dst_p[3] |= pack_left_shift_u8(src_p->recoveries, 0u, 0xffu);
+    dst_p[4] |= pack_left_shift_u8(src_p->error_passive, 0u, 0xffu);
+    dst_p[5] |= pack_left_shift_u8(src_p->error_warning, 0u, 0xffu);
+    dst_p[6] |= pack_left_shift_u8(src_p->rx_overruns, 0u, 0xffu);
+    dst_p[7] |= pack_left_shift_u8(src_p->lec, 0u, 0x07u);
+
+    return (8);
+}
+
+int att_can_db_att_diag_bus_unpack(
+    struct att_can_db_att_diag_bus_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    dst_p->state = unpack_right_shift_u8(src_p[1], 4u, 0x30u);
+    dst_p->bus_off = unpack_right_shift_u8(src_p[2], 0u, 0xffu);
+    dst_p->recoveries = unpack_right_shift_u8(src_p[3], 0u, 0xffu);
+    dst_p->error_passive = unpack_right_shift_u8(src_p[4], 0u, 0xffu);
+    dst_p->error_warning = unpack_right_shift_u8(src_p[5], 0u, 0xffu);
+    dst_p->rx_overruns = unpack_right_shift_u8(src_p[6], 0u, 0xffu);
+    dst_p->lec = unpack_right_shift_u8(src_p[7], 0u, 0x07u);
+
+    return (0);
+}
+
+int att_can_db_att_diag_bus_init(struct att_can_db_att_diag_bus_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_diag_bus_t));
+
+    return 0;
+}
+
+bool att_can_db_att_diag_bus_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_diag_bus_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_diag_bus_state_is_in_range(uint8_t value)
+{
+    return (value <= 3u);
+}
+
+bool att_can_db_att_diag_bus_state_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 3.0f));
+}
+
+bool att_can_db_att_diag_bus_bus_off_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_bus_off_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_recoveries_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_recoveries_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_error_passive_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_error_passive_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_error_warning_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_error_warning_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_rx_overruns_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_diag_bus_rx_overruns_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_diag_bus_lec_is_in_range(uint8_t value)
+{
+    return (value <= 7u);
+}
+
+bool att_can_db_att_diag_bus_lec_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 7.0f));
+}
+
 int att_can_db_att_accel_fd_pack(
     uint8_t *dst_p,
     const struct att_can_db_att_accel_fd_t *src_p,

@@ -60,6 +60,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_LIN_ACC_FRAME_ID (0x207u)
 #define ATT_CAN_DB_ATT_EARTH_ACC_FRAME_ID (0x208u)
 #define ATT_CAN_DB_ATT_CAL_ACK_FRAME_ID (0x209u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_FRAME_ID (0x20au)
 #define ATT_CAN_DB_ATT_ACCEL_FD_FRAME_ID (0x211u)
 #define ATT_CAN_DB_CMD_FRAME_ID (0x300u)
 
@@ -79,6 +80,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_LIN_ACC_LENGTH (8u)
 #define ATT_CAN_DB_ATT_EARTH_ACC_LENGTH (8u)
 #define ATT_CAN_DB_ATT_CAL_ACK_LENGTH (8u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LENGTH (8u)
 #define ATT_CAN_DB_ATT_ACCEL_FD_LENGTH (64u)
 #define ATT_CAN_DB_CMD_LENGTH (8u)
 
@@ -98,6 +100,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_LIN_ACC_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_EARTH_ACC_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_CAL_ACK_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_DIAG_BUS_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_ACCEL_FD_IS_EXTENDED (0)
 #define ATT_CAN_DB_CMD_IS_EXTENDED (0)
 
@@ -173,6 +176,19 @@ extern "C" {
 
 #define ATT_CAN_DB_ATT_EARTH_ACC_EARTH_Z_NA_CHOICE (-32768)
 
+#define ATT_CAN_DB_ATT_DIAG_BUS_STATE_ACTIVE_CHOICE (0u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_STATE_WARNING_CHOICE (1u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_STATE_PASSIVE_CHOICE (2u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_STATE_BUS_OFF_CHOICE (3u)
+
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_NONE_CHOICE (0u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_STUFF_CHOICE (1u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_FORM_CHOICE (2u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_ACK_CHOICE (3u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_BIT1_CHOICE (4u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_BIT0_CHOICE (5u)
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_CRC_CHOICE (6u)
+
 #define ATT_CAN_DB_CMD_CMD_SELECT_FILTER_CHOICE (1u)
 #define ATT_CAN_DB_CMD_CMD_RESET_CHOICE (2u)
 #define ATT_CAN_DB_CMD_CMD_SET_GAIN_CHOICE (3u)
@@ -199,6 +215,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_LIN_ACC_NAME "ATT_LIN_ACC"
 #define ATT_CAN_DB_ATT_EARTH_ACC_NAME "ATT_EARTH_ACC"
 #define ATT_CAN_DB_ATT_CAL_ACK_NAME "ATT_CAL_ACK"
+#define ATT_CAN_DB_ATT_DIAG_BUS_NAME "ATT_DIAG_BUS"
 #define ATT_CAN_DB_ATT_ACCEL_FD_NAME "ATT_ACCEL_FD"
 #define ATT_CAN_DB_CMD_NAME "CMD"
 
@@ -299,6 +316,15 @@ extern "C" {
 #define ATT_CAN_DB_ATT_CAL_ACK_INDEX_NAME "index"
 #define ATT_CAN_DB_ATT_CAL_ACK_PERSISTED_NAME "persisted"
 #define ATT_CAN_DB_ATT_CAL_ACK_SESSION_NAME "session"
+#define ATT_CAN_DB_ATT_DIAG_BUS_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_DIAG_BUS_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_DIAG_BUS_STATE_NAME "state"
+#define ATT_CAN_DB_ATT_DIAG_BUS_BUS_OFF_NAME "bus_off"
+#define ATT_CAN_DB_ATT_DIAG_BUS_RECOVERIES_NAME "recoveries"
+#define ATT_CAN_DB_ATT_DIAG_BUS_ERROR_PASSIVE_NAME "error_passive"
+#define ATT_CAN_DB_ATT_DIAG_BUS_ERROR_WARNING_NAME "error_warning"
+#define ATT_CAN_DB_ATT_DIAG_BUS_RX_OVERRUNS_NAME "rx_overruns"
+#define ATT_CAN_DB_ATT_DIAG_BUS_LEC_NAME "lec"
 #define ATT_CAN_DB_ATT_ACCEL_FD_CRC_NAME "crc"
 #define ATT_CAN_DB_ATT_ACCEL_FD_COUNTER_NAME "counter"
 #define ATT_CAN_DB_ATT_ACCEL_FD_VALID_NAME "valid"
@@ -1244,6 +1270,96 @@ struct att_can_db_att_cal_ack_t {
      * Offset: 0
      */
     uint8_t session;
+};
+
+/**
+ * Signals in message ATT_DIAG_BUS.
+ *
+ * CAN controller diagnostics of the node's port (bxCAN, FDCAN), right after ATT_DIAG, only from a node whose port reports them (att_node_set_bus_diag). Counters saturate at 255.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_diag_bus_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C0A and bytes 1..7.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * Output set counter of the set it follows (the same as its ATT_DIAG).
+     *
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * Fault confinement state when sent: 0 error-active, 1 error warning (an error counter >= 96), 2 error-passive (> 127), 3 bus-off (in back-off or recovering).
+     *
+     * Range: 0..3 (0..3 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t state;
+
+    /**
+     * Bus-off episodes entered.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t bus_off;
+
+    /**
+     * Bus-off episodes ended: the controller back on the bus after the port's recovery (after its back-off delay).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t recoveries;
+
+    /**
+     * Entries into error-passive.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t error_passive;
+
+    /**
+     * Entries into error warning.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t error_warning;
+
+    /**
+     * Receive FIFO overruns (frames lost in the controller).
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t rx_overruns;
+
+    /**
+     * Last error code the controller reported (0 none yet, 1 stuff, 2 form, 3 acknowledgment, 4 bit recessive, 5 bit dominant, 6 CRC).
+     *
+     * Range: 0..7 (0..7 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t lec;
 };
 
 /**
@@ -4071,6 +4187,241 @@ bool att_can_db_att_cal_ack_session_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool att_can_db_att_cal_ack_session_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_DIAG_BUS.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_diag_bus_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_diag_bus_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_DIAG_BUS.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_diag_bus_unpack(
+    struct att_can_db_att_diag_bus_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_DIAG_BUS.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_diag_bus_init(struct att_can_db_att_diag_bus_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_state_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_state_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_bus_off_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_bus_off_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_recoveries_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_recoveries_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_error_passive_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_error_passive_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_error_warning_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_error_warning_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_rx_overruns_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_rx_overruns_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_lec_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_diag_bus_lec_is_in_phys_range(float value);
 
 /**
  * Pack message ATT_ACCEL_FD.

@@ -359,6 +359,7 @@
     ["silent_s", "last frame", (h) => (finite(h.silent_s) ? `${h.silent_s.toFixed(1)} s ago` : "none yet")],
   ];
   const DIAG_ROWS = ["crc_errors", "counter_gaps", "dlc_errors", "unknown_ids", "duplicates", "stale_partials"];
+  const BUS_ROWS = ["bus_off", "recoveries", "error_passive", "error_warning", "rx_overruns"];
 
   function table(id, rows) {
     const t = $(id);
@@ -418,6 +419,12 @@
     const d = st.diag;
     const drows = DIAG_ROWS.map((k) => [k, k.replace("_", " "), d ? String(d[k]) : "–", d && d[k] > 0]);
     drows.push(["error_count", "error count (ATT_STATUS)", att ? String(att.error_count) : "–", att && att.error_count > 0]);
+    const b = st.diag_bus; // only from a node whose port reports its CAN controller (ATT_DIAG_BUS)
+    if (b) {
+      drows.push(["bus_state", "CAN controller", b.state, b.state !== "ACTIVE"]);
+      for (const k of BUS_ROWS) drows.push([`bus_${k}`, k.replace("_", " "), String(b[k]), b[k] > 0]);
+      drows.push(["bus_lec", "last bus error", b.lec, b.lec !== "NONE"]);
+    }
     table("diag", drows);
     // commands
     const canCmd = S.hello && S.hello.can_command && st.can_command;
