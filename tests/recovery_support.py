@@ -286,3 +286,51 @@ def samples_to_recover(ok: np.ndarray) -> int | None:
         return None
     bad = np.nonzero(~ok)[0]
     return int(bad[-1]) + 2 if bad.size else 1
+
+
+# --- float64 attitudes (the D1 checks of the gyro baseline) -------------------------------------------
+
+
+def quat_from_euler64(e: Any) -> np.ndarray:
+    """ZYX Euler angles (phi, theta, psi), rad, to q = Qz(psi) Qy(theta) Qx(phi) (w, x, y, z), float64."""
+    h = 0.5 * np.asarray(e, np.float64)
+    cr, sr = np.cos(h[..., 0]), np.sin(h[..., 0])
+    cp, sp = np.cos(h[..., 1]), np.sin(h[..., 1])
+    cy, sy = np.cos(h[..., 2]), np.sin(h[..., 2])
+    return np.stack(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ],
+        axis=-1,
+    )
+
+
+def turned64(q: Any, w: Any, dt: float) -> np.ndarray:
+    """q * exp(w dt / 2): the attitude q (w, x, y, z) after a constant body rate w (rad/s) over dt."""
+    a = np.asarray(q, np.float64)
+    v = np.asarray(w, np.float64) * float(dt)
+    angle = float(np.linalg.norm(v))
+    d = (
+        np.array([1.0, 0.0, 0.0, 0.0])
+        if angle == 0.0
+        else np.r_[math.cos(angle / 2), v / angle * math.sin(angle / 2)]
+    )
+    return np.array(
+        [
+            a[0] * d[0] - a[1] * d[1] - a[2] * d[2] - a[3] * d[3],
+            a[0] * d[1] + a[1] * d[0] + a[2] * d[3] - a[3] * d[2],
+            a[0] * d[2] - a[1] * d[3] + a[2] * d[0] + a[3] * d[1],
+            a[0] * d[3] + a[1] * d[2] - a[2] * d[1] + a[3] * d[0],
+        ]
+    )
+
+
+def quat_angle(q: Any, r: Any) -> float:
+    """The angle (rad) of the rotation between two unit quaternions."""
+    a = np.asarray(q, np.float64)
+    b = np.asarray(r, np.float64)
+    d = abs(float(np.dot(a / np.linalg.norm(a), b / np.linalg.norm(b))))
+    return 2.0 * math.acos(min(1.0, d))

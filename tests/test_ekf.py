@@ -596,10 +596,13 @@ def test_variance_cap_every_16_steps() -> None:
 
 
 BAD_P: list[list[list[float]]] = [
-    [[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]],  # singular: correlations shrunk by 1 - 2^-10
+    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],  # with the bias x, y block singular: shrunk
     [[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0]],  # indefinite: correlations dropped
-    [[1.0, 2.0, -3.0], [2.0, 1.0, 0.5], [-3.0, 0.5, 1.0]],  # far from PD: correlations dropped
+    [[1.0, 0.5, -3.0], [0.5, 1.0, 2.0], [-3.0, 2.0, 1.0]],  # far from PD: correlations dropped
 ]
+"""Angle blocks that are not positive definite with margin, their roll/pitch block well away from singular
+(a near singular roll/pitch block is conditioned at once: test_near_singular_roll_pitch_block; the
+first case's singular block is the bias x, y block instead)."""
 
 
 def _force_p(f: Any, ref: Ekf, full: np.ndarray) -> None:
@@ -613,12 +616,15 @@ def _force_p(f: Any, ref: Ekf, full: np.ndarray) -> None:
 @pytest.mark.parametrize("cross", [0.0, 1e-3])
 def test_covariance_repair(angles: list[list[float]], cross: float) -> None:
     """A P that is not positive definite (forced in from outside: the angle block as given, bias
-    variances 1e-4, angle-bias covariances `cross`) is repaired at the conditioning step, the same in
-    C and reference: its correlations multiplied by 1 - 2^-10 when that makes it positive definite with
-    margin, else set to zero. The twin that skips the conditioning (steps = 1) gives the P before it."""
+    variances 1e-4 (the first case: bias x and y fully correlated), angle-bias covariances `cross`) is
+    repaired at the conditioning step, the same in C and reference: its correlations multiplied by
+    1 - 2^-10 when that makes it positive definite with margin, else set to zero. The twin that skips the
+    conditioning (steps = 1) gives the P before it."""
     full = np.full((6, 6), cross)
     full[:3, :3] = angles
     full[3:, 3:] = np.eye(3) * 1e-4
+    if angles is BAD_P[0]:
+        full[3, 4] = full[4, 3] = 1e-4
     for g, a in (((NAN, 0, 0), (NAN, 0, 0)), ((0.1, 0.2, 0.3), (0.5, 0.3, 9.7))):
         s = ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3))
         f, ref = pair(s)
@@ -640,10 +646,42 @@ def test_covariance_repair(angles: list[list[float]], cross: float) -> None:
             continue
         assert_same_bits(after[list(DIAG)], before[list(DIAG)], "variances kept")
         off = [k for k in range(21) if k not in DIAG]
-        if angles[0][1] == 1.0:
+        if angles is BAD_P[0]:
             assert_same_bits(after[off], before[off] * F32(1 - 2**-10), "shrunk")
         else:
             assert (after[off] == 0).all()
+
+
+@pytest.mark.parametrize(
+    ("corr", "near"), [(1.0, True), (1.0 + 2**-20, True), (0.99995, True), (-0.99995, True), (0.999, False)]
+)
+def test_near_singular_roll_pitch_block(corr: float, near: bool) -> None:
+    """F12 (docs/robustness.md): float32 cannot carry a roll/pitch block of P whose correlation is within
+    rounding of +-1 (rounding in an update or a prediction makes it indefinite). A block within the margin
+    of att_ekf_pd_ok's second pivot (det P2 <= 2^-12 P00 P11: |corr| >= 1 - 2^-13 after the prediction) is
+    conditioned at the end of the same step (CLAMPED; correlations shrunk by 1 - 2^-10), off the 16-step
+    schedule (steps = 1 here) when no update follows (NaN accel: CLAMPED); a block just outside the margin
+    (corr 0.999, 1 - corr^2 = 2e-3) is not. With an update the conditioning acts only when the update left P
+    short of the margin (here it does not: P 1 against R 0.01 takes 1 - corr^2 from 2e-5 to 4e-3); either
+    way P leaves the step positive definite with margin. C and reference bit for bit. Before the fix the
+    near blocks stayed as they were until the 16th step (P not positive definite at corr >= 1)."""
+    s = ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3))
+    full = np.eye(6) * 1e-4
+    full[:3, :3] = np.eye(3)
+    full[0, 1] = full[1, 0] = corr
+    for acc in ((NAN, 0, 0), (0.5, 0.3, 9.7)):
+        f, ref = pair(s)
+        f[0].st.steps = 1
+        load_c_state(ref, Ekf.STATE, 0, f[0])
+        _force_p(f, ref, full)
+        fl = step_both(f, ref, (0.01, -0.02, 0.03), acc)
+        assert not fl & Flag.NUMERIC
+        if np.isnan(acc[0]):
+            assert bool(fl & Flag.CLAMPED) == near, (corr, Flag(fl))
+        if near or not np.isnan(acc[0]):
+            p = unpack(p_of(f)).astype(np.float64)
+            pivots = np.diag(np.linalg.cholesky(p)) ** 2
+            assert (pivots > 2**-12 * np.diag(p)).all()
 
 
 # --- individual bad inputs -----------------------------------------------------------------------
@@ -787,7 +825,9 @@ def test_unusable_update_restarts_the_covariance() -> None:
     e, b, p = state(f)
     te, tb, tp = state(twin)
     assert e == before and te != before and b == tb  # the angles and the bias from before the step
-    assert np.isfinite(tp).all() and tp[15] > 1e38  # the twin keeps the (usable) prediction
+    # the twin keeps the (usable) prediction, not restarted; its roll/pitch block is indefinite (P01 1.8e25
+    # against sqrt(P00 P11) 1.6e17), so P is conditioned at once (F12): roll variance capped at p_max
+    assert np.isfinite(tp).all() and tf & Flag.CLAMPED and tp[0] == F32(s.p_max)
     start = np.zeros(21, np.float32)
     start[[0, 6, 11]] = s.p0
     start[[15, 18, 20]] = s.p0_bias

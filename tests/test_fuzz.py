@@ -5,8 +5,8 @@ seconds in its ASan+UBSan and MSan builds from the seed corpora, the host parser
 atheris, and every reproducer in tests/fuzz/regressions/ runs once. The filter findings are defects of
 the filter core; the fixed ones' regressions must pass. A new open finding gets its class in
 tests/fuzz/known_findings.txt, its reproducer in tests/fuzz/regressions/ and a strict xfail here
-(OPEN_FINDINGS: F12). STUCK is the recovery contract of tests/test_recovery.py, and it can fail
-(test_the_recovery_check_can_fail).
+(OPEN_FINDINGS; none open today: F12 was the last). STUCK is the recovery contract of
+tests/test_recovery.py, and it can fail (test_the_recovery_check_can_fail).
 """
 
 from __future__ import annotations
@@ -173,17 +173,17 @@ FILTER_FINDINGS = {
     "bias variances at 0 (the cap is now never below p0_bias)",
     "filter-mekf-BIAS_FINITE-recover.bin": "F11 mekf: gate 3.5e-43: the gate recovery's growth "
     "|y|^2 / (gate/4) overflowed, the update made the bias NaN (the growth is now at most p_max)",
+    "filter-ekf-P_SPD-gimbal-init.bin": "F12 ekf: seed preset, dt 1/285.714 s; the init at a gimbal-clamped "
+    "attitude left P00 at p_max (1e6), ten rejected accel samples let the roll/pitch correlation reach "
+    "-0.99999998 (P11 1e4), and the first accepted update (step 14) left P not positive definite (diag 21.8, "
+    "0.27, 2.3); a roll/pitch block within the pivot margin (det P2 <= 2^-12 P00 P11) is now conditioned "
+    "at the end of its step",
 }
 
 
-# open findings: reproducer -> the defect (of the filter core, not fixed yet: a strict xfail below)
-OPEN_FINDINGS = {
-    "filter-ekf-P_SPD-open.bin": "F12 ekf (open): seed preset, dt 1/285.714 s; the init at a gimbal-clamped "
-    "attitude leaves P00 at p_max (1e6) and the accel samples are rejected for 10 steps (P11 grows to 1e4); "
-    "the first accepted update (step 14) leaves P not positive definite (diag 21.8, 0.27, 2.3). Found by "
-    "fuzz_filter (issue 26's recovery work, 268k executions, 240 s at nice 19), also with the harness and "
-    "firmware of main ad01ff8",
-}
+# open findings: reproducer -> the defect (of the filter core, not fixed yet: a strict xfail below). None
+# today (F12, the last, was fixed in issue 26: its reproducer is in FILTER_FINDINGS).
+OPEN_FINDINGS: dict[str, str] = {}
 
 
 def test_every_regression_is_listed() -> None:
@@ -198,18 +198,26 @@ class OpenFindingError(Exception):
 @pytest.mark.xfail(
     strict=True,
     raises=OpenFindingError,
-    reason="F12: the ekf's P loses positive definiteness at an update after a gimbal-clamped init (open "
-    "defect of the filter core, not changed here)",
+    reason="an open defect of the filter core (OPEN_FINDINGS): its reproducer fails with its own class",
 )
 @pytest.mark.parametrize("name", sorted(OPEN_FINDINGS))
 def test_open_finding(built: Path, name: str) -> None:
-    """Each open finding's reproducer, strict (no known list): it fails with its own class until its defect
-    is fixed (any other failure is an error); then this xfail turns into an error and the reproducer moves to
-    FILTER_FINDINGS."""
+    """Each open finding's reproducer, strict (no known list): it fails with its own class (the kind and
+    invariant of its name, filter-<kind>-<INVARIANT>-....bin) until its defect is fixed (any other failure is
+    an error); then this xfail turns into an error and the reproducer moves to FILTER_FINDINGS. No finding
+    is open today (the empty parameter set is skipped)."""
     r = _run(built / "fuzz_filter", str(REG / name))
     if r.returncode != 0:
-        assert "ekf:P_SPD: step 14: P not positive definite" in r.stderr, r.stderr[-2000:]
+        kind, invariant = name.split("-")[1:3]
+        assert f"{kind}:{invariant}: " in r.stderr, r.stderr[-2000:]
         raise OpenFindingError(OPEN_FINDINGS[name])
+
+
+def test_no_finding_is_open() -> None:
+    """F12, the last open finding of the filter core, is fixed: its reproducer passes strictly
+    (test_filter_regression) and no class is known (tests/fuzz/known_findings.txt lists none)."""
+    assert not OPEN_FINDINGS
+    assert "filter-ekf-P_SPD-gimbal-init.bin" in FILTER_FINDINGS
 
 
 def test_known_findings_are_the_open_ones() -> None:

@@ -10,8 +10,11 @@
  * clamped to +-cos_min and ATT_FLAG_GIMBAL is set (the rates stay finite but are wrong there: that
  * is the singularity of the representation). theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped
  * to the equivalent (phi + pi, +-pi - theta, psi + pi), so it always lies in [-pi/2, pi/2]; phi and
- * psi are wrapped to (-pi, pi]. ATT_FLAG_NUMERIC (state kept) when the integrated angles are not
- * finite (or beyond the range of att_wrap_pi).
+ * psi are wrapped to (-pi, pi]. A step whose Euler increments are not representable (a roll or yaw
+ * angle not finite or beyond the range of att_wrap_pi, 8192 rad: sec(theta) rate dt near +-pi/2 with
+ * cos_min below |cos(theta)|) instead turns the attitude by w dt as a quaternion, q exp(w dt / 2), and
+ * reads consistent ZYX angles back from it (ATT_FLAG_GIMBAL); ATT_FLAG_NUMERIC (state kept) only if
+ * that fails too.
  */
 #ifndef ATT_GYRO_H
 #define ATT_GYRO_H

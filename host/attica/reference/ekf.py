@@ -162,6 +162,14 @@ def _pd_ok(p: list[Any]) -> Any:
         return ok
 
 
+def _near_singular(p: list[Any]) -> Any:
+    """att_ekf_near_singular: det P2 = P00 P11 - P01^2 not above 2^-12 P00 P11 (or not finite)."""
+    with np.errstate(all="ignore"):
+        pp = p[0] * p[6]
+        dp = pp - p[1] * p[1]
+        return ~(dp > PIVOT_MIN * pp)
+
+
 def _condition(p: list[Any], p_max: Any, pb_max: Any) -> tuple[list[Any], Any]:
     """att_ekf_condition: (P, changed) with the caps (p_max, pb_max bias), PD test and repair."""
     with np.errstate(all="ignore"):
@@ -481,7 +489,8 @@ class Ekf:
             fa = dm.ONE + self.r_accel * e2
             r1 = self.r_step[1] * fa
             r0 = (self.r_step[0] * fa) * (sec * sec)
-            dp = p[0] * p[6] - p[1] * p[1]
+            pp = p[0] * p[6]
+            dp = pp - p[1] * p[1]
             dp = np.where(dp > dm.ZERO, dp, dm.ZERO).astype(np.float32)
             t0 = dp + r1 * p[0]
             t1 = dp + r0 * p[6]
@@ -628,7 +637,10 @@ class Ekf:
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
-            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p)
+            # the roll/pitch block of the predicted P near singular (att_ekf_near_singular, F12): tested by
+            # the update (its prior) or att_ekf_check (a usable P; not after a restart in either)
+            near = _near_singular(p_p) & ~drop_u
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | near)
             r2 = self.gyro_range * self.gyro_range
             rb = np.where(r2 > self.p0_bias, r2, self.p0_bias)
             p_c, changed = _condition(self.p, self.p_max, np.where(rb < self.p_max, rb, self.p_max))

@@ -17,6 +17,23 @@ _PI = dm.c("0x1.921fb6p+1")
 _PIO2 = dm.c("0x1.921fb6p+0")
 
 
+def rotated_euler(q0: dm.Quat, w: dm.Vec3, dt: Any) -> tuple[Any, dm.Vec3]:
+    """gyro_rotate of att_gyro.c (D1): the attitude q0 turned by the body rotation vector w dt.
+
+    The turn as a quaternion, then consistent ZYX Euler angles of it, accurate also at pitch +-pi/2.
+    Returns (ok, (phi, theta, psi)).
+    """
+    ok, qu = dm.quat_normalize_bounded(dm.quat_mul(q0, dm.quat_from_rotvec(dm.vec3_scale(w, dt))))
+    m = dm.quat_to_matrix(qu)
+    psi = dm.atan2f(m[3], m[0])
+    sps = dm.sinf(psi)
+    cps = dm.cosf(psi)
+    theta = dm.atan2f(-m[6], cps * m[0] + sps * m[3])
+    phi = dm.atan2f(sps * m[2] - cps * m[5], cps * m[4] - sps * m[1])
+    theta = dm.clampf(theta, -_PIO2, _PIO2)
+    return ok, (dm.wrap_pi(phi), theta, dm.wrap_pi(psi))
+
+
 class Gyro:
     """Gyro-only baseline reference; ``n`` instances sharing one settings object."""
 
@@ -81,8 +98,15 @@ class Gyro:
             ez = dm.wrap_pi(ez)
             e = (ex, ey, ez)
             finite = dm.vec3_isfinite(e)
-            flags = flags | np.where(ok & ~finite, np.uint32(Flag.NUMERIC), _U0)
-            take = ok & finite
+            # D1: an Euler step that is not representable turns the quaternion instead (GIMBAL)
+            rot = ok & ~finite
+            r_ok, er = rotated_euler(self.q, (p, q, r), dt)
+            r_ok = r_ok & dm.vec3_isfinite(er)
+            e = dm.vec3_where(finite, e, er)
+            flags = flags | np.where(rot & r_ok, np.uint32(Flag.GIMBAL), _U0)
+            flags = flags | np.where(rot & ~r_ok, np.uint32(Flag.NUMERIC), _U0)
+            take = ok & (finite | r_ok)
+            ex, ey, ez = e
             self.euler = dm.vec3_where(take, e, self.euler)
             self.q = dm.quat_where(take, dm.quat_from_euler(ex, ey, ez), self.q)
         self.steps = self.steps + np.uint32(1)

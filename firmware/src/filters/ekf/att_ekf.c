@@ -22,7 +22,7 @@
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
 #define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
-#define ATT_EKF_COND_NOW 0x80000000u         /* internal flag of the prediction: condition P this step */
+#define ATT_EKF_COND_NOW 0x80000000u         /* internal flag (prediction, tests of P): condition P this step */
 /* Increments of an angle up to which sin/cos follow by angle addition (att_ekf_sincos_step) */
 #define ATT_EKF_INC_MAX 0x1p-4f    /* 1/16 rad */
 #define ATT_EKF_INC_S3 (-0x1.555556p-3f) /* -1/6 */
@@ -279,7 +279,8 @@ static bool att_ekf_pd_ok(const float *p)
 }
 
 /*
- * Conditioning (every 16 steps, at every step flagged GIMBAL, after an increment beyond 1/16 rad): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
+ * Conditioning (every 16 steps, at every step flagged GIMBAL, after an increment beyond 1/16 rad, when the
+ * roll/pitch block is near singular): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
  * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
  * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
@@ -335,13 +336,32 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
 }
 
 /*
+ * The roll/pitch block of P within the margin of att_ekf_pd_ok's second pivot of singular (F12):
+ * det P2 = P00 P11 - P01^2 not above 2^-12 P00 P11, i.e. a correlation of roll and pitch beyond
+ * 1 - 2^-13 in magnitude (or not finite). float32 cannot carry such a block: a roll variance left at
+ * p_max (an initialisation at the gimbal, roll unobservable there) feeds pitch through F's coupling
+ * (a10 = -dt u) until the correlation is within 1e-8 of -1, and rounding of the next update (or
+ * prediction) makes P indefinite. Then P is conditioned at the end of the step (ATT_EKF_COND_NOW:
+ * the correlations shrink by 1 - 2^-10, enough for the margin). att_ekf_update tests its prior
+ * with the det P2 it computes anyway (its posterior block is at least as far from singular:
+ * det / (P00 P11) does not decrease in an update); this is the same test for a step without one.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_ekf_near_singular(const float *p)
+{
+    const float pp = P_(p, 0, 0) * P_(p, 1, 1);
+    const float dp = pp - P_(p, 0, 1) * P_(p, 0, 1);
+    return (dp > ATT_EKF_PIVOT_MIN * pp) ? 0u : ATT_EKF_COND_NOW;
+}
+
+/*
  * The one test of a step, on the state it leaves (att_ekf_update tests its own result; this covers a
- * step without an applied update): P that cannot be used restarts (att_ekf_p_restart). The predicted
- * angles are finite (att_ekf_predict keeps them otherwise).
+ * step without an applied update): P that cannot be used restarts (att_ekf_p_restart); a usable P
+ * whose roll/pitch block is near singular is conditioned this step (att_ekf_near_singular). The
+ * predicted angles are finite (att_ekf_predict keeps them otherwise).
  */
 static ATT_NOINLINE uint32_t att_ekf_check(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
 {
-    return att_ekf_usable(st->euler, st->p) ? 0u : att_ekf_p_restart(c, st->p);
+    return att_ekf_usable(st->euler, st->p) ? att_ekf_near_singular(st->p) : att_ekf_p_restart(c, st->p);
 }
 
 /*
@@ -834,7 +854,9 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     float fa;
     float r0;
     float r1;
+    float pp;
     float dp;
+    uint32_t cond = 0u;
     float t0;
     float t1;
     float det;
@@ -886,9 +908,15 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     fa = 1.0f + c->r_accel * e2;
     r1 = c->r_step[1] * fa;
     r0 = (c->r_step[0] * fa) * (sec * sec);
-    /* det S = det P2 + r1 P00 + r0 P11 + r0 r1 (P2 = P[0:2,0:2], det P2 >= 0): > 0 by construction */
-    dp = P_(p, 0, 0) * P_(p, 1, 1) - P_(p, 0, 1) * P_(p, 0, 1);
-    dp = (dp > 0.0f) ? dp : 0.0f;
+    /* det S = det P2 + r1 P00 + r0 P11 + r0 r1 (P2 = P[0:2,0:2], det P2 >= 0): > 0 by construction.
+     * det P2 within the pivot margin of singular (att_ekf_near_singular, F12): P conditioned after
+     * the update; only then can det P2 be below 0 (or NaN), taken as 0 (dp > 2^-12 P00 P11 >= 0 else) */
+    pp = P_(p, 0, 0) * P_(p, 1, 1);
+    dp = pp - P_(p, 0, 1) * P_(p, 0, 1);
+    if (!(dp > ATT_EKF_PIVOT_MIN * pp)) {
+        cond = ATT_EKF_COND_NOW;
+        dp = (dp > 0.0f) ? dp : 0.0f;
+    }
     t0 = dp + r1 * P_(p, 0, 0);
     t1 = dp + r0 * P_(p, 1, 1);
     det = (t0 + r0 * P_(p, 1, 1)) + r0 * r1;
@@ -932,7 +960,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
         return att_ekf_p_restart(c, pn); /* update discarded: the predicted angles and bias kept */
     }
     att_ekf_commit(c, st, e, lp1, lp2, epx, epy, ready, db3);
-    return 0u;
+    return cond;
 }
 
 /*
@@ -1039,8 +1067,9 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->recover = true;
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
-        /* near gimbal lock F grows as 1 / cos(theta), and after a large increment it is far from I:
-         * P is conditioned at once */
+        /* near gimbal lock F grows as 1 / cos(theta), after a large increment it is far from I, and a
+         * near singular roll/pitch block cannot take rounding (att_ekf_near_singular): P is conditioned
+         * at once */
         /* the bias variances capped at gyro_range^2 too (a bias beyond the range is no estimate), never
          * below their start value p0_bias (a tiny range's square underflows) */
         const float r2 = c->gyro_range * c->gyro_range;

@@ -76,6 +76,45 @@ void att_gyro_reset(att_gyro_t *f)
     f->st.flags = 0u;
 }
 
+/*
+ * D1 (issue 26): near pitch +-pi/2 with a small cos_min, sec(theta) * rate * dt gives a roll or yaw
+ * increment that att_wrap_pi cannot take (|angle| > 8192 rad, or not finite). That step used to be
+ * NUMERIC with the angles kept, and under a steady rotation the next sample repeated it for ever. The
+ * Euler representation is singular there, not the motion: such a step instead turns the attitude by
+ * the rotation vector w dt as a quaternion (exact for a constant rate over the period), q_new =
+ * q * exp(w dt / 2), and reads consistent ZYX angles back from its rotation matrix m: psi =
+ * atan2(m21, m11), then theta and phi from Rz(psi)^T m (rows 1 and 2), which stay accurate when
+ * cos(theta) is at rounding level and psi itself is noise (phi and psi alone are not defined at the
+ * pole; the attitude they give is). The step is flagged GIMBAL; NUMERIC (the state kept) only if
+ * this fails too (it cannot for an accepted sample: |w dt| <= 1e3 sqrt(3) rad). Every step whose Euler
+ * increments are representable is unchanged (the clamped, wrong rates of the GIMBAL zone included: the
+ * baseline). Mirrored by reference/gyro.py rotated_euler.
+ */
+static uint32_t gyro_rotate(att_gyro_t *f, att_vec3_t gyr, float dt)
+{
+    att_quat_t q;
+    att_vec3_t e;
+    float m[9];
+    float sps;
+    float cps;
+    const att_quat_t dq = att_i_quat_from_rotvec(att_i_vec3_scale(gyr, dt));
+    const bool ok = att_i_quat_normalize_bounded(att_i_quat_mul(f->st.q, dq), &q);
+    att_i_quat_to_matrix(q, m);
+    e.z = att_atan2f(m[3], m[0]);
+    att_i_sincosf(e.z, &sps, &cps);
+    e.y = att_atan2f(-m[6], cps * m[0] + sps * m[3]);
+    e.x = att_atan2f(sps * m[2] - cps * m[5], cps * m[4] - sps * m[1]);
+    e.y = att_i_clampf(e.y, -ATT_PIO2_F, ATT_PIO2_F);
+    e.x = att_wrap_pi(e.x);
+    e.z = att_wrap_pi(e.z);
+    if (!ok || !att_i_vec3_isfinite(e)) {
+        return ATT_FLAG_NUMERIC;
+    }
+    f->st.euler = e;
+    f->st.q = att_quat_from_euler(e.x, e.y, e.z);
+    return ATT_FLAG_GIMBAL;
+}
+
 uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
 {
     uint32_t flags;
@@ -119,7 +158,8 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
             f->st.euler = e;
             f->st.q = att_quat_from_euler(e.x, e.y, e.z);
         } else {
-            flags |= ATT_FLAG_NUMERIC;
+            /* D1: not representable as an Euler step: the rotation as a quaternion (gyro_rotate) */
+            flags |= gyro_rotate(f, gyr, dt);
         }
     }
     f->st.steps = f->st.steps + 1u;
