@@ -7,7 +7,8 @@
   stillborn, equivalent (the same object code) or an explained survivor (mutate.EXPLAINED); and the
   oracle's self test: a wrong constant is killed, the same constant spelt otherwise is equivalent (and,
   judged by the outputs alone, survives), a broken line is stillborn.
-- Every explanation still names a mutant of the current sources.
+- Every explanation and every known open gap (mutate.OPEN: survivors a test could kill and none does
+  yet; the sample tolerates them, any other unexplained survivor fails it) still names a current mutant.
 
 The whole set: ``make mutation`` (docs/robustness.md).
 """
@@ -108,6 +109,8 @@ def test_every_explanation_names_a_current_mutant() -> None:
     stale = [e for e in mutate.EXPLAINED if (e.path, e.source, e.op, e.change) not in current]
     assert not stale, "\n".join(f"{e.path}: {e.source} ({e.op} {e.change})" for e in stale)
     assert all(len(e.why) > 20 for e in mutate.EXPLAINED)
+    gone = [e for e in mutate.OPEN if (e.path, e.source, e.op, e.change) not in current]
+    assert not gone, "a known open gap no longer names a mutant: drop it from mutation.explained.OPEN"
 
 
 def test_sampled_mutants_are_killed_or_explained(tmp_path: Path) -> None:
@@ -128,7 +131,7 @@ def test_sampled_mutants_are_killed_or_explained(tmp_path: Path) -> None:
     }
     assert data["judged"] == SAMPLE
     assert data["killed"] > SAMPLE // 2
-    bad = [r for r in data["results"] if r["status"] == "survived" and not r["explained"]]
+    bad = [r for r in data["results"] if r["status"] == "survived" and not r["explained"] and not r["open"]]
     why = "survivors with no explanation (kill them with a test or explain them in mutate.EXPLAINED)"
     assert not bad, why + ":\n" + proc.stdout
     assert proc.returncode == 0, proc.stdout + proc.stderr[-2000:]
