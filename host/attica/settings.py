@@ -171,6 +171,9 @@ class MarsSettings:
     rest_gyro: float = 0.05
     rest_accel: float = 0.5
     rest_time: float = 0.5
+    mag_ref_tau: float = 20.0
+    mag_new_time: float = 20.0
+    tau_mag_fast: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -346,6 +349,9 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "integration": Integration.FIRST_ORDER,
         "tau_acc_lp": 0.0,
         "bias_mode": BiasMode.FROZEN,
+        "mag_ref_tau": 0.0,
+        "mag_new_time": 0.0,
+        "tau_mag_fast": 0.0,
     },
     FilterKind.KF: {
         "q_noise": 1e-4,

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.kinds import uses_mag
 from attica.settings import implemented_kinds
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -61,6 +62,24 @@ def sim_stream() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.f
     rec = sim.simulate(sim.SimConfig(duration=N_SIM / RATE, rate=RATE, seed=11, taps=6))
     f = np.float32
     return rec.gyr[:N_SIM].astype(f), rec.acc[:N_SIM].astype(f), rec.mag[:N_SIM].astype(f)
+
+
+N_FIELD = 14000
+
+
+def field_stream() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """A 9-axis stream whose magnetic field changes (70 s).
+
+    Disturbed for the first 30 s, then the clean field, whose vertical part grows by 6 uT at 50 s: the
+    learnt reference of the 9-axis kinds follows the norm and dip, adopts the clean field and runs its
+    fast phase (issue 23).
+    """
+    from attica import sim
+
+    dist = ((0.0, 30.0, (-12.0, 8.0, -10.0)), (50.0, 80.0, (0.0, 0.0, 6.0)))
+    rec = sim.simulate(sim.SimConfig(duration=N_FIELD / RATE, rate=RATE, seed=23, mag_disturbances=dist))
+    f = np.float32
+    return rec.gyr[:N_FIELD].astype(f), rec.acc[:N_FIELD].astype(f), rec.mag[:N_FIELD].astype(f)
 
 
 def adversarial_stream() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
@@ -119,7 +138,8 @@ def _filter(kind: Any, preset: str = "default", **kw: Any) -> Any:
 
 def run_records(kind: Any, preset: str, stream: str, full: bool) -> NDArray[np.void]:
     """Records of one kind over one stream (the binding's batch run)."""
-    g, a, m = sim_stream() if stream == "sim" else adversarial_stream()
+    streams = {"sim": sim_stream, "adversarial": adversarial_stream, "field": field_stream}
+    g, a, m = streams[stream]()
     return _filter(kind, preset).run(g, a, m, full=full, check_units=False)  # type: ignore[no-any-return]
 
 
@@ -268,6 +288,7 @@ def cases() -> Iterator[Case]:
     """Every digest case, in file order."""
     yield Case("input.sim", partial(_inputs, sim_stream))
     yield Case("input.adversarial", partial(_inputs, adversarial_stream))
+    yield Case("input.field", partial(_inputs, field_stream))
     for kind in implemented_kinds():
         k = kind.label
         for preset in ("default", "seed"):
@@ -275,6 +296,8 @@ def cases() -> Iterator[Case]:
                 for full in (True, False):
                     part = "run" if full else "step"
                     yield Case(f"{k}.{preset}.{stream}.{part}", partial(_run, kind, preset, stream, full))
+        if uses_mag(kind):
+            yield Case(f"{k}.default.field.run", partial(_run, kind, "default", "field", True))
         yield Case(f"{k}.calib", partial(calib_digest, kind))
         yield Case(f"{k}.retune", partial(retune_digest, kind))
         if k != "tilt":

@@ -32,6 +32,17 @@
  *     by more than mag_dip_reject (tested as m'_z outside |m| sin(dip0 -+ mag_dip_reject), the interval
  *     limited to +-pi/2 where sin is monotonic), or when the direction is degenerate (horizontal mode:
  *     |h| == 0 or no horizontal m0).
+ *     The reference is estimated, not frozen: the steps count the accepted samples and those rejected by
+ *     norm or dip (summing their |m| and earth-frame vertical field m'_z) in blocks of 1 s (at least one
+ *     sample). At the end of a block with more accepted than rejected samples, the norm and sin(dip) of
+ *     m0 move toward the block's means (sum m'_z / sum |m|) by k_ref = T / (mag_ref_tau + T), T the
+ *     block length, its horizontal direction kept: a slowly changing field stays accepted. A block with
+ *     at least as many rejected samples is a candidate field; when the following blocks stay within half
+ *     the rejection bounds of the candidate's running mean (norm within mag_norm_reject / 2 of it,
+ *     sin(dip) within mag_dip_reject / 2) for mag_new_time, the candidate becomes m0: the heading is
+ *     never tied to whatever field the first samples saw. After the heading alignment and after a new
+ *     reference, the correction uses tau_mag_fast instead of tau_mag for 3 tau_mag_fast (fast
+ *     convergence). Blocks without mag samples change nothing.
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
  *  When the direction to correct is exactly opposite to the reference (cross product too small to
  *  normalise), a fixed axis perpendicular to the reference is used: accel: x = (1, 0, 0); full mag:
@@ -110,6 +121,12 @@ typedef struct {
     float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
     float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;              /**< ... for at least rest_time, s, [0, 1e4] */
+    float mag_ref_tau;            /**< time constant of the reference field's norm and dip, learnt from the
+                                       accepted samples, s, [0, 1e4]; 0 = kept as first set */
+    float mag_new_time;           /**< a rejected field that stays steady this long becomes the reference,
+                                       s, [0, 1e4]; 0 = never */
+    float tau_mag_fast;           /**< mag time constant for 3 tau_mag_fast after the heading was aligned or
+                                       a new reference adopted, s, [0, 1e4]; 0 = off */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -136,6 +153,15 @@ typedef struct {
     bool lp_on;               /**< k_lp > 0: the accel low-pass is used */
     bool reject_on;           /**< accel_reject > 0: the rejection test is made */
     bool full;               /**< k_acc == 1: full alignment with the low-passed gravity, no trig */
+    bool ref_on;             /**< mag_ref_tau > 0: the reference's norm and dip follow the accepted samples */
+    float k_fast;            /**< per-sample mag gain of the fast phase (k_mag when tau_mag_fast is 0) */
+    float k_fast1;           /**< 1 - k_fast */
+    float k_ref;             /**< per-block gain of the reference's norm and sin(dip), [0, 1) */
+    float cand_tol_n;        /**< relative norm tolerance of a steady new field (mag_norm_reject / 2; Inf = none) */
+    float cand_tol_s;        /**< sin(dip) tolerance of a steady new field (mag_dip_reject / 2; Inf = none) */
+    uint32_t blk_n;          /**< samples per block of the reference statistics (1 s, at least 1) */
+    uint32_t new_n;          /**< steady blocks before a new field is adopted (0 = never) */
+    uint32_t fast_n;         /**< samples of the fast phase (0 = none) */
 } att_mars_coeffs_t;
 
 /** Dynamic state of a 9-axis filter instance. */
@@ -155,6 +181,17 @@ typedef struct {
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
+    float acc_norm;        /**< sum of |m| of the accepted samples of this block, uT */
+    float acc_z;           /**< sum of the vertical (earth z) field of the accepted samples of this block, uT */
+    float rej_norm;        /**< sum of |m| of the samples rejected by norm or dip in this block, uT */
+    float rej_z;           /**< sum of their vertical field, uT */
+    float cand_norm;       /**< candidate new reference: mean |m| of the steady rejected blocks, uT */
+    float cand_sin;        /**< candidate's sin(dip): mean vertical / |m| of those blocks */
+    uint32_t blk;          /**< steps of this block (since the reference was set) */
+    uint32_t acc_n;        /**< accepted samples in this block */
+    uint32_t rej_n;        /**< samples rejected by norm or dip in this block */
+    uint32_t cand_n;       /**< consecutive steady blocks of the candidate (0 = none) */
+    uint32_t fast_left;    /**< steps left of the fast phase (k_fast instead of k_mag) */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
     bool initialised;      /**< q holds a valid attitude */
@@ -171,9 +208,11 @@ typedef struct {
  * rotvec integration, gyro bias learnt at rest, accel low-pass tau_acc_lp 1.3 s with the full
  * alignment (alpha_acc 1, tau_acc 0: the same lag as the earlier 1 s low-pass followed by a 0.5 s
  * correction), tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2,
- * mag_dip_reject 0.3 rad, initialisation from the sensors. The article's literal settings (alpha_acc 0.02, alpha_mag 0.01 per
- * sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass) are the seed preset
- * (att_filter_settings_preset).
+ * mag_dip_reject 0.3 rad, initialisation from the sensors, the reference field learnt (mag_ref_tau 20 s,
+ * the same time scale as the heading correction; mag_new_time 20 s; tau_mag_fast 2 s). The article's literal
+ * settings (alpha_acc 0.02, alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed
+ * bias, no low-pass, the reference frozen: mag_ref_tau, mag_new_time and tau_mag_fast 0) are the seed
+ * preset (att_filter_settings_preset).
  */
 void att_mars_settings_default(att_mars_settings_t *settings, float dt);
 /** ATT_OK when every field is within its range (above), else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
@@ -182,9 +221,10 @@ att_status_t att_mars_settings_validate(const att_mars_settings_t *settings);
 att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
 /**
  * New settings for a running instance: coefficients replaced, state kept (attitude, bias, low-pass
- * states, reference field, counters), except that the bias becomes 0 (mode OFF) or bias_init
+ * states, reference field and its statistics, counters), except that the bias becomes 0 (mode OFF) or bias_init
  * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
- * derived limits (direction for the mag mode, norm and dip bounds) are recomputed. On error f is
+ * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
+ * is limited to the new 3 tau_mag_fast. On error f is
  * left unchanged.
  */
 att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings);

@@ -20,6 +20,9 @@ _M0Parts = tuple[dm.Vec3, dm.Vec3, dm.Vec3, Any, Any, Any, Any, Any]
 """(m0, m0_ref, m0_perp, m0_ref_ok, m0_lo, m0_hi, dip_lo, dip_hi) as att_mars_set_m0 stores them."""
 
 PIO2 = dm.c("0x1.921fb6p+0")
+M0_MIN = dm.c("0x1.0624dep-10")  # ATT_MARS_M0_MIN
+BLOCK_S = dm.ONE  # ATT_MARS_BLOCK_S, s
+THREE = dm.c("0x1.8p+1")
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -78,6 +81,17 @@ class Mars:
         "st.m0_hi": "f32",
         "st.dip_lo": "f32",
         "st.dip_hi": "f32",
+        "st.acc_norm": "f32",
+        "st.acc_z": "f32",
+        "st.rej_norm": "f32",
+        "st.rej_z": "f32",
+        "st.cand_norm": "f32",
+        "st.cand_sin": "f32",
+        "st.blk": "u32",
+        "st.acc_n": "u32",
+        "st.rej_n": "u32",
+        "st.cand_n": "u32",
+        "st.fast_left": "u32",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
         "st.steps": "u32",
@@ -118,6 +132,15 @@ class Mars:
         "c.lp_on": "bool",
         "c.reject_on": "bool",
         "c.full": "bool",
+        "c.ref_on": "bool",
+        "c.k_fast": "f32",
+        "c.k_fast1": "f32",
+        "c.k_ref": "f32",
+        "c.cand_tol_n": "f32",
+        "c.cand_tol_s": "f32",
+        "c.blk_n": "u32",
+        "c.new_n": "u32",
+        "c.fast_n": "u32",
     }
     """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -171,11 +194,40 @@ class Mars:
         )
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
+        self._ref_coeffs(s)
         self._zeros = zeros
         self._ones = np.full(n, dm.ONE, np.float32)
         self._up = (self._zeros, self._zeros, self._ones)
         self._xaxis = (self._ones, self._zeros, self._zeros)
         self.reset()
+
+    def _ref_coeffs(self, s: MarsSettings) -> None:
+        """att_mars_ref_coeffs: the reference field's estimation and the fast phase."""
+        n = self.n
+        blk_n = sensor.samples(BLOCK_S, self.dt)
+        self.blk_n = np.where(blk_n > _U0, blk_n, np.uint32(1)).astype(np.uint32)
+        t = self.blk_n.astype(np.float32) * self.dt
+        ref_tau = setting(s.mag_ref_tau, n)
+        self.ref_on = ref_tau > dm.ZERO
+        with np.errstate(all="ignore"):
+            self.k_ref = np.where(self.ref_on, t / (ref_tau + t), dm.ZERO).astype(np.float32)
+            self.new_n = sensor.samples(setting(s.mag_new_time, n), t)
+            nr = self.mag_norm_reject
+            dr = self.mag_dip_reject
+            self.cand_tol_n = np.where(nr > dm.ZERO, dm.HALF * nr, dm.INF).astype(np.float32)
+            self.cand_tol_s = np.where(dr > dm.ZERO, dm.HALF * dr, dm.INF).astype(np.float32)
+            tau_fast = setting(s.tau_mag_fast, n)
+            k_fast = np.where(tau_fast > dm.ZERO, self.dt / (tau_fast + self.dt), self.k_mag)
+        self.k_fast = k_fast.astype(np.float32)
+        self.k_fast1 = (dm.ONE - self.k_fast).astype(np.float32)
+        self.fast_n = sensor.samples(THREE * tau_fast, self.dt)
+
+    def _block_clear(self, cond: Any) -> None:
+        """att_mars_block_clear where cond."""
+        for name in ("acc_norm", "acc_z", "rej_norm", "rej_z"):
+            setattr(self, name, np.where(cond, dm.ZERO, getattr(self, name)).astype(np.float32))
+        for name in ("blk", "acc_n", "rej_n"):
+            setattr(self, name, np.where(cond, _U0, getattr(self, name)).astype(np.uint32))
 
     def reset(self) -> None:
         """Back to the state after construction (att_mars_reset)."""
@@ -192,6 +244,17 @@ class Mars:
         self.dip_hi: Any = z.copy()
         self.m0_ref_ok: Any = np.zeros(n, np.bool_)
         self.m0_valid: Any = np.zeros(n, np.bool_)
+        self.cand_norm: Any = z.copy()
+        self.cand_sin: Any = z.copy()
+        self.cand_n = np.zeros(n, np.uint32)
+        self.fast_left = np.zeros(n, np.uint32)
+        self.acc_norm: Any = z.copy()
+        self.acc_z: Any = z.copy()
+        self.rej_norm: Any = z.copy()
+        self.rej_z: Any = z.copy()
+        self.blk = np.zeros(n, np.uint32)
+        self.acc_n = np.zeros(n, np.uint32)
+        self.rej_n = np.zeros(n, np.uint32)
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = self._derive_m0(mi)
@@ -244,6 +307,7 @@ class Mars:
         self.dip_lo = np.where(cond, dip_lo, self.dip_lo).astype(np.float32)
         self.dip_hi = np.where(cond, dip_hi, self.dip_hi).astype(np.float32)
         self.m0_valid = self.m0_valid | cond
+        self._block_clear(cond)
 
     def _align(self, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
         """att_mars_align: (ok, yaw-aligned q, m0)."""
@@ -256,10 +320,13 @@ class Mars:
             m0 = (self._zeros, dm.sqrtf(me[0] * me[0] + me[1] * me[1]), me[2])
         return ok1 & ok2, qa, m0
 
-    def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, dm.Quat]:
-        """att_mars_mag_correct: (rejected, corrected q) for the earth-frame mag me."""
+    def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, dm.Quat]:
+        """att_mars_mag_correct: (gated by norm or dip, rejected, corrected q) for the earth-frame mag me."""
+        fast = self.fast_left > _U0
+        k = np.where(fast, self.k_fast, self.k_mag)
+        k1 = np.where(fast, self.k_fast1, self.k_mag1)
         with np.errstate(all="ignore"):
-            reject = (
+            gated = (
                 (mnorm < self.m0_lo)
                 | (mnorm > self.m0_hi)
                 | (me[2] < self.dip_lo * mnorm)
@@ -267,7 +334,7 @@ class Mars:
             )
             # full mode: the 3-D rotation toward m0
             ok_u, unit = dm.vec3_normalize(me)
-            q_full = dm.quat_mul(_rotation_toward(unit, self.m0_ref, self.m0_perp, self.k_mag), q)
+            q_full = dm.quat_mul(_rotation_toward(unit, self.m0_ref, self.m0_perp, k), q)
             # horizontal mode: the interpolation toward the shortest arc from h to r about z
             h2 = me[0] * me[0] + me[1] * me[1]
             ok_h = h2 >= dm.NORM2_MIN
@@ -275,15 +342,15 @@ class Mars:
             rx, ry, _ = self.m0_ref
             a = hn + (me[0] * rx + me[1] * ry)
             b = me[0] * ry - me[1] * rx
-            kn = self.k_mag / dm.sqrtf((dm.TWO * hn) * a)
+            kn = k / dm.sqrtf((dm.TWO * hn) * a)
             arc = a > A_MIN * hn
-            qw = np.where(arc, self.k_mag1 + a * kn, self.k_mag1)
-            qz = np.where(arc, b * kn, self.k_mag)
+            qw = np.where(arc, k1 + a * kn, k1)
+            qz = np.where(arc, b * kn, k)
             q_hor = dm.quat_mul_z(qw, qz, q)
             full = self.mag_mode == MagMode.FULL
-            reject = reject | np.where(full, ~ok_u, ~ok_h)
+            reject = gated | np.where(full, ~ok_u, ~ok_h)
             qc = dm.quat_where(full, q_full, q_hor)
-        return reject, dm.quat_where(reject, q, qc)
+        return gated, reject, dm.quat_where(reject, q, qc)
 
     def step(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc, mag of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -370,7 +437,7 @@ class Mars:
             lp2c = dm.vec3_where(ok_c, dm.vec3_where(full, lp2_f, lp2_p), lp2n)
             lp_upd = use_acc & lp_on
 
-            rej_c, q_corr = self._mag_correct(q2, me, mnorm)
+            gated, rej_c, q_corr = self._mag_correct(q2, me, mnorm)
             ok_al, q_al, m0_al = self._align(q2, m)
             ok_dl, parts_l = self._derive_m0(m0_al)
             good_l = ok_al & ok_dl
@@ -393,10 +460,76 @@ class Mars:
         self._commit_m0(init_mag, parts0)
         self._commit_m0(use_align & good_l, parts_l)
         self._commit_m0(use_set & ok_ds, parts_s)
+        self.fast_left = np.where(init_mag | (use_align & good_l), self.fast_n, self.fast_left).astype(
+            np.uint32
+        )
+        self._ref_count(run & ok_n & self.m0_valid, use_corr & ~gated, use_corr & gated, mnorm, me[2])
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def _ref_set(self, cond: Any, n: Any, s: Any) -> None:
+        """att_mars_ref_set where cond: m0 with norm n and sin(dip) s, its horizontal direction kept."""
+        with np.errstate(all="ignore"):
+            s2 = s * s
+            h = np.where(s2 < dm.ONE, n * dm.sqrtf(dm.ONE - s2), dm.ZERO)
+            mx, my, _ = self.m0
+            h0 = dm.sqrtf(mx * mx + my * my)
+            r = h / h0
+            big = h0 >= M0_MIN
+            m0 = (np.where(big, mx * r, dm.ZERO), np.where(big, my * r, h), n * s)
+        ok, parts = self._derive_m0(m0)
+        self._commit_m0(cond & ok, parts)
+
+    def _ref_count(self, count: Any, accepted: Any, gated: Any, mnorm: Any, mz: Any) -> None:
+        """att_mars_ref_count (and att_mars_ref_block at the end of a block) where count."""
+        f32 = np.float32
+        acc = count & accepted
+        rej = count & gated
+        self.acc_norm = np.where(acc, self.acc_norm + mnorm, self.acc_norm).astype(f32)
+        self.acc_z = np.where(acc, self.acc_z + mz, self.acc_z).astype(f32)
+        self.acc_n = np.where(acc, self.acc_n + np.uint32(1), self.acc_n).astype(np.uint32)
+        self.rej_norm = np.where(rej, self.rej_norm + mnorm, self.rej_norm).astype(f32)
+        self.rej_z = np.where(rej, self.rej_z + mz, self.rej_z).astype(f32)
+        self.rej_n = np.where(rej, self.rej_n + np.uint32(1), self.rej_n).astype(np.uint32)
+        dec = count & (self.fast_left > _U0)
+        self.fast_left = np.where(dec, self.fast_left - np.uint32(1), self.fast_left).astype(np.uint32)
+        self.blk = np.where(count, self.blk + np.uint32(1), self.blk).astype(np.uint32)
+        end = count & (self.blk >= self.blk_n)
+        if not end.any():
+            return
+        with np.errstate(all="ignore"):
+            most = self.acc_n > self.rej_n
+            # the reference follows the accepted samples
+            do_a = end & most & self.ref_on & (self.acc_norm > dm.ZERO)
+            n0 = dm.vec3_norm(self.m0)
+            s0 = self.m0[2] / n0
+            nb = self.acc_norm / self.acc_n.astype(f32)
+            sb = self.acc_z / self.acc_norm
+            n_a = n0 + self.k_ref * (nb - n0)
+            s_a = s0 + self.k_ref * (sb - s0)
+            # or the rejected ones form a candidate
+            do_b = end & ~most & (self.rej_n > _U0) & (self.new_n > _U0) & (self.rej_norm > dm.ZERO)
+            nr = self.rej_norm / self.rej_n.astype(f32)
+            sr = self.rej_z / self.rej_norm
+            steady = (
+                (self.cand_n > _U0)
+                & (dm.absf(nr - self.cand_norm) <= self.cand_tol_n * self.cand_norm)
+                & (dm.absf(sr - self.cand_sin) <= self.cand_tol_s)
+            )
+            w = dm.ONE / (self.cand_n + np.uint32(1)).astype(f32)
+            cn = np.where(steady, self.cand_norm + (nr - self.cand_norm) * w, nr).astype(f32)
+            cs = np.where(steady, self.cand_sin + (sr - self.cand_sin) * w, sr).astype(f32)
+            ck = np.where(steady, self.cand_n + np.uint32(1), np.uint32(1)).astype(np.uint32)
+            adopt = do_b & (ck >= self.new_n)
+        self.cand_norm = np.where(do_b, cn, self.cand_norm).astype(f32)
+        self.cand_sin = np.where(do_b, cs, self.cand_sin).astype(f32)
+        self.cand_n = np.where(end & most, _U0, np.where(do_b, np.where(adopt, _U0, ck), self.cand_n))
+        self.cand_n = self.cand_n.astype(np.uint32)
+        self._ref_set(do_a | adopt, np.where(adopt, cn, n_a), np.where(adopt, cs, s_a))
+        self.fast_left = np.where(adopt, self.fast_n, self.fast_left).astype(np.uint32)
+        self._block_clear(end)
 
     def retune(self, settings: MarsSettings) -> None:
         """att_mars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
@@ -404,7 +537,10 @@ class Mars:
         carry_state(self, new)
         bias_retune(new)
         ok, parts = new._derive_m0(new.m0)
+        blk = (new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z)
         new._commit_m0(new.m0_valid & ok, parts)
+        new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z = blk  # limits only
+        new.fast_left = np.minimum(new.fast_left, new.fast_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

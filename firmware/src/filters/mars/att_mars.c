@@ -14,6 +14,9 @@
 #include "attica/att_sensor.h"
 
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
+#define ATT_MARS_BLOCK_S 1.0f /* s: the length of a block of the reference field's statistics */
+#define ATT_MARS_MAG_ACCEPTED 1u /* the sample passed the norm and dip tests */
+#define ATT_MARS_MAG_GATED 2u    /* the sample failed them */
 
 void att_mars_settings_default(att_mars_settings_t *settings, float dt)
 {
@@ -44,6 +47,9 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->rest_gyro = 0.05f;
     settings->rest_accel = 0.5f;
     settings->rest_time = 0.5f;
+    settings->mag_ref_tau = 20.0f;
+    settings->mag_new_time = 20.0f;
+    settings->tau_mag_fast = 2.0f;
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -59,6 +65,23 @@ att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
 static float att_mars_gain(float tau, float alpha, float dt)
 {
     return (tau > 0.0f) ? dt / (tau + dt) : alpha;
+}
+
+/* The coefficients of the reference field's estimation and of the fast phase (att_mars.h, step 3). */
+static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
+{
+    const uint32_t blk_n = att_sensor_samples(ATT_MARS_BLOCK_S, s->dt);
+    float t;
+    c->blk_n = (blk_n > 0u) ? blk_n : 1u;
+    t = (float)c->blk_n * s->dt;
+    c->ref_on = s->mag_ref_tau > 0.0f;
+    c->k_ref = c->ref_on ? t / (s->mag_ref_tau + t) : 0.0f;
+    c->new_n = att_sensor_samples(s->mag_new_time, t);
+    c->cand_tol_n = (s->mag_norm_reject > 0.0f) ? 0.5f * s->mag_norm_reject : INFINITY;
+    c->cand_tol_s = (s->mag_dip_reject > 0.0f) ? 0.5f * s->mag_dip_reject : INFINITY;
+    c->k_fast = (s->tau_mag_fast > 0.0f) ? s->dt / (s->tau_mag_fast + s->dt) : c->k_mag;
+    c->k_fast1 = 1.0f - c->k_fast;
+    c->fast_n = att_sensor_samples(3.0f * s->tau_mag_fast, s->dt);
 }
 
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
@@ -86,6 +109,7 @@ static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
     c->lp_on = c->k_lp > 0.0f;
     c->reject_on = s->accel_reject > 0.0f;
     c->full = (c->k_acc == 1.0f);
+    att_mars_ref_coeffs(c, s);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -145,7 +169,20 @@ static void att_mars_m0_limits(const att_mars_coeffs_t *c, att_mars_state_t *st)
     }
 }
 
-/* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
+/* A new block of the reference statistics. */
+static void att_mars_block_clear(att_mars_state_t *st)
+{
+    st->acc_norm = 0.0f;
+    st->acc_z = 0.0f;
+    st->rej_norm = 0.0f;
+    st->rej_z = 0.0f;
+    st->blk = 0u;
+    st->acc_n = 0u;
+    st->rej_n = 0u;
+}
+
+/* Set the reference field m0 and start a new block; returns false (and changes nothing) when m0 has no
+   direction. */
 static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, const att_vec3_t *m0)
 {
     att_vec3_t unit;
@@ -155,6 +192,7 @@ static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, co
     st->m0 = *m0;
     st->m0_valid = true;
     att_mars_m0_limits(c, st);
+    att_mars_block_clear(st);
     return true;
 }
 
@@ -188,6 +226,9 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (f->st.m0_valid) {
         att_mars_m0_limits(&f->c, &f->st);
     }
+    if (f->st.fast_left > f->c.fast_n) {
+        f->st.fast_left = f->c.fast_n;
+    }
     return ATT_OK;
 }
 
@@ -214,6 +255,11 @@ void att_mars_reset(att_mars_t *f)
     st->rest_count = 0u;
     st->steps = 0u;
     st->flags = 0u;
+    st->cand_norm = 0.0f;
+    st->cand_sin = 0.0f;
+    st->cand_n = 0u;
+    st->fast_left = 0u;
+    att_mars_block_clear(st);
     st->m0_ref_ok = false;
     st->m0_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -313,10 +359,16 @@ static ATT_NOINLINE bool att_mars_align(float qw, float qx, float qy, float qz, 
  * as q := ((1 - k_mag) + k_mag C_w, 0, 0, k_mag C_z) * q (the final normalisation of the step makes it
  * a rotation). No trigonometry; for small gains it turns by k_mag times 2 sin(angle / 2), i.e. k_mag
  * times the angle for the small heading errors of tracking. Full mode: att_mars_rotation_toward.
+ * The gain is k_fast during the fast phase. *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
+ * and dip tests, ATT_MARS_MAG_GATED when it failed them (the reference statistics count both).
  */
 static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t *c, const att_mars_state_t *st,
-                                                         att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags)
+                                                         att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags,
+                                                         uint32_t *use)
 {
+    const bool fast = st->fast_left > 0u;
+    const float k = fast ? c->k_fast : c->k_mag;
+    const float k1 = fast ? c->k_fast1 : c->k_mag1;
     att_vec3_t unit;
     att_quat_t qc;
     float h2;
@@ -327,14 +379,16 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
     float qz;
     if (mnorm < st->m0_lo || mnorm > st->m0_hi || me.z < st->dip_lo * mnorm || me.z > st->dip_hi * mnorm) {
         *flags |= ATT_FLAG_MAG_REJECTED;
+        *use = ATT_MARS_MAG_GATED;
         return q;
     }
+    *use = ATT_MARS_MAG_ACCEPTED;
     if (c->mag_mode == (uint8_t)ATT_MARS_MAG_FULL) {
         if (!att_i_vec3_normalize(me, &unit)) {
             *flags |= ATT_FLAG_MAG_REJECTED;
             return q;
         }
-        att_mars_rotation_toward(unit.x, unit.y, unit.z, &st->m0_ref, &st->m0_perp, c->k_mag, &qc);
+        att_mars_rotation_toward(unit.x, unit.y, unit.z, &st->m0_ref, &st->m0_perp, k, &qc);
         return att_i_quat_mul(qc, q);
     }
     h2 = me.x * me.x + me.y * me.y;
@@ -346,12 +400,12 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
     a = hn + (me.x * st->m0_ref.x + me.y * st->m0_ref.y);
     b = me.x * st->m0_ref.y - me.y * st->m0_ref.x;
     if (a > ATT_ALIGN_A_MIN * hn) {
-        const float kn = c->k_mag / att_i_sqrtf((2.0f * hn) * a);
-        qw = c->k_mag1 + a * kn;
+        const float kn = k / att_i_sqrtf((2.0f * hn) * a);
+        qw = k1 + a * kn;
         qz = b * kn;
     } else {
-        qw = c->k_mag1; /* h opposite to r: toward the half turn about z */
-        qz = c->k_mag;
+        qw = k1; /* h opposite to r: toward the half turn about z */
+        qz = k;
     }
     return att_i_quat_mul_z(qw, qz, q);
 }
@@ -368,6 +422,7 @@ static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars
     if (c->init_from_sensors) {
         if (att_mars_align(qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
             st->flags |= ATT_FLAG_INITIALISED;
+            st->fast_left = c->fast_n;
             return true;
         }
         st->flags |= ATT_FLAG_MAG_REJECTED;
@@ -398,6 +453,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     if (mag_ok) {
         if (att_mars_align(st->q.w, st->q.x, st->q.y, st->q.z, mag, &qa, &m0) && att_mars_set_m0(&f->c, st, &m0)) {
             st->q = qa;
+            st->fast_left = f->c.fast_n;
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
@@ -470,14 +526,92 @@ static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c,
     }
 }
 
+/*
+ * m0 with norm n and sin(dip) s, its horizontal direction kept (north when it has none); a new block.
+ * |s| slightly above 1 (rounding of the sums) gives a vertical field.
+ */
+static void att_mars_ref_set(const att_mars_coeffs_t *c, att_mars_state_t *st, float n, float s)
+{
+    const float s2 = s * s;
+    const float h = (s2 < 1.0f) ? n * att_i_sqrtf(1.0f - s2) : 0.0f;
+    const float h0 = att_i_sqrtf(st->m0.x * st->m0.x + st->m0.y * st->m0.y);
+    att_vec3_t m0 = att_i_vec3(0.0f, h, n * s);
+    if (h0 >= ATT_MARS_M0_MIN) {
+        const float r = h / h0;
+        m0 = att_i_vec3(st->m0.x * r, st->m0.y * r, n * s);
+    }
+    (void)att_mars_set_m0(c, st, &m0); /* n > 0: the mean of valid norms */
+}
+
+/*
+ * The end of a block of the reference statistics (att_mars.h, step 3): the reference follows the
+ * accepted samples, or the rejected ones form a candidate that becomes the reference once steady for
+ * new_n blocks (then the fast phase starts).
+ */
+static ATT_NOINLINE void att_mars_ref_block(const att_mars_coeffs_t *c, att_mars_state_t *st)
+{
+    if (st->acc_n > st->rej_n) {
+        if (c->ref_on && st->acc_norm > 0.0f) {
+            const float n0 = att_i_vec3_norm(st->m0);
+            const float s0 = st->m0.z / n0;
+            const float nb = st->acc_norm / (float)st->acc_n;
+            const float sb = st->acc_z / st->acc_norm;
+            att_mars_ref_set(c, st, n0 + c->k_ref * (nb - n0), s0 + c->k_ref * (sb - s0));
+        }
+        st->cand_n = 0u;
+    } else if (st->rej_n > 0u && c->new_n > 0u && st->rej_norm > 0.0f) {
+        const float nb = st->rej_norm / (float)st->rej_n;
+        const float sb = st->rej_z / st->rej_norm;
+        if (st->cand_n > 0u && att_i_absf(nb - st->cand_norm) <= c->cand_tol_n * st->cand_norm &&
+            att_i_absf(sb - st->cand_sin) <= c->cand_tol_s) {
+            const float w = 1.0f / (float)(st->cand_n + 1u);
+            st->cand_norm = st->cand_norm + (nb - st->cand_norm) * w;
+            st->cand_sin = st->cand_sin + (sb - st->cand_sin) * w;
+            st->cand_n = st->cand_n + 1u;
+        } else {
+            st->cand_norm = nb;
+            st->cand_sin = sb;
+            st->cand_n = 1u;
+        }
+        if (st->cand_n >= c->new_n) {
+            att_mars_ref_set(c, st, st->cand_norm, st->cand_sin);
+            st->cand_n = 0u;
+            st->fast_left = c->fast_n;
+        }
+    }
+    att_mars_block_clear(st);
+}
+
+/* Count a committed step with a known reference: the sample's use, the fast phase, the block. */
+static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att_mars_state_t *st, uint32_t use,
+                                                 float mnorm, float mz)
+{
+    if (use == ATT_MARS_MAG_ACCEPTED) {
+        st->acc_norm = st->acc_norm + mnorm;
+        st->acc_z = st->acc_z + mz;
+        st->acc_n = st->acc_n + 1u;
+    } else if (use == ATT_MARS_MAG_GATED) {
+        st->rej_norm = st->rej_norm + mnorm;
+        st->rej_z = st->rej_z + mz;
+        st->rej_n = st->rej_n + 1u;
+    }
+    if (st->fast_left > 0u) {
+        st->fast_left = st->fast_left - 1u;
+    }
+    st->blk = st->blk + 1u;
+    if (st->blk >= c->blk_n) {
+        att_mars_ref_block(c, st);
+    }
+}
+
 /* The mag correction (or, for the first usable sample, the heading alignment) of q; me = R(q) m. */
 static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_step(const att_mars_coeffs_t *c, att_mars_state_t *st,
                                                       att_quat_t q, att_vec3_t me, float mnorm,
-                                                      const att_vec3_t *mag_in, uint32_t *flags)
+                                                      const att_vec3_t *mag_in, uint32_t *flags, uint32_t *use)
 {
     att_quat_t qa;
     if (st->m0_valid) {
-        return att_mars_mag_correct(c, st, q, me, mnorm, flags);
+        return att_mars_mag_correct(c, st, q, me, mnorm, flags, use);
     }
     st->flags = *flags;
     if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
@@ -512,6 +646,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     uint32_t flags;
     uint32_t accel_flags;
     uint32_t mag_flags;
+    uint32_t use = 0u;
     bool gyro_ok;
     bool accel_ok;
     bool mag_ok;
@@ -552,12 +687,15 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         att_mars_accel_correct(c, acc, &q, &lp1, &lp2);
     }
     if (mag_ok) {
-        q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags);
+        q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use);
     }
     if (att_i_quat_normalize_bounded(q, &qn)) {
         st->q = qn;
         st->lp1 = lp1;
         st->lp2 = lp2;
+        if (st->m0_valid) {
+            att_mars_ref_count(c, st, use, mnorm, me.z);
+        }
     } else {
         flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before the step */
     }
@@ -611,6 +749,9 @@ void att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
         s->integration = ATT_INTEGRATE_FIRST_ORDER;
         s->tau_acc_lp = 0.0f;
         s->bias_mode = ATT_BIAS_FROZEN;
+        s->mag_ref_tau = 0.0f;
+        s->mag_new_time = 0.0f;
+        s->tau_mag_fast = 0.0f;
     }
 }
 

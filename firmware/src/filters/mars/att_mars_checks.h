@@ -41,6 +41,9 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
                  "uT")                                                                                         \
     C("integration", s->integration == ATT_INTEGRATE_ROTVEC || s->integration == ATT_INTEGRATE_FIRST_ORDER,    \
       0.0f, 2.0f, "ROTVEC (0) or FIRST_ORDER (2)", "")                                                         \
-    ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+    ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                          \
+    ATT_CK_IN(C, mag_ref_tau, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                         \
+    ATT_CK_IN(C, mag_new_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
+    ATT_CK_IN(C, tau_mag_fast, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
 
 #endif /* ATT_MARS_CHECKS_H */
