@@ -4,6 +4,8 @@ Runs attica's C filters (and with ``--peers`` other people's filters) over every
 directory, prints the RMSE per trial, per group and on average (6-axis methods by inclination, 9-axis
 methods by total error, in tables that fit 110 columns; ``--wide`` for one table each), and with
 ``--out`` writes results.json and PNG plots. ``--grid`` runs the grid search that chose the defaults.
+``--suite`` runs the generalisation suite instead (:mod:`attica.evaluate.suite`: simulated conditions,
+no ``--data``; ``--quick`` for its reduced set; with ``--out`` it writes suite.json).
 
 Trials run in parallel (``--jobs N`` processes, every core by default) or on a Dask cluster
 (``--scheduler tcp://host:port``); the figures are the serial run's bit for bit
@@ -44,10 +46,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``attica eval``."""
     from attica.evaluate import VARIANTS
     from attica.evaluate.parallel import DASK_HINT, default_jobs
+    from attica.evaluate.suite import KINDS as SUITE_KINDS
+    from attica.evaluate.suite import PEERS as SUITE_PEERS
 
     choices = ", ".join([k.label for k in implemented_kinds()] + list(VARIANTS))
-    p.add_argument("--filter", default="all", help=f"'all' or comma-separated kinds and variants ({choices})")
-    p.add_argument("--data", required=True, help="directory of trials (.npz/.csv/.hdf5/.mat) or one file")
+    p.add_argument(
+        "--filter",
+        help=f"'all' or comma-separated kinds and variants ({choices}); default all, with --suite "
+        f"{','.join(SUITE_KINDS)}",
+    )
+    p.add_argument(
+        "--data", help="directory of trials (.npz/.csv/.hdf5/.mat) or one file (required unless --suite)"
+    )
+    p.add_argument(
+        "--suite",
+        action="store_true",
+        help="run the generalisation suite on the simulator instead of --data: fixed conditions (rates, "
+        "sensor grades, magnetic disturbances, rest, fast turns, a clipping gyro, vibration) x seeds, "
+        f"attica against {','.join(SUITE_PEERS)} by default (--peers: others, 'none': without); "
+        "with --out: suite.json",
+    )
+    p.add_argument("--quick", action="store_true", help="with --suite: its reduced set (1 seed, 20 s each)")
     p.add_argument(
         "--preset",
         default="default",
@@ -62,7 +81,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="also run other people's filters: all installed ones, or comma-separated names (vqf9,fusion9). "
         "Rows without a mag sample: VQF and Fusion get a zero field (their 'no sample'); the 9-axis ahrs "
         "filters start at the first mag sample (earlier rows not scored), the ahrs EKF holds the last "
-        "sample; the notes under the tables say what was done per trial",
+        "sample; the notes under the tables say what was done per trial. With --suite: vqf6,vqf9,fusion6,"
+        "fusion9 when left out, 'none' for none",
     )
     add_calibration_argument(p, "attica's filters (not with --peers or --grid)")
     p.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
@@ -119,6 +139,14 @@ def run(args: argparse.Namespace) -> int:
     from attica.evaluate import format_summary, format_tables, load_trials, run_methods
     from attica.evaluate.parallel import DASK_HINT
 
+    if args.suite:
+        return _suite(args)
+    if args.data is None:
+        raise CliError("--data is required (a directory of trials or one file), or --suite for the simulator")
+    if args.quick:
+        raise CliError("--quick belongs to --suite (its reduced set)")
+    if args.peers == "none":
+        raise CliError("--peers none: leave --peers out to run attica's filters only")
     if args.limit is not None and args.limit < 1:
         raise CliError("--limit must be >= 1")
     if args.jobs is not None and args.jobs < 1:
@@ -132,10 +160,10 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--calibration applies to attica's filters only; drop it or {what}")
     cal = load_calibration(args)
     if args.grid:
-        names = _grid_names(args.filter)
+        names = _grid_names(args.filter or "all")
         methods: list[Any] = []
     else:
-        names = _method_names(args.filter)
+        names = _method_names(args.filter or "all")
         presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
         methods = [_attica(n, p, cal) for p in presets for n in names] + _peers(args.peers)
     out = prepare_output_dir(Path(args.out)) if args.out else None
@@ -279,4 +307,74 @@ def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path
     if out is not None:
         (out / "grid.json").write_text(json.dumps(grids, indent=1, default=str))
         print(f"wrote {out / 'grid.json'}")
+    return 0
+
+
+def _suite(args: argparse.Namespace) -> int:
+    """``attica eval --suite``: the generalisation suite on the simulator (tables, summary, suite.json)."""
+    from attica.commands._common import progress
+    from attica.evaluate.parallel import default_jobs
+    from attica.evaluate.suite import (
+        CONDITIONS,
+        KINDS,
+        PEERS,
+        QUICK,
+        QUICK_DURATION,
+        QUICK_SEEDS,
+        SEEDS,
+        run_suite,
+    )
+    from attica.evaluate.suite_tables import format_suite
+    from attica.peers import peer_by_name
+
+    given = [
+        opt
+        for opt, bad in (
+            ("--data", args.data is not None),
+            ("--grid", args.grid),
+            ("--limit", args.limit is not None),
+            ("--calibration", bool(args.calibration)),
+            ("--scheduler", args.scheduler is not None),
+            ("--preset", args.preset != "default"),
+        )
+        if bad
+    ]
+    if given:
+        raise CliError(
+            f"--suite simulates its own data with every method on its defaults; drop {', '.join(given)}"
+        )
+    if args.jobs is not None and args.jobs < 1:
+        raise CliError("--jobs must be >= 1")
+    kinds = list(KINDS) if args.filter is None else _method_names(args.filter)
+    if args.peers is None:
+        peers = [n for n in PEERS if peer_by_name(n).installed]
+        missing = [n for n in PEERS if n not in peers]
+        if missing:
+            warn(f"--suite: {', '.join(missing)} not installed (pip install '.[peers]'): run without them")
+    elif args.peers == "none":
+        peers = []
+    else:
+        peers = [m.name for m in _peers(args.peers)]
+    out = prepare_output_dir(Path(args.out)) if args.out else None
+    conditions = [c for c in CONDITIONS if c.name in QUICK] if args.quick else list(CONDITIONS)
+    seeds = QUICK_SEEDS if args.quick else SEEDS
+    duration = QUICK_DURATION if args.quick else None
+    jobs = args.jobs if args.jobs is not None else default_jobs()
+    jobs = min(jobs, len(conditions) * len(seeds))
+    t0 = time.perf_counter()
+    with progress(len(conditions) * len(seeds), "suite", not args.quiet, unit="case") as bar:
+        res = run_suite(kinds, peers, conditions, seeds, duration, jobs, done=lambda k: bar.update(1))
+    where = "in one process" if jobs == 1 else f"on {jobs} processes"
+    print(
+        f"{len(kinds) + len(peers)} methods x {len(conditions)} conditions x {len(seeds)} seeds in "
+        f"{time.perf_counter() - t0:.1f} s ({where})\n"
+    )
+    print(format_suite(res, width=10**6 if args.wide else 110))
+    if out is not None:
+        data = {
+            "command": " ".join(["attica", *sys.argv[1:]]) if sys.argv[1:2] == ["eval"] else "attica eval"
+        }
+        data.update(res.as_dict())
+        (out / "suite.json").write_text(json.dumps(data, indent=1))
+        print(f"\nwrote {out / 'suite.json'}")
     return 0

@@ -9,6 +9,9 @@
 - :mod:`attica.evaluate.tables`: text tables that fit 110 columns (6-axis and 9-axis apart), notes;
 - :mod:`attica.evaluate.plots`, :mod:`attica.evaluate.trialplot`: PNG plots (1600 px): per trial the
   angles against the truth, the errors, flags and bias over time; per group the RMSE bars.
+- :mod:`attica.evaluate.suite`: the generalisation suite (``attica eval --suite``): attica's filters,
+  VQF and Fusion on a fixed set of simulated conditions; its figures :mod:`attica.evaluate.suite_result`,
+  its tables :mod:`attica.evaluate.suite_tables`.
 """
 
 from __future__ import annotations

@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
+from numpy.typing import NDArray
 
+from attica.calibration.model import Calibration
+from attica.sim.errors import ErrorSizes
 from attica.sim.rotations import F64
+
+Vec3 = tuple[float, float, float]
+"""Three floats: a vector."""
 
 
 @dataclass
@@ -70,6 +76,35 @@ class SimConfig:
         Integrator steps per sample; 0 picks ``max(2, ceil(1 ms * rate))``.
     name : str
         Recording name; empty gives ``sim-seed<seed>``.
+    gyro_clip : float
+        Measurement range of the gyro in rad/s: each axis of the measured rate (after bias, noise and
+        ``sensor_errors``) is clipped to ``[-gyro_clip, gyro_clip]``, as a saturated MEMS gyro reads
+        its full scale; :attr:`SimTruth.gyr_clipped` records where. 0: no clipping.
+    vibration_accel : float
+        Amplitude per axis in m/s^2 of a sinusoidal linear vibration of the sensor at
+        ``vibration_frequency`` (sensor frame, a seeded phase per axis; part of the true linear
+        acceleration :attr:`SimTruth.acc_lin`). 0: none. Sampled without an anti-aliasing filter.
+    vibration_gyro : float
+        Amplitude per axis in rad/s of a sinusoidal angular vibration at ``vibration_frequency`` (sensor
+        frame, a seeded phase per axis); it is real motion, integrated into ``quat_true``. 0: none.
+    vibration_frequency : float
+        Frequency of the vibration in Hz; must be > 0 when a vibration amplitude is.
+    mag_dipoles : tuple of (t_start, t_end, (x, y, z), (x, y, z), (mx, my, mz))
+        Moving magnets: a magnetic dipole of moment ``(mx, my, mz)`` A m^2 (earth frame) that moves in a
+        straight line from the first position to the second (m, earth frame, relative to the sensor)
+        during ``t_start <= t < t_end`` and is absent otherwise; its field
+        ``mu0 / (4 pi) (3 r (r . m) - m) / |r|^3`` (in uT) is added to the earth field, so the
+        disturbance changes in time and direction as the magnet passes. The path must keep >= 1 cm
+        from the sensor.
+    spins : tuple of (t_start, duration, peak, (x, y, z))
+        Fast turns added to the body rate: ``peak * sin^2(pi (t - t_start) / duration)`` rad/s about
+        the sensor-frame axis ``(x, y, z)`` (normalised) for ``t_start <= t < t_start + duration``
+        (``peak * duration / 2`` rad in all); counted as movement.
+    sensor_errors : ErrorSizes or None
+        Scale, misalignment, offset and hard/soft-iron errors drawn from the seed
+        (:func:`attica.sim.errors.draw_errors`) and applied to the measured samples before the
+        clipping, as :func:`attica.sim.errors.apply_errors` does; :attr:`SimTruth.errors` is the
+        calibration that corrects them. None: no such errors.
 
     """
 
@@ -101,6 +136,13 @@ class SimConfig:
     components: int = 8
     substeps: int = 0
     name: str = ""
+    gyro_clip: float = 0.0
+    vibration_accel: float = 0.0
+    vibration_gyro: float = 0.0
+    vibration_frequency: float = 0.0
+    mag_dipoles: tuple[tuple[float, float, Vec3, Vec3, Vec3], ...] = ()
+    spins: tuple[tuple[float, float, float, Vec3], ...] = ()
+    sensor_errors: ErrorSizes | None = None
 
     def validate(self) -> None:
         """Raise ValueError naming the first invalid field."""
@@ -115,7 +157,8 @@ class SimConfig:
         nonneg = (
             "rest_start", "rest_end", "rest_breaks", "rotation_rms", "translation_rms", "taps",
             "gyro_noise", "gyro_bias", "gyro_bias_drift", "accel_noise", "mag_field", "mag_noise",
-            "break_duration", "ramp", "substeps",
+            "break_duration", "ramp", "substeps", "gyro_clip", "vibration_accel", "vibration_gyro",
+            "vibration_frequency",
         )  # fmt: skip
         for name in nonneg:
             if getattr(self, name) < 0:
@@ -127,6 +170,22 @@ class SimConfig:
                 raise ValueError(f"SimConfig.mag_disturbances[{i}] must be (t_start, t_end, (x, y, z))")
             if not np.all(np.isfinite(np.array([dist[0], dist[1], *dist[2]], dtype=np.float64))):
                 raise ValueError(f"SimConfig.mag_disturbances[{i}] must be finite")
+        if (self.vibration_accel > 0 or self.vibration_gyro > 0) and not self.vibration_frequency > 0:
+            raise ValueError("SimConfig.vibration_frequency must be > 0 when a vibration amplitude is")
+        for i, dip in enumerate(self.mag_dipoles):
+            _check_dipole(i, dip)
+        for i, spin in enumerate(self.spins):
+            if len(spin) != 4 or len(spin[3]) != 3:
+                raise ValueError(f"SimConfig.spins[{i}] must be (t_start, duration, peak, (x, y, z))")
+            vals = np.array([spin[0], spin[1], spin[2], *spin[3]], dtype=np.float64)
+            if not np.all(np.isfinite(vals)) or not spin[1] > 0 or not np.linalg.norm(vals[3:]) > 0:
+                raise ValueError(
+                    f"SimConfig.spins[{i}]: finite numbers, duration > 0 and an axis not all 0; got {spin}"
+                )
+        if self.sensor_errors is not None and not isinstance(self.sensor_errors, ErrorSizes):
+            raise ValueError(
+                f"SimConfig.sensor_errors must be ErrorSizes or None, got {self.sensor_errors!r}"
+            )
         if self.initial_attitude is not None:
             q = np.asarray(self.initial_attitude, dtype=np.float64)
             if q.shape != (4,) or not np.all(np.isfinite(q)) or not np.linalg.norm(q) > 0:
@@ -136,6 +195,25 @@ class SimConfig:
     def n(self) -> int:
         """Number of samples, ``round(duration * rate)``."""
         return int(round(self.duration * self.rate))
+
+
+def _check_dipole(i: int, dip: tuple[float, float, Vec3, Vec3, Vec3]) -> None:
+    """Raise ValueError unless ``mag_dipoles[i]`` is well formed and keeps >= 1 cm from the sensor."""
+    what = f"SimConfig.mag_dipoles[{i}]"
+    if len(dip) != 5 or any(len(v) != 3 for v in dip[2:]):
+        raise ValueError(f"{what} must be (t_start, t_end, (x, y, z), (x, y, z), (mx, my, mz))")
+    vals = np.array([dip[0], dip[1], *dip[2], *dip[3], *dip[4]], dtype=np.float64)
+    if not np.all(np.isfinite(vals)) or not dip[1] > dip[0]:
+        raise ValueError(f"{what} must be finite with t_end > t_start")
+    p0, p1 = vals[2:5], vals[5:8]
+    d = p1 - p0
+    u = float(np.clip(-np.dot(p0, d) / max(float(np.dot(d, d)), 1e-300), 0.0, 1.0))
+    if np.linalg.norm(p0 + u * d) < DIPOLE_MIN_DISTANCE:
+        raise ValueError(f"{what}: the path passes closer than {DIPOLE_MIN_DISTANCE} m to the sensor")
+
+
+DIPOLE_MIN_DISTANCE = 0.01
+"""m: how close a moving magnet's path may come to the sensor (:attr:`SimConfig.mag_dipoles`)."""
 
 
 @dataclass
@@ -162,6 +240,10 @@ class SimTruth:
         Earth-frame unit direction of each tap.
     substeps : int
         Integrator steps per sample used for ``quat_true``.
+    gyr_clipped : ndarray of bool, shape (N, 3)
+        Where the measured gyro was clipped at :attr:`SimConfig.gyro_clip` (per axis).
+    errors : Calibration or None
+        The calibration that corrects :attr:`SimConfig.sensor_errors` (None without them).
 
     """
 
@@ -174,3 +256,5 @@ class SimTruth:
     tap_times: F64
     tap_dirs: F64
     substeps: int
+    gyr_clipped: NDArray[np.bool_] = field(default_factory=lambda: np.zeros((0, 3), np.bool_))
+    errors: Calibration | None = None

@@ -10,8 +10,20 @@ import numpy as np
 from attica.data import Recording
 from attica.metrics import quat_mul
 from attica.sim.config import SimConfig, SimTruth
-from attica.sim.motion import _draw_taps, _Envelope, _initial_attitude, _schedule, _Sines, mag_field_earth
-from attica.sim.rotations import _cross, _scan_quat, quat_exp, quat_rotate_inv
+from attica.sim.errors import distort, draw_errors
+from attica.sim.motion import (
+    _dipole_field,
+    _draw_taps,
+    _Envelope,
+    _initial_attitude,
+    _schedule,
+    _Sines,
+    _spin_rate,
+    _spinning,
+    _vibrations,
+    mag_field_earth,
+)
+from attica.sim.rotations import F64, _cross, _scan_quat, quat_exp, quat_rotate, quat_rotate_inv
 
 __all__ = ["sim_to_npz", "simulate", "simulate_with_truth"]
 
@@ -20,7 +32,19 @@ _TABLE = 1 << 15  # evaluation points per chunk
 _MAX_SUBSTEP = 1e-3  # s, automatic substep length bound
 _SQRT3 = math.sqrt(3.0)
 _GAUSS = (0.5 - _SQRT3 / 6.0, 0.5 + _SQRT3 / 6.0)
-_STREAMS = ("attitude", "schedule", "rotation", "translation", "taps", "gyro", "accel", "mag")
+_STREAMS = (
+    "attitude",
+    "schedule",
+    "rotation",
+    "translation",
+    "taps",
+    "gyro",
+    "accel",
+    "mag",
+    "vibration",
+    "errors",
+)
+"""One seeded stream each; streams added at the end leave the earlier ones (and their draws) unchanged."""
 
 
 def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTruth]:
@@ -69,6 +93,16 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
         cfg.translation_rms,
     )
     vel = _Sines(trans_acc.amp / trans_acc.omega, trans_acc.omega, trans_acc.phase)
+    vib_acc, vib_gyr = _vibrations(cfg, streams["vibration"])
+
+    def extra_rate(tt: F64) -> F64 | None:
+        """Body rate of the spins and the angular vibration at ``tt`` (None when there is neither)."""
+        if not cfg.spins and vib_gyr is None:
+            return None
+        w = _spin_rate(cfg, tt)
+        if vib_gyr is not None:
+            w += vib_gyr(tt)
+        return w
 
     m_sub = cfg.substeps if cfg.substeps > 0 else max(2, math.ceil(dt / _MAX_SUBSTEP - 1e-9))
     h = dt / m_sub
@@ -95,6 +129,9 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
         e, de = env(t0 + tau_s[:cnt])
         envelope[start:stop] = e
         gyr_true[start:stop] = rot_s.value(t0, cnt) * e[:, None]
+        more = extra_rate(t0 + tau_s[:cnt])
+        if more is not None:
+            gyr_true[start:stop] += more
         acc_lin[start:stop] = vel_s.value(t0, cnt) * de[:, None] + vel_s.deriv(t0, cnt) * e[:, None]
         # ground truth attitude over (t_{k-1}, t_k] for k in [max(start, 1), stop): Magnus-4 per
         # substep, composed per sample, then a prefix product over the chunk
@@ -106,7 +143,11 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
             continue
         tg0 = (first - 1) * dt
         eg, _ = env(tg0 + tau_g[: steps * m_sub * 2])
-        w = (rot_g.value(tg0, steps * m_sub * 2) * eg[:, None]).reshape(steps, m_sub, 2, 3)
+        w = rot_g.value(tg0, steps * m_sub * 2) * eg[:, None]
+        more = extra_rate(tg0 + tau_g[: steps * m_sub * 2])
+        if more is not None:
+            w += more
+        w = w.reshape(steps, m_sub, 2, 3)
         w1, w2 = w[:, :, 0, :], w[:, :, 1, :]
         theta = 0.5 * h * (w1 + w2) + (_SQRT3 / 12.0) * h * h * _cross(w1, w2)
         inc = quat_exp(theta)  # (steps, M, 4)
@@ -128,6 +169,10 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
         tau = t[i0:i1] - t_tap
         acc_lin[i0:i1] += (cfg.tap_amplitude * np.sin(2.0 * np.pi * tau / cfg.tap_duration))[:, None] * d
         tap_active[i0:i1] = True
+    if vib_acc is not None:  # a sensor-frame vibration, kept in the truth's earth frame
+        for start in range(0, n, _TABLE):
+            sl = slice(start, min(start + _TABLE, n))
+            acc_lin[sl] += quat_rotate(quat[sl], vib_acc(t[sl]))
 
     # --- sensors
     rng_g = streams["gyro"]
@@ -146,6 +191,8 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
     for t_start, t_end, extra in cfg.mag_disturbances:
         on = (t >= t_start) & (t < t_end)
         mag_earth[on] += np.asarray(extra, dtype=np.float64)
+    if cfg.mag_dipoles:
+        mag_earth += _dipole_field(cfg, t)
 
     g_earth = np.array([0.0, 0.0, cfg.gravity])
     acc = streams["accel"].normal(size=(n, 3))
@@ -156,8 +203,19 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
         sl = slice(start, min(start + _TABLE, n))
         acc[sl] += quat_rotate_inv(quat[sl], acc_lin[sl] + g_earth)
         mag[sl] += quat_rotate_inv(quat[sl], mag_earth[sl])
+    errors = None
+    if cfg.sensor_errors is not None:
+        seed = int(streams["errors"].integers(0, 2**63 - 1))
+        errors = draw_errors(seed, cfg.sensor_errors)
+        gyr, acc, mag = distort(gyr, acc, mag, errors)
+    clipped = np.zeros((n, 3), np.bool_)
+    if cfg.gyro_clip > 0:
+        clipped = np.abs(gyr) > cfg.gyro_clip
+        np.clip(gyr, -cfg.gyro_clip, cfg.gyro_clip, out=gyr)
 
     movement = (envelope > 0.0) | tap_active
+    if cfg.spins:
+        movement |= _spinning(cfg, t)
     groups = ["simulated"]
     if cfg.rotation_rms > 0:
         groups.append("rotation")
@@ -166,8 +224,14 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
     groups.append("with_breaks" if cfg.rest_breaks else "no_breaks")
     if cfg.taps:
         groups.append("tapping")
-    if cfg.mag_disturbances:
+    if cfg.mag_disturbances or cfg.mag_dipoles:
         groups.append("magnet")
+    if cfg.vibration_accel > 0 or cfg.vibration_gyro > 0:
+        groups.append("vibration")
+    if cfg.sensor_errors is not None:
+        groups.append("sensor_errors")
+    if clipped.any():
+        groups.append("gyro_clipped")
     rec = Recording(
         gyr=gyr.astype(np.float32),
         acc=acc.astype(np.float32),
@@ -188,6 +252,8 @@ def simulate_with_truth(cfg: SimConfig | None = None) -> tuple[Recording, SimTru
         tap_times=tap_times,
         tap_dirs=tap_dirs,
         substeps=m_sub,
+        gyr_clipped=clipped,
+        errors=errors,
     )
     return rec, truth
 

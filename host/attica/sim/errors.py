@@ -31,7 +31,7 @@ from attica.calibration.model import Calibration, InertialModel, MagModel, Mount
 from attica.data import Recording
 from attica.sim.rotations import F64
 
-__all__ = ["ErrorSizes", "apply_errors", "draw_errors"]
+__all__ = ["ErrorSizes", "apply_errors", "distort", "draw_errors"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,6 +135,32 @@ def _raw_inertial(model: InertialModel, v: F64) -> F64:
     return out
 
 
+def distort(gyr: F64, acc: F64, mag: F64, truth: Calibration) -> tuple[F64, F64, F64]:
+    """Body-frame float64 samples as a sensor with the errors ``truth`` corrects reads them.
+
+    Parameters
+    ----------
+    gyr, acc, mag : ndarray, float64, shape (N, 3)
+        Body-frame gyro (rad/s), accelerometer (m/s^2) and magnetometer (uT) samples.
+    truth : Calibration
+        The calibration that undoes the errors (its ``convention`` is not used).
+
+    Returns
+    -------
+    gyr, acc, mag : ndarray, float64, shape (N, 3)
+        The raw readings (NaN rows stay NaN); :func:`apply_errors` on a recording, the simulator's
+        :attr:`~attica.sim.SimConfig.sensor_errors` before the float32 cast.
+
+    """
+    r_t = truth.mounting.matrix().T  # sensor <- body
+    g_raw = _raw_inertial(truth.gyro, gyr @ r_t.T)
+    a_raw = _raw_inertial(truth.accel, acc @ r_t.T)
+    soft = np.array(truth.mag.soft_iron, np.float64)
+    m_sensor = mag @ r_t.T
+    m_raw: F64 = np.linalg.solve(soft, m_sensor.T).T + np.array(truth.mag.hard_iron)
+    return g_raw, a_raw, m_raw
+
+
 def apply_errors(rec: Recording, truth: Calibration) -> Recording:
     """What a sensor with the errors ``truth`` corrects reads for the motion of ``rec``.
 
@@ -153,12 +179,9 @@ def apply_errors(rec: Recording, truth: Calibration) -> Recording:
         (NaN magnetometer rows stay NaN) and ``"sensor_errors"`` added to the groups.
 
     """
-    r_t = truth.mounting.matrix().T  # sensor <- body
-    gyr = _raw_inertial(truth.gyro, rec.gyr.astype(np.float64) @ r_t.T)
-    acc = _raw_inertial(truth.accel, rec.acc.astype(np.float64) @ r_t.T)
-    soft = np.array(truth.mag.soft_iron, np.float64)
-    m_sensor = rec.mag.astype(np.float64) @ r_t.T
-    mag = np.linalg.solve(soft, m_sensor.T).T + np.array(truth.mag.hard_iron)
+    gyr, acc, mag = distort(
+        rec.gyr.astype(np.float64), rec.acc.astype(np.float64), rec.mag.astype(np.float64), truth
+    )
     groups = rec.groups if "sensor_errors" in rec.groups else (*rec.groups, "sensor_errors")
     return dataclasses.replace(
         rec,

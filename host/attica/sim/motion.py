@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from attica.sim.config import SimConfig
 from attica.sim.rotations import F64
@@ -158,3 +159,69 @@ def _draw_taps(
     seg = np.clip(np.searchsorted(cum, pos, side="right") - 1, 0, len(spans) - 1)
     starts = np.array([spans[s][0] for s in seg]) + (pos - cum[seg])
     return starts, dirs
+
+
+def _spin_rate(cfg: SimConfig, t: F64) -> F64:
+    """Body rate of the :attr:`SimConfig.spins` at ``t`` (sensor frame, rad/s), shape (len(t), 3)."""
+    out = np.zeros((t.size, 3), np.float64)
+    for t0, length, peak, axis in cfg.spins:
+        on = (t >= t0) & (t < t0 + length)
+        if not on.any():
+            continue
+        a = np.asarray(axis, np.float64)
+        s = np.sin(np.pi * (t[on] - t0) / length)
+        out[on] += (peak * s * s)[:, None] * (a / np.linalg.norm(a))
+    return out
+
+
+def _spinning(cfg: SimConfig, t: F64) -> NDArray[np.bool_]:
+    """Where a spin of :attr:`SimConfig.spins` is under way."""
+    on = np.zeros(t.size, np.bool_)
+    for t0, length, _, _ in cfg.spins:
+        on |= (t >= t0) & (t < t0 + length)
+    return on
+
+
+@dataclass(frozen=True)
+class _Vibration:
+    """Sinusoidal vibration at ``omega`` rad/s: ``amp * sin(omega t + phase[j])`` per sensor axis ``j``."""
+
+    amp: float
+    omega: float
+    phase: F64  # (3,)
+
+    def __call__(self, t: F64) -> F64:
+        """Values at ``t``, shape (len(t), 3)."""
+        out: F64 = self.amp * np.sin(self.omega * t[:, None] + self.phase[None, :])
+        return out
+
+
+def _vibrations(cfg: SimConfig, rng: np.random.Generator) -> tuple[_Vibration | None, _Vibration | None]:
+    """The accelerometer's (m/s^2) and the gyro's (rad/s) vibration; None where the amplitude is 0."""
+    phase = rng.uniform(0.0, 2.0 * np.pi, size=(2, 3))
+    omega = 2.0 * np.pi * cfg.vibration_frequency
+    acc = _Vibration(cfg.vibration_accel, omega, phase[0]) if cfg.vibration_accel > 0 else None
+    gyr = _Vibration(cfg.vibration_gyro, omega, phase[1]) if cfg.vibration_gyro > 0 else None
+    return acc, gyr
+
+
+MU0_4PI = 0.1
+"""mu0 / (4 pi) = 1e-7 T m/A in uT m^3 / (A m^2): a dipole of 1 A m^2 gives 0.1 uT at 1 m across its
+axis and 0.2 uT along it."""
+
+
+def _dipole_field(cfg: SimConfig, t: F64) -> F64:
+    """Earth-frame field (uT) of the moving magnets of :attr:`SimConfig.mag_dipoles` at ``t``."""
+    out = np.zeros((t.size, 3), np.float64)
+    for t0, t1, p0, p1, moment in cfg.mag_dipoles:
+        on = (t >= t0) & (t < t1)
+        if not on.any():
+            continue
+        u = (t[on] - t0) / (t1 - t0)
+        a, b = np.asarray(p0, np.float64), np.asarray(p1, np.float64)
+        r = a[None, :] + u[:, None] * (b - a)[None, :]
+        dist = np.linalg.norm(r, axis=1)
+        rh = r / dist[:, None]
+        m = np.asarray(moment, np.float64)
+        out[on] += MU0_4PI * (3.0 * rh * (rh @ m)[:, None] - m[None, :]) / (dist**3)[:, None]
+    return out
