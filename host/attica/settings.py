@@ -174,6 +174,7 @@ class MarsSettings:
     mag_ref_tau: float = 20.0
     mag_new_time: float = 20.0
     tau_mag_fast: float = 2.0
+    tau_bias_mag: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -352,6 +353,7 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "mag_ref_tau": 0.0,
         "mag_new_time": 0.0,
         "tau_mag_fast": 0.0,
+        "tau_bias_mag": 0.0,
     },
     FilterKind.KF: {
         "q_noise": 1e-4,

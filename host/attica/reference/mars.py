@@ -23,6 +23,7 @@ PIO2 = dm.c("0x1.921fb6p+0")
 M0_MIN = dm.c("0x1.0624dep-10")  # ATT_MARS_M0_MIN
 BLOCK_S = dm.ONE  # ATT_MARS_BLOCK_S, s
 THREE = dm.c("0x1.8p+1")
+SIX = dm.c("0x1.8p+2")
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -141,6 +142,9 @@ class Mars:
         "c.blk_n": "u32",
         "c.new_n": "u32",
         "c.fast_n": "u32",
+        "c.fast_start_n": "u32",
+        "c.k_bias_mag": "f32",
+        "c.bias_mag_on": "bool",
     }
     """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -221,6 +225,19 @@ class Mars:
         self.k_fast = k_fast.astype(np.float32)
         self.k_fast1 = (dm.ONE - self.k_fast).astype(np.float32)
         self.fast_n = sensor.samples(THREE * tau_fast, self.dt)
+        lp = setting(s.tau_acc_lp, n)
+        start = sensor.samples(THREE * tau_fast + SIX * lp, self.dt)
+        self.fast_start_n = np.where((self.fast_n > _U0) & (lp > dm.ZERO), start, self.fast_n).astype(
+            np.uint32
+        )
+        tau_b = setting(s.tau_bias_mag, n)
+        self.bias_mag_on = (
+            (tau_b > dm.ZERO)
+            & (self.mag_mode == MagMode.HORIZONTAL)
+            & ((self.bias_mode == BiasMode.AT_REST) | (self.bias_mode == BiasMode.RUNNING))
+        )
+        with np.errstate(all="ignore"):
+            self.k_bias_mag = np.where(self.bias_mag_on, dm.ONE / tau_b, dm.ZERO).astype(np.float32)
 
     def _block_clear(self, cond: Any) -> None:
         """att_mars_block_clear where cond."""
@@ -320,8 +337,8 @@ class Mars:
             m0 = (self._zeros, dm.sqrtf(me[0] * me[0] + me[1] * me[1]), me[2])
         return ok1 & ok2, qa, m0
 
-    def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, dm.Quat]:
-        """att_mars_mag_correct: (gated by norm or dip, rejected, corrected q) for the earth-frame mag me."""
+    def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, dm.Quat, Any]:
+        """att_mars_mag_correct: (gated by norm or dip, rejected, corrected q, heading angle 2 C'_z)."""
         fast = self.fast_left > _U0
         k = np.where(fast, self.k_fast, self.k_mag)
         k1 = np.where(fast, self.k_fast1, self.k_mag1)
@@ -350,7 +367,8 @@ class Mars:
             full = self.mag_mode == MagMode.FULL
             reject = gated | np.where(full, ~ok_u, ~ok_h)
             qc = dm.quat_where(full, q_full, q_hor)
-        return gated, reject, dm.quat_where(reject, q, qc)
+            theta = dm.TWO * qz
+        return gated, reject, dm.quat_where(reject, q, qc), theta
 
     def step(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc, mag of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -437,7 +455,7 @@ class Mars:
             lp2c = dm.vec3_where(ok_c, dm.vec3_where(full, lp2_f, lp2_p), lp2n)
             lp_upd = use_acc & lp_on
 
-            gated, rej_c, q_corr = self._mag_correct(q2, me, mnorm)
+            gated, rej_c, q_corr, theta = self._mag_correct(q2, me, mnorm)
             ok_al, q_al, m0_al = self._align(q2, m)
             ok_dl, parts_l = self._derive_m0(m0_al)
             good_l = ok_al & ok_dl
@@ -460,14 +478,33 @@ class Mars:
         self._commit_m0(init_mag, parts0)
         self._commit_m0(use_align & good_l, parts_l)
         self._commit_m0(use_set & ok_ds, parts_s)
-        self.fast_left = np.where(init_mag | (use_align & good_l), self.fast_n, self.fast_left).astype(
-            np.uint32
-        )
-        self._ref_count(run & ok_n & self.m0_valid, use_corr & ~gated, use_corr & gated, mnorm, me[2])
+        self.fast_left = np.where(init_mag | (use_align & good_l), self.fast_start_n, self.fast_left)
+        self.fast_left = self.fast_left.astype(np.uint32)
+        count = run & ok_n & self.m0_valid
+        learn = count & self.bias_mag_on & use_corr & ~rej_c & (self.fast_left == _U0)
+        self._bias_mag(learn, theta)
+        flags = flags | np.where(learn, _u(Flag.BIAS_UPDATED), _U0)
+        self._ref_count(count, use_corr & ~gated, use_corr & gated, mnorm, me[2])
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
+
+    def _bias_mag(self, cond: Any, theta: Any) -> None:
+        """att_mars_bias_mag where cond: b -= (theta / tau_bias_mag) r3, r3 = R(q)^T z."""
+        w, x, y, z = self.q
+        with np.errstate(all="ignore"):
+            k = theta * self.k_bias_mag
+            rx = dm.TWO * (x * z - w * y)
+            ry = dm.TWO * (y * z + w * x)
+            rz = dm.ONE - dm.TWO * (x * x + y * y)
+            r = self.gyro_range
+            b = (
+                dm.clampf(self.bias[0] - k * rx, -r, r),
+                dm.clampf(self.bias[1] - k * ry, -r, r),
+                dm.clampf(self.bias[2] - k * rz, -r, r),
+            )
+        self.bias = dm.vec3_where(cond, b, self.bias)
 
     def _ref_set(self, cond: Any, n: Any, s: Any) -> None:
         """att_mars_ref_set where cond: m0 with norm n and sin(dip) s, its horizontal direction kept."""
@@ -540,7 +577,7 @@ class Mars:
         blk = (new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z)
         new._commit_m0(new.m0_valid & ok, parts)
         new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z = blk  # limits only
-        new.fast_left = np.minimum(new.fast_left, new.fast_n).astype(np.uint32)
+        new.fast_left = np.minimum(new.fast_left, new.fast_start_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

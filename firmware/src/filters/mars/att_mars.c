@@ -50,6 +50,7 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->mag_ref_tau = 20.0f;
     settings->mag_new_time = 20.0f;
     settings->tau_mag_fast = 2.0f;
+    settings->tau_bias_mag = 0.0f; /* off: on BROAD it costs 0.07 deg (docs/filters.md) */
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -82,6 +83,13 @@ static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     c->k_fast = (s->tau_mag_fast > 0.0f) ? s->dt / (s->tau_mag_fast + s->dt) : c->k_mag;
     c->k_fast1 = 1.0f - c->k_fast;
     c->fast_n = att_sensor_samples(3.0f * s->tau_mag_fast, s->dt);
+    c->fast_start_n = c->fast_n;
+    if (c->fast_n > 0u && s->tau_acc_lp > 0.0f) {
+        c->fast_start_n = att_sensor_samples(3.0f * s->tau_mag_fast + 6.0f * s->tau_acc_lp, s->dt);
+    }
+    c->bias_mag_on = s->tau_bias_mag > 0.0f && s->mag_mode == ATT_MARS_MAG_HORIZONTAL &&
+                     (s->bias_mode == ATT_BIAS_AT_REST || s->bias_mode == ATT_BIAS_RUNNING);
+    c->k_bias_mag = c->bias_mag_on ? 1.0f / s->tau_bias_mag : 0.0f;
 }
 
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
@@ -226,8 +234,8 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (f->st.m0_valid) {
         att_mars_m0_limits(&f->c, &f->st);
     }
-    if (f->st.fast_left > f->c.fast_n) {
-        f->st.fast_left = f->c.fast_n;
+    if (f->st.fast_left > f->c.fast_start_n) {
+        f->st.fast_left = f->c.fast_start_n;
     }
     return ATT_OK;
 }
@@ -360,11 +368,12 @@ static ATT_NOINLINE bool att_mars_align(float qw, float qx, float qy, float qz, 
  * a rotation). No trigonometry; for small gains it turns by k_mag times 2 sin(angle / 2), i.e. k_mag
  * times the angle for the small heading errors of tracking. Full mode: att_mars_rotation_toward.
  * The gain is k_fast during the fast phase. *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
- * and dip tests, ATT_MARS_MAG_GATED when it failed them (the reference statistics count both).
+ * and dip tests, ATT_MARS_MAG_GATED when it failed them (the reference statistics count both). *theta:
+ * the heading correction's angle 2 C'_z (horizontal mode; 0 when none), rad.
  */
 static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t *c, const att_mars_state_t *st,
                                                          att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags,
-                                                         uint32_t *use)
+                                                         uint32_t *use, float *theta)
 {
     const bool fast = st->fast_left > 0u;
     const float k = fast ? c->k_fast : c->k_mag;
@@ -407,6 +416,7 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
         qw = k1; /* h opposite to r: toward the half turn about z */
         qz = k;
     }
+    *theta = 2.0f * qz;
     return att_i_quat_mul_z(qw, qz, q);
 }
 
@@ -422,7 +432,7 @@ static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars
     if (c->init_from_sensors) {
         if (att_mars_align(qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
             st->flags |= ATT_FLAG_INITIALISED;
-            st->fast_left = c->fast_n;
+            st->fast_left = c->fast_start_n;
             return true;
         }
         st->flags |= ATT_FLAG_MAG_REJECTED;
@@ -453,7 +463,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     if (mag_ok) {
         if (att_mars_align(st->q.w, st->q.x, st->q.y, st->q.z, mag, &qa, &m0) && att_mars_set_m0(&f->c, st, &m0)) {
             st->q = qa;
-            st->fast_left = f->c.fast_n;
+            st->fast_left = f->c.fast_start_n;
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
@@ -582,6 +592,23 @@ static ATT_NOINLINE void att_mars_ref_block(const att_mars_coeffs_t *c, att_mars
     att_mars_block_clear(st);
 }
 
+/*
+ * The gyro bias learnt from an accepted heading correction by theta (rad): b -= (theta / tau_bias_mag) r3,
+ * r3 = R(q)^T z, the earth's vertical in the sensor frame (the third row of R(q)); each component kept in
+ * [-gyro_range, gyro_range], the range of bias_init (a tiny tau_bias_mag cannot run the bias away).
+ */
+static ATT_ALWAYS_INLINE void att_mars_bias_mag(const att_mars_coeffs_t *c, att_mars_state_t *st, float theta)
+{
+    const att_quat_t q = st->q;
+    const float k = theta * c->k_bias_mag;
+    const float rx = 2.0f * (q.x * q.z - q.w * q.y);
+    const float ry = 2.0f * (q.y * q.z + q.w * q.x);
+    const float rz = 1.0f - 2.0f * (q.x * q.x + q.y * q.y);
+    const float r = c->gyro_range;
+    st->bias = att_i_vec3(att_i_clampf(st->bias.x - k * rx, -r, r), att_i_clampf(st->bias.y - k * ry, -r, r),
+                          att_i_clampf(st->bias.z - k * rz, -r, r));
+}
+
 /* Count a committed step with a known reference: the sample's use, the fast phase, the block. */
 static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att_mars_state_t *st, uint32_t use,
                                                  float mnorm, float mz)
@@ -607,11 +634,12 @@ static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att
 /* The mag correction (or, for the first usable sample, the heading alignment) of q; me = R(q) m. */
 static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_step(const att_mars_coeffs_t *c, att_mars_state_t *st,
                                                       att_quat_t q, att_vec3_t me, float mnorm,
-                                                      const att_vec3_t *mag_in, uint32_t *flags, uint32_t *use)
+                                                      const att_vec3_t *mag_in, uint32_t *flags, uint32_t *use,
+                                                      float *theta)
 {
     att_quat_t qa;
     if (st->m0_valid) {
-        return att_mars_mag_correct(c, st, q, me, mnorm, flags, use);
+        return att_mars_mag_correct(c, st, q, me, mnorm, flags, use, theta);
     }
     st->flags = *flags;
     if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
@@ -647,6 +675,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     uint32_t accel_flags;
     uint32_t mag_flags;
     uint32_t use = 0u;
+    float theta = 0.0f;
     bool gyro_ok;
     bool accel_ok;
     bool mag_ok;
@@ -687,13 +716,18 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         att_mars_accel_correct(c, acc, &q, &lp1, &lp2);
     }
     if (mag_ok) {
-        q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use);
+        q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use, &theta);
     }
     if (att_i_quat_normalize_bounded(q, &qn)) {
         st->q = qn;
         st->lp1 = lp1;
         st->lp2 = lp2;
         if (st->m0_valid) {
+            if (c->bias_mag_on && use == ATT_MARS_MAG_ACCEPTED && (flags & ATT_FLAG_MAG_REJECTED) == 0u &&
+                st->fast_left == 0u) {
+                att_mars_bias_mag(c, st, theta);
+                flags |= ATT_FLAG_BIAS_UPDATED;
+            }
             att_mars_ref_count(c, st, use, mnorm, me.z);
         }
     } else {
@@ -752,6 +786,7 @@ void att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
         s->mag_ref_tau = 0.0f;
         s->mag_new_time = 0.0f;
         s->tau_mag_fast = 0.0f;
+        s->tau_bias_mag = 0.0f;
     }
 }
 
