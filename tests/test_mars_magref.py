@@ -8,7 +8,8 @@
   norm and dip drift stays accepted (the reference follows it);
 - with mag_ref_tau, mag_new_time and tau_mag_fast at 0 the filter is the frozen-reference one (the seed
   preset's digests, tests/digests.txt, did not change);
-- the gyro bias learnt in motion from the heading corrections (tau_bias_mag, opt-in) on a run with no rest.
+- the gyro bias learnt in motion from the heading corrections (tau_bias_mag, opt-in) on a run with no rest;
+- the recovery after a clipping gyro (recovery_time): flagged, and the error after the turns much lower.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ from helpers import assert_same_bits
 RATE = 100.0
 OFF: dict[str, Any] = {"mag_ref_tau": 0.0, "mag_new_time": 0.0, "tau_mag_fast": 0.0}
 START = ((0.0, 40.0, (-12.0, 8.0, -10.0)),)  # uT, earth frame: a field disturbed for the first 40 s
+CLIP = float(np.radians(500.0))  # rad/s: a gyro of 500 deg/s full scale
+SPINS = tuple((t, 1.0, 14.0, (0.3, 0.4, 0.866)) for t in (10.0, 22.0, 34.0))  # turns to 14 rad/s: clipped
 DRIFT = tuple((30.0 * i, 30.0 * (i + 1), (0.0, 0.0, 4.0 * (i + 1))) for i in range(5))  # norm and dip drift
 
 
@@ -51,9 +54,10 @@ def _stream(rec: Any, name: str) -> Stream:
         {},
         {"mag_mode": MagMode.FULL},
         {"tau_bias_mag": 20.0},
+        {"recovery_time": 0.5, "tau_acc_lp": 0.0},
         {"dt": 0.25, "mag_new_time": 3.0, "tau_mag_fast": 1.0, "mag_ref_tau": 2.0},  # blocks of 4 samples
     ],
-    ids=["defaults", "full", "bias-in-motion", "short-blocks"],
+    ids=["defaults", "full", "bias-in-motion", "recovery-no-lowpass", "short-blocks"],
 )
 def test_bit_exact_with_the_reference_learning(over: dict[str, Any]) -> None:
     dt = over.get("dt", 1.0 / RATE)
@@ -61,7 +65,9 @@ def test_bit_exact_with_the_reference_learning(over: dict[str, Any]) -> None:
     for seed, dist in ((1, START), (2, DRIFT)):
         rec = simulate(SimConfig(duration=130.0, rate=1.0 / dt, seed=seed, mag_disturbances=dist))
         streams.append(_stream(rec, f"seed {seed}"))
-    s = replace(MarsSettings(dt=dt), **over)
+    rec = simulate(SimConfig(duration=40.0, rate=1.0 / dt, seed=4, gyro_clip=CLIP, spins=SPINS))
+    streams.append(_stream(rec, "clipping gyro"))
+    s = replace(MarsSettings(dt=dt, gyro_range=CLIP), **over)
     res = crosscheck(FilterKind.MARS, streams, settings=s, segment=1500)
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
     # the mechanism ran in C: a new reference was adopted on the disturbed start
@@ -83,10 +89,12 @@ def test_retune_bit_exact() -> None:
     ref = RefFilter(FilterKind.MARS, s)
     ref.load_c_states([c.state.copy()[0]])
     s2 = replace(s2, tau_acc_lp=0.5)
-    assert c.state.u.mars.st.fast_left > 90
+    assert c.state.u.mars.st.fast_left > 5
     c.retune(s2)
     ref.retune(s2)
-    assert c.state.u.mars.st.fast_left == 90  # clamped to the new 3 x 0.5 s + 6 x 0.5 s after an alignment
+    assert (
+        c.state.u.mars.st.fast_left == 5
+    )  # blocks: clamped to the new 3 x 0.5 s + 6 x 0.5 s after an alignment
     assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
     out = c.run(rec.gyr[half:], rec.acc[half:], rec.mag[half:])
     q_ref = np.array(
@@ -143,3 +151,22 @@ def test_the_bias_learnt_in_motion_steadies_the_heading() -> None:
     assert err[20.0] < 0.8 * err[0.0], (
         f"heading RMSE {err[20.0]:.2f} with the bias learnt vs {err[0.0]:.2f} without"
     )
+
+
+def test_a_clipping_gyro_is_recovered_from() -> None:
+    """recovery_time (default 2 s): after gyro-clipping turns the error comes back, flagged INITIALISED."""
+    rec = simulate(SimConfig(duration=50.0, rate=RATE, seed=5, gyro_clip=CLIP, spins=SPINS))
+    late = np.arange(len(rec.gyr)) > int(5 * RATE)
+    err = {}
+    for rt in (0.0, 2.0):
+        f = native.Filter(FilterKind.MARS, MarsSettings(dt=1.0 / RATE, gyro_range=CLIP, recovery_time=rt))
+        out = f.run(rec.gyr, rec.acc, rec.mag)
+        err[rt] = metrics.evaluate(out["q"], rec.quat_true, late).total
+        flagged = (out["flags"] & 0x400) != 0
+        if rt:
+            clipped = (np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1)
+            assert flagged[clipped].all(), "every clipped sample is flagged"
+            assert 1.9 * RATE * 3 <= flagged[late].sum() <= 4.0 * RATE * 3, "2 s after each clip: recovering"
+        else:
+            assert not flagged[late].any()
+    assert err[2.0] < 0.5 * err[0.0], f"total RMSE {err[2.0]:.2f} with the recovery vs {err[0.0]:.2f} without"

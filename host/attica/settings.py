@@ -175,6 +175,7 @@ class MarsSettings:
     mag_new_time: float = 20.0
     tau_mag_fast: float = 2.0
     tau_bias_mag: float = 0.0
+    recovery_time: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -354,6 +355,7 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "mag_new_time": 0.0,
         "tau_mag_fast": 0.0,
         "tau_bias_mag": 0.0,
+        "recovery_time": 0.0,
     },
     FilterKind.KF: {
         "q_noise": 1e-4,

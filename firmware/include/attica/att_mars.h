@@ -41,17 +41,24 @@
  *     the rejection bounds of the candidate's running mean (norm within mag_norm_reject / 2 of it,
  *     sin(dip) within mag_dip_reject / 2) for mag_new_time, the candidate becomes m0: the heading is
  *     never tied to whatever field the first samples saw. After the heading alignment and after a new
- *     reference, the correction uses tau_mag_fast instead of tau_mag for 3 tau_mag_fast (fast
- *     convergence). Blocks without mag samples change nothing.
+ *     reference, the correction uses tau_mag_fast instead of tau_mag for 3 tau_mag_fast, in whole blocks
+ *     (fast convergence). Blocks without mag samples change nothing.
  *     Gyro bias in motion (tau_bias_mag > 0, bias modes AT_REST and RUNNING, HORIZONTAL mode): a bias
  *     left in the integration turns the heading at a steady rate, which the heading correction keeps
  *     undoing; each accepted correction by the angle theta = 2 C'_z (C' the applied correction, toward
  *     the fraction k of the angle) moves the bias by -theta / tau_bias_mag along the earth's vertical
  *     seen in the sensor frame, r3 = R(q)^T z (a PI loop: critically damped for tau_bias_mag = 4 tau_mag),
  *     each component kept within +-gyro_range.
- *     Not during the fast phase (its corrections are a heading error, not a rate). Off by default: it
+ *     Not during the fast phase or a recovery (their corrections are a heading error, not a rate). Off by default: it
  *     helps on long runs without rest in the simulator but costs accuracy on BROAD, where the heading
  *     corrections come from the field more than from the bias (docs/filters.md).
+ *  Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
+ *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
+ *     recovery of recovery_time: the integration has lost rotation it cannot know, so the accel low-pass
+ *     runs with the time constant recovery_time / 8 (its two stages settle within the recovery) and the
+ *     heading correction with the same time constant (instead of tau_acc_lp and tau_mag); every step of it
+ *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
+ *     starts the fast heading phase of an alignment (the tilt is still settling).
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
  *  When the direction to correct is exactly opposite to the reference (cross product too small to
  *  normalise), a fixed axis perpendicular to the reference is used: accel: x = (1, 0, 0); full mag:
@@ -139,6 +146,8 @@ typedef struct {
     float tau_bias_mag;           /**< time constant of the gyro bias learnt in motion from the heading
                                        corrections (bias modes AT_REST and RUNNING, HORIZONTAL mag mode), s,
                                        [0, 1e4]; 0 = off */
+    float recovery_time;          /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
+                                       accel and mag are trusted strongly for this long, s, [0, 1e4]; 0 = off */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -173,11 +182,16 @@ typedef struct {
     float cand_tol_s;        /**< sin(dip) tolerance of a steady new field (mag_dip_reject / 2; Inf = none) */
     uint32_t blk_n;          /**< samples per block of the reference statistics (1 s, at least 1) */
     uint32_t new_n;          /**< steady blocks before a new field is adopted (0 = never) */
-    uint32_t fast_n;         /**< samples of the fast phase after a new reference (0 = none) */
-    uint32_t fast_start_n;   /**< samples of the fast phase after the heading alignment: also the accel
+    uint32_t fast_n;         /**< blocks of the fast phase after a new reference (0 = none) */
+    uint32_t fast_start_n;   /**< blocks of the fast phase after the heading alignment: also the accel
                                   low-pass's settling time 6 tau_acc_lp (the tilt of a first sample can be off) */
     float k_bias_mag;        /**< 1 / tau_bias_mag, 1/s (0: the bias is not learnt from the heading corrections) */
     bool bias_mag_on;        /**< k_bias_mag > 0 (tau_bias_mag > 0, bias mode AT_REST or RUNNING, HORIZONTAL) */
+    float clip;              /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
+    float k_lp_rec;          /**< per-sample gain of the accel low-pass stages during a recovery */
+    float k_rec;             /**< per-sample mag gain during a recovery */
+    float k_rec1;            /**< 1 - k_rec */
+    uint32_t rec_n;          /**< samples of a recovery (0 = none) */
 } att_mars_coeffs_t;
 
 /** Dynamic state of a 9-axis filter instance. */
@@ -207,7 +221,8 @@ typedef struct {
     uint32_t acc_n;        /**< accepted samples in this block */
     uint32_t rej_n;        /**< samples rejected by norm or dip in this block */
     uint32_t cand_n;       /**< consecutive steady blocks of the candidate (0 = none) */
-    uint32_t fast_left;    /**< steps left of the fast phase (k_fast instead of k_mag) */
+    uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
     bool initialised;      /**< q holds a valid attitude */
@@ -226,9 +241,9 @@ typedef struct {
  * correction), tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2,
  * mag_dip_reject 0.3 rad, initialisation from the sensors, the reference field learnt (mag_ref_tau 20 s,
  * the same time scale as the heading correction; mag_new_time 20 s; tau_mag_fast 2 s), no bias learnt in
- * motion (tau_bias_mag 0). The article's literal
+ * motion (tau_bias_mag 0), a recovery of 2 s after a clipping gyro (recovery_time). The article's literal
  * settings (alpha_acc 0.02, alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed
- * bias, no low-pass, the reference frozen: mag_ref_tau, mag_new_time and tau_mag_fast 0) are the seed
+ * bias, no low-pass, the reference frozen: mag_ref_tau, mag_new_time, tau_mag_fast and recovery_time 0) are the seed
  * preset (att_filter_settings_preset).
  */
 void att_mars_settings_default(att_mars_settings_t *settings, float dt);
@@ -241,7 +256,7 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
  * states, reference field and its statistics, counters), except that the bias becomes 0 (mode OFF) or bias_init
  * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
- * is limited to the new one's length after an alignment (fast_start_n). On error f is
+ * is limited to the new one's length after an alignment (fast_start_n); a recovery under way runs out. On error f is
  * left unchanged.
  */
 att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings);

@@ -24,6 +24,8 @@ M0_MIN = dm.c("0x1.0624dep-10")  # ATT_MARS_M0_MIN
 BLOCK_S = dm.ONE  # ATT_MARS_BLOCK_S, s
 THREE = dm.c("0x1.8p+1")
 SIX = dm.c("0x1.8p+2")
+CLIP = dm.c("0x1.f5c29p-1")  # ATT_MARS_CLIP_F, 0.98
+REC_TAU = dm.c("0x1p-3")  # ATT_MARS_REC_TAU, 1/8
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -93,6 +95,7 @@ class Mars:
         "st.rej_n": "u32",
         "st.cand_n": "u32",
         "st.fast_left": "u32",
+        "st.rec_left": "u32",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
         "st.steps": "u32",
@@ -145,6 +148,11 @@ class Mars:
         "c.fast_start_n": "u32",
         "c.k_bias_mag": "f32",
         "c.bias_mag_on": "bool",
+        "c.clip": "f32",
+        "c.k_lp_rec": "f32",
+        "c.k_rec": "f32",
+        "c.k_rec1": "f32",
+        "c.rec_n": "u32",
     }
     """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -199,6 +207,7 @@ class Mars:
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
         self._ref_coeffs(s)
+        self._rec_coeffs(s)
         self._zeros = zeros
         self._ones = np.full(n, dm.ONE, np.float32)
         self._up = (self._zeros, self._zeros, self._ones)
@@ -224,9 +233,9 @@ class Mars:
             k_fast = np.where(tau_fast > dm.ZERO, self.dt / (tau_fast + self.dt), self.k_mag)
         self.k_fast = k_fast.astype(np.float32)
         self.k_fast1 = (dm.ONE - self.k_fast).astype(np.float32)
-        self.fast_n = sensor.samples(THREE * tau_fast, self.dt)
+        self.fast_n = sensor.samples(THREE * tau_fast, t)
         lp = setting(s.tau_acc_lp, n)
-        start = sensor.samples(THREE * tau_fast + SIX * lp, self.dt)
+        start = sensor.samples(THREE * tau_fast + SIX * lp, t)
         self.fast_start_n = np.where((self.fast_n > _U0) & (lp > dm.ZERO), start, self.fast_n).astype(
             np.uint32
         )
@@ -238,6 +247,18 @@ class Mars:
         )
         with np.errstate(all="ignore"):
             self.k_bias_mag = np.where(self.bias_mag_on, dm.ONE / tau_b, dm.ZERO).astype(np.float32)
+
+    def _rec_coeffs(self, s: MarsSettings) -> None:
+        """att_mars_rec_coeffs: the recovery after a clipping gyro."""
+        rt = setting(s.recovery_time, self.n)
+        tau = rt * REC_TAU
+        with np.errstate(all="ignore"):
+            k = self.dt / (tau + self.dt)
+        self.rec_n = sensor.samples(rt, self.dt)
+        self.clip = np.where(self.rec_n > _U0, CLIP * self.gyro_range, dm.INF).astype(np.float32)
+        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        self.k_rec = np.where(k > self.k_mag, k, self.k_mag).astype(np.float32)
+        self.k_rec1 = (dm.ONE - self.k_rec).astype(np.float32)
 
     def _block_clear(self, cond: Any) -> None:
         """att_mars_block_clear where cond."""
@@ -265,6 +286,7 @@ class Mars:
         self.cand_sin: Any = z.copy()
         self.cand_n = np.zeros(n, np.uint32)
         self.fast_left = np.zeros(n, np.uint32)
+        self.rec_left = np.zeros(n, np.uint32)
         self.acc_norm: Any = z.copy()
         self.acc_z: Any = z.copy()
         self.rej_norm: Any = z.copy()
@@ -340,15 +362,12 @@ class Mars:
     def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, dm.Quat, Any]:
         """att_mars_mag_correct: (gated by norm or dip, rejected, corrected q, heading angle 2 C'_z)."""
         fast = self.fast_left > _U0
-        k = np.where(fast, self.k_fast, self.k_mag)
-        k1 = np.where(fast, self.k_fast1, self.k_mag1)
+        rec = self.rec_left > _U0
+        k = np.where(rec, self.k_rec, np.where(fast, self.k_fast, self.k_mag))
+        k1 = np.where(rec, self.k_rec1, np.where(fast, self.k_fast1, self.k_mag1))
         with np.errstate(all="ignore"):
-            gated = (
-                (mnorm < self.m0_lo)
-                | (mnorm > self.m0_hi)
-                | (me[2] < self.dip_lo * mnorm)
-                | (me[2] > self.dip_hi * mnorm)
-            )
+            dip_off = (me[2] < self.dip_lo * mnorm) | (me[2] > self.dip_hi * mnorm)
+            gated = (mnorm < self.m0_lo) | (mnorm > self.m0_hi) | dip_off
             # full mode: the 3-D rotation toward m0
             ok_u, unit = dm.vec3_normalize(me)
             q_full = dm.quat_mul(_rotation_toward(unit, self.m0_ref, self.m0_perp, k), q)
@@ -421,8 +440,20 @@ class Mars:
             )
             flags = flags | np.where(init_now & mag_ok & ~good0, _u(Flag.MAG_REJECTED), _U0)
 
-            # running
+            # running: the recovery counter (att_mars_recovery), then the step
             run = ~waiting
+            ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
+            clipped = ((flags & _u(Flag.GYRO_RANGE)) != _U0) | (ag[0] >= self.clip) | (ag[1] >= self.clip)
+            clipped = clipped | (ag[2] >= self.clip)
+            left = np.where(self.rec_left > _U0, self.rec_left - np.uint32(1), self.rec_left)
+            left = np.where(clipped, self.rec_n, left)
+            counted = run
+            ended = counted & ~clipped & (self.rec_left == np.uint32(1))
+            self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
+            self.rec_left = np.where(counted, left, self.rec_left).astype(np.uint32)
+            rec = self.rec_left > _U0
+            flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
+            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
             q = self.q
             w = dm.vec3_sub(g, self.bias)
             q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))
@@ -434,8 +465,8 @@ class Mars:
             use_acc = run & accel_ok & ~rejected
             me = dm.quat_rotate(q1, m)  # the mag in the earth frame of the predicted attitude
             v = dm.quat_rotate(q1, a)
-            lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), self.k_lp))
-            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), self.k_lp))
+            lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))
+            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), k_lp))
             v = dm.vec3_where(lp_on, lp2n, v)
             # full alignment (k_acc == 1)
             ok_f, (fw, fx, fy), n_f = align_up(v)
@@ -481,7 +512,9 @@ class Mars:
         self.fast_left = np.where(init_mag | (use_align & good_l), self.fast_start_n, self.fast_left)
         self.fast_left = self.fast_left.astype(np.uint32)
         count = run & ok_n & self.m0_valid
-        learn = count & self.bias_mag_on & use_corr & ~rej_c & (self.fast_left == _U0)
+        learn = (
+            count & self.bias_mag_on & use_corr & ~rej_c & (self.fast_left == _U0) & (self.rec_left == _U0)
+        )
         self._bias_mag(learn, theta)
         flags = flags | np.where(learn, _u(Flag.BIAS_UPDATED), _U0)
         self._ref_count(count, use_corr & ~gated, use_corr & gated, mnorm, me[2])
@@ -530,12 +563,12 @@ class Mars:
         self.rej_norm = np.where(rej, self.rej_norm + mnorm, self.rej_norm).astype(f32)
         self.rej_z = np.where(rej, self.rej_z + mz, self.rej_z).astype(f32)
         self.rej_n = np.where(rej, self.rej_n + np.uint32(1), self.rej_n).astype(np.uint32)
-        dec = count & (self.fast_left > _U0)
-        self.fast_left = np.where(dec, self.fast_left - np.uint32(1), self.fast_left).astype(np.uint32)
         self.blk = np.where(count, self.blk + np.uint32(1), self.blk).astype(np.uint32)
         end = count & (self.blk >= self.blk_n)
         if not end.any():
             return
+        dec = end & (self.fast_left > _U0)  # the fast phase is counted in blocks
+        self.fast_left = np.where(dec, self.fast_left - np.uint32(1), self.fast_left).astype(np.uint32)
         with np.errstate(all="ignore"):
             most = self.acc_n > self.rej_n
             # the reference follows the accepted samples

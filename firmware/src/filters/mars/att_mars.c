@@ -15,6 +15,8 @@
 
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
 #define ATT_MARS_BLOCK_S 1.0f /* s: the length of a block of the reference field's statistics */
+#define ATT_MARS_CLIP_F 0x1.f5c29p-1f   /* 0.98: |w_i| at this fraction of gyro_range is clipping */
+#define ATT_MARS_REC_TAU 0x1p-3f        /* the time constants of a recovery: recovery_time / 8 */
 #define ATT_MARS_MAG_ACCEPTED 1u /* the sample passed the norm and dip tests */
 #define ATT_MARS_MAG_GATED 2u    /* the sample failed them */
 
@@ -51,6 +53,7 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->mag_new_time = 20.0f;
     settings->tau_mag_fast = 2.0f;
     settings->tau_bias_mag = 0.0f; /* off: on BROAD it costs 0.07 deg (docs/filters.md) */
+    settings->recovery_time = 2.0f;
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -82,14 +85,26 @@ static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     c->cand_tol_s = (s->mag_dip_reject > 0.0f) ? 0.5f * s->mag_dip_reject : INFINITY;
     c->k_fast = (s->tau_mag_fast > 0.0f) ? s->dt / (s->tau_mag_fast + s->dt) : c->k_mag;
     c->k_fast1 = 1.0f - c->k_fast;
-    c->fast_n = att_sensor_samples(3.0f * s->tau_mag_fast, s->dt);
+    c->fast_n = att_sensor_samples(3.0f * s->tau_mag_fast, t);
     c->fast_start_n = c->fast_n;
     if (c->fast_n > 0u && s->tau_acc_lp > 0.0f) {
-        c->fast_start_n = att_sensor_samples(3.0f * s->tau_mag_fast + 6.0f * s->tau_acc_lp, s->dt);
+        c->fast_start_n = att_sensor_samples(3.0f * s->tau_mag_fast + 6.0f * s->tau_acc_lp, t);
     }
     c->bias_mag_on = s->tau_bias_mag > 0.0f && s->mag_mode == ATT_MARS_MAG_HORIZONTAL &&
                      (s->bias_mode == ATT_BIAS_AT_REST || s->bias_mode == ATT_BIAS_RUNNING);
     c->k_bias_mag = c->bias_mag_on ? 1.0f / s->tau_bias_mag : 0.0f;
+}
+
+/* The coefficients of the recovery after a clipping gyro (att_mars.h); after k_lp and k_fast. */
+static void att_mars_rec_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
+{
+    const float tau = s->recovery_time * ATT_MARS_REC_TAU;
+    const float k = s->dt / (tau + s->dt);
+    c->rec_n = att_sensor_samples(s->recovery_time, s->dt);
+    c->clip = (c->rec_n > 0u) ? ATT_MARS_CLIP_F * s->gyro_range : INFINITY; /* Inf: no recovery */
+    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->k_rec = (k > c->k_mag) ? k : c->k_mag;
+    c->k_rec1 = 1.0f - c->k_rec;
 }
 
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
@@ -118,6 +133,7 @@ static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
     c->reject_on = s->accel_reject > 0.0f;
     c->full = (c->k_acc == 1.0f);
     att_mars_ref_coeffs(c, s);
+    att_mars_rec_coeffs(c, s);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -267,6 +283,7 @@ void att_mars_reset(att_mars_t *f)
     st->cand_sin = 0.0f;
     st->cand_n = 0u;
     st->fast_left = 0u;
+    st->rec_left = 0u;
     att_mars_block_clear(st);
     st->m0_ref_ok = false;
     st->m0_valid = false;
@@ -367,7 +384,7 @@ static ATT_NOINLINE bool att_mars_align(float qw, float qx, float qy, float qz, 
  * as q := ((1 - k_mag) + k_mag C_w, 0, 0, k_mag C_z) * q (the final normalisation of the step makes it
  * a rotation). No trigonometry; for small gains it turns by k_mag times 2 sin(angle / 2), i.e. k_mag
  * times the angle for the small heading errors of tracking. Full mode: att_mars_rotation_toward.
- * The gain is k_fast during the fast phase. *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
+ * The gain is k_rec during a recovery, k_fast during the fast phase. *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
  * and dip tests, ATT_MARS_MAG_GATED when it failed them (the reference statistics count both). *theta:
  * the heading correction's angle 2 C'_z (horizontal mode; 0 when none), rad.
  */
@@ -375,9 +392,15 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
                                                          att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags,
                                                          uint32_t *use, float *theta)
 {
-    const bool fast = st->fast_left > 0u;
-    const float k = fast ? c->k_fast : c->k_mag;
-    const float k1 = fast ? c->k_fast1 : c->k_mag1;
+    float k = c->k_mag;
+    float k1 = c->k_mag1;
+    if (st->rec_left > 0u) {
+        k = c->k_rec;
+        k1 = c->k_rec1;
+    } else if (st->fast_left > 0u) {
+        k = c->k_fast;
+        k1 = c->k_fast1;
+    }
     att_vec3_t unit;
     att_quat_t qc;
     float h2;
@@ -483,6 +506,25 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
  */
 #define ATT_MARS_START_PENDING 0x80000000u
 
+/*
+ * The recovery counter: restarted by a clipping gyro sample (any |w_i| >= clip, or beyond gyro_range),
+ * else counted down. Returns ATT_FLAG_INITIALISED while a recovery runs.
+ */
+static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g,
+                                                    uint32_t flags)
+{
+    if ((flags & ATT_FLAG_GYRO_RANGE) != 0u || att_i_absf(g.x) >= c->clip || att_i_absf(g.y) >= c->clip ||
+        att_i_absf(g.z) >= c->clip) {
+        st->rec_left = c->rec_n;
+    } else if (st->rec_left > 0u) {
+        st->rec_left = st->rec_left - 1u;
+        if (st->rec_left == 0u) {
+            st->fast_left = c->fast_start_n; /* the heading follows the settling tilt, as after the alignment */
+        }
+    }
+    return (st->rec_left > 0u) ? ATT_FLAG_INITIALISED : 0u;
+}
+
 /* The prediction: q turned by the bias-corrected rate d over dt; NUMERIC when the first-order step overflowed. */
 static ATT_ALWAYS_INLINE uint32_t att_mars_predict(const att_mars_coeffs_t *c, att_vec3_t d, att_quat_t *q)
 {
@@ -499,13 +541,13 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_predict(const att_mars_coeffs_t *c, a
 }
 
 /* The accel correction of q toward the earth-frame specific force (low-passed when on), the stages with it. */
-static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c, att_vec3_t acc, att_quat_t *q,
-                                                     att_vec3_t *lp1, att_vec3_t *lp2)
+static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c, att_vec3_t acc, float k_lp,
+                                                     att_quat_t *q, att_vec3_t *lp1, att_vec3_t *lp2)
 {
     const att_vec3_t v = att_i_quat_rotate(*q, acc);
     att_vec3_t u = v;
     if (c->lp_on) {
-        att_i_lowpass2(v, c->k_lp, lp1, lp2);
+        att_i_lowpass2(v, k_lp, lp1, lp2);
         u = *lp2;
     }
     if (c->full) {
@@ -560,6 +602,9 @@ static void att_mars_ref_set(const att_mars_coeffs_t *c, att_mars_state_t *st, f
  */
 static ATT_NOINLINE void att_mars_ref_block(const att_mars_coeffs_t *c, att_mars_state_t *st)
 {
+    if (st->fast_left > 0u) {
+        st->fast_left = st->fast_left - 1u; /* the fast phase is counted in blocks */
+    }
     if (st->acc_n > st->rej_n) {
         if (c->ref_on && st->acc_norm > 0.0f) {
             const float n0 = att_i_vec3_norm(st->m0);
@@ -609,7 +654,7 @@ static ATT_ALWAYS_INLINE void att_mars_bias_mag(const att_mars_coeffs_t *c, att_
                           att_i_clampf(st->bias.z - k * rz, -r, r));
 }
 
-/* Count a committed step with a known reference: the sample's use, the fast phase, the block. */
+/* Count a committed step with a known reference: the sample's use, the block. */
 static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att_mars_state_t *st, uint32_t use,
                                                  float mnorm, float mz)
 {
@@ -621,9 +666,6 @@ static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att
         st->rej_norm = st->rej_norm + mnorm;
         st->rej_z = st->rej_z + mz;
         st->rej_n = st->rej_n + 1u;
-    }
-    if (st->fast_left > 0u) {
-        st->fast_left = st->fast_left - 1u;
     }
     st->blk = st->blk + 1u;
     if (st->blk >= c->blk_n) {
@@ -702,6 +744,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         st->flags = flags | ATT_FLAG_NOT_READY;
         return st->flags;
     }
+    flags |= att_mars_recovery(c, st, gyr, flags);
     q = st->q;
     lp1 = st->lp1;
     lp2 = st->lp2;
@@ -713,7 +756,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_mars_accel_correct(c, acc, &q, &lp1, &lp2);
+        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? c->k_lp_rec : c->k_lp, &q, &lp1, &lp2);
     }
     if (mag_ok) {
         q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use, &theta);
@@ -724,7 +767,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         st->lp2 = lp2;
         if (st->m0_valid) {
             if (c->bias_mag_on && use == ATT_MARS_MAG_ACCEPTED && (flags & ATT_FLAG_MAG_REJECTED) == 0u &&
-                st->fast_left == 0u) {
+                st->fast_left == 0u && st->rec_left == 0u) {
                 att_mars_bias_mag(c, st, theta);
                 flags |= ATT_FLAG_BIAS_UPDATED;
             }
@@ -787,6 +830,7 @@ void att_mars_preset(att_mars_settings_t *s, att_preset_t preset, float dt)
         s->mag_new_time = 0.0f;
         s->tau_mag_fast = 0.0f;
         s->tau_bias_mag = 0.0f;
+        s->recovery_time = 0.0f;
     }
 }
 

@@ -45,6 +45,7 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, mag_ref_tau, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                         \
     ATT_CK_IN(C, mag_new_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
     ATT_CK_IN(C, tau_mag_fast, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
-    ATT_CK_IN(C, tau_bias_mag, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+    ATT_CK_IN(C, tau_bias_mag, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
 
 #endif /* ATT_MARS_CHECKS_H */
