@@ -67,6 +67,22 @@ def _node_sessions(kind: Any) -> str:
             parts.append((_values(node.stats), lib.att_node_error_count(node), saves[:]))
             ids = ffi.new("uint32_t[]", 64)
             parts.append((lib.att_node_rx_ids(node, ids), list(ids)))
+        # bursts: 1 to 100 frames queued before the service calls (the rx ring's indexing and overflow)
+        parts.append(lib.att_node_init(node, s))
+        seen = bytearray()
+        i, k = 0, 1
+        while i < len(frames):
+            for j in range(i, min(i + k, len(frames))):
+                seen.append(lib.att_node_rx(node, buf + j))
+            i, k = i + k, k % 100 + 13
+            for _ in range(400):
+                n = lib.att_node_poll(node)
+                seen.append(n & 0xFF)
+                while lib.att_node_tx(node, f):
+                    seen += fbuf[:70]
+                if n == 0:
+                    break
+        parts.append((bytes(seen), _values(node.stats)))
     # an IMU on the node's board: samples pushed (between frames), the tx ring drained only now and then
     from attica_dev import digests
 

@@ -20,6 +20,18 @@ class Explained:
 
 EXPLAINED: tuple[Explained, ...] = (
     Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "const float sum = ((((((((((((((((((p[0] + p[1]) + p[3]) + p[4]) + p[5]) + p[6]) + p[8]) + p[9])"
+        " + p[10]) +",
+        "CONST",
+        "8 -> 9",
+        (
+            "unreachable: the finiteness probe of P sums its elements, and p[8] (cov(theta, b_x)) is never "
+            "non-finite alone at the probe: the step's prediction spreads it into p[6] (var(theta)) first "
+            "(a state poked with NaN in p[8] alone still restarts P, NUMERIC, after one step)"
+        ),
+    ),
+    Explained(
         "firmware/src/filters/mars/att_mars.c",
         "st->flags |= ATT_FLAG_MAG_REJECTED;",
         "BIT",
@@ -395,31 +407,7 @@ reaches, each with its reason. A survivor not listed here is a gap: kill it with
 the oracle) or explain it here."""
 
 
-OPEN: tuple[Explained, ...] = (
-    Explained(
-        "firmware/src/node/att_node.c",
-        "#define ATT_NODE_RX_MASK ((uint32_t)ATT_NODE_RX_RING - 1u)",
-        "AOR",
-        "- -> +",
-        (
-            "open: the oracle hands the node one frame at a time (push, then service), so a wrong ring "
-            "mask that reads the slot it wrote goes unseen; a burst of queued frames before a service call "
-            "would kill it"
-        ),
-    ),
-    Explained(
-        "firmware/src/filters/ekf/att_ekf.c",
-        "const float sum = ((((((((((((((((((p[0] + p[1]) + p[3]) + p[4]) + p[5]) + p[6]) + p[8]) + p[9])"
-        " + p[10]) +",
-        "CONST",
-        "8 -> 9",
-        (
-            "open: the finiteness probe of P sums its elements; dropping p[8] (for p[9] twice) is seen only "
-            "when p[8] alone is non-finite, which no oracle stream produces (a non-finite P spreads within "
-            "a step); a state loaded with one non-finite element would kill it"
-        ),
-    ),
-)
+OPEN: tuple[Explained, ...] = ()
 """Known gaps: survivors that a test could kill and none does yet, each saying which test would. The CI
 slice tolerates them (and reports them); every other unexplained survivor fails it."""
 
