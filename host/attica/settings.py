@@ -84,6 +84,7 @@ class ArsSettings:
     init_from_accel: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     tau_acc_lp: float = 1.5
+    recovery_time: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -339,7 +340,7 @@ class Preset(enum.IntEnum):
 
 
 SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
-    FilterKind.ARS: {"gain": 0.1, "tau": 0.0, "gain_c": 100.0, "tau_acc_lp": 0.0},
+    FilterKind.ARS: {"gain": 0.1, "tau": 0.0, "gain_c": 100.0, "tau_acc_lp": 0.0, "recovery_time": 0.0},
     FilterKind.MARS: {
         "alpha_acc": 0.02,
         "alpha_mag": 0.01,

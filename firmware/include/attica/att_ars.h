@@ -25,6 +25,12 @@
  *     Q(phi_e, n); for w <= 2^-10 (upside down) Q = (0, 1, 0, 0), a half turn about x. After it lp2 is
  *     (0, 0, |lp2|) exactly (that is what the rotation makes of it) and lp1 is rotated by Q. Otherwise
  *     (K_a < 1) the angle is phi_e = atan2(|a_xy|, a_z) and Q = Q(K_a phi_e, n) as above.
+ *     Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
+ *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
+ *     recovery of recovery_time (counted only once initialised): the integration has lost rotation it
+ *     cannot know, so the accel low-pass and the correction run with the time constant recovery_time / 8
+ *     when that is faster than their own (k_lp_rec, k_rec instead of k_lp, k); every step of it reports
+ *     ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors).
  *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
  *     (the attitude and low-pass states are then kept from before the step): no state can become
  *     NaN or Inf, since samples are bounded by the (finite) ranges.
@@ -77,6 +83,8 @@ typedef struct {
     att_quat_t q_init;             /**< initial attitude when init_from_accel is false, sensor-to-earth;
                                         finite, |q|^2 in [2^-20, 2^20] (normalised by init) */
     float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    float recovery_time;           /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
+                                        the accel is trusted strongly for this long, s, [0, 1e4]; 0 = off */
 } att_ars_settings_t;
 
 /** Coefficients derived from the settings by att_ars_init: what a step needs, and the reset values. */
@@ -98,6 +106,10 @@ typedef struct {
     bool reject_on;           /**< accel_reject > 0: the rejection test is made */
     bool full;                /**< k == 1 and c == 0: full alignment with the low-passed gravity, no
                                    trigonometry (and no |a| unless accel_reject is set) */
+    float clip;               /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
+    float k_lp_rec;           /**< per-sample gain of the accel low-pass stages during a recovery */
+    float k_rec;              /**< per-sample accel correction gain during a recovery */
+    uint32_t rec_n;           /**< samples of a recovery (0 = none) */
 } att_ars_coeffs_t;
 
 /** Dynamic state of an ARS instance. */
@@ -110,6 +122,7 @@ typedef struct {
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     bool initialised;      /**< q holds a valid attitude */
 } att_ars_state_t;
 
@@ -122,8 +135,10 @@ typedef struct {
 /**
  * Default settings for sample period dt (s), tuned on BROAD (docs/accuracy.md) and rate-independent:
  * accel low-pass tau_acc_lp 1.5 s, full correction (gain 1, tau 0: the attitude follows the low-passed
- * gravity, so tau_acc_lp is the filter's time constant), c = 0, bias at rest, rotvec integration. The first implementation's literal settings (k = 0.1 per sample, c = 100, no low-pass)
- * are att_filter_settings_preset(ATT_FILTER_ARS, ATT_PRESET_SEED, ...).
+ * gravity, so tau_acc_lp is the filter's time constant), c = 0, bias at rest, rotvec integration, a
+ * recovery of 2 s after a clipping gyro (recovery_time). The first implementation's literal settings
+ * (k = 0.1 per sample, c = 100, no low-pass, no recovery: recovery_time 0) are
+ * att_filter_settings_preset(ATT_FILTER_ARS, ATT_PRESET_SEED, ...).
  */
 void att_ars_settings_default(att_ars_settings_t *settings, float dt);
 /** ATT_OK when every field is within its range (above), else ATT_ERR_SETTINGS (ATT_ERR_NULL for NULL). */
@@ -133,7 +148,8 @@ att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);
 /**
  * New settings for a running instance: the coefficients are replaced and the state is kept (attitude,
  * bias, low-pass states, counters), except that the bias becomes 0 (mode OFF) or bias_init (mode
- * FROZEN) and the counters are limited to the new rest_n / bias_n_max. On error f is left unchanged.
+ * FROZEN) and the counters are limited to the new rest_n / bias_n_max; a recovery under way runs out.
+ * On error f is left unchanged.
  */
 att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings);
 /** Back to the state right after att_ars_init, keeping the settings. */

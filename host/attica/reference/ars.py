@@ -16,6 +16,8 @@ from attica.settings import ArsSettings, BiasMode, Flag, Integration
 _U0 = np.uint32(0)
 A_MIN = dm.c("0x1p-19")
 """Below this (|v| + v_z) / |v| the aligned vector points down: half turn about x (ATT_ALIGN_A_MIN)."""
+CLIP = dm.c("0x1.f5c29p-1")  # ATT_ARS_CLIP_F, 0.98
+REC_TAU = dm.c("0x1p-3")  # ATT_ARS_REC_TAU, 1/8
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -52,6 +54,7 @@ class Ars:
         "st.rest_count": "u32",
         "st.steps": "u32",
         "st.flags": "u32",
+        "st.rec_left": "u32",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -80,6 +83,10 @@ class Ars:
         "c.lp_on": "bool",
         "c.reject_on": "bool",
         "c.full": "bool",
+        "c.clip": "f32",
+        "c.k_lp_rec": "f32",
+        "c.k_rec": "f32",
+        "c.rec_n": "u32",
     }
     """Every C coefficient of att_ars_coeffs_t (set by att_ars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -127,7 +134,19 @@ class Ars:
         self.full = (self.k == dm.ONE) & (self.gain_c == dm.ZERO)
         self.lp_on = self.k_lp > dm.ZERO
         self.reject_on = self.accel_reject > dm.ZERO
+        self._rec_coeffs(s)
         self.reset()
+
+    def _rec_coeffs(self, s: ArsSettings) -> None:
+        """att_ars_rec_coeffs: the recovery after a clipping gyro."""
+        rt = setting(s.recovery_time, self.n)
+        tau = rt * REC_TAU
+        with np.errstate(all="ignore"):
+            k = self.dt / (tau + self.dt)
+        self.rec_n = sensor.samples(rt, self.dt)
+        self.clip = np.where(self.rec_n > _U0, CLIP * self.gyro_range, dm.INF).astype(np.float32)
+        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        self.k_rec = np.where(k > self.k, k, self.k).astype(np.float32)
 
     def reset(self) -> None:
         """Back to the state after construction (att_ars_reset)."""
@@ -144,6 +163,7 @@ class Ars:
         self.lp2: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
+        self.rec_left = np.zeros(n, np.uint32)
 
     def _increment(self, rate: dm.Vec3) -> dm.Quat:
         rv = dm.vec3_scale(rate, self.dt)
@@ -152,14 +172,14 @@ class Ars:
         return dm.quat_where(self.integration == Integration.EULER, q_euler, q_rotvec)
 
     def _correct_partial(
-        self, q: dm.Quat, v: dm.Vec3, norm: Any, lp1: dm.Vec3, lp2: dm.Vec3
+        self, q: dm.Quat, v: dm.Vec3, norm: Any, lp1: dm.Vec3, lp2: dm.Vec3, k: Any
     ) -> tuple[dm.Quat, dm.Vec3, dm.Vec3]:
         """att_ars_correct_partial: (q, lp1, lp2) after a correction by the fraction K_a of the angle."""
         with np.errstate(all="ignore"):
             axy = dm.sqrtf(v[0] * v[0] + v[1] * v[1])
             angle = dm.atan2f(axy, v[2])
             e = norm / self.gravity - dm.ONE
-            ka = self.k / (dm.ONE + self.gain_c * e * e)
+            ka = k / (dm.ONE + self.gain_c * e * e)
             pos = axy > dm.ZERO
             axis = (
                 np.where(pos, v[1] / axy, dm.ONE),
@@ -227,17 +247,30 @@ class Ars:
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
 
+            # the recovery after a clipping gyro (only once initialised)
+            run = ~waiting
+            ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
+            clipped = (ag[0] >= self.clip) | (ag[1] >= self.clip)  # beyond gyro_range is beyond clip too
+            clipped = clipped | (ag[2] >= self.clip)
+            left = np.where(self.rec_left > _U0, self.rec_left - np.uint32(1), self.rec_left)
+            left = np.where(clipped, self.rec_n, left)
+            self.rec_left = np.where(run, left, self.rec_left).astype(np.uint32)
+            rec = self.rec_left > _U0
+            flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
+            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
+            k = np.where(rec, self.k_rec, self.k)
+
             q = self.q
             q1 = dm.quat_where(gyro_ok, dm.quat_mul(q, self._increment(dm.vec3_sub(g, self.bias))), q)
             correct = ~waiting & accel_ok & ~rejected
             v = dm.quat_rotate(q1, a)
             lp_on = self.k_lp > dm.ZERO
-            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), self.k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
             v = dm.vec3_where(lp_on, lp2, v)
-            q_p, lp1_p, lp2_p = self._correct_partial(q1, v, norm, lp1, lp2)
+            q_p, lp1_p, lp2_p = self._correct_partial(q1, v, norm, lp1, lp2, k)
             ok_f, q_f, lp1_f, lp2_f = self._correct_full(q1, v, lp1, lp2)
             full = self.full
             q2 = dm.quat_where(correct, dm.quat_where(full, q_f, q_p), q1)

@@ -443,7 +443,7 @@ class Mars:
             # running: the recovery counter (att_mars_recovery), then the step
             run = ~waiting
             ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
-            clipped = ((flags & _u(Flag.GYRO_RANGE)) != _U0) | (ag[0] >= self.clip) | (ag[1] >= self.clip)
+            clipped = (ag[0] >= self.clip) | (ag[1] >= self.clip)  # beyond gyro_range is beyond clip too
             clipped = clipped | (ag[2] >= self.clip)
             left = np.where(self.rec_left > _U0, self.rec_left - np.uint32(1), self.rec_left)
             left = np.where(clipped, self.rec_n, left)

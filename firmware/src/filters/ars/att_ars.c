@@ -12,6 +12,9 @@
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
+#define ATT_ARS_CLIP_F 0x1.f5c29p-1f /* 0.98: |w_i| at this fraction of gyro_range is clipping */
+#define ATT_ARS_REC_TAU 0x1p-3f      /* the time constant of a recovery: recovery_time / 8 */
+
 void att_ars_settings_default(att_ars_settings_t *settings, float dt)
 {
     if (settings == NULL) {
@@ -35,6 +38,7 @@ void att_ars_settings_default(att_ars_settings_t *settings, float dt)
     settings->init_from_accel = true;
     settings->q_init = att_i_quat_identity();
     settings->tau_acc_lp = 1.5f;
+    settings->recovery_time = 2.0f;
 }
 
 att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
@@ -45,6 +49,17 @@ att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
     }
     ok = true ATT_ARS_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+/* The coefficients of the recovery after a clipping gyro (att_ars.h); after k, k_lp and lp_on. */
+static void att_ars_rec_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
+{
+    const float tau = s->recovery_time * ATT_ARS_REC_TAU;
+    const float k = s->dt / (tau + s->dt);
+    c->rec_n = att_sensor_samples(s->recovery_time, s->dt);
+    c->clip = (c->rec_n > 0u) ? ATT_ARS_CLIP_F * s->gyro_range : INFINITY; /* Inf: no recovery */
+    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->k_rec = (k > c->k) ? k : c->k;
 }
 
 static void att_ars_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
@@ -66,6 +81,7 @@ static void att_ars_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
     c->lp_on = c->k_lp > 0.0f;
     c->reject_on = s->accel_reject > 0.0f;
     c->full = (c->k == 1.0f && s->gain_c == 0.0f);
+    att_ars_rec_coeffs(c, s);
 }
 
 att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings)
@@ -111,6 +127,7 @@ void att_ars_reset(att_ars_t *f)
     f->st.rest_count = 0u;
     f->st.steps = 0u;
     f->st.flags = 0u;
+    f->st.rec_left = 0u;
     f->st.initialised = !f->c.init_from_accel;
 }
 
@@ -139,15 +156,15 @@ static ATT_ALWAYS_INLINE att_quat_t att_ars_increment(const att_ars_coeffs_t *c,
  * The rotation *qc of the general correction (K_a < 1) for the earth-frame specific force v (or its
  * low-passed value; as scalars, the result through a pointer: codegen note C1): the fraction K_a of the
  * angle between v and z about their common horizontal axis, K_a = k / (1 + c (|a|/g - 1)^2) with
- * norm = |a|.
+ * norm = |a| (k: c->k, or c->k_rec during a recovery).
  */
-static ATT_NOINLINE void att_ars_tilt_rotation(const att_ars_coeffs_t *c, float vx, float vy, float vz, float norm,
-                                               att_quat_t *qc)
+static ATT_NOINLINE void att_ars_tilt_rotation(const att_ars_coeffs_t *c, float k, float vx, float vy, float vz,
+                                               float norm, att_quat_t *qc)
 {
     const float axy = att_i_sqrtf(vx * vx + vy * vy);
     const float angle = att_atan2f(axy, vz);
     const float e = norm / c->gravity - 1.0f;
-    const float ka = c->k / (1.0f + c->gain_c * e * e);
+    const float ka = k / (1.0f + c->gain_c * e * e);
     att_vec3_t axis;
     if (axy > 0.0f) {
         axis.x = vy / axy;
@@ -192,6 +209,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     float norm = 0.0f;
     bool gyro_ok;
     bool accel_ok;
+    bool rec;
     att_quat_t q;
     att_quat_t qn;
     att_vec3_t d;
@@ -224,6 +242,18 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         return flags;
     }
 
+    /* the recovery after a clipping gyro: restarted by a clipping sample (a sample beyond gyro_range is
+       beyond clip too), else counted down */
+    if (att_i_absf(gyr.x) >= c->clip || att_i_absf(gyr.y) >= c->clip || att_i_absf(gyr.z) >= c->clip) {
+        st->rec_left = c->rec_n;
+    } else if (st->rec_left > 0u) {
+        st->rec_left = st->rec_left - 1u;
+    }
+    rec = st->rec_left > 0u;
+    if (rec) {
+        flags |= ATT_FLAG_INITIALISED;
+    }
+
     q = st->q;
     if (gyro_ok) {
         if ((flags & ATT_FLAG_BIAS_UPDATED) != 0u) {
@@ -237,7 +267,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         att_vec3_t lp2 = st->lp2;
         att_vec3_t u = v;
         if (c->lp_on) {
-            att_i_lowpass2(v, c->k_lp, &lp1, &lp2);
+            att_i_lowpass2(v, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (c->full) {
@@ -258,7 +288,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
             }
         } else {
             att_quat_t qc;
-            att_ars_tilt_rotation(c, u.x, u.y, u.z, norm, &qc);
+            att_ars_tilt_rotation(c, rec ? c->k_rec : c->k, u.x, u.y, u.z, norm, &qc);
             if (c->lp_on) {
                 lp1 = att_i_quat_rotate(qc, lp1);
                 lp2 = att_i_quat_rotate(qc, lp2);
@@ -312,6 +342,7 @@ void att_ars_preset(att_ars_settings_t *s, att_preset_t preset, float dt)
         s->tau = 0.0f;
         s->gain_c = 100.0f;
         s->tau_acc_lp = 0.0f;
+        s->recovery_time = 0.0f;
     }
 }
 

@@ -25,6 +25,7 @@
       1.0f, "ROTVEC (0) or EULER (1)", "")                                                                     \
     ATT_CK_BOOL(C, init_from_accel)                                                                            \
     ATT_CK_QUAT(C, q_init)                                                                                     \
-    ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+    ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                             \
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
 
 #endif /* ATT_ARS_CHECKS_H */

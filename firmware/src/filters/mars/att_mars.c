@@ -507,14 +507,12 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
 #define ATT_MARS_START_PENDING 0x80000000u
 
 /*
- * The recovery counter: restarted by a clipping gyro sample (any |w_i| >= clip, or beyond gyro_range),
+ * The recovery counter: restarted by a clipping gyro sample (any |w_i| >= clip: one beyond gyro_range is too),
  * else counted down. Returns ATT_FLAG_INITIALISED while a recovery runs.
  */
-static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g,
-                                                    uint32_t flags)
+static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g)
 {
-    if ((flags & ATT_FLAG_GYRO_RANGE) != 0u || att_i_absf(g.x) >= c->clip || att_i_absf(g.y) >= c->clip ||
-        att_i_absf(g.z) >= c->clip) {
+    if (att_i_absf(g.x) >= c->clip || att_i_absf(g.y) >= c->clip || att_i_absf(g.z) >= c->clip) {
         st->rec_left = c->rec_n;
     } else if (st->rec_left > 0u) {
         st->rec_left = st->rec_left - 1u;
@@ -744,7 +742,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
         st->flags = flags | ATT_FLAG_NOT_READY;
         return st->flags;
     }
-    flags |= att_mars_recovery(c, st, gyr, flags);
+    flags |= att_mars_recovery(c, st, gyr);
     q = st->q;
     lp1 = st->lp1;
     lp2 = st->lp2;
