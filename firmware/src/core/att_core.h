@@ -13,6 +13,7 @@
 
 #include "attica/att_bias.h"
 #include "attica/att_math.h"
+#include "attica/att_sensor.h"
 #include "attica/att_types.h"
 
 /**
@@ -378,6 +379,43 @@ static inline att_quat_t att_i_quat_from_rotvec_fast(att_vec3_t rv)
         return att_i_quat(1.0f + z * (ATT_ROTVEC_C1 + z * ATT_ROTVEC_C2), rv.x * k, rv.y * k, rv.z * k);
     }
     return att_quat_from_rotvec(rv);
+}
+
+/* The recovery after a clipping gyro (att_ars.h, att_mars.h: recovery_time). */
+#define ATT_REC_CLIP_F 0x1.f5c29p-1f /* 0.98: |w_i| at this fraction of gyro_range is clipping */
+#define ATT_REC_TAU 0x1p-3f          /* the time constant of a recovery: recovery_time / 8 */
+
+/**
+ * The recovery's coefficients: *rec_n its samples (0: none), *clip the |w_i| at and above which a gyro
+ * sample is clipping (0.98 gyro_range, rad/s; Inf when rec_n is 0: no recovery). Returns the gain of a
+ * first-order low-pass with the recovery's time constant, dt / (recovery_time / 8 + dt).
+ */
+static inline float att_i_recovery_params(float recovery_time, float gyro_range, float dt, uint32_t *rec_n,
+                                          float *clip)
+{
+    const float tau = recovery_time * ATT_REC_TAU;
+    const float k = dt / (tau + dt);
+    *rec_n = att_sensor_samples(recovery_time, dt);
+    *clip = (*rec_n > 0u) ? ATT_REC_CLIP_F * gyro_range : INFINITY;
+    return k;
+}
+
+/**
+ * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
+ * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), else counted down. Returns
+ * true on the step that ends a recovery (the counter reaches 0 without a new clipping sample).
+ */
+static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint32_t rec_n, uint32_t *left)
+{
+    if (att_i_absf(g.x) >= clip || att_i_absf(g.y) >= clip || att_i_absf(g.z) >= clip) {
+        *left = rec_n;
+        return false;
+    }
+    if (*left > 0u) {
+        *left = *left - 1u;
+        return *left == 0u;
+    }
+    return false;
 }
 
 #endif /* ATT_CORE_H */

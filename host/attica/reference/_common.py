@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
+from attica.reference import sensor
 
 
 def setting(value: Any, n: int, dtype: Any = np.float32) -> NDArray[Any]:
@@ -160,3 +161,48 @@ def carry_state(old: Any, new: Any) -> None:
     for path, layout in old.STATE.items():
         name = _ref_name(path, layout)
         setattr(new, name, _deep_copy(getattr(old, name)))
+
+
+# the recovery after a clipping gyro (att_core.h: att_i_recovery_params, att_i_recovery_step)
+REC_CLIP = dm.c("0x1.f5c29p-1")  # ATT_REC_CLIP_F, 0.98
+REC_TAU = dm.c("0x1p-3")  # ATT_REC_TAU, 1/8
+
+
+def recovery_params(
+    recovery_time: Any, gyro_range: Any, dt: Any
+) -> tuple[NDArray[np.uint32], NDArray[np.float32], NDArray[np.float32]]:
+    r"""att_i_recovery_params: the recovery's samples, clipping threshold (rad/s; Inf: none) and gain.
+
+    Returns
+    -------
+    rec_n, clip, k
+        Samples of a recovery (0: none), the \|w_i\| at and above which a gyro sample clips, and
+        dt / (recovery_time / 8 + dt).
+
+    """
+    tau = recovery_time * REC_TAU
+    with np.errstate(all="ignore"):
+        k = dt / (tau + dt)
+    rec_n = sensor.samples(recovery_time, dt)
+    clip = np.where(rec_n > np.uint32(0), REC_CLIP * gyro_range, dm.INF).astype(np.float32)
+    return rec_n, clip, np.asarray(k, np.float32)
+
+
+def recovery_step(
+    g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any
+) -> tuple[NDArray[np.uint32], NDArray[np.bool_]]:
+    """att_i_recovery_step where run: the counter restarted by a clipping gyro sample, else counted down.
+
+    Returns
+    -------
+    left, ended
+        The new counter (unchanged where not run) and where this step ended a recovery.
+
+    """
+    ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
+    clipped = (ag[0] >= clip) | (ag[1] >= clip)
+    clipped = clipped | (ag[2] >= clip)
+    nxt = np.where(left > np.uint32(0), left - np.uint32(1), left)
+    nxt = np.where(clipped, rec_n, nxt)
+    ended = run & ~clipped & (left == np.uint32(1))
+    return np.where(run, nxt, left).astype(np.uint32), ended

@@ -9,15 +9,22 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference._common import (
+    StateSpec,
+    carry_state,
+    recovery_params,
+    recovery_step,
+    run_steps,
+    setting,
+    split3,
+    stack,
+)
 from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import ArsSettings, BiasMode, Flag, Integration
 
 _U0 = np.uint32(0)
 A_MIN = dm.c("0x1p-19")
 """Below this (|v| + v_z) / |v| the aligned vector points down: half turn about x (ATT_ALIGN_A_MIN)."""
-CLIP = dm.c("0x1.f5c29p-1")  # ATT_ARS_CLIP_F, 0.98
-REC_TAU = dm.c("0x1p-3")  # ATT_ARS_REC_TAU, 1/8
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -140,11 +147,7 @@ class Ars:
     def _rec_coeffs(self, s: ArsSettings) -> None:
         """att_ars_rec_coeffs: the recovery after a clipping gyro."""
         rt = setting(s.recovery_time, self.n)
-        tau = rt * REC_TAU
-        with np.errstate(all="ignore"):
-            k = self.dt / (tau + self.dt)
-        self.rec_n = sensor.samples(rt, self.dt)
-        self.clip = np.where(self.rec_n > _U0, CLIP * self.gyro_range, dm.INF).astype(np.float32)
+        self.rec_n, self.clip, k = recovery_params(rt, self.gyro_range, self.dt)
         self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         self.k_rec = np.where(k > self.k, k, self.k).astype(np.float32)
 
@@ -249,12 +252,7 @@ class Ars:
 
             # the recovery after a clipping gyro (only once initialised)
             run = ~waiting
-            ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
-            clipped = (ag[0] >= self.clip) | (ag[1] >= self.clip)  # beyond gyro_range is beyond clip too
-            clipped = clipped | (ag[2] >= self.clip)
-            left = np.where(self.rec_left > _U0, self.rec_left - np.uint32(1), self.rec_left)
-            left = np.where(clipped, self.rec_n, left)
-            self.rec_left = np.where(run, left, self.rec_left).astype(np.uint32)
+            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
             k_lp = np.where(rec, self.k_lp_rec, self.k_lp)

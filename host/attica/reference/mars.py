@@ -9,7 +9,16 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference._common import (
+    StateSpec,
+    carry_state,
+    recovery_params,
+    recovery_step,
+    run_steps,
+    setting,
+    split3,
+    stack,
+)
 from attica.reference.ars import A_MIN, align_up
 from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import BiasMode, Flag, Integration, MagMode, MarsSettings
@@ -24,8 +33,6 @@ M0_MIN = dm.c("0x1.0624dep-10")  # ATT_MARS_M0_MIN
 BLOCK_S = dm.ONE  # ATT_MARS_BLOCK_S, s
 THREE = dm.c("0x1.8p+1")
 SIX = dm.c("0x1.8p+2")
-CLIP = dm.c("0x1.f5c29p-1")  # ATT_MARS_CLIP_F, 0.98
-REC_TAU = dm.c("0x1p-3")  # ATT_MARS_REC_TAU, 1/8
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -251,11 +258,7 @@ class Mars:
     def _rec_coeffs(self, s: MarsSettings) -> None:
         """att_mars_rec_coeffs: the recovery after a clipping gyro."""
         rt = setting(s.recovery_time, self.n)
-        tau = rt * REC_TAU
-        with np.errstate(all="ignore"):
-            k = self.dt / (tau + self.dt)
-        self.rec_n = sensor.samples(rt, self.dt)
-        self.clip = np.where(self.rec_n > _U0, CLIP * self.gyro_range, dm.INF).astype(np.float32)
+        self.rec_n, self.clip, k = recovery_params(rt, self.gyro_range, self.dt)
         self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         self.k_rec = np.where(k > self.k_mag, k, self.k_mag).astype(np.float32)
         self.k_rec1 = (dm.ONE - self.k_rec).astype(np.float32)
@@ -442,15 +445,8 @@ class Mars:
 
             # running: the recovery counter (att_mars_recovery), then the step
             run = ~waiting
-            ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
-            clipped = (ag[0] >= self.clip) | (ag[1] >= self.clip)  # beyond gyro_range is beyond clip too
-            clipped = clipped | (ag[2] >= self.clip)
-            left = np.where(self.rec_left > _U0, self.rec_left - np.uint32(1), self.rec_left)
-            left = np.where(clipped, self.rec_n, left)
-            counted = run
-            ended = counted & ~clipped & (self.rec_left == np.uint32(1))
+            self.rec_left, ended = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
             self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
-            self.rec_left = np.where(counted, left, self.rec_left).astype(np.uint32)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
             k_lp = np.where(rec, self.k_lp_rec, self.k_lp)

@@ -12,9 +12,6 @@
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
-#define ATT_ARS_CLIP_F 0x1.f5c29p-1f /* 0.98: |w_i| at this fraction of gyro_range is clipping */
-#define ATT_ARS_REC_TAU 0x1p-3f      /* the time constant of a recovery: recovery_time / 8 */
-
 void att_ars_settings_default(att_ars_settings_t *settings, float dt)
 {
     if (settings == NULL) {
@@ -54,10 +51,7 @@ att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
 /* The coefficients of the recovery after a clipping gyro (att_ars.h); after k, k_lp and lp_on. */
 static void att_ars_rec_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
 {
-    const float tau = s->recovery_time * ATT_ARS_REC_TAU;
-    const float k = s->dt / (tau + s->dt);
-    c->rec_n = att_sensor_samples(s->recovery_time, s->dt);
-    c->clip = (c->rec_n > 0u) ? ATT_ARS_CLIP_F * s->gyro_range : INFINITY; /* Inf: no recovery */
+    const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
     c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->k_rec = (k > c->k) ? k : c->k;
 }
@@ -242,13 +236,8 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         return flags;
     }
 
-    /* the recovery after a clipping gyro: restarted by a clipping sample (a sample beyond gyro_range is
-       beyond clip too), else counted down */
-    if (att_i_absf(gyr.x) >= c->clip || att_i_absf(gyr.y) >= c->clip || att_i_absf(gyr.z) >= c->clip) {
-        st->rec_left = c->rec_n;
-    } else if (st->rec_left > 0u) {
-        st->rec_left = st->rec_left - 1u;
-    }
+    /* the recovery after a clipping gyro */
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
     rec = st->rec_left > 0u;
     if (rec) {
         flags |= ATT_FLAG_INITIALISED;

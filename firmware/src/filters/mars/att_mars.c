@@ -15,8 +15,6 @@
 
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
 #define ATT_MARS_BLOCK_S 1.0f /* s: the length of a block of the reference field's statistics */
-#define ATT_MARS_CLIP_F 0x1.f5c29p-1f   /* 0.98: |w_i| at this fraction of gyro_range is clipping */
-#define ATT_MARS_REC_TAU 0x1p-3f        /* the time constants of a recovery: recovery_time / 8 */
 #define ATT_MARS_MAG_ACCEPTED 1u /* the sample passed the norm and dip tests */
 #define ATT_MARS_MAG_GATED 2u    /* the sample failed them */
 
@@ -98,10 +96,7 @@ static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
 /* The coefficients of the recovery after a clipping gyro (att_mars.h); after k_lp and k_fast. */
 static void att_mars_rec_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
 {
-    const float tau = s->recovery_time * ATT_MARS_REC_TAU;
-    const float k = s->dt / (tau + s->dt);
-    c->rec_n = att_sensor_samples(s->recovery_time, s->dt);
-    c->clip = (c->rec_n > 0u) ? ATT_MARS_CLIP_F * s->gyro_range : INFINITY; /* Inf: no recovery */
+    const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
     c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->k_rec = (k > c->k_mag) ? k : c->k_mag;
     c->k_rec1 = 1.0f - c->k_rec;
@@ -507,18 +502,12 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
 #define ATT_MARS_START_PENDING 0x80000000u
 
 /*
- * The recovery counter: restarted by a clipping gyro sample (any |w_i| >= clip: one beyond gyro_range is too),
- * else counted down. Returns ATT_FLAG_INITIALISED while a recovery runs.
+ * The recovery counter (att_i_recovery_step); the fast phase starts when a recovery ends. Returns ATT_FLAG_INITIALISED while a recovery runs.
  */
 static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g)
 {
-    if (att_i_absf(g.x) >= c->clip || att_i_absf(g.y) >= c->clip || att_i_absf(g.z) >= c->clip) {
-        st->rec_left = c->rec_n;
-    } else if (st->rec_left > 0u) {
-        st->rec_left = st->rec_left - 1u;
-        if (st->rec_left == 0u) {
-            st->fast_left = c->fast_start_n; /* the heading follows the settling tilt, as after the alignment */
-        }
+    if (att_i_recovery_step(g, c->clip, c->rec_n, &st->rec_left)) {
+        st->fast_left = c->fast_start_n; /* the heading follows the settling tilt, as after the alignment */
     }
     return (st->rec_left > 0u) ? ATT_FLAG_INITIALISED : 0u;
 }
