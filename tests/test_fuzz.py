@@ -4,9 +4,9 @@
 seconds in its ASan+UBSan and MSan builds from the seed corpora, the host parsers a few seconds under
 atheris, and every reproducer in tests/fuzz/regressions/ runs once. The filter findings are defects of
 the filter core; the fixed ones' regressions must pass. A new open finding gets its class in
-tests/fuzz/known_findings.txt, its reproducer in tests/fuzz/regressions/ and a strict xfail here
-(OPEN_FINDINGS; none open today: F12 was the last). STUCK is the recovery contract of
-tests/test_recovery.py, and it can fail (test_the_recovery_check_can_fail).
+tests/fuzz/known_findings.txt, its reproducer in tests/fuzz/regressions/ and an entry in
+OPEN_FINDINGS (test_open_findings_still_fail checks it still fails; none open today: F12 was the last).
+STUCK is the recovery contract of tests/test_recovery.py, and it can fail (test_the_recovery_check_can_fail).
 """
 
 from __future__ import annotations
@@ -181,8 +181,8 @@ FILTER_FINDINGS = {
 }
 
 
-# open findings: reproducer -> the defect (of the filter core, not fixed yet: a strict xfail below). None
-# today (F12, the last, was fixed in issue 26: its reproducer is in FILTER_FINDINGS).
+# open findings: reproducer -> the defect (of the filter core, not fixed yet: test_open_findings_still_fail
+# below). None today (F12, the last, was fixed in issue 26: its reproducer is in FILTER_FINDINGS).
 OPEN_FINDINGS: dict[str, str] = {}
 
 
@@ -191,26 +191,16 @@ def test_every_regression_is_listed() -> None:
     assert files == set(FILTER_FINDINGS) | set(OPEN_FINDINGS) | {"node-msan-retune.bin"}
 
 
-class OpenFindingError(Exception):
-    """The reproducer of an open finding still fails with its class."""
-
-
-@pytest.mark.xfail(
-    strict=True,
-    raises=OpenFindingError,
-    reason="an open defect of the filter core (OPEN_FINDINGS): its reproducer fails with its own class",
-)
-@pytest.mark.parametrize("name", sorted(OPEN_FINDINGS))
-def test_open_finding(built: Path, name: str) -> None:
-    """Each open finding's reproducer, strict (no known list): it fails with its own class (the kind and
-    invariant of its name, filter-<kind>-<INVARIANT>-....bin) until its defect is fixed (any other failure is
-    an error); then this xfail turns into an error and the reproducer moves to FILTER_FINDINGS. No finding
-    is open today (the empty parameter set is skipped)."""
-    r = _run(built / "fuzz_filter", str(REG / name))
-    if r.returncode != 0:
+def test_open_findings_still_fail(built: Path) -> None:
+    """Each open finding's reproducer, strict (no known list), still fails with its own class (the kind and
+    invariant of its name, filter-<kind>-<INVARIANT>-....bin); once its defect is fixed this test fails
+    and the reproducer moves to FILTER_FINDINGS. One test over the list, not a parameter per finding: an
+    empty list must not turn into a skip (none is open today: test_no_finding_is_open)."""
+    for name in sorted(OPEN_FINDINGS):
+        r = _run(built / "fuzz_filter", str(REG / name))
         kind, invariant = name.split("-")[1:3]
+        assert r.returncode != 0, f"{name} passes now: move it to FILTER_FINDINGS ({OPEN_FINDINGS[name]})"
         assert f"{kind}:{invariant}: " in r.stderr, r.stderr[-2000:]
-        raise OpenFindingError(OPEN_FINDINGS[name])
 
 
 def test_no_finding_is_open() -> None:
@@ -222,7 +212,7 @@ def test_no_finding_is_open() -> None:
 
 def test_known_findings_are_the_open_ones() -> None:
     """known_findings.txt lists open defects only: exactly the classes of the OPEN_FINDINGS reproducers
-    (filter-<kind>-<INVARIANT>-....bin), each with its strict xfail (test_open_finding)."""
+    (filter-<kind>-<INVARIANT>-....bin), each still failing (test_open_findings_still_fail)."""
     lines = [ln.strip() for ln in (HERE / "known_findings.txt").read_text().splitlines()]
     listed = {ln for ln in lines if ln and not ln.startswith("#")}
     classes = {"{}:{}".format(*name.split("-")[1:3]) for name in OPEN_FINDINGS}
