@@ -178,6 +178,9 @@ FILTER_FINDINGS = {
     "-0.99999998 (P11 1e4), and the first accepted update (step 14) left P not positive definite (diag 21.8, "
     "0.27, 2.3); a roll/pitch block within the pivot margin (det P2 <= 2^-12 P00 P11) is now conditioned "
     "at the end of its step",
+    "filter-tilt-STUCK-harness-range.bin": "F13, the harness's own: a normalising tilt with gravity 1.57 and "
+    "accel_range 2.77 (valid: accel_range > gravity) got rest samples of |a| 9.81, beyond its range "
+    "(SATURATED, rightly); the good samples now have the kind's gravity",
 }
 
 

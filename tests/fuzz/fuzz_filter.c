@@ -554,10 +554,11 @@ static uint32_t step(ctx_t *c, att_filter_t *f, const att_sample_t *in, att_outp
     return flags;
 }
 
+/* |a| of the good samples: the kind's gravity (below its accel_range by the settings contract, also for a
+   normalising tilt, which then ignores the norm: FZ_G there could be beyond a valid accel_range, F13) */
 static float gravity_of(const ctx_t *c)
 {
     if (c->kind == ATT_FILTER_GYRO) return FZ_G;
-    if (c->kind == ATT_FILTER_TILT && c->s->tilt.normalise) return FZ_G;
     return get_f32(c->s, &c->fs, "gravity");
 }
 
