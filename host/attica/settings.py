@@ -238,6 +238,7 @@ class MekfSettings:
     rest_time: float = 0.5
     gyro_scale_sd: float = 0.003
     gyro_scale_init: float = 0.0
+    recovery_time: float = 2.0
     use_mag: bool = True
     init_from_sensors: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))

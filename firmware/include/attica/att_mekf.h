@@ -66,6 +66,22 @@
  *     multiplied by 1 - 2^-10 (dropped when that is not enough): ATT_FLAG_CLAMPED.
  *  5. q is normalised (ATT_FLAG_NUMERIC keeps the attitude of the step before; it cannot happen with
  *     the finite ranges of the settings contract).
+ *  6. Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
+ *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
+ *     recovery of recovery_time (a later one restarts it), flagged ATT_FLAG_INITIALISED: the rate the
+ *     gyro could not measure has turned the attitude by an unknown angle. During it, with the gain
+ *     k = dt / (recovery_time / 8 + dt), each prediction adds k^2 r / (1 - k) (at most p_max) to the attitude
+ *     variances (r = r_acc for the two tilt axes, r_mag for the heading): the process noise whose steady-state
+ *     Kalman gain is k, so the filter follows accel and mag with the time constant recovery_time / 8;
+ *     the accel low-pass runs at the gain max(k_lp, k); an accel gate rejection is recovered at once
+ *     (the gate_recover wait is skipped); and the updates leave the scale-factor estimate alone (the
+ *     innovations of a clipped turn are not a scale error). Once over, P has converged with the
+ *     measurements and the usual noises take over. Fusion's angular rate recovery is the model; it is
+ *     the recovery of att_ars.h and att_mars.h in the Kalman filter's own terms. The start from the
+ *     sensors is a recovery too (flagged alike): its tilt comes from one accel sample, whatever linear
+ *     acceleration that held, its heading from one mag sample turned by that tilt, and the low-pass
+ *     stages start from that sample; followed by the normal gains, the settling of the low-pass reads
+ *     as a gyro bias and the heading converges at the pace of mag_noise.
  *
  * Initialisation (init_from_sensors, default): at the first usable accel sample, roll and pitch from
  * att_sensor_tilt(a), yaw 0, lp1 = lp2 = q a q*. With use_mag, the first usable mag sample (at that
@@ -161,6 +177,8 @@ typedef struct {
     float gyro_scale_sd;   /**< prior standard deviation of the gyro scale-factor error, estimated online
                                 (1 = 100 %); [0, 0.1] (ATT_MEKF_SCALE_MAX); 0 = not estimated */
     float gyro_scale_init; /**< initial gyro scale-factor error (rate = (1 + s)(w - b)); [-0.1, 0.1] */
+    float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
+                                this long the recovery of step 6, s; [0, 1e4]; 0 = none */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -202,6 +220,11 @@ typedef struct {
     uint32_t rest_n;       /**< rest_time in samples */
     float p0_scale;        /**< initial variance of the scale-factor error, gyro_scale_sd^2 (0 = off) */
     float scale_init;      /**< scale-factor error after reset */
+    float clip;            /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
+    float k_lp_rec;        /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float q_rec_tilt;      /**< tilt process noise per step of a recovery, min(k^2 r_acc / (1 - k), p_max), rad^2 */
+    float q_rec_head;      /**< heading process noise per step of a recovery, min(k^2 r_mag / (1 - k), p_max), rad^2 */
+    uint32_t rec_n;        /**< samples of a recovery (0 = none) */
     att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
     att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
     att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
@@ -233,6 +256,7 @@ typedef struct {
     uint32_t rest_count;   /**< consecutive samples that pass the rest test (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
     bool initialised;      /**< q holds a valid attitude */

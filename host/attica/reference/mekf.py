@@ -20,7 +20,16 @@ from attica.reference import mekf_cov as cv
 from attica.reference import mekf_mag as mg
 from attica.reference import mekf_scale as msc
 from attica.reference import sensor
-from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference._common import (
+    StateSpec,
+    carry_state,
+    recovery_params,
+    recovery_step,
+    run_steps,
+    setting,
+    split3,
+    stack,
+)
 from attica.reference.ars import align_up
 from attica.settings import Flag, MekfSettings
 
@@ -119,6 +128,7 @@ class Mekf:
         "st.rest_count": "u32",
         "st.steps": "u32",
         "st.flags": "u32",
+        "st.rec_left": "u32",
         "st.m0_valid": "bool",
         "st.lp_valid": "bool",
         "st.initialised": "bool",
@@ -146,6 +156,11 @@ class Mekf:
         "c.rest_n": "u32",
         "c.p0_scale": "f32",
         "c.scale_init": "f32",
+        "c.clip": "f32",
+        "c.k_lp_rec": "f32",
+        "c.q_rec_tilt": "f32",
+        "c.q_rec_head": "f32",
+        "c.rec_n": "u32",
         "c.q_init": "quat",
         "c.r_accel": "f32",
         "c.gate": "f32",
@@ -226,7 +241,22 @@ class Mekf:
         self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
         self._zeros = zeros
         self._up = (zeros, zeros, np.full(n, dm.ONE, np.float32))
+        self._rec_coeffs(s)
         self.reset()
+
+    def _rec_coeffs(self, s: MekfSettings) -> None:
+        """att_mekf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
+        self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
+        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        with np.errstate(all="ignore"):
+            g = (k * k) / (dm.ONE - k)
+            on = self.rec_n > _U0
+            qt = g * self.r_acc
+            qh = g * self.r_mag
+            qt = np.where(qt < self.p_max, qt, self.p_max)  # k = 1: g = Inf, at most p_max
+            qh = np.where(qh < self.p_max, qh, self.p_max)
+            self.q_rec_tilt = np.where(on, qt, dm.ZERO).astype(np.float32)
+            self.q_rec_head = np.where(on, qh, dm.ZERO).astype(np.float32)
 
     def reset(self) -> None:
         """Back to the state after construction (att_mekf_reset)."""
@@ -252,6 +282,7 @@ class Mekf:
         self.rest_count = np.zeros(n, np.uint32)
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
+        self.rec_left = np.zeros(n, np.uint32)
         self.m0_valid: Any = np.zeros(n, np.bool_)
         self.lp_valid: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
@@ -288,13 +319,18 @@ class Mekf:
             ck = self._check(g, a, m)
             start = mg.start(self, a, m, ck.accel_ok, ck.mag_ok)
             flags = ck.flags | start.flags
+            # 6. the recovery after a clipping gyro: its counter where initialised
+            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            rec = run & (self.rec_left > _U0)
+            flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             # 0. rest: the zero-rate pseudo-measurement
             wk = self._work(ck)
-            flags = flags | self._rest_update(wk, self._rest_count(run, ck.rest), g)
+            flags = flags | self._rest_update(wk, self._rest_count(run, ck.rest), g, rec)
             # 1. prediction, 2. accel update, 3. mag update
             qa, wr = self._integrate(wk, ck.gyro_ok, g)
             self._propagate(wk, run, ck.gyro_ok, a, wr, qa)
-            flags = flags | self._accel(wk, run & ck.accel_ok & ~ck.rejected)
+            self._rec_noise(wk, rec)
+            flags = flags | self._accel(wk, run & ck.accel_ok & ~ck.rejected, rec)
             flags = flags | mg.mag(self, wk, run & ck.mag_ok & self.m0_valid, m)
             flags = flags | mg.mag_first(self, wk, run & ck.mag_ok & ~self.m0_valid, m)
             # 4. conditioning of P and the scale estimate, 5. normalisation
@@ -355,16 +391,20 @@ class Mekf:
         self.rest_count = w(run, count, self.rest_count).astype(np.uint32)
         return run & rest & (self.rest_count >= self.rest_n)
 
-    def _rest_update(self, wk: Work, at_rest: Any, g: dm.Vec3) -> Any:
-        """Mirror of att_mekf_rest_update (with att_mekf_rest_axis) where ``at_rest``; returns the flags."""
+    def _rest_update(self, wk: Work, at_rest: Any, g: dm.Vec3, rec: Any) -> Any:
+        """Mirror of att_mekf_rest_update (with att_mekf_rest_axis) where ``at_rest``; returns the flags.
+
+        ``rec``: a recovery runs (p_s 0 for the updates, p_scale kept).
+        """
         w = np.where
         flags = w(at_rest, _u(Flag.AT_REST) | _u(Flag.BIAS_UPDATED), _U0)
+        ps_in = w(rec, dm.ZERO, wk.ps).astype(np.float32)
         p_r, dth_r, b_r, sv_r, ps_r, sc_r = cv.rest_apply(
-            wk.p, self.r_rest, g, wk.bias, wk.sv, wk.ps, wk.scale
+            wk.p, self.r_rest, g, wk.bias, wk.sv, ps_in, wk.scale
         )
         wk.p = cv.where(at_rest, p_r, wk.p)
         wk.sv = msc.where(at_rest, sv_r, wk.sv)
-        wk.ps = w(at_rest, ps_r, wk.ps).astype(np.float32)
+        wk.ps = w(at_rest & ~rec, ps_r, wk.ps).astype(np.float32)
         wk.scale = w(at_rest, sc_r, wk.scale).astype(np.float32)
         wk.bias = dm.vec3_where(at_rest, (b_r[0], b_r[1], b_r[2]), wk.bias)
         self._rest_apply(wk, at_rest, dth_r)
@@ -398,14 +438,29 @@ class Mekf:
             r[6] * a[0] + r[7] * a[1] + r[8] * a[2],
         )
 
-    def _accel(self, wk: Work, acc_try: Any) -> Any:
-        """Mirror of att_mekf_accel where ``acc_try`` (a usable sample, initialised); returns its flags."""
+    def _rec_noise(self, wk: Work, rec: Any) -> None:
+        """Mirror of att_mekf_rec_noise where ``rec``: the recovery's process noise on the attitude."""
+        p = list(wk.p)
+        for i, qn in (
+            (cv.ix(0, 0), self.q_rec_tilt),
+            (cv.ix(1, 1), self.q_rec_tilt),
+            (cv.ix(2, 2), self.q_rec_head),
+        ):
+            p[i] = np.where(rec, p[i] + qn, p[i]).astype(np.float32)
+        wk.p = p
+
+    def _accel(self, wk: Work, acc_try: Any, rec: Any) -> Any:
+        """Mirror of att_mekf_accel where ``acc_try`` (a usable sample, initialised); returns its flags.
+
+        ``rec``: a recovery runs (the low-pass at k_lp_rec, a gate rejection recovered at once, the scale
+        estimate left alone).
+        """
         w = np.where
         u = wk.v
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        l1, l2 = _lowpass(u, self.k_lp, l1, l2)
+        l1, l2 = _lowpass(u, w(rec, self.k_lp_rec, self.k_lp), l1, l2)
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
         y0 = dm.TWO * cx
@@ -416,7 +471,7 @@ class Mekf:
         gate_on = self.gate > dm.ZERO
         hit = measure & gate_on & (v[4] > self.gate * v[3])
         gated = w(hit & (self.gated < GATED_MAX), self.gated + np.uint32(1), self.gated).astype(np.uint32)
-        recover = hit & (self.n_recover > _U0) & (gated >= self.n_recover)
+        recover = hit & (rec | ((self.n_recover > _U0) & (gated >= self.n_recover)))
         p_rec = cv.recover(wk.p, self.soft, y0, y1, self.p_max)
         v_rec = cv.innov(p_rec, rn, y0, y1)
         p = cv.where(recover, p_rec, wk.p)
@@ -427,10 +482,11 @@ class Mekf:
         flags = flags | w(want & ~det_ok, _u(Flag.NUMERIC), _U0)
         apply = want & det_ok
         self.gated = w(apply, _U0, gated).astype(np.uint32)
-        p_a, dx, sv_a, ds_a, ps_a = cv.accel_apply(p, v, y0, y1, gate_on, self.soft, wk.sv, wk.ps)
+        ps_in = w(rec, dm.ZERO, wk.ps).astype(np.float32)  # a recovery: p_s 0 for the update, ds = 0
+        p_a, dx, sv_a, ds_a, ps_a = cv.accel_apply(p, v, y0, y1, gate_on, self.soft, wk.sv, ps_in)
         wk.p = cv.where(apply, p_a, p)
         wk.sv = msc.where(apply, sv_a, wk.sv)
-        wk.ps = w(apply, ps_a, wk.ps).astype(np.float32)
+        wk.ps = w(apply & ~rec, ps_a, wk.ps).astype(np.float32)
         wk.scale = w(apply, wk.scale + ds_a, wk.scale).astype(np.float32)
         dq = dm.quat_from_rotvec_fast((dx[0], dx[1], dx[2]))
         wk.q = dm.quat_where(apply, dm.quat_mul(dq, wk.q), wk.q)
@@ -469,6 +525,8 @@ class Mekf:
         self.lp2 = dm.vec3_where(init_now, start.lp, dm.vec3_where(run, wk.lp2, self.lp2))
         self.lp_valid = self.lp_valid | init_now | (run & wk.lp_valid)
         mg.commit_m0(self, init_mag, start.parts)
+        # the start is a recovery too (att_mekf_start)
+        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
         self.initialised = self.initialised | init_now
 
     def retune(self, settings: MekfSettings) -> None:
@@ -478,6 +536,7 @@ class Mekf:
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)
+        new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         off = ~(new.p0_scale > dm.ZERO)
         restart = ~off & ~(new.p_scale > dm.ZERO)
         new.p_scale = np.where(off, dm.ZERO, np.where(restart, new.p0_scale, new.p_scale)).astype(np.float32)

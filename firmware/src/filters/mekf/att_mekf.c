@@ -70,6 +70,7 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->rest_time = 0.5f;
     settings->gyro_scale_sd = 0.003f; /* 0.3 %: a calibrated MEMS gyro's scale-factor error (docs/accuracy.md) */
     settings->gyro_scale_init = 0.0f;
+    settings->recovery_time = 2.0f; /* s: Fusion's recovery trigger period at 100 Hz is 5 s; ars and mars use 2 s */
     settings->use_mag = true;
     settings->init_from_sensors = true;
     settings->q_init = att_i_quat_identity();
@@ -85,6 +86,27 @@ att_status_t att_mekf_settings_validate(const att_mekf_settings_t *s)
     }
     ok = true ATT_MEKF_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+/*
+ * The coefficients of the recovery after a clipping gyro (att_mekf.h, step 6); after r_acc, r_mag, k_lp,
+ * lp_on and p_max. The process noise k^2 r / (1 - k) is the one whose steady-state Kalman gain is k (at
+ * most p_max, the variance of "unknown").
+ */
+static void att_mekf_rec_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
+{
+    const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
+    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->q_rec_tilt = 0.0f;
+    c->q_rec_head = 0.0f;
+    if (c->rec_n > 0u) {
+        /* k = 1 (recovery_time / 8 below dt's rounding): g = Inf, "trust the measurement": at most p_max */
+        const float g = (k * k) / (1.0f - k);
+        const float qt = g * c->r_acc;
+        const float qh = g * c->r_mag;
+        c->q_rec_tilt = (qt < c->p_max) ? qt : c->p_max;
+        c->q_rec_head = (qh < c->p_max) ? qh : c->p_max;
+    }
 }
 
 static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
@@ -131,6 +153,7 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->init_from_sensors = s->init_from_sensors;
     c->lp_on = c->k_lp > 0.0f;
     c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
+    att_mekf_rec_coeffs(c, s);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -254,6 +277,9 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     if (f->st.rest_count > f->c.rest_n) {
         f->st.rest_count = f->c.rest_n;
     }
+    if (f->st.rec_left > f->c.rec_n) {
+        f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
+    }
     return ATT_OK;
 }
 
@@ -285,6 +311,7 @@ void att_mekf_reset(att_mekf_t *f)
     st->rest_count = 0u;
     st->steps = 0u;
     st->flags = 0u;
+    st->rec_left = 0u;
     st->m0_valid = false;
     st->lp_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -388,6 +415,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     st->lp2 = st->lp1;
     st->lp_valid = true;
     st->initialised = true;
+    st->rec_left = c->rec_n; /* the start is a recovery too (att_mekf.h, step 6) */
     return flags;
 }
 
@@ -884,15 +912,23 @@ static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf
  * a = V_(3+k) (the scale's sensitivity: the measurement itself does not depend on the scale, w = b at
  * rest), ds from att_mekf_scale_gain1, V := V - g a / s, dx = g (w_k - b_k) / s + V ds, P := P - g g^T / s.
  * One call per axis keeps the frame small (the phase is rare). The attitude correction (through the
- * correlations) is applied to *q and the low-pass stages as in the accel update.
+ * correlations) is applied to *q and the low-pass stages as in the accel update. During a recovery (rec,
+ * step 6) the updates run with p_s = 0 (ds = 0) and p_scale is kept: the scale estimate is left alone.
  */
 static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_mekf_state_t *st, const att_vec3_t *gyr,
-                                              att_quat_t *q)
+                                              att_quat_t *q, bool rec)
 {
     float dth[3] = {0.0f, 0.0f, 0.0f};
+    const float ps = st->p_scale;
+    if (rec) {
+        st->p_scale = 0.0f;
+    }
     att_mekf_rest_axis(c, st, 0u, gyr->x, dth);
     att_mekf_rest_axis(c, st, 1u, gyr->y, dth);
     att_mekf_rest_axis(c, st, 2u, gyr->z, dth);
+    if (rec) {
+        st->p_scale = ps;
+    }
     att_mekf_rest_apply(c, st, q, dth[0], dth[1], dth[2]); /* a tail call: its frame replaces this one */
 }
 
@@ -957,8 +993,13 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t
     *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k));
 }
 
-/* Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. */
-static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk)
+/*
+ * Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. During a
+ * recovery (rec, step 6) the low-pass runs at k_lp_rec, a gate rejection is recovered at once and the
+ * scale-factor estimate is left alone.
+ */
+static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk,
+                                            bool rec)
 {
     uint32_t flags = 0u;
     att_vec3_t lp1 = st->lp1;
@@ -977,7 +1018,7 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp1 = u; /* the first sample starts the low-pass */
             lp2 = u;
         }
-        att_mekf_lowpass(u, c->k_lp, &lp1, &lp2);
+        att_mekf_lowpass(u, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
         u = lp2;
     }
     if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {
@@ -991,7 +1032,7 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
         if (st->gated < ATT_MEKF_GATED_MAX) {
             st->gated = st->gated + 1u;
         }
-        if (!(c->n_recover > 0u && st->gated >= c->n_recover)) {
+        if (!(rec || (c->n_recover > 0u && st->gated >= c->n_recover))) {
             return ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
         }
         v = att_mekf_recover(c, st->p, rn, y0, y1);
@@ -1003,8 +1044,9 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
         float dx[6];
         att_quat_t dq;
         float ds;
+        float ps_off = 0.0f; /* during a recovery: p_s 0 for this update, ds = 0, st->p_scale kept */
         st->gated = 0u;
-        ds = att_mekf_accel_apply(c, st->p, v, y0, y1, dx, st->scale_v, &st->p_scale);
+        ds = att_mekf_accel_apply(c, st->p, v, y0, y1, dx, st->scale_v, rec ? &ps_off : &st->p_scale);
         st->scale = st->scale + ds;
         dq = att_mekf_exp(att_i_vec3(dx[0], dx[1], dx[2]));
         wk->q = att_i_quat_mul(dq, wk->q);
@@ -1017,6 +1059,14 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
         flags |= ATT_FLAG_BIAS_UPDATED;
     }
     return flags;
+}
+
+/* Step 6: the recovery's process noise, added to the attitude variances after the prediction. */
+static ATT_ALWAYS_INLINE void att_mekf_rec_noise(const att_mekf_coeffs_t *c, float *p)
+{
+    p[ATT_MEKF_IX(0u, 0u)] = p[ATT_MEKF_IX(0u, 0u)] + c->q_rec_tilt;
+    p[ATT_MEKF_IX(1u, 1u)] = p[ATT_MEKF_IX(1u, 1u)] + c->q_rec_tilt;
+    p[ATT_MEKF_IX(2u, 2u)] = p[ATT_MEKF_IX(2u, 2u)] + c->q_rec_head;
 }
 
 /*
@@ -1062,6 +1112,7 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     bool accel_ok;
     bool mag_ok = false;
     bool rest;
+    bool rec;
     att_mekf_work_t wk;
     if (f == NULL) {
         return ATT_FLAG_BAD_ARG;
@@ -1099,6 +1150,13 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
         return flags;
     }
 
+    /* 6. the recovery after a clipping gyro: its counter, then the phases below */
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
+    rec = st->rec_left > 0u;
+    if (rec) {
+        flags |= ATT_FLAG_INITIALISED;
+    }
+
     /* 0. rest: the zero-rate pseudo-measurement */
     wk.q = st->q;
     {
@@ -1108,15 +1166,18 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
             st->rest_count = st->rest_count + 1u;
         }
         if (rest && st->rest_count >= c->rest_n) {
-            att_mekf_rest_update(c, st, gyr_in, &wk.q);
+            att_mekf_rest_update(c, st, gyr_in, &wk.q, rec);
             flags |= ATT_FLAG_AT_REST | ATT_FLAG_BIAS_UPDATED;
         }
     }
     /* 1. prediction, 2. accel update, 3. mag update */
     att_mekf_propagate(c, st, acc_in, gyro_ok ? gyr_in : NULL,
                        gyro_ok ? att_mekf_integrate(c, st, gyr_in, &wk) : c->qa, &wk);
+    if (rec) {
+        att_mekf_rec_noise(c, st->p);
+    }
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        flags |= att_mekf_accel(c, st, &wk);
+        flags |= att_mekf_accel(c, st, &wk, rec);
     }
     if (mag_ok) {
         flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, wk.mnorm) : att_mekf_mag_first(c, st, &wk.q, mag_in);

@@ -1,0 +1,130 @@
+"""MEKF: the recovery after a clipping gyro (recovery_time, issue 23; ars's and mars's in Kalman terms).
+
+- C and the reference bit for bit (every step, the state at every segment end) on streams whose gyro
+  clips: 9-axis and 6-axis, without the low-pass, with the accel gate off, with the recovery off; and
+  across a retune in the middle of a recovery (the counter limited to the new recovery_time);
+- the mechanism: during a recovery the attitude variances grow by q_rec per step (the process noise
+  whose steady-state gain is the recovery's), the scale-factor estimate is left alone, every clipped
+  sample and the recovery after it are flagged INITIALISED;
+- what it buys on the simulator: after turns that clip the gyro the error comes back (RMSE well below
+  the one without it), 9-axis and 6-axis;
+- with recovery_time 0 nothing is flagged after the start.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from attica import metrics, native
+from attica.crosscheck import Stream, crosscheck
+from attica.reference.filter import Filter as RefFilter
+from attica.settings import FilterKind, MekfSettings
+from attica.sim import SimConfig, simulate
+
+from helpers import assert_same_bits
+
+RATE = 100.0
+CLIP = float(np.radians(500.0))  # rad/s: a gyro of 500 deg/s full scale
+SPINS = tuple((t, 1.0, 14.0, (0.3, 0.4, 0.866)) for t in (10.0, 22.0, 34.0))  # turns to 14 rad/s: clipped
+INITIALISED = 0x400
+
+
+def _clipping(seed: int, duration: float = 40.0) -> Any:
+    return simulate(SimConfig(duration=duration, rate=RATE, seed=seed, gyro_clip=CLIP, spins=SPINS))
+
+
+def _settings(**over: Any) -> MekfSettings:
+    return replace(MekfSettings(dt=1.0 / RATE, gyro_range=CLIP), **over)
+
+
+@pytest.mark.parametrize(
+    "over",
+    [
+        {},
+        {"use_mag": False},
+        {"tau_acc_lp": 0.0, "gate": 0.0},
+        {"recovery_time": 0.5, "gyro_scale_sd": 0.0},
+        {"recovery_time": 0.0},
+    ],
+    ids=["defaults", "6-axis", "no-lowpass-no-gate", "short-no-scale", "off"],
+)
+def test_bit_exact_with_the_reference_on_a_clipping_gyro(over: dict[str, Any]) -> None:
+    streams = [
+        Stream(r.gyr, r.acc, r.mag, name=f"seed {seed}") for seed, r in ((4, _clipping(4)), (6, _clipping(6)))
+    ]
+    res = crosscheck(FilterKind.MEKF, streams, settings=_settings(**over), segment=1500)
+    assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
+
+
+def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
+    rec = _clipping(4, 20.0)
+    s = _settings(recovery_time=4.0)
+    half = int(11.5 * RATE)  # within the recovery after the first turn (10 s to 11 s)
+    c = native.Filter(FilterKind.MEKF, s)
+    c.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
+    ref = RefFilter(FilterKind.MEKF, s)
+    ref.load_c_states([c.state.copy()[0]])
+    left = c.state.u.mekf.st.rec_left
+    assert left > 100, "the retune is made during a recovery with more than 1 s left"
+    s2 = replace(s, recovery_time=1.0, tau_acc_lp=0.5)
+    c.retune(s2)
+    ref.retune(s2)
+    assert c.state.u.mekf.st.rec_left == 100, "the counter is limited to the new recovery_time"
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+    out = c.run(rec.gyr[half:], rec.acc[half:], rec.mag[half:])
+    q_ref = np.array(
+        [ref.step(rec.gyr[i], rec.acc[i], rec.mag[i])["q"][0] for i in range(half, len(rec.gyr))]
+    )
+    assert_same_bits(out["q"], q_ref, "after the retune")
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+
+
+def test_a_recovery_raises_the_attitude_variances_and_keeps_the_scale() -> None:
+    """During a recovery P's attitude diagonal grows by q_rec per prediction and the scale stays put."""
+    rec = _clipping(4, 12.0)
+    first = int(np.flatnonzero((np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1))[0])
+    s = _settings()
+    c = native.Filter(FilterKind.MEKF, s)
+    c.run(rec.gyr[:first], rec.acc[:first], rec.mag[:first])
+    co = c.state.u.mekf.c
+    k = np.float32(0.01) / (np.float32(2.0 / 8) + np.float32(0.01))
+    assert co.q_rec_tilt == pytest.approx(float(k * k / (1 - k) * co.r_acc), rel=1e-5)
+    assert co.q_rec_head == pytest.approx(float(k * k / (1 - k) * co.r_mag), rel=1e-5)
+    scale_before = float(c.state.u.mekf.st.scale)
+    out = c.run(rec.gyr[first : first + 150], rec.acc[first : first + 150], rec.mag[first : first + 150])
+    assert ((out["flags"] & INITIALISED) != 0).all(), "recovering from the first clipped sample on"
+    st = c.state.u.mekf.st
+    assert float(st.scale) == scale_before, "the scale-factor estimate is left alone"
+    off = native.Filter(FilterKind.MEKF, _settings(recovery_time=0.0))
+    off.run(rec.gyr[: first + 150], rec.acc[: first + 150], rec.mag[: first + 150])
+    p_off = off.state.u.mekf.st.p
+    # P's attitude diagonal (tilt x, y; heading) against the filter without the recovery at the same step
+    assert float(st.p[0]) > 3 * float(p_off[0]) and float(st.p[6]) > 3 * float(p_off[6]), "tilt less sure"
+    assert float(st.p[11]) > 30 * float(p_off[11]), "heading far less sure (its noise r_mag is larger)"
+
+
+@pytest.mark.parametrize("use_mag", [True, False], ids=["9-axis", "6-axis"])
+def test_a_clipping_gyro_is_recovered_from(use_mag: bool) -> None:
+    """recovery_time (default 2 s): after clipping turns the error comes back, flagged INITIALISED."""
+    rec = _clipping(5, 50.0)
+    late = np.arange(len(rec.gyr)) > int(5 * RATE)
+    clipped = (np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1)
+    assert clipped.any()
+    err = {}
+    for rt in (0.0, 2.0):
+        out = native.Filter(FilterKind.MEKF, _settings(recovery_time=rt, use_mag=use_mag)).run(
+            rec.gyr, rec.acc, rec.mag
+        )
+        e = metrics.evaluate(out["q"], rec.quat_true, late)
+        err[rt] = e.total if use_mag else e.inclination
+        flagged = (out["flags"] & INITIALISED) != 0
+        if rt:
+            assert flagged[clipped].all(), "every clipped sample is flagged"
+            assert 1.9 * RATE * 3 <= flagged[late].sum() <= 4.0 * RATE * 3, "2 s after each clip: recovering"
+        else:
+            assert not flagged[late].any()
+    assert err[2.0] < 0.5 * err[0.0], f"RMSE {err[2.0]:.2f} with the recovery vs {err[0.0]:.2f} without"
