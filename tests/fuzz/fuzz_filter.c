@@ -168,6 +168,21 @@ static const field_t f_mekf[] = {
     FQ(mekf, q_init), FV(mekf, m0_init), FV(mekf, bias_init), FF(mekf, gyro_scale_sd, T_F32),
     FF(mekf, gyro_scale_init, T_F32),
 };
+/*
+ * Fields added after the first corpora (issue 23), in tables of their own: an input reaches them only with
+ * bit 7 of its kind byte set (FZ_EXT), so every reproducer of tests/fuzz/regressions (kind bytes 0..6)
+ * decodes as when it was found. ars_x .. mekf_x: the recoveries, mars's learnt reference and fast phase.
+ */
+static const field_t f_ars_x[] = {
+    FF(ars, recovery_time, T_F32),
+};
+static const field_t f_mars_x[] = {
+    FF(mars, mag_ref_tau, T_F32), FF(mars, mag_new_time, T_F32), FF(mars, tau_mag_fast, T_F32),
+    FF(mars, tau_bias_mag, T_F32), FF(mars, recovery_time, T_F32),
+};
+static const field_t f_mekf_x[] = {
+    FF(mekf, recovery_time, T_F32),
+};
 static const field_t f_gyro[] = {
     FF(gyro, dt, T_F32), FF(gyro, gyro_range, T_F32), FF(gyro, cos_min, T_F32), FV(gyro, euler_init),
 };
@@ -176,24 +191,36 @@ static const field_t f_tilt[] = {
 };
 
 typedef struct {
-    const field_t *f;
+    const field_t *f; /* the first table */
     size_t n;
+    const field_t *x; /* the later fields (FZ_EXT), or NULL */
+    size_t nx;
 } fields_t;
+
+#define FZ_EXT 0x80u /* bit 7 of the kind byte: the later fields can be mutated too */
+
+/* Field i of the first table, then of the later ones. */
+static const field_t *field_at(const fields_t *fs, size_t i)
+{
+    return (i < fs->n) ? &fs->f[i] : &fs->x[i - fs->n];
+}
 
 static fields_t fields_of(att_filter_kind_t kind)
 {
-    fields_t r = {NULL, 0u};
+    fields_t r = {NULL, 0u, NULL, 0u};
 #define FZ_SET(arr) (r.f = (arr), r.n = sizeof(arr) / sizeof((arr)[0]))
+#define FZ_SET_X(arr) (r.x = (arr), r.nx = sizeof(arr) / sizeof((arr)[0]))
     switch (kind) {
-    case ATT_FILTER_ARS: FZ_SET(f_ars); break;
-    case ATT_FILTER_MARS: FZ_SET(f_mars); break;
+    case ATT_FILTER_ARS: FZ_SET(f_ars); FZ_SET_X(f_ars_x); break;
+    case ATT_FILTER_MARS: FZ_SET(f_mars); FZ_SET_X(f_mars_x); break;
     case ATT_FILTER_KF: FZ_SET(f_kf); break;
     case ATT_FILTER_EKF: FZ_SET(f_ekf); break;
-    case ATT_FILTER_MEKF: FZ_SET(f_mekf); break;
+    case ATT_FILTER_MEKF: FZ_SET(f_mekf); FZ_SET_X(f_mekf_x); break;
     case ATT_FILTER_GYRO: FZ_SET(f_gyro); break;
     default: FZ_SET(f_tilt); break;
     }
 #undef FZ_SET
+#undef FZ_SET_X
     return r;
 }
 
@@ -201,9 +228,10 @@ static float get_f32(const att_filter_settings_t *s, const fields_t *fs, const c
 {
     size_t i;
     float v = 0.0f;
-    for (i = 0; i < fs->n; ++i) {
-        if (strcmp(fs->f[i].name, name) == 0) {
-            memcpy(&v, (const unsigned char *)s + fs->f[i].off, sizeof v);
+    for (i = 0; i < fs->n + fs->nx; ++i) {
+        const field_t *fd = field_at(fs, i);
+        if (strcmp(fd->name, name) == 0) {
+            memcpy(&v, (const unsigned char *)s + fd->off, sizeof v);
         }
     }
     return v;
@@ -329,20 +357,21 @@ static void dump_settings(att_filter_kind_t kind, const att_filter_settings_t *s
 {
     size_t i;
     fprintf(stderr, "settings of %s:\n", att_filter_name(kind));
-    for (i = 0; i < fs->n; ++i) {
-        const unsigned char *p = (const unsigned char *)s + fs->f[i].off;
-        if (fs->f[i].t == T_F32) {
+    for (i = 0; i < fs->n + fs->nx; ++i) {
+        const field_t *fd = field_at(fs, i);
+        const unsigned char *p = (const unsigned char *)s + fd->off;
+        if (fd->t == T_F32) {
             float v;
             memcpy(&v, p, sizeof v);
-            fprintf(stderr, "  %-16s %a (%.9g)\n", fs->f[i].name, (double)v, (double)v);
-        } else if (fs->f[i].t == T_BOOL) {
+            fprintf(stderr, "  %-16s %a (%.9g)\n", fd->name, (double)v, (double)v);
+        } else if (fd->t == T_BOOL) {
             bool b;
             memcpy(&b, p, sizeof b);
-            fprintf(stderr, "  %-16s %d\n", fs->f[i].name, (int)b);
+            fprintf(stderr, "  %-16s %d\n", fd->name, (int)b);
         } else {
             uint32_t v;
             memcpy(&v, p, sizeof v);
-            fprintf(stderr, "  %-16s %u\n", fs->f[i].name, v);
+            fprintf(stderr, "  %-16s %u\n", fd->name, v);
         }
     }
 }
@@ -657,7 +686,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     att_output_t prev;
     att_output_t o;
     ctx_t c;
+    uint8_t b0;
     uint8_t b1;
+    size_t nsel;
     float dt;
     size_t nmut;
     size_t i;
@@ -668,7 +699,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     g_input = data;
     g_input_size = size;
     fz_init(&r, data, size);
-    kind = (att_filter_kind_t)(1 + fz_u8(&r) % 7u);
+    b0 = fz_u8(&r);
+    kind = (att_filter_kind_t)(1 + b0 % 7u);
     b1 = fz_u8(&r);
     dt = (b1 & 0x10u) ? fz_float(&r) : dts[(b1 >> 5) & 7u];
     if (att_filter_settings_preset(kind, (b1 & 1u) ? ATT_PRESET_SEED : ATT_PRESET_DEFAULT, dt, &s) != ATT_OK) {
@@ -679,8 +711,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     c.fs = fields_of(kind);
     c.failed = false;
     nmut = (size_t)((b1 >> 1) & 7u) + ((b1 & 0x08u) ? 5u : 0u);
+    nsel = c.fs.n + (((b0 & FZ_EXT) != 0u) ? c.fs.nx : 0u);
     for (i = 0; i < nmut; ++i) {
-        mutate(&s, &c.fs.f[fz_u8(&r) % c.fs.n], &r);
+        mutate(&s, field_at(&c.fs, fz_u8(&r) % nsel), &r);
     }
 
     if (g_verbose) dump_settings(kind, &s, &c.fs);
