@@ -4,7 +4,8 @@
   clips: 9-axis and 6-axis, without the low-pass, with the accel gate off, with the recovery off; and
   across a retune in the middle of a recovery (the counter limited to the new recovery_time);
 - the mechanism: during a recovery the attitude variances grow by q_rec per step (the process noise
-  whose steady-state gain is the recovery's), the scale-factor estimate is left alone, every clipped
+  whose steady-state gain is the recovery's), the accel updates leave the bias (a consider state) and
+  the scale-factor estimate alone, every clipped
   sample and the recovery after it are flagged INITIALISED;
 - what it buys on the simulator: after turns that clip the gyro the error comes back (RMSE well below
   the one without it), 9-axis and 6-axis;
@@ -105,6 +106,26 @@ def test_a_recovery_raises_the_attitude_variances_and_keeps_the_scale() -> None:
     # P's attitude diagonal (tilt x, y; heading) against the filter without the recovery at the same step
     assert float(st.p[0]) > 3 * float(p_off[0]) and float(st.p[6]) > 3 * float(p_off[6]), "tilt less sure"
     assert float(st.p[11]) > 30 * float(p_off[11]), "heading far less sure (its noise r_mag is larger)"
+
+
+def test_the_bias_is_a_consider_state_during_a_recovery() -> None:
+    """6-axis (no heading updates), the 100 steps from the first clipped sample (before any rest): the
+    accel updates leave the bias as it was (its gain rows zero), while without the recovery they move it."""
+    rec = _clipping(4, 12.0)
+    first = int(np.flatnonzero((np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1))[0])
+    end = first + 100
+    moved = {}
+    for rt in (2.0, 0.0):
+        c = native.Filter(FilterKind.MEKF, _settings(use_mag=False, recovery_time=rt))
+        c.run(rec.gyr[:first], rec.acc[:first], rec.mag[:first])
+        st = c.state.u.mekf.st
+        b0 = np.array([st.bias.x, st.bias.y, st.bias.z])
+        out = c.run(rec.gyr[first:end], rec.acc[first:end], rec.mag[first:end])
+        assert not (out["flags"] & 0x100).any(), "no rest in the window"
+        st = c.state.u.mekf.st
+        moved[rt] = float(np.abs(np.array([st.bias.x, st.bias.y, st.bias.z]) - b0).max())
+    assert moved[2.0] == 0.0, moved
+    assert moved[0.0] > 1e-5, moved
 
 
 @pytest.mark.parametrize("use_mag", [True, False], ids=["9-axis", "6-axis"])

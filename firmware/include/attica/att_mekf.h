@@ -74,8 +74,10 @@
  *     variances (r = r_acc for the two tilt axes, r_mag for the heading): the process noise whose steady-state
  *     Kalman gain is k, so the filter follows accel and mag with the time constant recovery_time / 8;
  *     the accel low-pass runs at the gain max(k_lp, k); an accel gate rejection is recovered at once
- *     (the gate_recover wait is skipped); and the updates leave the scale-factor estimate alone (the
- *     innovations of a clipped turn are not a scale error). Once over, P has converged with the
+ *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
+ *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
+ *     alone (the innovations of a clipped turn or of the start are attitude errors of unknown origin,
+ *     not evidence of a bias or a scale error). Once over, P has converged with the
  *     measurements and the usual noises take over. Fusion's angular rate recovery is the model; it is
  *     the recovery of att_ars.h and att_mars.h in the Kalman filter's own terms. The start from the
  *     sensors is a recovery too (flagged alike): its tilt comes from one accel sample, whatever linear

@@ -483,7 +483,7 @@ class Mekf:
         apply = want & det_ok
         self.gated = w(apply, _U0, gated).astype(np.uint32)
         ps_in = w(rec, dm.ZERO, wk.ps).astype(np.float32)  # a recovery: p_s 0 for the update, ds = 0
-        p_a, dx, sv_a, ds_a, ps_a = cv.accel_apply(p, v, y0, y1, gate_on, self.soft, wk.sv, ps_in)
+        p_a, dx, sv_a, ds_a, ps_a = cv.accel_apply(p, v, y0, y1, gate_on, self.soft, wk.sv, ps_in, ~rec)
         wk.p = cv.where(apply, p_a, p)
         wk.sv = msc.where(apply, sv_a, wk.sv)
         wk.ps = w(apply & ~rec, ps_a, wk.ps).astype(np.float32)

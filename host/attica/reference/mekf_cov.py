@@ -106,8 +106,13 @@ def accel_apply(
     soft: Any,
     sv: list[Any],
     ps: Any,
+    upd_bias: Any = True,
 ) -> tuple[Cov, list[Any], list[Any], Any, Any]:
-    """att_mekf_accel_apply: (P - K (lambda S) K^T, dx = K y + V' ds, V' = V - K H V, ds, p_scale)."""
+    """att_mekf_accel_apply: (P - K (lambda S) K^T, dx = K y + V' ds, V' = V - K H V, ds, p_scale).
+
+    Where ``upd_bias`` is false (n_upd 3, a recovery) the bias is a consider state (Schmidt): its rows of
+    P and V are kept and its dx is 0.
+    """
     s00, s01, s11, det, dn = v
     g0 = [p[ix(0, i)] for i in range(6)]
     g1 = [p[sx(1, i)] for i in range(6)]
@@ -126,10 +131,13 @@ def accel_apply(
     for i in range(6):
         k0 = g0[i] * a0 + g1[i] * a1
         k1 = g0[i] * a1 + g1[i] * a2
-        v_out.append(sv[i] - (k0 * sa0 + k1 * sa1))
-        dx.append((k0 * y0 + k1 * y1) + v_out[i] * ds)
+        upd = True if i < 3 else upd_bias
+        v_out.append(np.where(upd, sv[i] - (k0 * sa0 + k1 * sa1), sv[i]).astype(np.float32))
+        dx.append(np.where(upd, (k0 * y0 + k1 * y1) + v_out[i] * ds, dm.ZERO).astype(np.float32))
         for j in range(i, 6):
-            out[ix(i, j)] = p[ix(i, j)] - (k0 * g0[j] + k1 * g1[j])
+            out[ix(i, j)] = np.where(upd, p[ix(i, j)] - (k0 * g0[j] + k1 * g1[j]), p[ix(i, j)]).astype(
+                np.float32
+            )
     return out, dx, v_out, ds, r
 
 

@@ -554,10 +554,12 @@ static ATT_ALWAYS_INLINE float att_mekf_scale_gain1(float *ps, float a, float s0
  * update) and M = (lambda S)^-1 (the noise as the 6-state gain uses it: the split into two stages is
  * exact only with the same), k_s = p_s a^T (lambda S + p_s a a^T)^-1 = p_s (M a)^T / (1 + p_s a^T M a)
  * (Sherman-Morrison), so ds = r (M a)^T y and p_s := r with r = p_s / (1 + p_s a^T M a); then
- * V := V - K a and the error estimate dx = K y + V ds with the updated V. Returns ds.
+ * V := V - K a and the error estimate dx = K y + V ds with the updated V. Returns ds. Only the first n_upd
+ * states are updated (6; 3 during a recovery: the bias a consider state, its dx 0 and its rows of P and V
+ * kept, which is the Joseph form for that gain: the attitude rows are the optimal ones either way).
  */
 static ATT_ALWAYS_INLINE float att_mekf_accel_apply(const att_mekf_coeffs_t *c, float *p, att_mekf_innov_t v, float y0,
-                                                    float y1, float *dx, float *sv, float *ps)
+                                                    float y1, float *dx, float *sv, float *ps, uint32_t n_upd)
 {
     const float sa0 = sv[0];
     const float sa1 = sv[1];
@@ -594,6 +596,10 @@ static ATT_ALWAYS_INLINE float att_mekf_accel_apply(const att_mekf_coeffs_t *c, 
     for (i = 0u; i < 6u; i++) {
         const float k0 = g0[i] * a0 + g1[i] * a1;
         const float k1 = g0[i] * a1 + g1[i] * a2;
+        if (i >= n_upd) {
+            dx[i] = 0.0f; /* a consider state (Schmidt): not updated, its row of P and of V kept */
+            continue;
+        }
         sv[i] = sv[i] - (k0 * sa0 + k1 * sa1);
         dx[i] = (k0 * y0 + k1 * y1) + sv[i] * ds;
         ATT_MEKF_UNROLL
@@ -995,8 +1001,8 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t
 
 /*
  * Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. During a
- * recovery (rec, step 6) the low-pass runs at k_lp_rec, a gate rejection is recovered at once and the
- * scale-factor estimate is left alone.
+ * recovery (rec, step 6) the low-pass runs at k_lp_rec, a gate rejection is recovered at once, the bias is
+ * a consider state and the scale-factor estimate is left alone.
  */
 static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk,
                                             bool rec)
@@ -1046,7 +1052,8 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
         float ds;
         float ps_off = 0.0f; /* during a recovery: p_s 0 for this update, ds = 0, st->p_scale kept */
         st->gated = 0u;
-        ds = att_mekf_accel_apply(c, st->p, v, y0, y1, dx, st->scale_v, rec ? &ps_off : &st->p_scale);
+        ds = att_mekf_accel_apply(c, st->p, v, y0, y1, dx, st->scale_v, rec ? &ps_off : &st->p_scale,
+                                  rec ? 3u : 6u);
         st->scale = st->scale + ds;
         dq = att_mekf_exp(att_i_vec3(dx[0], dx[1], dx[2]));
         wk->q = att_i_quat_mul(dq, wk->q);
