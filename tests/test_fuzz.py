@@ -304,8 +304,8 @@ def test_fuzz_filter_mutates_every_setting() -> None:
 
 def test_regressions_decode_with_the_first_tables() -> None:
     """The later fields are reached only with bit 7 of the kind byte (FZ_EXT): the reproducers of the kinds
-    that have later fields (ars, mars, mekf) keep a kind byte below 0x80, so they decode as when found."""
+    that have later fields (ars, mars, kf, mekf) keep a kind byte below 0x80, so they decode as when found."""
     for p in sorted(REG.glob("filter-*.bin")):
         kind = p.name.split("-")[1]
-        if kind in ("ars", "mars", "mekf"):
+        if kind in ("ars", "mars", "kf", "mekf"):
             assert p.read_bytes()[0] < 0x80, p.name

@@ -132,6 +132,7 @@ class KfSettings:
     rest_accel: float = 0.5
     rest_time: float = 0.5
     tau_acc_lp: float = 1.5
+    recovery_time: float = 2.0
     init_from_accel: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     noise_rates: bool = True
@@ -368,6 +369,7 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "noise_rates": False,
         "tau_acc_lp": 0.0,
         "bias_mode": BiasMode.OFF,
+        "recovery_time": 0.0,
     },
     FilterKind.EKF: {
         "q_phi": 0.0001,

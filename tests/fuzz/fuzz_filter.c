@@ -172,6 +172,7 @@ static const field_t f_mekf[] = {
  * Fields added after the first corpora (issue 23), in tables of their own: an input reaches them only with
  * bit 7 of its kind byte set (FZ_EXT), so every reproducer of tests/fuzz/regressions (kind bytes 0..6)
  * decodes as when it was found. ars_x .. mekf_x: the recoveries, mars's learnt reference and fast phase.
+ * (kf's reproducer keeps a kind byte below 0x80 too: tests/test_fuzz.py.)
  */
 static const field_t f_ars_x[] = {
     FF(ars, recovery_time, T_F32),
@@ -179,6 +180,9 @@ static const field_t f_ars_x[] = {
 static const field_t f_mars_x[] = {
     FF(mars, mag_ref_tau, T_F32), FF(mars, mag_new_time, T_F32), FF(mars, tau_mag_fast, T_F32),
     FF(mars, tau_bias_mag, T_F32), FF(mars, recovery_time, T_F32),
+};
+static const field_t f_kf_x[] = {
+    FF(kf, recovery_time, T_F32),
 };
 static const field_t f_mekf_x[] = {
     FF(mekf, recovery_time, T_F32),
@@ -213,7 +217,7 @@ static fields_t fields_of(att_filter_kind_t kind)
     switch (kind) {
     case ATT_FILTER_ARS: FZ_SET(f_ars); FZ_SET_X(f_ars_x); break;
     case ATT_FILTER_MARS: FZ_SET(f_mars); FZ_SET_X(f_mars_x); break;
-    case ATT_FILTER_KF: FZ_SET(f_kf); break;
+    case ATT_FILTER_KF: FZ_SET(f_kf); FZ_SET_X(f_kf_x); break;
     case ATT_FILTER_EKF: FZ_SET(f_ekf); break;
     case ATT_FILTER_MEKF: FZ_SET(f_mekf); FZ_SET_X(f_mekf_x); break;
     case ATT_FILTER_GYRO: FZ_SET(f_gyro); break;

@@ -31,6 +31,12 @@
  *     earth frame;
  *  4. normalisation x := x / |x|, p := p / |x|^2; p is limited to ATT_KF_P_MAX (ATT_FLAG_CLAMPED), which
  *     only long runs without usable accel samples reach (p then grows by q_step a step).
+ *  5. recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
+ *     (or beyond) starts a recovery of recovery_time (a later one restarts it), flagged
+ *     ATT_FLAG_INITIALISED; with k = dt / (recovery_time / 8 + dt) each prediction adds
+ *     k^2 r_step / (1 - k) to p (the process noise whose steady-state gain is k; at most ATT_KF_P_MAX),
+ *     the low-pass stages run at the gain max(k_lp, k) and the gate and its soft limit are off: the
+ *     filter follows the accelerometer with the time constant recovery_time / 8 (att_ars.h, att_mekf.h).
  * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.
  * Before a valid attitude exists (init_from_accel) the filter waits for the first usable accel
  * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED).
@@ -76,6 +82,8 @@ typedef struct {
     float rest_accel;          /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;           /**< ... for at least rest_time, s, [0, 1e4] */
     float tau_acc_lp;          /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
+    float recovery_time;       /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
+                                    this long the recovery of step 5, s; [0, 1e4]; 0 = none */
     bool init_from_accel;      /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_quat_t q_init;         /**< initial attitude when init_from_accel is false; finite, |q|^2 in [2^-20, 2^20] */
     bool noise_rates;          /**< true: Q = q_noise dt, R = r_noise / dt (rate-independent; these per-step values
@@ -101,6 +109,10 @@ typedef struct {
     att_quat_t q_init;      /**< attitude after reset without init_from_accel */
     att_vec3_t bias_init;   /**< bias after reset, rad/s */
     bool init_from_accel;   /**< wait for the first usable accel sample */
+    float clip;             /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
+    float k_lp_rec;         /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float q_rec;            /**< process noise added per step of a recovery, min(k^2 r_step / (1 - k), P_MAX) */
+    uint32_t rec_n;         /**< samples of a recovery (0 = none) */
     bool lp_on;             /**< k_lp > 0 */
     bool need_norm;         /**< |a| is needed (r_accel or accel_reject set) */
 } att_kf_coeffs_t;
@@ -116,6 +128,7 @@ typedef struct {
     uint32_t rest_count;  /**< consecutive samples at rest */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
+    uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */
     bool initialised;     /**< q holds a valid attitude */
 } att_kf_state_t;
 

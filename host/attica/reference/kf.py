@@ -12,7 +12,16 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference._common import (
+    StateSpec,
+    carry_state,
+    recovery_params,
+    recovery_step,
+    run_steps,
+    setting,
+    split3,
+    stack,
+)
 from attica.reference.ars import align_up
 from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import BiasMode, Flag, KfSettings
@@ -44,6 +53,7 @@ class Kf:
         "st.rest_count": "u32",
         "st.steps": "u32",
         "st.flags": "u32",
+        "st.rec_left": "u32",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -64,6 +74,10 @@ class Kf:
         "c.accel_range2": "f32",
         "c.gyro_range": "f32",
         "c.k_lp": "f32",
+        "c.clip": "f32",
+        "c.k_lp_rec": "f32",
+        "c.q_rec": "f32",
+        "c.rec_n": "u32",
         "c.bias.mode": "u32:bias_mode",
         "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
@@ -122,7 +136,17 @@ class Kf:
         _, self.q_init = dm.quat_normalize(self.q_init)  # as c.q_init: normalised once, at init
         self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
         self.lp_on = self.k_lp > dm.ZERO
+        self._rec_coeffs(s)
         self.reset()
+
+    def _rec_coeffs(self, s: KfSettings) -> None:
+        """att_kf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
+        self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
+        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        with np.errstate(all="ignore"):
+            q = ((k * k) / (dm.ONE - k)) * self.r_step
+            q = np.where(q < P_MAX, q, P_MAX)
+        self.q_rec = np.where(self.rec_n > _U0, q, dm.ZERO).astype(np.float32)
 
     def reset(self) -> None:
         """Back to the state after construction (att_kf_reset)."""
@@ -140,6 +164,7 @@ class Kf:
         self.initialised = ~self.init_from_accel
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
+        self.rec_left = np.zeros(n, np.uint32)
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -183,6 +208,11 @@ class Kf:
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
 
+            # the recovery after a clipping gyro (step 5), where initialised
+            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, ~waiting)
+            rec = ~waiting & (self.rec_left > _U0)
+            flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
+
             # prediction
             x0 = self.q
             h = dm.vec3_scale(dm.vec3_sub(g, self.bias), self.half_dt)
@@ -192,19 +222,21 @@ class Kf:
             p = np.where(
                 gyro_ok, self.p * (dm.ONE + dm.vec3_dot(h, h)) + self.q_step, self.p + self.q_step
             ).astype(np.float32)
+            p = np.where(rec, p + self.q_rec, p).astype(np.float32)
 
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), self.k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), self.k_lp))
+            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
+            lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             u = dm.vec3_where(lp_on, lp2, u)
             ok_a, (cw, cx, cy), _ = align_up(u)
             x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]
             y2 = (dm.TWO * (dm.ONE - cw)) * x2
             r = self.r_step * (dm.ONE + self.r_accel * e2)
             s = p + r
-            gate_on = self.gate > dm.ZERO
+            gate_on = (self.gate > dm.ZERO) & ~rec  # off during a recovery
             measure = ~waiting & accel_ok & ~rejected & ok_a
             gated = measure & gate_on & (y2 > self.gate * s)
             flags = flags | np.where(gated, _u(Flag.ACCEL_REJECTED), _U0)
@@ -247,6 +279,7 @@ class Kf:
         new = Kf(settings, self.n)
         carry_state(self, new)
         bias_retune(new)
+        new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

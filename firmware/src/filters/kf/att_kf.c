@@ -36,6 +36,7 @@ void att_kf_settings_default(att_kf_settings_t *settings, float dt)
     settings->rest_accel = 0.5f;
     settings->rest_time = 0.5f;
     settings->tau_acc_lp = 1.5f;
+    settings->recovery_time = 2.0f;
     settings->init_from_accel = true;
     settings->q_init = att_i_quat_identity();
     settings->noise_rates = true;
@@ -49,6 +50,21 @@ att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
     }
     ok = true ATT_KF_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+/*
+ * The coefficients of the recovery after a clipping gyro (att_kf.h, step 5); after r_step, k_lp and lp_on.
+ * k^2 r / (1 - k) is the process noise whose steady-state Kalman gain is k (at most ATT_KF_P_MAX).
+ */
+static void att_kf_rec_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
+{
+    const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
+    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->q_rec = 0.0f;
+    if (c->rec_n > 0u) {
+        const float q = ((k * k) / (1.0f - k)) * c->r_step;
+        c->q_rec = (q < ATT_KF_P_MAX_F) ? q : ATT_KF_P_MAX_F;
+    }
 }
 
 static void att_kf_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
@@ -73,6 +89,7 @@ static void att_kf_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
     c->init_from_accel = s->init_from_accel;
     c->lp_on = c->k_lp > 0.0f;
     c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
+    att_kf_rec_coeffs(c, s);
 }
 
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings)
@@ -102,6 +119,9 @@ att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings)
     }
     att_kf_coeffs(&f->c, settings);
     att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    if (f->st.rec_left > f->c.rec_n) {
+        f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
+    }
     return ATT_OK;
 }
 
@@ -119,6 +139,7 @@ void att_kf_reset(att_kf_t *f)
     f->st.rest_count = 0u;
     f->st.steps = 0u;
     f->st.flags = 0u;
+    f->st.rec_left = 0u;
     f->st.initialised = !f->c.init_from_accel;
 }
 
@@ -145,6 +166,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     float p;
     bool gyro_ok;
     bool accel_ok;
+    bool rec;
     att_quat_t x;
     att_quat_t xn;
     att_vec3_t d;
@@ -179,6 +201,13 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         return flags;
     }
 
+    /* the recovery after a clipping gyro (step 5) */
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
+    rec = st->rec_left > 0u;
+    if (rec) {
+        flags |= ATT_FLAG_INITIALISED;
+    }
+
     /* prediction x := A x, p := p |A|^2 + q with A = I + dt/2 Omega(w - b) */
     x = st->q;
     p = st->p + c->q_step;
@@ -193,6 +222,9 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         x = att_i_quat(x.w + dx.w, x.x + dx.x, x.y + dx.y, x.z + dx.z);
         p = st->p * (1.0f + att_i_vec3_dot(h, h)) + c->q_step;
     }
+    if (rec) {
+        p = p + c->q_rec;
+    }
 
     /* measurement: the prediction with its tilt aligned to the low-passed gravity */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
@@ -204,7 +236,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         float cy;
         float n;
         if (c->lp_on) {
-            att_i_lowpass2(u, c->k_lp, &lp1, &lp2);
+            att_i_lowpass2(u, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (att_i_align_up(u, &cw, &cx, &cy, &n)) {
@@ -212,7 +244,8 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
             const float y2 = (2.0f * (1.0f - cw)) * x2; /* |z - x|^2 */
             float r = c->r_step * (1.0f + c->r_accel * e2);
             float s = p + r;
-            if (c->gate > 0.0f && y2 > c->gate * s) {
+            const bool gate_on = c->gate > 0.0f && !rec; /* off during a recovery */
+            if (gate_on && y2 > c->gate * s) {
                 flags |= ATT_FLAG_ACCEL_REJECTED; /* outside the chi-square gate: not applied */
             } else {
                 float k;
@@ -220,7 +253,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
                 float kx;
                 float ky;
                 att_quat_t qk;
-                if (c->gate > 0.0f && y2 > c->soft * s) {
+                if (gate_on && y2 > c->soft * s) {
                     r = y2 / c->soft - p; /* the soft limit: d^2 = gate / 4 */
                     s = p + r;
                 }
@@ -287,6 +320,7 @@ void att_kf_preset(att_kf_settings_t *s, att_preset_t preset, float dt)
         s->noise_rates = false;
         s->tau_acc_lp = 0.0f;
         s->bias_mode = ATT_BIAS_OFF;
+        s->recovery_time = 0.0f;
     }
 }
 

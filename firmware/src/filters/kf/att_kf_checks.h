@@ -35,6 +35,7 @@ static inline bool att_kf_noise_valid(float v)
     ATT_CK_INERTIAL(C)                                                                                    \
     ATT_CK_BIAS(C)                                                                                             \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                            \
     ATT_CK_BOOL(C, init_from_accel)                                                                            \
     ATT_CK_BOOL(C, noise_rates)                                                                                \
     ATT_CK_QUAT(C, q_init)
