@@ -46,7 +46,7 @@
  *     Gyro bias in motion (tau_bias_mag > 0, bias modes AT_REST and RUNNING, HORIZONTAL mode): a bias
  *     left in the integration turns the heading at a steady rate, which the heading correction keeps
  *     undoing; each accepted correction by the angle theta = 2 C'_z (C' the applied correction, toward
- *     the fraction k of the angle) moves the bias by -theta / tau_bias_mag along the earth's vertical
+ *     the fraction k of the angle) moves the bias by -theta / max(tau_bias_mag, dt) along the earth's vertical
  *     seen in the sensor frame, r3 = R(q)^T z (a PI loop: critically damped for tau_bias_mag = 4 tau_mag),
  *     each component kept within +-gyro_range.
  *     Not during the fast phase or a recovery (their corrections are a heading error, not a rate). Off by default: it
@@ -185,7 +185,7 @@ typedef struct {
     uint32_t fast_n;         /**< blocks of the fast phase after a new reference (0 = none) */
     uint32_t fast_start_n;   /**< blocks of the fast phase after the heading alignment: also the accel
                                   low-pass's settling time 6 tau_acc_lp (the tilt of a first sample can be off) */
-    float k_bias_mag;        /**< 1 / tau_bias_mag, 1/s (0: the bias is not learnt from the heading corrections) */
+    float k_bias_mag;        /**< 1 / max(tau_bias_mag, dt), 1/s (0: the bias is not learnt from the heading corrections) */
     bool bias_mag_on;        /**< k_bias_mag > 0 (tau_bias_mag > 0, bias mode AT_REST or RUNNING, HORIZONTAL) */
     float clip;              /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
     float k_lp_rec;          /**< per-sample gain of the accel low-pass stages during a recovery */

@@ -253,7 +253,8 @@ class Mars:
             & ((self.bias_mode == BiasMode.AT_REST) | (self.bias_mode == BiasMode.RUNNING))
         )
         with np.errstate(all="ignore"):
-            self.k_bias_mag = np.where(self.bias_mag_on, dm.ONE / tau_b, dm.ZERO).astype(np.float32)
+            tau_k = np.where(tau_b > self.dt, tau_b, self.dt)  # 1 / max(tau_bias_mag, dt): finite (F14)
+            self.k_bias_mag = np.where(self.bias_mag_on, dm.ONE / tau_k, dm.ZERO).astype(np.float32)
 
     def _rec_coeffs(self, s: MarsSettings) -> None:
         """att_mars_rec_coeffs: the recovery after a clipping gyro."""

@@ -90,7 +90,9 @@ static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     }
     c->bias_mag_on = s->tau_bias_mag > 0.0f && s->mag_mode == ATT_MARS_MAG_HORIZONTAL &&
                      (s->bias_mode == ATT_BIAS_AT_REST || s->bias_mode == ATT_BIAS_RUNNING);
-    c->k_bias_mag = c->bias_mag_on ? 1.0f / s->tau_bias_mag : 0.0f;
+    /* a time constant below one sample period acts within the sample: 1 / max(tau_bias_mag, dt), finite
+       for every accepted setting (1 / 1e-45 is Inf, and Inf times a zero correction NaN: F14) */
+    c->k_bias_mag = c->bias_mag_on ? 1.0f / ((s->tau_bias_mag > s->dt) ? s->tau_bias_mag : s->dt) : 0.0f;
 }
 
 /* The coefficients of the recovery after a clipping gyro (att_mars.h); after k_lp and k_fast. */
