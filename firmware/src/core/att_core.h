@@ -401,6 +401,17 @@ static inline float att_i_recovery_params(float recovery_time, float gyro_range,
 }
 
 /**
+ * The process noise whose steady-state Kalman gain is k for a measurement of noise r (a random walk: the
+ * prior k r / (1 - k), its step k^2 r / (1 - k)), at most cap; k = 1 (Inf) gives cap. The Kalman filters'
+ * recoveries (att_kf.h, att_mekf.h) add it per prediction.
+ */
+static inline float att_i_recovery_q(float k, float r, float cap)
+{
+    const float q = ((k * k) / (1.0f - k)) * r;
+    return (q < cap) ? q : cap;
+}
+
+/**
  * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
  * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), else counted down. Returns
  * true on the step that ends a recovery (the counter reaches 0 without a new clipping sample).

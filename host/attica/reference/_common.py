@@ -188,6 +188,14 @@ def recovery_params(
     return rec_n, clip, np.asarray(k, np.float32)
 
 
+def recovery_q(k: Any, r: Any, cap: Any) -> NDArray[np.float32]:
+    """att_i_recovery_q: the process noise whose steady-state Kalman gain is k (noise r), at most cap."""
+    with np.errstate(all="ignore"):
+        q = ((k * k) / (dm.ONE - k)) * r
+    out: NDArray[np.float32] = np.where(q < cap, q, cap).astype(np.float32)
+    return out
+
+
 def recovery_step(
     g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any
 ) -> tuple[NDArray[np.uint32], NDArray[np.bool_]]:

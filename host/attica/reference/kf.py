@@ -16,6 +16,7 @@ from attica.reference._common import (
     StateSpec,
     carry_state,
     recovery_params,
+    recovery_q,
     recovery_step,
     run_steps,
     setting,
@@ -143,9 +144,7 @@ class Kf:
         """att_kf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
         self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
         self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
-        with np.errstate(all="ignore"):
-            q = ((k * k) / (dm.ONE - k)) * self.r_step
-            q = np.where(q < P_MAX, q, P_MAX)
+        q = recovery_q(k, self.r_step, P_MAX)
         self.q_rec = np.where(self.rec_n > _U0, q, dm.ZERO).astype(np.float32)
 
     def reset(self) -> None:

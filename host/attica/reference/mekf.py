@@ -24,6 +24,7 @@ from attica.reference._common import (
     StateSpec,
     carry_state,
     recovery_params,
+    recovery_q,
     recovery_step,
     run_steps,
     setting,
@@ -248,15 +249,9 @@ class Mekf:
         """att_mekf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
         self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
         self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
-        with np.errstate(all="ignore"):
-            g = (k * k) / (dm.ONE - k)
-            on = self.rec_n > _U0
-            qt = g * self.r_acc
-            qh = g * self.r_mag
-            qt = np.where(qt < self.p_max, qt, self.p_max)  # k = 1: g = Inf, at most p_max
-            qh = np.where(qh < self.p_max, qh, self.p_max)
-            self.q_rec_tilt = np.where(on, qt, dm.ZERO).astype(np.float32)
-            self.q_rec_head = np.where(on, qh, dm.ZERO).astype(np.float32)
+        on = self.rec_n > _U0
+        self.q_rec_tilt = np.where(on, recovery_q(k, self.r_acc, self.p_max), dm.ZERO).astype(np.float32)
+        self.q_rec_head = np.where(on, recovery_q(k, self.r_mag, self.p_max), dm.ZERO).astype(np.float32)
 
     def reset(self) -> None:
         """Back to the state after construction (att_mekf_reset)."""

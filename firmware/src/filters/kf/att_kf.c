@@ -60,11 +60,7 @@ static void att_kf_rec_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
     c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
-    c->q_rec = 0.0f;
-    if (c->rec_n > 0u) {
-        const float q = ((k * k) / (1.0f - k)) * c->r_step;
-        c->q_rec = (q < ATT_KF_P_MAX_F) ? q : ATT_KF_P_MAX_F;
-    }
+    c->q_rec = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step, ATT_KF_P_MAX_F) : 0.0f;
 }
 
 static void att_kf_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)

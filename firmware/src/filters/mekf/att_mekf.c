@@ -97,16 +97,8 @@ static void att_mekf_rec_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t 
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
     c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
-    c->q_rec_tilt = 0.0f;
-    c->q_rec_head = 0.0f;
-    if (c->rec_n > 0u) {
-        /* k = 1 (recovery_time / 8 below dt's rounding): g = Inf, "trust the measurement": at most p_max */
-        const float g = (k * k) / (1.0f - k);
-        const float qt = g * c->r_acc;
-        const float qh = g * c->r_mag;
-        c->q_rec_tilt = (qt < c->p_max) ? qt : c->p_max;
-        c->q_rec_head = (qh < c->p_max) ? qh : c->p_max;
-    }
+    c->q_rec_tilt = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_acc, c->p_max) : 0.0f;
+    c->q_rec_head = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_mag, c->p_max) : 0.0f;
 }
 
 static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
