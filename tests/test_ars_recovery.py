@@ -16,23 +16,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from clip_support import CLIP, INITIALISED, RATE, clipped_rows, clipping
 
 from attica import metrics, native
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
 from attica.settings import ArsSettings, FilterKind
-from attica.sim import SimConfig, simulate
 
 from helpers import assert_same_bits
-
-RATE = 100.0
-CLIP = float(np.radians(500.0))  # rad/s: a gyro of 500 deg/s full scale
-SPINS = tuple((t, 1.0, 14.0, (0.3, 0.4, 0.866)) for t in (10.0, 22.0, 34.0))  # turns to 14 rad/s: clipped
-INITIALISED = 0x400
-
-
-def _clipping(seed: int, duration: float = 40.0) -> Any:
-    return simulate(SimConfig(duration=duration, rate=RATE, seed=seed, gyro_clip=CLIP, spins=SPINS))
 
 
 @pytest.mark.parametrize(
@@ -47,7 +38,7 @@ def _clipping(seed: int, duration: float = 40.0) -> Any:
 )
 def test_bit_exact_with_the_reference_on_a_clipping_gyro(over: dict[str, Any]) -> None:
     streams = [
-        Stream(r.gyr, r.acc, None, name=f"seed {seed}") for seed, r in ((4, _clipping(4)), (6, _clipping(6)))
+        Stream(r.gyr, r.acc, None, name=f"seed {seed}") for seed, r in ((4, clipping(4)), (6, clipping(6)))
     ]
     s = replace(ArsSettings(dt=1.0 / RATE, gyro_range=CLIP), **over)
     res = crosscheck(FilterKind.ARS, streams, settings=s, segment=1500)
@@ -55,7 +46,7 @@ def test_bit_exact_with_the_reference_on_a_clipping_gyro(over: dict[str, Any]) -
 
 
 def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
-    rec = _clipping(4, 20.0)
+    rec = clipping(4, 20.0)
     s = ArsSettings(dt=1.0 / RATE, gyro_range=CLIP, recovery_time=4.0, tau=0.5)
     half = int(11.5 * RATE)  # within the recovery after the first turn (10 s to 11 s)
     c = native.Filter(FilterKind.ARS, s)
@@ -77,9 +68,9 @@ def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
 
 def test_a_clipping_gyro_is_recovered_from() -> None:
     """recovery_time (default 2 s): after clipping turns the inclination comes back, flagged INITIALISED."""
-    rec = _clipping(5, 50.0)
+    rec = clipping(5, 50.0)
     late = np.arange(len(rec.gyr)) > int(5 * RATE)
-    clipped = (np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1)
+    clipped = clipped_rows(rec.gyr)
     assert clipped.any()
     err = {}
     for rt in (0.0, 2.0):

@@ -15,23 +15,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from clip_support import CLIP, INITIALISED, RATE, clipped_rows, clipping
 
 from attica import metrics, native
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
 from attica.settings import FilterKind, KfSettings
-from attica.sim import SimConfig, simulate
 
 from helpers import assert_same_bits
-
-RATE = 100.0
-CLIP = float(np.radians(500.0))  # rad/s: a gyro of 500 deg/s full scale
-SPINS = tuple((t, 1.0, 14.0, (0.3, 0.4, 0.866)) for t in (10.0, 22.0, 34.0))  # turns to 14 rad/s: clipped
-INITIALISED = 0x400
-
-
-def _clipping(seed: int, duration: float = 40.0) -> Any:
-    return simulate(SimConfig(duration=duration, rate=RATE, seed=seed, gyro_clip=CLIP, spins=SPINS))
 
 
 def _settings(**over: Any) -> KfSettings:
@@ -50,15 +41,13 @@ def _settings(**over: Any) -> KfSettings:
     ids=["defaults", "no-lowpass", "gate", "per-step", "off"],
 )
 def test_bit_exact_with_the_reference_on_a_clipping_gyro(over: dict[str, Any]) -> None:
-    streams = [
-        Stream(r.gyr, r.acc, None, name=f"seed {s}") for s, r in ((4, _clipping(4)), (6, _clipping(6)))
-    ]
+    streams = [Stream(r.gyr, r.acc, None, name=f"seed {s}") for s, r in ((4, clipping(4)), (6, clipping(6)))]
     res = crosscheck(FilterKind.KF, streams, settings=_settings(**over), segment=1500)
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
 
 
 def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
-    rec = _clipping(4, 20.0)
+    rec = clipping(4, 20.0)
     s = _settings(recovery_time=4.0)
     half = int(11.5 * RATE)  # within the recovery after the first turn (10 s to 11 s)
     c = native.Filter(FilterKind.KF, s)
@@ -79,9 +68,9 @@ def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
 
 def test_a_clipping_gyro_is_recovered_from() -> None:
     """recovery_time (default 2 s): after clipping turns the inclination comes back, flagged INITIALISED."""
-    rec = _clipping(5, 50.0)
+    rec = clipping(5, 50.0)
     late = np.arange(len(rec.gyr)) > int(5 * RATE)
-    clipped = (np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1)
+    clipped = clipped_rows(rec.gyr)
     assert clipped.any()
     err = {}
     for rt in (0.0, 2.0):

@@ -19,23 +19,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from clip_support import CLIP, INITIALISED, RATE, clipped_rows, clipping
 
 from attica import metrics, native
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
 from attica.settings import FilterKind, MekfSettings
-from attica.sim import SimConfig, simulate
 
 from helpers import assert_same_bits
-
-RATE = 100.0
-CLIP = float(np.radians(500.0))  # rad/s: a gyro of 500 deg/s full scale
-SPINS = tuple((t, 1.0, 14.0, (0.3, 0.4, 0.866)) for t in (10.0, 22.0, 34.0))  # turns to 14 rad/s: clipped
-INITIALISED = 0x400
-
-
-def _clipping(seed: int, duration: float = 40.0) -> Any:
-    return simulate(SimConfig(duration=duration, rate=RATE, seed=seed, gyro_clip=CLIP, spins=SPINS))
 
 
 def _settings(**over: Any) -> MekfSettings:
@@ -55,14 +46,14 @@ def _settings(**over: Any) -> MekfSettings:
 )
 def test_bit_exact_with_the_reference_on_a_clipping_gyro(over: dict[str, Any]) -> None:
     streams = [
-        Stream(r.gyr, r.acc, r.mag, name=f"seed {seed}") for seed, r in ((4, _clipping(4)), (6, _clipping(6)))
+        Stream(r.gyr, r.acc, r.mag, name=f"seed {seed}") for seed, r in ((4, clipping(4)), (6, clipping(6)))
     ]
     res = crosscheck(FilterKind.MEKF, streams, settings=_settings(**over), segment=1500)
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
 
 
 def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
-    rec = _clipping(4, 20.0)
+    rec = clipping(4, 20.0)
     s = _settings(recovery_time=4.0)
     half = int(11.5 * RATE)  # within the recovery after the first turn (10 s to 11 s)
     c = native.Filter(FilterKind.MEKF, s)
@@ -86,8 +77,8 @@ def test_a_retune_inside_a_recovery_stays_bit_exact() -> None:
 
 def test_a_recovery_raises_the_attitude_variances_and_keeps_the_scale() -> None:
     """During a recovery P's attitude diagonal grows by q_rec per prediction and the scale stays put."""
-    rec = _clipping(4, 12.0)
-    first = int(np.flatnonzero((np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1))[0])
+    rec = clipping(4, 12.0)
+    first = int(np.flatnonzero(clipped_rows(rec.gyr))[0])
     s = _settings()
     c = native.Filter(FilterKind.MEKF, s)
     c.run(rec.gyr[:first], rec.acc[:first], rec.mag[:first])
@@ -111,8 +102,8 @@ def test_a_recovery_raises_the_attitude_variances_and_keeps_the_scale() -> None:
 def test_the_bias_is_a_consider_state_during_a_recovery() -> None:
     """6-axis (no heading updates), the 100 steps from the first clipped sample (before any rest): the
     accel updates leave the bias as it was (its gain rows zero), while without the recovery they move it."""
-    rec = _clipping(4, 12.0)
-    first = int(np.flatnonzero((np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1))[0])
+    rec = clipping(4, 12.0)
+    first = int(np.flatnonzero(clipped_rows(rec.gyr))[0])
     end = first + 100
     moved = {}
     for rt in (2.0, 0.0):
@@ -131,9 +122,9 @@ def test_the_bias_is_a_consider_state_during_a_recovery() -> None:
 @pytest.mark.parametrize("use_mag", [True, False], ids=["9-axis", "6-axis"])
 def test_a_clipping_gyro_is_recovered_from(use_mag: bool) -> None:
     """recovery_time (default 2 s): after clipping turns the error comes back, flagged INITIALISED."""
-    rec = _clipping(5, 50.0)
+    rec = clipping(5, 50.0)
     late = np.arange(len(rec.gyr)) > int(5 * RATE)
-    clipped = (np.abs(rec.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1)
+    clipped = clipped_rows(rec.gyr)
     assert clipped.any()
     err = {}
     for rt in (0.0, 2.0):
