@@ -5,7 +5,7 @@ seconds in its ASan+UBSan and MSan builds from the seed corpora, the host parser
 atheris, and every reproducer in tests/fuzz/regressions/ runs once. The filter findings are defects of
 the filter core; the fixed ones' regressions must pass. A new open finding gets its class in
 tests/fuzz/known_findings.txt, its reproducer in tests/fuzz/regressions/ and an entry in
-OPEN_FINDINGS (test_open_findings_still_fail checks it still fails; none open today: F12 was the last).
+OPEN_FINDINGS (test_open_findings checks it still fails; none open today: F15 was the last).
 STUCK is the recovery contract of tests/test_recovery.py, and it can fail (test_the_recovery_check_can_fail).
 """
 
@@ -181,20 +181,20 @@ FILTER_FINDINGS = {
     "filter-mars-BIAS_FINITE-bias-mag-tau.bin": "F14 mars: tau_bias_mag 1.4e-45 (a denormal, in [0, 1e4]): "
     "k_bias_mag = 1 / tau_bias_mag was Inf and Inf times a zero heading correction NaN, the bias NaN at step "
     "30; k_bias_mag is now 1 / max(tau_bias_mag, dt)",
+    "filter-ekf-P_SPD-gimbal-rejected.bin": "F15 ekf: dt 0.5 s, per-step noises (q_psi 0.1, r 6), "
+    "p0_bias and p_max pi, accel_reject 0.1: near pitch 90 deg with the accel samples unusable (a NaN "
+    "component) roll's variance grew to 1.8e4 between the every-16-steps conditionings (p_max pi) and P "
+    "was not positive definite at step 31; every step without an applied update is now conditioned, and "
+    "the positive definiteness test counts the rounding after a small pivot (tests/test_ekf_f15.py)",
     "filter-tilt-STUCK-harness-range.bin": "F13, the harness's own: a normalising tilt with gravity 1.57 and "
     "accel_range 2.77 (valid: accel_range > gravity) got rest samples of |a| 9.81, beyond its range "
     "(SATURATED, rightly); the good samples now have the kind's gravity",
 }
 
 
-# open findings: reproducer -> the defect (of the filter core, not fixed yet: test_open_findings_still_fail
-# below). F15, found by the long run of 2026-12-04 at 731aa11, is open.
-OPEN_FINDINGS: dict[str, str] = {
-    "filter-ekf-P_SPD-gimbal-rejected.bin": "F15 ekf: dt 0.5 s, per-step noises (q_psi 0.1, r 6), "
-    "p0_bias and p_max pi, accel_reject 0.1: near pitch 90 deg with the accel samples rejected (a NaN "
-    "component) the roll variance grows to 1.8e3 between the conditionings (above p_max), and at step 31 "
-    "P is not positive definite; the territory of F12, not fixed yet",
-}
+# open findings: reproducer -> the defect (of the filter core, not fixed yet: test_open_findings below). None
+# open today: F15 was the last.
+OPEN_FINDINGS: dict[str, str] = {}
 
 
 def test_every_regression_is_listed() -> None:
@@ -202,33 +202,20 @@ def test_every_regression_is_listed() -> None:
     assert files == set(FILTER_FINDINGS) | set(OPEN_FINDINGS) | {"node-msan-retune.bin"}
 
 
-def test_open_findings_still_fail(built: Path) -> None:
-    """Each open finding's reproducer, strict (no known list), still fails with its own class (the kind and
-    invariant of its name, filter-<kind>-<INVARIANT>-....bin); once its defect is fixed this test fails
-    and the reproducer moves to FILTER_FINDINGS. One test over the list, not a parameter per finding: an
-    empty list must not turn into a skip."""
+def test_open_findings(built: Path) -> None:
+    """known_findings.txt lists open defects only: exactly the classes of the OPEN_FINDINGS reproducers
+    (filter-<kind>-<INVARIANT>-....bin; none today, so the file lists no class and `make fuzz` stops at
+    any finding), and each of them, strict (no known list), still fails with its own class: once its
+    defect is fixed this test fails and the reproducer moves to FILTER_FINDINGS."""
+    lines = [ln.strip() for ln in (HERE / "known_findings.txt").read_text().splitlines()]
+    listed = {ln for ln in lines if ln and not ln.startswith("#")}
+    classes = {"{}:{}".format(*name.split("-")[1:3]) for name in OPEN_FINDINGS}
+    assert listed == classes
     for name in sorted(OPEN_FINDINGS):
         r = _run(built / "fuzz_filter", str(REG / name))
         kind, invariant = name.split("-")[1:3]
         assert r.returncode != 0, f"{name} passes now: move it to FILTER_FINDINGS ({OPEN_FINDINGS[name]})"
         assert f"{kind}:{invariant}: " in r.stderr, r.stderr[-2000:]
-
-
-def test_the_open_findings_are_the_known_ones() -> None:
-    """F15 is the only open finding of the filter core (its class ekf:P_SPD in known_findings.txt, its
-    reproducer still failing: test_open_findings_still_fail); F12, of the same class, stays fixed (its
-    reproducer passes strictly, without the known list: test_filter_regression)."""
-    assert set(OPEN_FINDINGS) == {"filter-ekf-P_SPD-gimbal-rejected.bin"}
-    assert "filter-ekf-P_SPD-gimbal-init.bin" in FILTER_FINDINGS
-
-
-def test_known_findings_are_the_open_ones() -> None:
-    """known_findings.txt lists open defects only: exactly the classes of the OPEN_FINDINGS reproducers
-    (filter-<kind>-<INVARIANT>-....bin), each still failing (test_open_findings_still_fail)."""
-    lines = [ln.strip() for ln in (HERE / "known_findings.txt").read_text().splitlines()]
-    listed = {ln for ln in lines if ln and not ln.startswith("#")}
-    classes = {"{}:{}".format(*name.split("-")[1:3]) for name in OPEN_FINDINGS}
-    assert listed == classes
 
 
 @pytest.mark.parametrize("name", sorted(FILTER_FINDINGS))

@@ -138,7 +138,7 @@ def _usable(p: list[Any]) -> Any:
 
 
 def _pd_ok(p: list[Any]) -> Any:
-    """att_ekf_pd_ok: L D L^T pivots d_0 > 0, d_i > 2^-12 P_ii.
+    """att_ekf_pd_ok: L D L^T pivots d_0 > 0, d_j > 2^-12 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1.
 
     The C loop stops at the first failure; here the test of each pivot is accumulated, which gives the
     same answer.
@@ -146,12 +146,21 @@ def _pd_ok(p: list[Any]) -> Any:
     with np.errstate(all="ignore"):
         ok = np.ones(np.shape(p[0]), np.bool_)
         lo: dict[tuple[int, int], Any] = {}
+        mi: dict[tuple[int, int], Any] = {}
         d: list[Any] = []
         for j in range(6):
             dj = p[_IX[j][j]]
+            sj = p[_IX[j][j]]
             for k in range(j):
                 dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
-            limit = dm.ZERO if j == 0 else PIVOT_MIN * p[_IX[j][j]]
+            # row j of L^-1 (unit diagonal), i from j - 1 down
+            for i in range(j - 1, -1, -1):
+                v = lo[(j, i)]
+                for k in range(i + 1, j):
+                    v = v + lo[(j, k)] * mi[(k, i)]
+                mi[(j, i)] = -v
+                sj = sj + (mi[(j, i)] * mi[(j, i)]) * p[_IX[i][i]]
+            limit = dm.ZERO if j == 0 else PIVOT_MIN * sj
             ok = ok & (dj > limit)
             d.append(dj)
             for i in range(j + 1, 6):
@@ -163,7 +172,7 @@ def _pd_ok(p: list[Any]) -> Any:
 
 
 def _near_singular(p: list[Any]) -> Any:
-    """att_ekf_near_singular: det P2 = P00 P11 - P01^2 not above 2^-12 P00 P11 (or not finite)."""
+    """att_ekf_update's test of its prior (F12): det P2 = P00 P11 - P01^2 not above 2^-12 P00 P11."""
     with np.errstate(all="ignore"):
         pp = p[0] * p[6]
         dp = pp - p[1] * p[1]
@@ -637,10 +646,11 @@ class Ekf:
             self.lp_ready = np.where(take_u, rdy_u, self.lp_ready)
             self.converging = np.where(take_u, cv_u, self.converging)
             gimbal = (flags & _u(Flag.GIMBAL)) != _U0
-            # the roll/pitch block of the predicted P near singular (att_ekf_near_singular, F12): tested by
-            # the update (its prior) or att_ekf_check (a usable P; not after a restart in either)
-            near = _near_singular(p_p) & ~drop_u
-            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | near)
+            # conditioned now: after an applied update whose prior (the predicted P) has a near singular
+            # roll/pitch block (F12), and at every step without an applied update whose P is usable
+            # (att_ekf_check, F15); not after a restart
+            now = ~drop_u & (~take_u | _near_singular(p_p))
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | now)
             r2 = self.gyro_range * self.gyro_range
             rb = np.where(r2 > self.p0_bias, r2, self.p0_bias)
             p_c, changed = _condition(self.p, self.p_max, np.where(rb < self.p_max, rb, self.p_max))

@@ -244,10 +244,20 @@ static ATT_ALWAYS_INLINE bool att_ekf_usable(att_vec3_t e, const float *p)
            p[20] > 0.0f;
 }
 
-/* Positive definite with margin: the L D L^T pivots satisfy d_0 > 0, d_i > 2^-12 P_ii. */
+/*
+ * Positive definite with margin, a test that float32 rounding cannot fool: the L D L^T pivots satisfy
+ * d_0 > 0 and d_j > 2^-12 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1 (unit lower triangular).
+ * Why the sum: the computed factors are the exact ones of P + dP with |dP_ij| <= ~7 u sqrt(P_ii P_jj)
+ * (u = 2^-24, the backward error of the factorisation), and the pivot d_j = min x^T P x over x with
+ * x_j = 1, x_i = 0 for i > j, attained at x = row j of L^-1; so P's own pivot is at least the computed
+ * one less 6 * 7 u sum_i m_ji^2 P_ii. 2^-12 leaves a factor of 100 above that. Testing d_j against
+ * 2^-12 P_jj alone is not enough after a small earlier pivot (F15: pivots 5e-3 and 1.05e-3 in float32,
+ * the last one -3.8e-4 in exact arithmetic: P indefinite).
+ */
 static bool att_ekf_pd_ok(const float *p)
 {
     float l[6][6];
+    float m[6][6];
     float d[6];
     int i;
     int j;
@@ -255,13 +265,26 @@ static bool att_ekf_pd_ok(const float *p)
     ATT_EKF_UNROLL
     for (j = 0; j < 6; j++) {
         float dj = P_(p, j, j);
+        float sj = P_(p, j, j);
         ATT_EKF_UNROLL
         for (k = 0; k < j; k++) {
             /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
             /* cppcheck-suppress uninitvar */
             dj = dj - (l[j][k] * l[j][k]) * d[k];
         }
-        if (!(dj > ((j == 0) ? 0.0f : ATT_EKF_PIVOT_MIN * P_(p, j, j)))) {
+        /* row j of L^-1 (m_jj = 1): m_ji = -(l_ji + sum_{i<k<j} l_jk m_ki), i from j - 1 down */
+        ATT_EKF_UNROLL
+        for (i = j - 1; i >= 0; i--) {
+            float v = l[j][i];
+            ATT_EKF_UNROLL
+            for (k = i + 1; k < j; k++) {
+                /* cppcheck-suppress uninitvar */
+                v = v + l[j][k] * m[k][i];
+            }
+            m[j][i] = -v;
+            sj = sj + (m[j][i] * m[j][i]) * P_(p, i, i);
+        }
+        if (!(dj > ((j == 0) ? 0.0f : ATT_EKF_PIVOT_MIN * sj))) {
             return false;
         }
         d[j] = dj;
@@ -279,8 +302,8 @@ static bool att_ekf_pd_ok(const float *p)
 }
 
 /*
- * Conditioning (every 16 steps, at every step flagged GIMBAL, after an increment beyond 1/16 rad, when the
- * roll/pitch block is near singular): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
+ * Conditioning (every 16 steps, at every step flagged GIMBAL or without an applied update, after an
+ * increment beyond 1/16 rad, when the roll/pitch block is near singular): variances above p_max brought down by D P D (d_i = sqrt(p_max / P_ii));
  * if P then fails the test with margin, the correlations times 1 - 2^-10, or zero when that is not
  * enough. Returns ATT_FLAG_CLAMPED when it changed P.
  */
@@ -336,32 +359,19 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
 }
 
 /*
- * The roll/pitch block of P within the margin of att_ekf_pd_ok's second pivot of singular (F12):
- * det P2 = P00 P11 - P01^2 not above 2^-12 P00 P11, i.e. a correlation of roll and pitch beyond
- * 1 - 2^-13 in magnitude (or not finite). float32 cannot carry such a block: a roll variance left at
- * p_max (an initialisation at the gimbal, roll unobservable there) feeds pitch through F's coupling
- * (a10 = -dt u) until the correlation is within 1e-8 of -1, and rounding of the next update (or
- * prediction) makes P indefinite. Then P is conditioned at the end of the step (ATT_EKF_COND_NOW:
- * the correlations shrink by 1 - 2^-10, enough for the margin). att_ekf_update tests its prior
- * with the det P2 it computes anyway (its posterior block is at least as far from singular:
- * det / (P00 P11) does not decrease in an update); this is the same test for a step without one.
- */
-static ATT_ALWAYS_INLINE uint32_t att_ekf_near_singular(const float *p)
-{
-    const float pp = P_(p, 0, 0) * P_(p, 1, 1);
-    const float dp = pp - P_(p, 0, 1) * P_(p, 0, 1);
-    return (dp > ATT_EKF_PIVOT_MIN * pp) ? 0u : ATT_EKF_COND_NOW;
-}
-
-/*
- * The one test of a step, on the state it leaves (att_ekf_update tests its own result; this covers a
- * step without an applied update): P that cannot be used restarts (att_ekf_p_restart); a usable P
- * whose roll/pitch block is near singular is conditioned this step (att_ekf_near_singular). The
- * predicted angles are finite (att_ekf_predict keeps them otherwise).
+ * The one test of a step without an applied update, on the state it leaves (att_ekf_update tests its
+ * own result): P that cannot be used restarts (att_ekf_p_restart); a usable P is conditioned this step
+ * (ATT_EKF_COND_NOW). Without an update nothing bounds P: the prediction alone feeds the bias variance
+ * into roll at a gain of dt tan(theta) per step, so near pitch 90 deg roll's variance runs beyond p_max
+ * and its correlation with the bias beyond what float32 can carry within a few steps (F15: dt 0.5 s,
+ * pitch 86 deg, accel rejected: roll's variance 3 -> 18,600 in 16 steps, P indefinite). The
+ * conditioning keeps every variance within its cap and P positive definite with margin at every such
+ * step; it costs less than the update it stands in for. The predicted angles are finite
+ * (att_ekf_predict keeps them otherwise).
  */
 static ATT_NOINLINE uint32_t att_ekf_check(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
 {
-    return att_ekf_usable(st->euler, st->p) ? att_ekf_near_singular(st->p) : att_ekf_p_restart(c, st->p);
+    return att_ekf_usable(st->euler, st->p) ? ATT_EKF_COND_NOW : att_ekf_p_restart(c, st->p);
 }
 
 /*
@@ -909,8 +919,13 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     r1 = c->r_step[1] * fa;
     r0 = (c->r_step[0] * fa) * (sec * sec);
     /* det S = det P2 + r1 P00 + r0 P11 + r0 r1 (P2 = P[0:2,0:2], det P2 >= 0): > 0 by construction.
-     * det P2 within the pivot margin of singular (att_ekf_near_singular, F12): P conditioned after
-     * the update; only then can det P2 be below 0 (or NaN), taken as 0 (dp > 2^-12 P00 P11 >= 0 else) */
+     * det P2 within the pivot margin of singular (F12: P00 P11 - P01^2 not above 2^-12 P00 P11, a
+     * correlation of roll and pitch beyond 1 - 2^-13 in magnitude, or not finite): P conditioned after
+     * the update; only then can det P2 be below 0 (or NaN), taken as 0 (dp > 2^-12 P00 P11 >= 0 else).
+     * float32 cannot carry such a block: a roll variance left at p_max (an initialisation at the gimbal,
+     * roll unobservable there) feeds pitch through F's coupling until the correlation is within 1e-8 of
+     * -1, and the rounding of the update makes P indefinite; the update cannot make it closer to
+     * singular (det / (P00 P11) does not decrease in an update). */
     pp = P_(p, 0, 0) * P_(p, 1, 1);
     dp = pp - P_(p, 0, 1) * P_(p, 0, 1);
     if (!(dp > ATT_EKF_PIVOT_MIN * pp)) {
@@ -1068,8 +1083,8 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
         /* near gimbal lock F grows as 1 / cos(theta), after a large increment it is far from I, and a
-         * near singular roll/pitch block cannot take rounding (att_ekf_near_singular): P is conditioned
-         * at once */
+         * near singular roll/pitch block cannot take rounding (F12), and without an update nothing bounds
+         * P (att_ekf_check, F15): P is conditioned at once */
         /* the bias variances capped at gyro_range^2 too (a bias beyond the range is no estimate), never
          * below their start value p0_bias (a tiny range's square underflows) */
         const float r2 = c->gyro_range * c->gyro_range;
