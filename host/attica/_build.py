@@ -160,6 +160,34 @@ def cdef_text() -> str:
     return _default_branches(text)
 
 
+CODEC_HEADER = FIRMWARE / "src" / "can" / "generated" / "att_can_db.h"
+"""The generated CAN codec (host/attica/can/gen.py): a private firmware header, declared to cffi as well
+so that tests reach every generated function (tests/test_can_generated.py), not only those att_can.c
+calls."""
+
+_POSITIVE_DEFINE = re.compile(r"#define (ATT_CAN_DB_\w+) \((0x[0-9a-fA-F]+|[0-9]+)u?\)")
+
+
+def codec_cdef() -> str:
+    """The generated codec header as cffi declarations.
+
+    Its structs and prototypes, and its non-negative integer constants (frame ids, lengths, raw limits);
+    comments, includes, C++ guards, string and negative constants are left out (cffi's parser takes none
+    of those).
+    """
+    text = re.sub(r"#ifdef __cplusplus.*?#endif", "", CODEC_HEADER.read_text(), flags=re.S)
+    text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
+    out = []
+    for line in text.splitlines():
+        if not line.lstrip().startswith("#"):
+            out.append(line)
+            continue
+        m = _POSITIVE_DEFINE.fullmatch(line.strip())
+        if m:
+            out.append(f"#define {m.group(1)} {int(m.group(2), 0)}")
+    return "\n".join(out)
+
+
 def inputs_digest() -> str:
     """Hash over everything the extension is built from (sources, headers, flags, this file)."""
     h = hashlib.sha256()
@@ -206,13 +234,14 @@ def make_ffi(objects: list[Path]) -> Any:
 
     ffi = FFI()
     ffi.cdef(cdef_text())
+    ffi.cdef(codec_cdef())
     includes = "".join(
         f'#include "{h.name}"\n' if h.parent == CSRC else f'#include "attica/{h.name}"\n' for h in headers()
     )
     ffi.set_source(
         "attica._native",
-        includes,
-        include_dirs=[str(INCLUDE), str(CSRC)],
+        includes + f'#include "{CODEC_HEADER.name}"\n',
+        include_dirs=[str(INCLUDE), str(CSRC), str(CODEC_HEADER.parent)],
         extra_objects=[str(o) for o in objects],
     )
     return ffi
