@@ -214,6 +214,43 @@ def test_set_convention_and_remap_atomic_and_kept_on_select() -> None:
     assert n.kind == lib.ATT_FILTER_ARS and n.f.cal.convention == 1 and n.f.cal.gyr.mode == 1
 
 
+def test_remap_zero_clears_the_mounting_and_a_failed_persist_is_reported() -> None:
+    """SET_REMAP 0 is the identity mounting (a mounting quaternion set before is dropped); a persistence
+    hook that fails is answered PERSIST_FAILED while the settings still apply; a session counts its
+    CAL_SETs up to 255 (CAL_COMMIT's index)."""
+
+    @ffi.callback("bool(void *, const att_calib_settings_t *)")
+    def refuse(ctx: Any, cal: Any) -> bool:
+        return False
+
+    n, _ = _node()
+    half = float(np.float32(np.sqrt(0.5)))
+    n.cal.mounting.w, n.cal.mounting.x, n.cal.mounting.y, n.cal.mounting.z = half, 0.0, 0.0, half
+    lib.att_node_set_persist(n, refuse, ffi.NULL)
+    a = _cmd(n, lib.ATT_CAN_CMD_SET_REMAP, 0)
+    assert a.result == lib.ATT_CAN_ACK_OK and a.persisted == lib.ATT_CAN_PERSIST_FAILED
+    m = n.cal.mounting
+    assert (m.w, m.x, m.y, m.z) == (1.0, 0.0, 0.0, 0.0) and n.cal.remap == 0
+    lib.att_node_set_persist(ffi.NULL, refuse, ffi.NULL)  # no node: nothing done
+    lib.att_node_set_persist(n, ffi.NULL, ffi.NULL)
+    assert _cmd(n, lib.ATT_CAN_CMD_CAL_BEGIN, 0).session == 1
+    for _ in range(300):
+        assert _cmd(n, lib.ATT_CAN_CMD_CAL_SET, 0, 1.0).result == lib.ATT_CAN_ACK_OK
+    a = _cmd(n, lib.ATT_CAN_CMD_CAL_COMMIT)
+    assert a.result == lib.ATT_CAN_ACK_OK and a.index == 255 and a.persisted == lib.ATT_CAN_PERSIST_NONE
+
+
+def test_calibration_commands_keep_the_acceleration_outputs() -> None:
+    """A node with accel_out keeps sending its acceleration frames after a calibration command (the
+    applied stages keep accel_outputs on whatever the command's settings say)."""
+    n, _ = _node(accel_out=True, kind="ars")
+    assert _cmd(n, lib.ATT_CAN_CMD_SET_CONVENTION, 1).result == lib.ATT_CAN_ACK_OK
+    frames = _sample(n, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81), (20.0, 0.0, -40.0), 1)
+    acc_fd = [fr for fr in frames if fr.id == lib.ATT_CAN_ID_ACCEL_FD]
+    a = ffi.new("att_accel_t *")
+    assert len(acc_fd) == 1 and lib.att_can_decode_accel_fd(acc_fd[0], a) and a.valid == lib.ATT_OUT_ACCEL
+
+
 @pytest.mark.parametrize("fd", [True, False])
 def test_acceleration_frames(fd: bool) -> None:
     s = ordinary(np.random.default_rng(8), remap=3, convention=1)
