@@ -98,7 +98,8 @@ def _get(member: Any, path: str) -> Any:
 
 
 class Verdict:
-    """What check, validate, init and retune say about one settings struct (they must agree)."""
+    """What check, validate, init, retune and the rule listing say about one settings struct (they must
+    agree)."""
 
     def __init__(self, kind: FilterKind, s: Any) -> None:
         why = ffi.new("att_settings_error_t *")
@@ -126,6 +127,17 @@ class Verdict:
             assert self.rule and math.isfinite(self.min) and not math.isnan(self.max)
         else:
             self.name = ""
+        # the listing (att_filter_settings_rule, line by line) refuses first the line check names
+        first = None
+        r = ffi.new("att_settings_error_t *")
+        for line in range(1000):
+            st = int(lib.att_filter_settings_rule(int(kind), s, line, r))
+            if r.field == ffi.NULL:
+                assert st == lib.ATT_OK
+                break
+            if st != lib.ATT_OK and first is None:
+                first = (ffi.string(r.field).decode(), ffi.string(r.rule).decode())
+        assert first == (None if self.ok else (self.field, self.rule)), (first, self.field, self.rule)
 
     def blames(self, perturbed: list[str]) -> bool:
         """The named field is a perturbed one (a vector for its component), or its rule names one."""
