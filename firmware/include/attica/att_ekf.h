@@ -71,12 +71,14 @@
  *  (ATT_FLAG_INITIALISED, no prediction that step): the failed step left the state as it was, which
  *  with a constant sample would fail again at every step; with every conditioning of P (below) the bias
  *  is limited to +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts). Every 16 steps, at every
- *  step flagged GIMBAL, after a roll or pitch increment beyond 1/16 rad, and at a step whose roll/pitch
- *  block of P is within the margin below of singular (det P2 <= 2^-12 P00 P11: float32 cannot carry a
- *  correlation that close to +-1), P is conditioned: variances
+ *  step flagged GIMBAL, at every step without an applied accel update (nothing else bounds P then),
+ *  after a roll or pitch increment beyond 1/16 rad, and at a step whose roll/pitch block of P is
+ *  within the margin below of singular (det P2 <= 2^-12 P00 P11: float32 cannot carry a correlation
+ *  that close to +-1), P is conditioned: variances
  *  above p_max (the bias variances above min(p_max, max(gyro_range^2, p0_bias)): a bias beyond the
  *  range is no estimate) are brought down by the congruence D P D (correlations kept); if P then fails a positive
- *  definiteness test with margin (L D L^T pivots d_i > 2^-12 P_ii) its correlations are multiplied by
+ *  definiteness test with margin (L D L^T pivots d_j > 2^-12 (P_jj + sum_i m_ji^2 P_ii), m = L^-1:
+ *  the margin covers the test's own rounding) its correlations are multiplied by
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
  *
  * Noises: with noise_rates (default) the q_* are rates (added as q dt per step) and r_* densities
