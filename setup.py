@@ -60,7 +60,7 @@ class BuildExt(build_ext):
         source = temp / "_native.c"
         ffi.emit_c_code(str(source))
         ext.sources = [str(source)]
-        ext.include_dirs = [str(_build.INCLUDE), str(_build.CSRC)]
+        ext.include_dirs = [str(p) for p in _build.include_dirs()]
         ext.extra_objects = [str(o) for o in objs]
         super().build_extension(ext)
 

@@ -160,12 +160,24 @@ def cdef_text() -> str:
     return _default_branches(text)
 
 
-CODEC_HEADER = FIRMWARE / "src" / "can" / "generated" / "att_can_db.h"
-"""The generated CAN codec (host/attica/can/gen.py): a private firmware header, declared to cffi as well
-so that tests reach every generated function (tests/test_can_generated.py), not only those att_can.c
-calls."""
+def codec_header() -> Path:
+    """The generated CAN codec's header (host/attica/can/gen.py) under ``FIRMWARE``.
+
+    A private firmware header, declared to cffi as well so that tests reach every generated function
+    (tests/test_can_generated.py), not only those att_can.c calls. A function, not a constant: the
+    mutation snapshot points ``FIRMWARE`` at its own tree.
+    """
+    return FIRMWARE / "src" / "can" / "generated" / "att_can_db.h"
+
+
+def include_dirs() -> list[Path]:
+    """The include folders of the cffi wrapper: the public headers, the host kernels, the codec's."""
+    return [INCLUDE, CSRC, codec_header().parent]
+
 
 _POSITIVE_DEFINE = re.compile(r"#define (ATT_CAN_DB_\w+) \((0x[0-9a-fA-F]+|[0-9]+)u?\)")
+_SKIPPED_DEFINE = re.compile(r'#define ATT_CAN_DB_\w+( \(-[0-9]+\)| "[^"]*")?')
+"""What codec_cdef leaves out on purpose: negative constants, names (strings), the include guard."""
 
 
 def codec_cdef() -> str:
@@ -175,7 +187,7 @@ def codec_cdef() -> str:
     comments, includes, C++ guards, string and negative constants are left out (cffi's parser takes none
     of those).
     """
-    text = re.sub(r"#ifdef __cplusplus.*?#endif", "", CODEC_HEADER.read_text(), flags=re.S)
+    text = re.sub(r"#ifdef __cplusplus.*?#endif", "", codec_header().read_text(), flags=re.S)
     text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
     out = []
     for line in text.splitlines():
@@ -185,6 +197,8 @@ def codec_cdef() -> str:
         m = _POSITIVE_DEFINE.fullmatch(line.strip())
         if m:
             out.append(f"#define {m.group(1)} {int(m.group(2), 0)}")
+        elif line.startswith("#define ATT_CAN_DB_") and not _SKIPPED_DEFINE.fullmatch(line.strip()):
+            raise ValueError(f"{codec_header().name}: a constant of a form codec_cdef does not know: {line}")
     return "\n".join(out)
 
 
@@ -240,8 +254,8 @@ def make_ffi(objects: list[Path]) -> Any:
     )
     ffi.set_source(
         "attica._native",
-        includes + f'#include "{CODEC_HEADER.name}"\n',
-        include_dirs=[str(INCLUDE), str(CSRC), str(CODEC_HEADER.parent)],
+        includes + f'#include "{codec_header().name}"\n',
+        include_dirs=[str(p) for p in include_dirs()],
         extra_objects=[str(o) for o in objects],
     )
     return ffi

@@ -230,10 +230,12 @@ def _build_wrapper(tree: Path, out: Path) -> None:
         ffi = _build.make_ffi([])
         c_file = out.with_suffix(".c")
         ffi.emit_c_code(str(c_file))
+        dirs = _build.include_dirs()  # the snapshot's: the public headers, the host kernels, the codec's
     finally:
         _build.FIRMWARE, _build.INCLUDE, _build.CSRC = saved
-    inc = ["-I", sysconfig.get_paths()["include"], "-I", str(tree / "firmware" / "include")]
-    inc += ["-I", str(tree / "host" / "attica" / "csrc")]
+    inc = ["-I", sysconfig.get_paths()["include"]]
+    for d in dirs:
+        inc += ["-I", str(d)]
     _run([CC, "-O1", "-fPIC", *inc, "-c", str(c_file), "-o", str(out)], "the cffi wrapper")
 
 
