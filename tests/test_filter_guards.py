@@ -51,7 +51,7 @@ def test_null_arguments() -> None:
     assert lib.att_filter_heading_update(ffi.NULL, 0.0, 0.5, True) == lib.ATT_ERR_NULL
     before = ffi.new("att_filter_t *")
     before[0] = f[0]
-    lib.att_filter_reset(ffi.NULL)
+    lib.att_filter_reset(ffi.NULL)  # no crash
     lib.att_filter_output(f, ffi.NULL)
     lib.att_filter_accel(f, ffi.NULL)
     assert _same(f, before)
@@ -111,7 +111,7 @@ def test_heading_update_refuses_bad_values(heading: float, gain: float) -> None:
 
 def test_accel_outputs_need_their_stage_and_a_sample() -> None:
     """att_filter_accel gives valid 0 (zeros) without the acceleration stage, before the first sample,
-    and for a filter whose kind is not one of this build's."""
+    and for a filter whose kind was cleared (ATT_FILTER_NONE, as never initialised) under its stages."""
     f, _ = _filter(lib.ATT_FILTER_ARS)
     acc = ffi.new("att_accel_t *")
     lib.att_filter_step(f, _sample(), ffi.NULL)

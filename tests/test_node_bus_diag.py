@@ -69,9 +69,11 @@ def test_the_hook_is_refused_when_the_bus_has_no_room() -> None:
     """A node whose outputs fit the bus with ATT_DIAG every set, but not with ATT_DIAG_BUS beside it:
     the hook is refused (ATT_ERR_SETTINGS) and no ATT_DIAG_BUS is sent."""
 
+    called: list[Any] = []
+
     @ffi.callback("void(void *, att_can_bus_diag_t *)")
     def hook(ctx: Any, d: Any) -> None:
-        raise AssertionError("a refused hook was called")
+        called.append(ctx)  # (an exception raised here would be printed and swallowed by cffi)
 
     found = None
     for rate in range(300, 700, 5):
@@ -85,7 +87,7 @@ def test_the_hook_is_refused_when_the_bus_has_no_room() -> None:
     assert found is not None
     frames = _run(found, 4)
     assert len([f for f in frames if f.id == lib.ATT_CAN_ID_DIAG]) == 4
-    assert not [f for f in frames if f.id == lib.ATT_CAN_ID_DIAG_BUS]
+    assert not [f for f in frames if f.id == lib.ATT_CAN_ID_DIAG_BUS] and not called
 
 
 def test_null_and_bad_values_are_refused() -> None:

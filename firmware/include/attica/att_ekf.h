@@ -77,8 +77,8 @@
  *  that close to +-1), P is conditioned: variances
  *  above p_max (the bias variances above min(p_max, max(gyro_range^2, p0_bias)): a bias beyond the
  *  range is no estimate) are brought down by the congruence D P D (correlations kept); if P then fails a positive
- *  definiteness test with margin (L D L^T pivots d_j > 2^-12 (P_jj + sum_i m_ji^2 P_ii), m = L^-1:
- *  the margin covers the test's own rounding) its correlations are multiplied by
+ *  definiteness test with margin (L D L^T pivots d_0 > 0, d_j > 2^-12 (P_jj + sum_{i<j} m_ji^2 P_ii),
+ *  m = L^-1: the margin covers the test's own rounding) its correlations are multiplied by
  *  1 - 2^-10, or set to zero when that is not enough (ATT_FLAG_CLAMPED). Yaw is not observed: its variance grows (up to p_max).
  *
  * Noises: with noise_rates (default) the q_* are rates (added as q dt per step) and r_* densities

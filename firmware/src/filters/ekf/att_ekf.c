@@ -21,7 +21,7 @@
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
-#define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and when GIMBAL) */
+#define ATT_EKF_COND_MASK 15u                /* P is conditioned every 16 steps (and ATT_EKF_COND_NOW) */
 #define ATT_EKF_COND_NOW 0x80000000u         /* internal flag (prediction, tests of P): condition P this step */
 /* Increments of an angle up to which sin/cos follow by angle addition (att_ekf_sincos_step) */
 #define ATT_EKF_INC_MAX 0x1p-4f    /* 1/16 rad */
@@ -364,7 +364,7 @@ static ATT_NOINLINE uint32_t att_ekf_p_restart(const att_ekf_coeffs_t *c, float 
  * (ATT_EKF_COND_NOW). Without an update nothing bounds P: the prediction alone feeds the bias variance
  * into roll at a gain of dt tan(theta) per step, so near pitch 90 deg roll's variance runs beyond p_max
  * and its correlation with the bias beyond what float32 can carry within a few steps (F15: dt 0.5 s,
- * pitch 86 deg, accel rejected: roll's variance 3 -> 18,600 in 16 steps, P indefinite). The
+ * pitch 86 deg, accel samples unusable: roll's variance 3 -> 18,600 in 16 steps, P indefinite). The
  * conditioning keeps every variance within its cap and P positive definite with margin at every such
  * step; it costs less than the update it stands in for. The predicted angles are finite
  * (att_ekf_predict keeps them otherwise).
@@ -979,10 +979,11 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
 }
 
 /*
- * With the conditioning of P (every 16 steps, GIMBAL, large increments): the bias estimate limited to
- * +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts; NaN: bias_init). A gyro cannot read a bias
- * beyond its range; a bias variance far beyond any gyro's (a fuzzed q_bias) could push the estimate
- * there (docs/robustness.md F10). Off the normal step: at most 15 steps pass with such a bias.
+ * With the conditioning of P (every 16 steps, GIMBAL, large increments, steps without an applied update,
+ * a near singular roll/pitch block): the bias estimate limited to +-gyro_range per axis
+ * (ATT_FLAG_CLAMPED when that acts; NaN: bias_init). A gyro cannot read a bias beyond its range; a bias
+ * variance far beyond any gyro's (a fuzzed q_bias) could push the estimate there (docs/robustness.md
+ * F10). Off the normal step: at most 15 steps pass with such a bias.
  */
 static ATT_NOINLINE uint32_t att_ekf_bias_limit(const att_ekf_coeffs_t *c, att_ekf_state_t *st)
 {
