@@ -144,7 +144,8 @@ def test_frame_helpers_refuse_what_has_no_crc() -> None:
         before = bytes(ffi.buffer(f))
         lib.att_can_seal(f)
         assert bytes(ffi.buffer(f)) == before
-        assert lib.att_can_counter(f) == (7 if f.len > 64 else 0)  # data[1] is there when len > 64
+        if f.len <= 64:  # (a length beyond 64 is no frame: seal refuses it; the counter is not defined)
+            assert lib.att_can_counter(f) == 0
     status = ffi.new("att_can_status_t *")
     status.ack = lib.ATT_CAN_ACK_ANSWER | 3
     answer = ffi.new("att_can_frame_t *")
