@@ -681,8 +681,9 @@ def test_near_singular_roll_pitch_block(corr: float, near: bool) -> None:
     schedule (steps = 1 here) when no update follows (NaN accel: CLAMPED); a block just outside the margin
     (corr 0.999, 1 - corr^2 = 2e-3) is not. With an update the conditioning acts only when the update left P
     short of the margin (here it does not: P 1 against R 0.01 takes 1 - corr^2 from 2e-5 to 4e-3); either
-    way P leaves the step positive definite with margin. C and reference bit for bit. Before the fix the
-    near blocks stayed as they were until the 16th step (P not positive definite at corr >= 1)."""
+    way P leaves the step positive definite with margin; whether the update's detector ran shows with a
+    p_max below yaw's variance. C and reference bit for bit. Before the fix the near blocks stayed as
+    they were until the 16th step (P not positive definite at corr >= 1)."""
     s = ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3))
     full = np.eye(6) * 1e-4
     full[:3, :3] = np.eye(3)
@@ -700,6 +701,15 @@ def test_near_singular_roll_pitch_block(corr: float, near: bool) -> None:
             p = unpack(p_of(f)).astype(np.float64)
             pivots = np.diag(np.linalg.cholesky(p)) ** 2
             assert (pivots > 2**-12 * np.diag(p)).all()
+    # with an applied update the detector itself decides: with p_max 0.99 below yaw's variance (1, not
+    # observed by the update) a conditioning caps it (CLAMPED), so CLAMPED shows whether one ran
+    f, ref = pair(ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3), p0=0.5, p_max=0.99))
+    f[0].st.steps = 1
+    load_c_state(ref, Ekf.STATE, 0, f[0])
+    _force_p(f, ref, full)
+    fl = step_both(f, ref, (0.01, -0.02, 0.03), (0.5, 0.3, 9.7))
+    assert not fl & (Flag.NUMERIC | Flag.ACCEL_REJECTED)
+    assert bool(fl & Flag.CLAMPED) == near, (corr, Flag(fl))
 
 
 # --- individual bad inputs -----------------------------------------------------------------------
