@@ -692,3 +692,17 @@ def test_replay_realtime_pacing() -> None:
     assert st.samples == 100 and got == 300
     assert 0.95 * 99 / (2 * RATE) <= elapsed < 99 / (2 * RATE) + 0.5
     np.testing.assert_equal(st.frames, 300)
+
+
+def test_remote_frames_keep_their_length_through_the_log(tmp_path: Path) -> None:
+    """A remote frame's requested length (candump's ``ID#R<dlc>``) survives read_log -> candump_text ->
+    read_log. Found by the CI slice of the host parser fuzzing (atheris, tests/fuzz/fuzz_host.py):
+    ``(00000) \\n1 100#r2`` was read with dlc 2 and written back as ``100#R``, dlc 0."""
+    for text, dlc in (("100#r2", 2), ("100#R", 0), ("123#R8", 8), ("1234ABCD#R5", 5)):
+        path = tmp_path / "in.log"
+        path.write_text(f"(1.000000) can0 {text}\n")
+        (m,) = list(read_log(path))
+        assert m.is_remote_frame and m.dlc == dlc
+        path.write_text(candump_text(m) + "\n")
+        (again,) = list(read_log(path))
+        assert again.is_remote_frame and again.dlc == dlc and again.arbitration_id == m.arbitration_id

@@ -94,8 +94,9 @@ def candump_text(msg: can.Message, channel: str | None = None) -> str:
     if msg.is_error_frame:
         return f"({ts:.6f}) {ch} 20000080#{bytes(msg.data).hex().upper()}"
     ident = f"{msg.arbitration_id:08X}" if msg.is_extended_id else f"{msg.arbitration_id:03X}"
-    if msg.is_remote_frame:
-        return f"({ts:.6f}) {ch} {ident}#R"
+    if msg.is_remote_frame:  # the requested length as candump writes it (R and a digit), when there is one
+        dlc = f"{msg.dlc:X}" if 0 < msg.dlc <= 15 else ""
+        return f"({ts:.6f}) {ch} {ident}#R{dlc}"
     data = bytes(msg.data).hex().upper()
     if msg.is_fd:  # the log's own flags digit (candump adds FDF 4), else BRS 1 | ESI 2 as python-can writes
         flags = getattr(msg, "fd_flags", None)
