@@ -105,12 +105,39 @@ def test_the_set_is_ordered_unique_and_sampled_reproducibly() -> None:
 
 def test_every_explanation_names_a_current_mutant() -> None:
     """An explanation whose line changed is stale: re-judge that mutant and update mutate.EXPLAINED."""
-    current = {(m.path, m.source, m.op, m.change) for m in mutate.all_mutants(ROOT)}
-    stale = [e for e in mutate.EXPLAINED if (e.path, e.source, e.op, e.change) not in current]
+    from attica_dev.mutation.explained import matches
+
+    current = mutate.all_mutants(ROOT)
+    stale = [e for e in mutate.EXPLAINED if not any(matches(e, m) for m in current)]
     assert not stale, "\n".join(f"{e.path}: {e.source} ({e.op} {e.change})" for e in stale)
     assert all(len(e.why) > 20 for e in mutate.EXPLAINED)
-    gone = [e for e in mutate.OPEN if (e.path, e.source, e.op, e.change) not in current]
+    gone = [e for e in mutate.OPEN if not any(matches(e, m) for m in current)]
     assert not gone, "a known open gap no longer names a mutant: drop it from mutation.explained.OPEN"
+
+
+def test_every_explanation_says_what_kind_it_is() -> None:
+    """Each explanation begins with its kind: proven equivalent (left out of the score) or not."""
+    from attica_dev.mutation.explained import PROVEN, is_proven
+
+    kinds = (*PROVEN, "boundary:", "below output precision:", "unproven:")
+    assert all(e.why.startswith(kinds) for e in mutate.EXPLAINED), [
+        e.why[:40] for e in mutate.EXPLAINED if not e.why.startswith(kinds)
+    ]
+    assert is_proven("dead store: x") and not is_proven("boundary: x") and not is_proven("")
+
+
+def test_score_leaves_out_proven_equivalents_only() -> None:
+    """score = killed / (killed + survived - proven); score_raw counts every survivor."""
+    from attica_dev.mutation.report import _score
+    from attica_dev.mutation.run import Result
+
+    m = mutate.all_mutants(ROOT, "firmware/src/math/*")[0]
+    rs = [Result(m, "killed")] * 8 + [Result(m, "equivalent"), Result(m, "stillborn")]
+    rs += [Result(m, "survived", explained="unreachable: x"), Result(m, "survived", explained="boundary: y")]
+    rs += [Result(m, "survived")]
+    c = _score(rs)
+    assert (c["killed"], c["survived"], c["proven"], c["equivalent"]) == (8, 3, 1, 1)
+    assert c["score"] == 80.0 and abs(c["score_raw"] - 800 / 11) < 1e-9
 
 
 def test_sampled_mutants_are_killed_or_explained(tmp_path: Path) -> None:

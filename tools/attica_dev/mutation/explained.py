@@ -2,20 +2,29 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 from attica_dev.mutation.mutants import Mutant
+
+ROOT = Path(__file__).resolve().parents[3]
 
 
 @dataclass(frozen=True)
 class Explained:
-    """A survivor with its reason: matched by file, the stripped source line, operator and change."""
+    """A survivor with its reason: matched by file, the stripped source line, operator and change.
+
+    ``prev``, when given, is the stripped line above the mutant's (the last one that is not blank): for a
+    line that occurs more than once (``return 0u;``), so that the reason covers that one place only.
+    """
 
     path: str
     source: str
     op: str
     change: str
     why: str
+    prev: str = ""
 
 
 EXPLAINED: tuple[Explained, ...] = (
@@ -59,6 +68,67 @@ EXPLAINED: tuple[Explained, ...] = (
         (
             "equivalent: diag_ok only selects the fast path; att_mekf_repair tests every variance (cap, > 0)"
             " and the positive definiteness again and leaves a valid P unchanged, with no flag"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "p[ATT_MEKF_IX(2u, 2u)] > 0.0f && p[ATT_MEKF_IX(3u, 3u)] > 0.0f &&",
+        "CONST",
+        "3u -> 4u",
+        (
+            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
+            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
+            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
+            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
+            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "p[ATT_MEKF_IX(2u, 2u)] > 0.0f && p[ATT_MEKF_IX(3u, 3u)] > 0.0f &&",
+        "ZERO",
+        "3u -> 0u",
+        (
+            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
+            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
+            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
+            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
+            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "p[ATT_MEKF_IX(4u, 4u)] > 0.0f && p[ATT_MEKF_IX(5u, 5u)] > 0.0f;",
+        "CONST",
+        "5u -> 6u",
+        (
+            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
+            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
+            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
+            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
+            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "for (k = 0u; k < 5u; k++) {",
+        "CONST",
+        "0u -> 1u",
+        (
+            "unproven: the positive-definiteness test without the pivot of the tilt's second axis differs "
+            "only for a P near singular through that axis alone; no stream found builds one (the "
+            "bias/tilt correlations grow on every axis together and another pivot fails as well)"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "k = 0.0f;",
+        "CONST",
+        "0.0f -> 1.0f",
+        (
+            "unproven: needs a NaN |V|^2 of the scale sensitivity; V is bounded by 16 at every step start, "
+            "a NaN would need an overflow inside one update (det S near the smallest float); neither "
+            "reached nor proven unreachable"
         ),
     ),
     Explained(
@@ -257,8 +327,8 @@ EXPLAINED: tuple[Explained, ...] = (
         "ROR",
         "< -> <=",
         (
-            "boundary: differs only when |cos(theta_mid)| equals cos_min exactly (then ctm is replaced "
-            "by the same value, sign aside); no input lands there"
+            "equivalent: the guard's branch (lines 546-548) sets no flag; at |ctm| == cos_min (> 0) the "
+            "replacement (ctm < 0 ? -cos_min : cos_min) is ctm itself, bit for bit"
         ),
     ),
     Explained(
@@ -401,28 +471,364 @@ EXPLAINED: tuple[Explained, ...] = (
         "255u -> 256u",
         "unreachable: a is the running saturated total (<= 255), never 256 or more",
     ),
+    Explained(
+        "firmware/src/filters/mars/att_mars.c",
+        "st->m0_perp = zero;",
+        "DEL",
+        "st->m0_perp = zero; -> ;",
+        (
+            "dead store: att_mars_reset clears m0_valid; m0_perp is read only by att_mars_mag_correct, which "
+            "runs only with m0_valid (att_mars_mag_step), and m0_valid becomes true only in att_mars_set_m0, "
+            "which calls att_mars_m0_limits, and that writes m0_perp on both of its paths (FULL: perp; "
+            "HORIZONTAL: up); att_mars_yaw_to only rotates the stale value, which is overwritten before "
+            "a read"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mars/att_mars.c",
+        "#define ATT_MARS_START_PENDING 0x80000000u",
+        "CONST",
+        "0x80000000u -> 0x80000001u",
+        (
+            "equivalent: the marker is returned by att_mars_update and compared only with that return value "
+            "(att_mars_step_in); every other value att_mars_update returns is a flags word (ATT_FLAG_* bits "
+            "0..15), never 0x80000000u nor 0x80000001u, so both values select the same steps"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "st->mag_hx = 0.0f;",
+        "CONST",
+        "0.0f -> 1.0f",
+        (
+            "never read: att_mekf_m0_limits overwrites it when m0 has a horizontal part; without one, m0_lo "
+            "is Inf and every sample is rejected (att_mekf_heading) before att_mekf_mag_apply reads mag_hx / "
+            "mag_hy (the reset's copy of the line is the same: m0_valid is false until the limits are "
+            "derived; att_mekf_yaw_to only rotates the pair)"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "if (!(add <= c->p_max)) {",
+        "ROR",
+        "<= -> <",
+        (
+            "equivalent: the two differ only for add == p_max, where the mutant's branch stores p_max, the "
+            "value add already holds (p_max > 0: the same bits); NaN takes the branch either way"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        "inv = 1.0f / d;",
+        "CONST",
+        "1.0f -> 0x1.000002p+0f",
+        (
+            "boundary: att_mekf_pd returns only its verdict; a first reciprocal larger by 2^-23 moves the "
+            "trailing pivots by about 2^-23 of the eliminated part, which flips a test d > 2^-16 P_ii only "
+            "for a P within that rounding of the margin (no input found lands there; the conditioning keeps "
+            "P far inside it in every stream of the oracle)"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/mekf/att_mekf.c",
+        (
+            "if (n <= ATT_MEKF_SENS_MAX * ATT_MEKF_SENS_MAX && st->p_scale >= 0.0f && st->scale <= "
+            "ATT_MEKF_SCALE_MAX &&"
+        ),
+        "AOR",
+        "* -> /",
+        (
+            "equivalent: the mutant also calls att_mekf_scale_limit for 1 < |V|^2 <= 256 with the scale and "
+            "p_scale in range; there it sets no flag and changes nothing (no clamp; k stays 1, V[i] * 1 = "
+            "V[i] bit for bit)"
+        ),
+    ),
+    Explained(
+        "firmware/src/can/att_can.c",
+        "g.crc = 0u;",
+        "CONST",
+        "0u -> 1u",
+        (
+            "equivalent: att_can_db_imu_gyro_pack puts the crc field in data[0] only, and att_can_seal "
+            "(att_can.c:225) overwrites data[0] with the CRC of data[1..7] (IMU_GYRO has a CRC, len 8 from "
+            "att_can_frame_start) before the frame leaves the encoder"
+        ),
+    ),
+    Explained(
+        "firmware/src/core/att_core.h",
+        "if (att_i_absf(gyr.x) <= range && att_i_absf(gyr.y) <= range && att_i_absf(gyr.z) <= range) {",
+        "ROR",
+        "<= -> <",
+        (
+            "equivalent: the test only selects the fast path; at |w_z| == range (x, y within range) the "
+            "slow path finds the sample finite and no component > range and returns 0 too (att_core.h:29-35)"
+        ),
+    ),
+    Explained(
+        "firmware/src/core/att_core.h",
+        "if (!att_i_vec3_isfinite(acc) || !(n2 >= ATT_NORM2_MIN)) {",
+        "ROR",
+        ">= -> >",
+        (
+            "equivalent in reachable states: differs only at |a|^2 == 2^-100 exactly, which passes the "
+            "fast test above (n2 >= 2^-100 && n = 2^-50 <= range) unless range < 2^-50; the only caller, "
+            "att_tilt_step, passes accel_range > gravity >= 1 (att_tilt_checks.h)"
+        ),
+    ),
+    Explained(
+        "firmware/src/core/att_core.h",
+        "return (n > range) ? ATT_FLAG_ACCEL_RANGE : 0u;",
+        "CONST",
+        "0u -> 1u",
+        (
+            "unreachable: this line is reached with a finite sample (n2 finite or +Inf, n never NaN) and "
+            "n2 >= 2^-100, so the fast test failed on n <= range: n > range always holds and the 0u arm "
+            "is never taken (range is tilt's validated accel_range, not NaN)"
+        ),
+    ),
+    Explained(
+        "firmware/src/core/att_core.h",
+        "if (*rest_count > p->rest_n) {",
+        "ROR",
+        "> -> >=",
+        "equivalent: at *rest_count == rest_n the limiting assignment stores the value already there",
+    ),
+    Explained(
+        "firmware/src/core/att_sensor.c",
+        "if (ratio > ATT_SAMPLES_MAX) {",
+        "ROR",
+        "> -> >=",
+        "equivalent: at ratio == 2^24 the clamp assigns ratio the value it already has",
+    ),
+    Explained(
+        "firmware/src/filters/att_filter.c",
+        "if (len > 0u) {",
+        "CONST",
+        "0u -> 1u",
+        (
+            "equivalent: at both tests (before a name's '|' and before the unknown bits' '|') len is 0 or "
+            'the length of the names so far, at least 6 (the shortest of att_flag_names, "GIMBAL"), '
+            "never 1"
+        ),
+    ),
+    Explained(
+        "firmware/src/node/att_node.c",
+        "return 8u * n + 47u + (34u + 8u * n - 1u) / 4u;",
+        "CONST",
+        "1u -> 2u",
+        "equivalent: (33 + 8n) / 4 and (32 + 8n) / 4 are both 8 + 2n in integer division (n <= 8)",
+    ),
+    Explained(
+        "firmware/src/node/att_node.c",
+        "return 0u;",
+        "CONST",
+        "0u -> 1u",
+        (
+            "unreachable: the failed att_can_decode_imu_part of att_node_part: att_node_handle passes only "
+            "IMU_GYRO/ACC/MAG frames that passed att_can_check, whose length test (att_can.c:152) makes "
+            "len == 8, and the decoder fails only for NULL, len < 8 or another ID"
+        ),
+        prev="if (!att_can_decode_imu_part(f, &v)) {",
+    ),
+    Explained(
+        "firmware/src/node/att_node.c",
+        "return 0u;",
+        "CONST",
+        "0u -> 1u",
+        (
+            "unreachable: the default arm of att_can_check's result in att_node_handle: every ID admitted "
+            "there has a length in att_can_msg_len, so ERR_UNKNOWN_ID (the only other result) never comes"
+        ),
+        prev="n->stats.unknown_ids++;",
+    ),
+    Explained(
+        "firmware/src/node/att_node.c",
+        "f.cal.have_acc = false;",
+        "DEL",
+        "f.cal.have_acc = false; -> ;",
+        (
+            "dead store: have_acc is read only by att_filter_accel in att_node_emit, which runs after "
+            "att_node_step's att_filter_step_n (periods >= 1); with ATT_CALIB_ACTIVE_ACC set every step "
+            "goes through att_filter_step_cal, which sets acc_body and have_acc first (att_filter.c:322), "
+            "and without it att_filter_accel returns before reading them"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "for (i = 0; i < 21; i++) {",
+        "ROR",
+        "< -> <=",
+        (
+            "never read: the extra store p[21] = 0 of att_ekf_p_diag lands on st->lp1.x (the member after "
+            "p[21] in att_ekf_state_t); att_ekf_reset and att_ekf_start write lp1 right after it, and after "
+            "att_ekf_p_restart the step is NUMERIC (initialised false): the next step that reads lp1 runs "
+            "att_ekf_start first, which writes lp1 and lp2 (lines 1022-1023); yaw_to refuses until then"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);",
+        "DEL",
+        "f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity); -> ;",
+        (
+            "dead store: reset leaves lp_ready false; st->lp1 is then read only by att_ekf_turn into the "
+            "update's copy, which line 829 overwrites while !ready (and by yaw_to, which only turns it); "
+            "lp_ready turns true only in att_ekf_start and att_ekf_commit, which write lp1 and lp2 first"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "f->st.lp2 = f->st.lp1;",
+        "DEL",
+        "f->st.lp2 = f->st.lp1; -> ;",
+        (
+            "dead store: reset leaves lp_ready false; st->lp2 is then read only by att_ekf_turn into the "
+            "update's copy, which line 830 overwrites while !ready (and by yaw_to, which only turns it); "
+            "lp_ready turns true only in att_ekf_start and att_ekf_commit, which write lp1 and lp2 first"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "for (i = 0; i < 6; i++) {",
+        "ROR",
+        "< -> <=",
+        (
+            "equivalent: at lines 326, 335 and 341 the extra pass i = 6 runs an empty inner loop (j = i or "
+            "i + 1 is not < 6); the copy at line 317 does not compile (-Waggressive-loop-optimizations)"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "float dd[2] = {0.0f, 0.0f};",
+        "CONST",
+        "0.0f -> 1.0f",
+        (
+            "never read: with usable rates att_ekf_propagate writes dd[0], dd[1] (lines 551-552) before any "
+            "read; without, the kept angles are canonical (|theta| <= pi/2: no flip) and added is true, so "
+            "att_ekf_predict_trig, dd's only reader, is not called"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "att_ekf_sincos_step(e.y, 0.0f, t0.sth, t0.cth, &tr->sth, &tr->cth);",
+        "CONST",
+        "0.0f -> 1.0f",
+        (
+            "equivalent: d = 1 takes att_i_sincosf(e.y) with e.y = st->euler.y, the call that gave t0 "
+            "(line 655); d = 0 gives sd = +0, cd = 1, so s = s0 + c0 (+0) = s0 (s0 is +0 only at theta = "
+            "+-0, where att_i_sin_poly gives +0 and c0 = 1) and c = c0 - s0 (+0) = c0 (c0 != 0 for "
+            "|theta| <= pi/2 in float32): the same bits"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "if (!att_i_isfinitef((e.x + e.y) + e.z)) {",
+        "AOR",
+        "+ -> -",
+        (
+            "equivalent: after att_ekf_canon each angle is NaN or within [-pi, pi] (att_ekf_wrap: one step "
+            "of 2 pi, else att_wrap_pi, NaN beyond 8192 rad or not finite; the flip maps theta within), so "
+            "any sum or difference of the three is finite exactly when all three are"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "const float sum = ((((((((((((((((((p[0] + p[1]) + p[3]) + p[4]) + p[5]) + p[6]) + p[8]) + p[9])"
+        " + p[10]) +",
+        "CONST",
+        "0 -> 1",
+        (
+            "unproven: the probe without p[0] (roll's variance) differs only for a p[0] of +Inf alone; one "
+            "step grows it to about 1e29 at most and every step without an accel update caps P again, so "
+            "an overflow would need a build-up over several steps with updates near the pole; not built"
+        ),
+    ),
+    Explained(
+        "firmware/src/filters/ekf/att_ekf.c",
+        "p[11]) + p[15]) + p[16]) + p[17]) + p[18]) + p[19]) + p[20]) + e.x) + e.y) + e.z);",
+        "ZERO",
+        "16 -> 0",
+        (
+            "unproven: p[0] counted twice instead of p[16] differs only when 2 p[0] overflows (p[0] "
+            "between 1.7e38 and FLT_MAX) or p[16] alone is not finite; neither reached (see the 0 -> 1 "
+            "entry of the line above)"
+        ),
+    ),
 )
 """Survivors that no output can tell apart (equivalent mutants) or that only matter for states no input
 reaches, each with its reason. A survivor not listed here is a gap: kill it with a test (or a case of
 the oracle) or explain it here."""
 
 
-OPEN: tuple[Explained, ...] = ()
+OPEN: tuple[Explained, ...] = (
+    Explained(
+        "firmware/src/filters/att_filter.c",
+        "text[10] = '\\0';",
+        "DEL",
+        "text[10] = '\\0'; -> ;",
+        (
+            "undefined behaviour, not seen by the oracle: text[10] is then read uninitialised, a byte of "
+            "the stack below the caller; through cffi (and libffi) the call comes right after "
+            "PyEval_SaveThread, which leaves 0 there, so the text ends where it should. A C test (stage A) "
+            "that calls att_flags_format with unknown bits after a call that leaves non-zero bytes in that "
+            "stack slot, or the suite under MSan/valgrind, would kill it"
+        ),
+    ),
+)
 """Known gaps: survivors that a test could kill and none does yet, each saying which test would. The CI
 slice tolerates them (and reports them); every other unexplained survivor fails it."""
+
+
+@functools.cache
+def _lines(path: str) -> tuple[str, ...]:
+    return tuple(line.strip() for line in (ROOT / path).read_text().splitlines())
+
+
+def line_before(m: Mutant) -> str:
+    """The stripped line above the mutant's line in the checkout (the last one that is not blank)."""
+    lines = _lines(m.path)
+    for i in range(m.line - 2, -1, -1):
+        if lines[i]:
+            return lines[i]
+    return ""
+
+
+def matches(e: Explained, m: Mutant) -> bool:
+    """``e`` names ``m``: the same file, line, operator and change (and the line above, if ``e.prev``)."""
+    same = e.path == m.path and e.op == m.op and e.change == m.change and e.source == m.source
+    return same and (not e.prev or line_before(m) == e.prev)
 
 
 def open_gap(m: Mutant) -> str:
     """The note :data:`OPEN` gives for a mutant ("" when none)."""
     for e in OPEN:
-        if e.path == m.path and e.op == m.op and e.change == m.change and e.source == m.source:
+        if matches(e, m):
             return e.why
     return ""
+
+
+PROVEN = (
+    "equivalent:",
+    "equivalent in reachable states:",
+    "unreachable:",
+    "dead store:",
+    "never read:",
+)
+"""How an explanation that proves a mutant equivalent begins: no input the contracts accept can tell it
+from the original. Such a survivor is an equivalent mutant, which the score leaves out as it leaves out
+the mutants with the same object code. The other reasons ("boundary:", "below output precision:") name
+mutants a test could kill in principle; "unproven:" survivors neither killed nor proven equivalent.
+Those stay survivors in the score."""
+
+
+def is_proven(why: str) -> bool:
+    """True when an explanation proves its mutant equivalent (:data:`PROVEN`)."""
+    return why.startswith(PROVEN)
 
 
 def explain(m: Mutant) -> str:
     """The reason :data:`EXPLAINED` gives for a mutant ("" when none)."""
     for e in EXPLAINED:
-        if e.path == m.path and e.op == m.op and e.change == m.change and e.source == m.source:
+        if matches(e, m):
             return e.why
     return ""

@@ -5,16 +5,31 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from attica_dev.mutation.explained import is_proven
 from attica_dev.mutation.run import Result
 
 STATUSES = ("killed", "survived", "equivalent", "stillborn")
 
 
+def _proven(r: Result) -> bool:
+    """A survivor whose explanation proves it equivalent (explained.PROVEN)."""
+    return r.status == "survived" and is_proven(r.explained)
+
+
 def _score(rs: Sequence[Result]) -> dict[str, Any]:
-    """Counts by status and the score: killed / (killed + survived), percent."""
+    """Counts by status and the scores, percent.
+
+    ``score`` is killed / (killed + survived - proven), the usual mutation score: the mutants proven
+    equivalent (``proven``: survivors whose explanation proves that no accepted input tells them apart)
+    are left out like those with the same object code (``equivalent``). ``score_raw`` is killed /
+    (killed + survived), every survivor counted.
+    """
     out: dict[str, Any] = {st: sum(r.status == st for r in rs) for st in STATUSES}
-    judged = out["killed"] + out["survived"]
+    out["proven"] = sum(_proven(r) for r in rs)
+    raw = out["killed"] + out["survived"]
+    judged = raw - out["proven"]
     out["score"] = 100.0 * out["killed"] / judged if judged else 100.0
+    out["score_raw"] = 100.0 * out["killed"] / raw if raw else 100.0
     return out
 
 
@@ -24,10 +39,14 @@ def report(results: Sequence[Result], total: int, seconds: float, jobs: int) -> 
     def row(name: str, rs: Sequence[Result]) -> str:
         c = _score(rs)
         counts = " ".join(f"{c[st]:6}" for st in STATUSES)
-        return f"{name:46} {len(rs):7} {counts} {c['score']:6.1f}%"
+        return f"{name:46} {len(rs):7} {counts} {c['proven']:6} {c['score']:6.1f}% {c['score_raw']:6.1f}%"
 
     head = " ".join(f"{st[:6]:>6}" for st in STATUSES)
-    lines = [f"{'file (firmware/src/)':46} {'mutants':>7} {head} {'score':>7}"]
+    lines = [
+        "score: killed / (killed + survived - proven); raw: killed / (killed + survived); proven: survivors"
+        " proven equivalent (explained.PROVEN)",
+        f"{'file (firmware/src/)':46} {'mutants':>7} {head} {'proven':>6} {'score':>7} {'raw':>7}",
+    ]
     for f in sorted({r.mutant.path for r in results}):
         lines.append(row(f.removeprefix("firmware/src/"), [r for r in results if r.mutant.path == f]))
     lines.append(row("all", results))

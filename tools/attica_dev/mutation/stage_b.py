@@ -18,6 +18,29 @@ from typing import Any
 
 from attica_dev.mutation.checks_can import _can_check, _node_sessions
 from attica_dev.mutation.checks_contracts import _calib_check, _contract_check, _node_check
+from attica_dev.mutation.checks_edges_euler import (
+    _ekf_bounds_check,
+    _ekf_recover_check,
+    _ekf_repair_check,
+    _ekf_trig_check,
+    _gyro_edges_check,
+)
+from attica_dev.mutation.checks_edges_io import (
+    _accel_limit_check,
+    _can_null_check,
+    _node_calib_rules_check,
+    _node_parts_check,
+    _node_select_gain_check,
+    _step_n_flags_check,
+)
+from attica_dev.mutation.checks_edges_quat import (
+    _mars_bias_mag_check,
+    _mars_candidate_check,
+    _mars_fast_check,
+    _mekf_edges_check,
+    _mekf_recovery_check,
+    _wrap_pi_check,
+)
 from attica_dev.mutation.checks_filter import (
     _names_check,
     _outputs_check,
@@ -125,3 +148,20 @@ def _binding_checks() -> Iterator[tuple[str, Callable[[], str]]]:
     yield "can:codec", _can_check
     yield "names", _names_check
     yield "sensor", _sensor_check
+    yield "edges:ekf:bounds", _ekf_bounds_check
+    yield "edges:ekf:trig", _ekf_trig_check
+    yield "edges:ekf:repair", _ekf_repair_check
+    yield "edges:ekf:recover", _ekf_recover_check
+    yield "edges:gyro:edges", _gyro_edges_check
+    yield "edges:mars:fast", _mars_fast_check
+    yield "edges:mars:bias_mag", _mars_bias_mag_check
+    yield "edges:mars:candidate", _mars_candidate_check
+    yield "edges:mekf:recovery", _mekf_recovery_check
+    yield "edges:mekf:edges", _mekf_edges_check
+    yield "edges:math:wrap_pi", _wrap_pi_check
+    yield "edges:sensor:accel_limit", _accel_limit_check
+    yield "edges:filter:step_n_flags", _step_n_flags_check
+    yield "edges:node:calib_rules", _node_calib_rules_check
+    yield "edges:node:select_gain", _node_select_gain_check
+    yield "edges:node:parts", _node_parts_check
+    yield "edges:can:null", _can_null_check  # last: a mutant may crash on it
