@@ -61,7 +61,8 @@
  *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
  *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
  *     unobservable yaw variance at p_max, a normal condition that is not flagged). P must then pass a
- *     positive definiteness test with margin (the pivots of P = L D L^T: d_i > 2^-16 P_ii); if it
+ *     positive definiteness test with margin (the pivots of P = L D L^T: d_0 > 0, d_j > 2^-16 (P_jj +
+ *     sum_{i<j} m_ji^2 P_ii) with m = L^-1, a bound of the factorisation's own rounding; F16); if it
  *     does not, or a variance is not > 0, the variance is set to its cap and the correlations are
  *     multiplied by 1 - 2^-10 (dropped when that is not enough): ATT_FLAG_CLAMPED.
  *  5. q is normalised (ATT_FLAG_NUMERIC keeps the attitude of the step before; it cannot happen with

@@ -34,11 +34,6 @@ def sx(i: int, j: int) -> int:
     return ix(i, j) if i <= j else ix(j, i)
 
 
-def ix5(i: int, j: int) -> int:
-    """ATT_MEKF_IX5: packed index in a 5x5 upper triangle."""
-    return i * (9 - i) // 2 + j
-
-
 def where(cond: Any, a: Cov, b: Cov) -> Cov:
     """Entry-wise ``cond ? a : b``."""
     return [np.where(cond, x, y).astype(np.float32) for x, y in zip(a, b, strict=True)]
@@ -203,24 +198,36 @@ def yaw_reset(p: Cov, p0_att: Any) -> Cov:
 
 
 def pd(p: Cov) -> Any:
-    """att_mekf_pd: positive definite with margin (every pivot of L D L^T > 2^-16 P_ii)."""
+    """att_mekf_pd: L D L^T pivots d_0 > 0, d_j > 2^-16 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1.
+
+    The C loop stops at the first failure; here the test of each pivot is accumulated, which gives the
+    same answer.
+    """
     with np.errstate(all="ignore"):
-        d = p[ix(0, 0)]
-        ok = d > dm.ZERO
-        inv = dm.ONE / d
-        w: list[Any] = [None] * 15
-        for i in range(1, 6):
-            li = p[ix(0, i)] * inv
-            for j in range(i, 6):
-                w[ix5(i - 1, j - 1)] = p[ix(i, j)] - li * p[ix(0, j)]
-        for k in range(5):
-            d = w[ix5(k, k)]
-            ok = ok & (d > PIVOT_MIN * p[ix(k + 1, k + 1)])
-            inv = dm.ONE / d
-            for i in range(k + 1, 5):
-                li = w[ix5(k, i)] * inv
-                for j in range(i, 5):
-                    w[ix5(i, j)] = w[ix5(i, j)] - li * w[ix5(k, j)]
+        ok = np.ones(np.shape(p[0]), np.bool_)
+        lo: dict[tuple[int, int], Any] = {}
+        mi: dict[tuple[int, int], Any] = {}
+        d: list[Any] = []
+        for j in range(6):
+            dj = p[ix(j, j)]
+            sj = dj
+            for k in range(j):
+                dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
+            # row j of L^-1 (unit diagonal), i from j - 1 down
+            for i in range(j - 1, -1, -1):
+                v = lo[(j, i)]
+                for k in range(i + 1, j):
+                    v = v + lo[(j, k)] * mi[(k, i)]
+                mi[(j, i)] = -v
+                sj = sj + (mi[(j, i)] * mi[(j, i)]) * p[ix(i, i)]
+            limit = dm.ZERO if j == 0 else PIVOT_MIN * sj
+            ok = ok & (dj > limit)
+            d.append(dj)
+            for i in range(j + 1, 6):
+                v = p[ix(j, i)]
+                for k in range(j):
+                    v = v - (lo[(i, k)] * lo[(j, k)]) * d[k]
+                lo[(i, j)] = v / dj
     return ok
 
 

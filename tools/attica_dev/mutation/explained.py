@@ -111,17 +111,6 @@ EXPLAINED: tuple[Explained, ...] = (
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
-        "for (k = 0u; k < 5u; k++) {",
-        "CONST",
-        "0u -> 1u",
-        (
-            "unproven: the positive-definiteness test without the pivot of the tilt's second axis differs "
-            "only for a P near singular through that axis alone; no stream found builds one (the "
-            "bias/tilt correlations grow on every axis together and another pivot fails as well)"
-        ),
-    ),
-    Explained(
-        "firmware/src/filters/mekf/att_mekf.c",
         "k = 0.0f;",
         "CONST",
         "0.0f -> 1.0f",
@@ -515,18 +504,6 @@ EXPLAINED: tuple[Explained, ...] = (
         (
             "equivalent: the two differ only for add == p_max, where the mutant's branch stores p_max, the "
             "value add already holds (p_max > 0: the same bits); NaN takes the branch either way"
-        ),
-    ),
-    Explained(
-        "firmware/src/filters/mekf/att_mekf.c",
-        "inv = 1.0f / d;",
-        "CONST",
-        "1.0f -> 0x1.000002p+0f",
-        (
-            "boundary: att_mekf_pd returns only its verdict; a first reciprocal larger by 2^-23 moves the "
-            "trailing pivots by about 2^-23 of the eliminated part, which flips a test d > 2^-16 P_ii only "
-            "for a P within that rounding of the margin (no input found lands there; the conditioning keeps "
-            "P far inside it in every stream of the oracle)"
         ),
     ),
     Explained(

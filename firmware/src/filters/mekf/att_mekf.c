@@ -35,8 +35,6 @@
 /* Packed index of P(i, j), i <= j < 6; and of a symmetric access with any order. */
 #define ATT_MEKF_IX(i, j) ((i) * (11u - (i)) / 2u + (j))
 #define ATT_MEKF_S(i, j) (((i) <= (j)) ? ATT_MEKF_IX(i, j) : ATT_MEKF_IX(j, i))
-/* Packed index in a 5x5 upper triangle (the PD test's trailing matrix). */
-#define ATT_MEKF_IX5(i, j) ((i) * (9u - (i)) / 2u + (j))
 
 void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
 {
@@ -660,44 +658,56 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, att
 }
 
 /*
- * Positive definite with margin: the pivots of P = L D L^T satisfy d_i > ATT_MEKF_PIVOT_MIN P_ii (which
- * needs P_00 > 0; NaN fails). The first elimination reads P, the rest runs on the 5x5 trailing matrix.
+ * Positive definite with margin: the pivots of P = L D L^T satisfy d_0 > 0 and d_j > ATT_MEKF_PIVOT_MIN
+ * (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1 (unit diagonal); NaN fails. The sum is the pivot's
+ * sensitivity to the rounding of the factorisation: the computed factors are exact for P + E with
+ * |E_ik| <= 6 u sqrt(P_ii P_kk) (u = 2^-24), which moves d_j by at most 36 u times that sum, seven times
+ * below the margin. A margin on P_jj alone is not sound: after a small earlier pivot, float32 rounding
+ * passed an indefinite P (F16: computed pivots 1.57e-5 and 5.7e-5, the last one -5e-6 exact; as the
+ * ekf's F15). Mirrored by reference/mekf_cov.pd.
  */
 static ATT_NOINLINE bool att_mekf_pd(const float *p)
 {
-    float w[15];
-    float d;
-    float inv;
-    uint32_t i;
-    uint32_t j;
-    uint32_t k;
-    d = p[ATT_MEKF_IX(0u, 0u)];
-    if (!(d > 0.0f)) {
-        return false; /* the first pivot is P_00 itself */
-    }
-    inv = 1.0f / d;
+    float l[6][6];
+    float m[6][6];
+    float d[6];
+    int i;
+    int j;
+    int k;
     ATT_MEKF_UNROLL
-    for (i = 1u; i < 6u; i++) {
-        const float li = p[ATT_MEKF_IX(0u, i)] * inv;
+    for (j = 0; j < 6; j++) {
+        float dj = p[ATT_MEKF_IX((uint32_t)j, (uint32_t)j)];
+        float sj = dj;
         ATT_MEKF_UNROLL
-        for (j = i; j < 6u; j++) {
-            w[ATT_MEKF_IX5(i - 1u, j - 1u)] = p[ATT_MEKF_IX(i, j)] - li * p[ATT_MEKF_IX(0u, j)];
+        for (k = 0; k < j; k++) {
+            /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
+            /* cppcheck-suppress uninitvar */
+            dj = dj - (l[j][k] * l[j][k]) * d[k];
         }
-    }
-    ATT_MEKF_UNROLL
-    for (k = 0u; k < 5u; k++) {
-        d = w[ATT_MEKF_IX5(k, k)];
-        if (!(d > ATT_MEKF_PIVOT_MIN * p[ATT_MEKF_IX(k + 1u, k + 1u)])) {
+        /* row j of L^-1: m_ji = -(l_ji + sum_{i<k<j} l_jk m_ki), i from j - 1 down */
+        ATT_MEKF_UNROLL
+        for (i = j - 1; i >= 0; i--) {
+            float v = l[j][i];
+            ATT_MEKF_UNROLL
+            for (k = i + 1; k < j; k++) {
+                /* cppcheck-suppress uninitvar */
+                v = v + l[j][k] * m[k][i];
+            }
+            m[j][i] = -v;
+            sj = sj + (m[j][i] * m[j][i]) * p[ATT_MEKF_IX((uint32_t)i, (uint32_t)i)];
+        }
+        if (!(dj > ((j == 0) ? 0.0f : ATT_MEKF_PIVOT_MIN * sj))) {
             return false;
         }
-        inv = 1.0f / d;
+        d[j] = dj;
         ATT_MEKF_UNROLL
-        for (i = k + 1u; i < 5u; i++) {
-            const float li = w[ATT_MEKF_IX5(k, i)] * inv;
+        for (i = j + 1; i < 6; i++) {
+            float v = p[ATT_MEKF_IX((uint32_t)j, (uint32_t)i)];
             ATT_MEKF_UNROLL
-            for (j = i; j < 5u; j++) {
-                w[ATT_MEKF_IX5(i, j)] = w[ATT_MEKF_IX5(i, j)] - li * w[ATT_MEKF_IX5(k, j)];
+            for (k = 0; k < j; k++) {
+                v = v - (l[i][k] * l[j][k]) * d[k];
             }
+            l[i][j] = v / dj;
         }
     }
     return true;
