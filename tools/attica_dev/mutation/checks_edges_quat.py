@@ -180,3 +180,79 @@ def _wrap_pi_check() -> str:
     x = (cent.view(np.int32)[:, None] + offs[None, :]).astype(np.int32).view(np.float32).ravel()
     x = x[np.abs(x) <= 8192.0]
     return _sha(native.wrap_pi(x).tobytes())
+
+
+def _mekf_pd_check() -> str:
+    """mekf: the positive-definiteness test at the states that need its rounding bound (F16).
+
+    The F16 reproducer's stream (tests/test_mekf_f16.py: dt 1 s, p_max 10, a gyro beyond its range, then
+    no usable accel sample; P indefinite at step 24 with a pivot test on P_jj alone), and 200 covariances
+    of its shape (three eigenvalues near zero, one negative) written into the state, each followed by one
+    step without an update: the outputs and P after every step.
+    """
+    import warnings
+
+    import numpy as np
+
+    from attica import native
+    from attica.settings import FilterKind, make_settings
+
+    f32 = np.float32
+    g = float.fromhex("0x1.39d014p+3")
+    nan = float("nan")
+    h = float.fromhex
+    gyr = [(h("0x1.5p+0"), h("-0x1.2p+1"), h("0x1.cp-1"))] + [(0.0, 0.0, 0.0)] * 3
+    gyr += [(h("0x1.d8p+0"), h("-0x1.28p+0"), h("-0x1.28p+0"))] + [(1e6, 0.0, 0.0)] * 8 + [(nan, 0.0, 0.0)]
+    gyr += [(0.0, 0.0, 0.0)] * 10
+    acc = [(h("0x1.ep+2"), h("0x1.a8p+2"), h("0x1.83a028p+2"))] + [(0.0, nan, g)] * 3
+    acc += (
+        [(h("-0x1.28p+1"), h("-0x1.28p+1"), h("0x1.dfa028p+2"))] + [(0.0, 0.0, g)] * 9 + [(0.0, nan, g)] * 10
+    )
+    s = make_settings(
+        FilterKind.MEKF,
+        dt=1.0,
+        gyro_noise=1e-4,
+        gyro_rate_noise=0.01,
+        bias_noise=1e-4,
+        accel_noise=0.003,
+        gate=16.0,
+        gate_recover=2.0,
+        p0_att=0.01,
+        p0_bias=float(f32(np.pi / 2)),
+        p_max=10.0,
+        accel_range=float(f32(16 * 9.80665)),
+        tau_acc_lp=1.25,
+        use_mag=False,
+        gyro_scale_sd=0.003,
+        recovery_time=2.0,
+    )
+    parts: list[Any] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        f = native.Filter("mekf", settings=s)
+    for gi, ai in zip(gyr, acc, strict=True):
+        parts.append(f.step(np.array(gi, f32), np.array(ai, f32), np.zeros(3, f32)).tobytes())
+        parts.append(bytes(np.array(list(f.state.u.mekf.st.p), f32).tobytes()))
+    rng = np.random.default_rng(1616)
+    s = make_settings(
+        FilterKind.MEKF, dt=0.01, p_max=1e3, p0_bias=float(f32(np.pi / 2)), use_mag=False, recovery_time=0.0
+    )
+    for _ in range(200):
+        lam = np.array([10 ** rng.uniform(0, 1.5), 10 ** rng.uniform(-1, 1), 10 ** rng.uniform(-2, 0)])
+        lam = np.concatenate(
+            [lam, [10 ** rng.uniform(-5, -3), 10 ** rng.uniform(-6, -4), -(10 ** rng.uniform(-9, -7))]]
+        )
+        v, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+        p = v @ np.diag(lam) @ v.T
+        sc = np.concatenate([10 ** rng.uniform(0, 0.5, 3), 10 ** rng.uniform(-1.5, 0, 3)]) / np.sqrt(
+            np.diag(p)
+        )
+        packed = (p * sc[:, None] * sc[None, :]).astype(f32)[np.triu_indices(6)]
+        f = native.Filter("mekf", settings=s)
+        f.step(np.zeros(3, f32), np.array((0.0, 0.0, g), f32), np.zeros(3, f32))
+        st = f.state.u.mekf.st.p
+        for k, x in enumerate(packed):
+            st[k] = float(x)
+        parts.append(f.step(np.zeros(3, f32), np.array((0.0, nan, g), f32), np.zeros(3, f32)).tobytes())
+        parts.append(bytes(np.array(list(f.state.u.mekf.st.p), f32).tobytes()))
+    return _sha(*parts)

@@ -38,6 +38,7 @@ from attica_dev.mutation.checks_edges_quat import (
     _mars_candidate_check,
     _mars_fast_check,
     _mekf_edges_check,
+    _mekf_pd_check,
     _mekf_recovery_check,
     _wrap_pi_check,
 )
@@ -158,6 +159,7 @@ def _binding_checks() -> Iterator[tuple[str, Callable[[], str]]]:
     yield "edges:mars:candidate", _mars_candidate_check
     yield "edges:mekf:recovery", _mekf_recovery_check
     yield "edges:mekf:edges", _mekf_edges_check
+    yield "edges:mekf:pd", _mekf_pd_check
     yield "edges:math:wrap_pi", _wrap_pi_check
     yield "edges:sensor:accel_limit", _accel_limit_check
     yield "edges:filter:step_n_flags", _step_n_flags_check
