@@ -147,8 +147,10 @@ def test_conditioning_leaves_no_indefinite_p() -> None:
     sample: P after the step is positive definite, and C and reference agree bit for bit (the reference
     started from the same C states; every output and the whole state after the step, on 2,000), which
     runs the repair's paths with the new pivot test. The old test also passed this property: the F16
-    needle (float32 pivots that pass while the exact one is negative) is rare, about 1 in 1,500 such
-    matrices before the step, and none of these after it; the reproducer above is the regression test.
+    needle (float32 pivots that pass while the exact one is negative) is rare. Of these 5,000 states
+    (about 3,600 indefinite after the rounding to float32) the old test accepted one indefinite state
+    as it was written, and the step's prediction moved it out again; the reproducer above is the
+    regression test.
     """
     rng = np.random.default_rng(1616)
     n = 5_000

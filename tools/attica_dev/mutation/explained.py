@@ -66,8 +66,11 @@ EXPLAINED: tuple[Explained, ...] = (
         "CONST",
         "4u -> 5u",
         (
-            "equivalent: diag_ok only selects the fast path; att_mekf_repair tests every variance (cap, > 0)"
-            " and the positive definiteness again and leaves a valid P unchanged, with no flag"
+            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
+            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
+            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
+            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
+            "update does not rule out"
         ),
     ),
     Explained(
@@ -76,11 +79,11 @@ EXPLAINED: tuple[Explained, ...] = (
         "CONST",
         "3u -> 4u",
         (
-            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
-            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
-            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
-            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
-            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
+            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
+            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
+            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
+            "update does not rule out; (5, 6) also reads p[21], past P"
         ),
     ),
     Explained(
@@ -89,11 +92,11 @@ EXPLAINED: tuple[Explained, ...] = (
         "ZERO",
         "3u -> 0u",
         (
-            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
-            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
-            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
-            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
-            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
+            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
+            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
+            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
+            "update does not rule out; (5, 6) also reads p[21], past P"
         ),
     ),
     Explained(
@@ -102,11 +105,11 @@ EXPLAINED: tuple[Explained, ...] = (
         "CONST",
         "5u -> 6u",
         (
-            "equivalent: diag_ok is only used as `diag_ok && att_mekf_pd(p)`, and att_mekf_pd returns false "
-            "for any P with a variance <= 0 or NaN (pivot k is P_kk minus terms >= 0, compared with "
-            "2^-16 P_kk > that pivot), so the tests of `> 0.0f` never change the result; a test that reads "
-            "another entry instead (a covariance, or p[21] past P for (5, 6)) only makes diag_ok false "
-            "where att_mekf_repair then leaves a valid P unchanged, with no flag"
+            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
+            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
+            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
+            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
+            "update does not rule out; (5, 6) also reads p[21], past P"
         ),
     ),
     Explained(
@@ -267,8 +270,10 @@ EXPLAINED: tuple[Explained, ...] = (
         "AOR",
         "+ -> -",
         (
-            "equivalent: the sum only tests that P and the angles are finite; a difference is finite "
-            "exactly when the sum is (no overflow at these magnitudes)"
+            "equivalent in reachable states: the sum only tests that P and the angles are finite; a "
+            "difference is finite exactly when the sum is as long as no two terms near 1e38 meet (one step "
+            "grows a variance to about 1e29 at most, and P is capped again at every step without an "
+            "update); this holds for every `+` of the line"
         ),
     ),
     Explained(
@@ -737,8 +742,8 @@ EXPLAINED: tuple[Explained, ...] = (
         "CONST",
         "1.0f -> 0x1.000002p+0f",
         (
-            "boundary: accepts a bus load in (1, 1 + 2^-23] as well; a load is rates times frame times summed "
-            "in float32, and no configuration of the oracle lands in that one-ulp band above 1"
+            "boundary: accepts a bus load in (1, 1 + 2^-23] as well; a load is rates times frame times "
+            "summed in float32, and no configuration of the oracle lands in that one-ulp band above 1"
         ),
     ),
     Explained(

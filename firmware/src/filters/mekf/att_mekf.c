@@ -661,8 +661,8 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, att
  * Positive definite with margin: the pivots of P = L D L^T satisfy d_0 > 0 and d_j > ATT_MEKF_PIVOT_MIN
  * (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1 (unit diagonal); NaN fails. The sum is the pivot's
  * sensitivity to the rounding of the factorisation: the computed factors are exact for P + E with
- * |E_ik| <= 6 u sqrt(P_ii P_kk) (u = 2^-24), which moves d_j by at most 36 u times that sum, seven times
- * below the margin. A margin on P_jj alone is not sound: after a small earlier pivot, float32 rounding
+ * |E_ik| <= 6 u sqrt(P_ii P_kk) (u = 2^-24), which moves d_j by at most 36 u times that sum, six to
+ * seven times below the margin. A margin on P_jj alone is not sound: after a small earlier pivot, float32 rounding
  * passed an indefinite P (F16: computed pivots 1.57e-5 and 5.7e-5, the last one -5e-6 exact; as the
  * ekf's F15). Mirrored by reference/mekf_cov.pd.
  */
