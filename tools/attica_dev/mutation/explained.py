@@ -27,6 +27,15 @@ class Explained:
     prev: str = ""
 
 
+_DIAG_OK_COV = (
+    "unproven: a test that reads a covariance instead of a variance can make diag_ok true while that "
+    "variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
+    "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would differ. "
+    "Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest update does not "
+    "rule out"
+)
+"""The reason shared by the mekf's diag_ok tests that a mutant makes read a covariance."""
+
 EXPLAINED: tuple[Explained, ...] = (
     Explained(
         "firmware/src/filters/ekf/att_ekf.c",
@@ -65,52 +74,28 @@ EXPLAINED: tuple[Explained, ...] = (
         "p[ATT_MEKF_IX(4u, 4u)] > 0.0f && p[ATT_MEKF_IX(5u, 5u)] > 0.0f;",
         "CONST",
         "4u -> 5u",
-        (
-            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
-            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
-            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
-            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
-            "update does not rule out"
-        ),
+        _DIAG_OK_COV,
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
         "p[ATT_MEKF_IX(2u, 2u)] > 0.0f && p[ATT_MEKF_IX(3u, 3u)] > 0.0f &&",
         "CONST",
         "3u -> 4u",
-        (
-            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
-            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
-            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
-            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
-            "update does not rule out; (5, 6) also reads p[21], past P"
-        ),
+        _DIAG_OK_COV,
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
         "p[ATT_MEKF_IX(2u, 2u)] > 0.0f && p[ATT_MEKF_IX(3u, 3u)] > 0.0f &&",
         "ZERO",
         "3u -> 0u",
-        (
-            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
-            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
-            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
-            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
-            "update does not rule out; (5, 6) also reads p[21], past P"
-        ),
+        _DIAG_OK_COV,
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
         "p[ATT_MEKF_IX(4u, 4u)] > 0.0f && p[ATT_MEKF_IX(5u, 5u)] > 0.0f;",
         "CONST",
         "5u -> 6u",
-        (
-            "unproven: a test that reads a covariance instead of a variance can make diag_ok true while "
-            "that variance is <= 0; att_mekf_pd then fails (a pivot is at most its variance), but "
-            "att_mekf_repair(diag_ok true) skips the reset of that variance to its cap, so the state would "
-            "differ. Equivalent only if no variance <= 0 reaches step 4, which the rounding of the rest "
-            "update does not rule out; (5, 6) also reads p[21], past P"
-        ),
+        _DIAG_OK_COV + "; (5, 6) also reads p[21], past P",
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
