@@ -178,6 +178,7 @@ class MarsSettings:
     tau_mag_fast: float = 2.0
     tau_bias_mag: float = 0.0
     recovery_time: float = 2.0
+    declination: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -240,6 +241,7 @@ class MekfSettings:
     gyro_scale_sd: float = 0.003
     gyro_scale_init: float = 0.0
     recovery_time: float = 2.0
+    declination: float = 0.0
     use_mag: bool = True
     init_from_sensors: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))

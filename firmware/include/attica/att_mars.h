@@ -68,7 +68,10 @@
  * pitch come from att_sensor_tilt(acc). If that step also has a valid mag sample, yaw is chosen so
  * that the earth-frame horizontal field points north (+y): with m_e = q m q* for the yaw-0 attitude,
  * q := Qz(atan2(m_e.x, m_e.y)) q, and m0 = (0, |m_e,xy|, m_e,z) for m_e of the aligned attitude.
- * Heading is thus relative to magnetic north. Without a mag sample at that step the attitude starts
+ * Heading is thus relative to magnetic north; with a declination D (setting declination, east of
+ * true north positive) the field is put at the azimuth D instead, q := Qz(atan2(m_e.x, m_e.y) - D) q
+ * and m0 = (|m_e,xy| sin D, |m_e,xy| cos D, m_e,z), so that yaw is relative to true north (D = 0
+ * gives the same bits as magnetic north). Without a mag sample at that step the attitude starts
  * with yaw 0 (6-axis operation) and the first later valid mag sample aligns the yaw the same way and
  * sets m0 (the step reports ATT_FLAG_INITIALISED again). With init_from_sensors false the attitude is
  * q_init from the start and m0 = m0_init; when m0_init is zero, m0 = q m q* of the first valid mag
@@ -148,6 +151,9 @@ typedef struct {
                                        [0, 1e4]; 0 = off */
     float recovery_time;          /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
                                        accel and mag are trusted strongly for this long, s, [0, 1e4]; 0 = off */
+    float declination;            /**< magnetic declination, rad, [-pi, pi], east of true north positive: the
+                                       heading alignment puts the field at this azimuth, so yaw is relative
+                                       to true north; 0 = magnetic north (default) */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -192,6 +198,9 @@ typedef struct {
     float k_rec;             /**< per-sample mag gain during a recovery */
     float k_rec1;            /**< 1 - k_rec */
     uint32_t rec_n;          /**< samples of a recovery (0 = none) */
+    float decl;              /**< declination D, rad (east of true north positive) */
+    float decl_sin;          /**< sin D: the east part of the reference's horizontal unit direction */
+    float decl_cos;          /**< cos D: its north part */
 } att_mars_coeffs_t;
 
 /** Dynamic state of a 9-axis filter instance. */
@@ -241,7 +250,8 @@ typedef struct {
  * correction), tau_mag 20 s, horizontal mag mode, no accel rejection, mag_norm_reject 0.2,
  * mag_dip_reject 0.3 rad, initialisation from the sensors, the reference field learnt (mag_ref_tau 20 s,
  * the same time scale as the heading correction; mag_new_time 20 s; tau_mag_fast 2 s), no bias learnt in
- * motion (tau_bias_mag 0), a recovery of 2 s after a clipping gyro (recovery_time). The article's literal
+ * motion (tau_bias_mag 0), a recovery of 2 s after a clipping gyro (recovery_time), declination 0
+ * (magnetic north). The article's literal
  * settings (alpha_acc 0.02, alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed
  * bias, no low-pass, the reference frozen: mag_ref_tau, mag_new_time, tau_mag_fast and recovery_time 0) are the seed
  * preset (att_filter_settings_preset).
@@ -256,8 +266,10 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
  * states, reference field and its statistics, counters), except that the bias becomes 0 (mode OFF) or bias_init
  * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
- * is limited to the new one's length after an alignment (fast_start_n); a recovery under way runs out. On error f is
- * left unchanged.
+ * is limited to the new one's length after an alignment (fast_start_n); a recovery under way runs out. A new
+ * declination applies from the next heading alignment (reset): the heading and the reference are kept;
+ * to apply it at once, turn the heading by the change (att_filter_set_heading). On error f is left
+ * unchanged.
  */
 att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings);
 /** Back to the state right after att_mars_init, keeping the settings. */

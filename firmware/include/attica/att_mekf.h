@@ -57,7 +57,9 @@
  *     q := exp((0, 0, dtheta_z)) (x) q, b := b + db, and lp1, lp2 are turned about z by the same
  *     rotation: like every correction (accel, rest, the yaw alignment) it turns the estimate's earth
  *     frame, in which the low-pass stages live.
- *     Heading is relative to magnetic north (m0 = (0, |m_xy|, m_z) after the yaw alignment).
+ *     Heading is relative to magnetic north (m0 = (0, |m_xy|, m_z) after the yaw alignment), or to true
+ *     north with the setting declination D (the alignment of att_mars.h puts the field at the azimuth
+ *     D: m0 = (|m_xy| sin D, |m_xy| cos D, m_z)).
  *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
  *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
  *     unobservable yaw variance at p_max, a normal condition that is not flagged). P must then pass a
@@ -88,7 +90,8 @@
  *
  * Initialisation (init_from_sensors, default): at the first usable accel sample, roll and pitch from
  * att_sensor_tilt(a), yaw 0, lp1 = lp2 = q a q*. With use_mag, the first usable mag sample (at that
- * step or later) aligns the yaw with north as att_mars.h does and sets m0 = (0, |m_xy|, m_z); the
+ * step or later) aligns the yaw with north as att_mars.h does (the field at the azimuth of the
+ * declination D) and sets m0 = (|m_xy| sin D, |m_xy| cos D, m_z); the
  * heading variance and its correlations are then reset to p0_att, 0 (ATT_FLAG_INITIALISED), and
  * lp1, lp2 are turned with the alignment's rotation about z.
  * Without init_from_sensors the attitude is q_init from the start and m0 = m0_init, or when m0_init
@@ -182,6 +185,9 @@ typedef struct {
     float gyro_scale_init; /**< initial gyro scale-factor error (rate = (1 + s)(w - b)); [-0.1, 0.1] */
     float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
                                 this long the recovery of step 6, s; [0, 1e4]; 0 = none */
+    float declination;     /**< magnetic declination, rad, [-pi, pi], east of true north positive: the yaw
+                                alignment puts the field at this azimuth, so yaw is relative to true north;
+                                0 = magnetic north (default) */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -228,6 +234,9 @@ typedef struct {
     float q_rec_tilt;      /**< tilt process noise per step of a recovery, min(k^2 r_acc / (1 - k), p_max), rad^2 */
     float q_rec_head;      /**< heading process noise per step of a recovery, min(k^2 r_mag / (1 - k), p_max), rad^2 */
     uint32_t rec_n;        /**< samples of a recovery (0 = none) */
+    float decl;            /**< declination D, rad (east of true north positive) */
+    float decl_sin;        /**< sin D: the east part of the reference's horizontal unit direction */
+    float decl_cos;        /**< cos D: its north part */
     att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
     att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
     att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
@@ -283,7 +292,9 @@ att_status_t att_mekf_settings_validate(const att_mekf_settings_t *settings);
 att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
- * derived limits recomputed, counters); the new caps apply from the next step. On error f is unchanged.
+ * derived limits recomputed, counters); the new caps apply from the next step. A new declination applies
+ * from the next yaw alignment (reset): to apply it at once, turn the heading by the change
+ * (att_filter_set_heading). On error f is unchanged.
  */
 att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings);
 /** Back to the state right after att_mekf_init, keeping the settings. */

@@ -160,6 +160,9 @@ class Mars:
         "c.k_rec": "f32",
         "c.k_rec1": "f32",
         "c.rec_n": "u32",
+        "c.decl": "f32",
+        "c.decl_sin": "f32",
+        "c.decl_cos": "f32",
     }
     """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -215,6 +218,9 @@ class Mars:
         self.rest_n = sensor.samples(self.rest_time, self.dt)
         self._ref_coeffs(s)
         self._rec_coeffs(s)
+        self.decl = setting(s.declination, n)
+        self.decl_sin = dm.sinf(self.decl)
+        self.decl_cos = dm.cosf(self.decl)
         self._zeros = zeros
         self._ones = np.full(n, dm.ONE, np.float32)
         self._up = (self._zeros, self._zeros, self._ones)
@@ -353,14 +359,15 @@ class Mars:
         self._block_clear(cond)
 
     def _align(self, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
-        """att_mars_align: (ok, yaw-aligned q, m0)."""
+        """att_mars_align: (ok, q turned about z so the field is at the declination's azimuth, m0)."""
         with np.errstate(all="ignore"):
             me = dm.quat_rotate(q, mag)
             ok1, _ = dm.vec3_normalize(me)
-            qa = dm.quat_mul(dm.quat_from_axis_angle(self._up, dm.atan2f(me[0], me[1])), q)
+            qa = dm.quat_mul(dm.quat_from_axis_angle(self._up, dm.atan2f(me[0], me[1]) - self.decl), q)
             ok2, qa = dm.quat_normalize_bounded(qa)
             me = dm.quat_rotate(qa, mag)
-            m0 = (self._zeros, dm.sqrtf(me[0] * me[0] + me[1] * me[1]), me[2])
+            h = dm.sqrtf(me[0] * me[0] + me[1] * me[1])
+            m0 = (h * self.decl_sin, h * self.decl_cos, me[2])
         return ok1 & ok2, qa, m0
 
     def _mag_correct(self, q: dm.Quat, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, dm.Quat, Any]:
@@ -537,7 +544,7 @@ class Mars:
         self.bias = dm.vec3_where(cond, b, self.bias)
 
     def _ref_set(self, cond: Any, n: Any, s: Any) -> None:
-        """att_mars_ref_set where cond: m0 with norm n and sin(dip) s, its horizontal direction kept."""
+        """att_mars_ref_set where cond: m0 (norm n, sin(dip) s), horizontal direction kept (else D's)."""
         with np.errstate(all="ignore"):
             s2 = s * s
             h = np.where(s2 < dm.ONE, n * dm.sqrtf(dm.ONE - s2), dm.ZERO)
@@ -545,7 +552,7 @@ class Mars:
             h0 = dm.sqrtf(mx * mx + my * my)
             r = h / h0
             big = h0 >= M0_MIN
-            m0 = (np.where(big, mx * r, dm.ZERO), np.where(big, my * r, h), n * s)
+            m0 = (np.where(big, mx * r, h * self.decl_sin), np.where(big, my * r, h * self.decl_cos), n * s)
         ok, parts = self._derive_m0(m0)
         self._commit_m0(cond & ok, parts)
 

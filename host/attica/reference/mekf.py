@@ -162,6 +162,9 @@ class Mekf:
         "c.q_rec_tilt": "f32",
         "c.q_rec_head": "f32",
         "c.rec_n": "u32",
+        "c.decl": "f32",
+        "c.decl_sin": "f32",
+        "c.decl_cos": "f32",
         "c.q_init": "quat",
         "c.r_accel": "f32",
         "c.gate": "f32",
@@ -243,6 +246,9 @@ class Mekf:
         self._zeros = zeros
         self._up = (zeros, zeros, np.full(n, dm.ONE, np.float32))
         self._rec_coeffs(s)
+        self.decl = setting(s.declination, n)
+        self.decl_sin = dm.sinf(self.decl)
+        self.decl_cos = dm.cosf(self.decl)
         self.reset()
 
     def _rec_coeffs(self, s: MekfSettings) -> None:

@@ -76,14 +76,15 @@ def commit_m0(f: Mekf, cond: Any, parts: M0Parts) -> None:
 
 
 def align(f: Mekf, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
-    """Mirror of att_mekf_align: (ok, yaw-aligned q, m0)."""
+    """Mirror of att_mekf_align: (ok, q turned about z so the field is at the declination's azimuth, m0)."""
     with np.errstate(all="ignore"):
         me = dm.quat_rotate(q, mag)
         ok1, _ = dm.vec3_normalize(me)
-        qa = dm.quat_mul(dm.quat_from_axis_angle(f._up, dm.atan2f(me[0], me[1])), q)
+        qa = dm.quat_mul(dm.quat_from_axis_angle(f._up, dm.atan2f(me[0], me[1]) - f.decl), q)
         ok2, qa = dm.quat_normalize_bounded(qa)
         me = dm.quat_rotate(qa, mag)
-        m0 = (f._zeros, dm.sqrtf(me[0] * me[0] + me[1] * me[1]), me[2])
+        h = dm.sqrtf(me[0] * me[0] + me[1] * me[1])
+        m0 = (h * f.decl_sin, h * f.decl_cos, me[2])
     return ok1 & ok2, qa, m0
 
 

@@ -54,6 +54,9 @@ class SimConfig:
         Magnitude of the earth magnetic field in uT.
     mag_dip : float
         Inclination of the field below the horizon in rad.
+    mag_declination : float
+        Azimuth of the field's horizontal part east of true north in rad (the truth's yaw is relative
+        to true north), in [-pi, pi]; 0: the field points north.
     mag_noise : float
         White magnetometer noise std per sample in uT.
     mag_disturbances : tuple of (t_start, t_end, (x, y, z))
@@ -125,6 +128,7 @@ class SimConfig:
     accel_noise: float = 0.05
     mag_field: float = 49.0
     mag_dip: float = 1.1
+    mag_declination: float = 0.0
     mag_noise: float = 0.3
     mag_disturbances: tuple[tuple[float, float, tuple[float, float, float]], ...] = ()
     initial_attitude: tuple[float, float, float, float] | None = None
@@ -163,6 +167,8 @@ class SimConfig:
         for name in nonneg:
             if getattr(self, name) < 0:
                 raise ValueError(f"SimConfig.{name} must be >= 0, got {getattr(self, name)}")
+        if not -math.pi <= self.mag_declination <= math.pi:
+            raise ValueError(f"SimConfig.mag_declination must be in [-pi, pi], got {self.mag_declination}")
         if self.components < 1:
             raise ValueError(f"SimConfig.components must be >= 1, got {self.components}")
         for i, dist in enumerate(self.mag_disturbances):

@@ -13,12 +13,12 @@ from attica.sim.rotations import F64
 
 
 def mag_field_earth(cfg: SimConfig) -> F64:
-    """Undisturbed earth-frame (ENU) magnetic field ``B * (0, cos(dip), -sin(dip))`` in uT.
+    """Undisturbed earth-frame (ENU) magnetic field ``B * (cos(dip) sin(D), cos(dip) cos(D), -sin(dip))``, uT.
 
     Parameters
     ----------
     cfg : SimConfig
-        Uses ``mag_field`` and ``mag_dip``.
+        Uses ``mag_field``, ``mag_dip`` and ``mag_declination`` (D, east of true north).
 
     Returns
     -------
@@ -26,7 +26,9 @@ def mag_field_earth(cfg: SimConfig) -> F64:
         The field vector.
 
     """
-    return cfg.mag_field * np.array([0.0, math.cos(cfg.mag_dip), -math.sin(cfg.mag_dip)])
+    h = math.cos(cfg.mag_dip)
+    d = cfg.mag_declination
+    return cfg.mag_field * np.array([h * math.sin(d), h * math.cos(d), -math.sin(cfg.mag_dip)])
 
 
 def _smootherstep(u: F64) -> tuple[F64, F64, F64]:

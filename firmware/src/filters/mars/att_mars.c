@@ -52,6 +52,7 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->tau_mag_fast = 2.0f;
     settings->tau_bias_mag = 0.0f; /* off: on BROAD it costs 0.07 deg (docs/filters.md) */
     settings->recovery_time = 2.0f;
+    settings->declination = 0.0f;
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -131,6 +132,9 @@ static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
     c->full = (c->k_acc == 1.0f);
     att_mars_ref_coeffs(c, s);
     att_mars_rec_coeffs(c, s);
+    c->decl = s->declination;
+    c->decl_sin = att_sinf(s->declination);
+    c->decl_cos = att_cosf(s->declination);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -349,25 +353,28 @@ static ATT_NOINLINE void att_mars_rotation_toward(float vx, float vy, float vz, 
 }
 
 /*
- * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points north
- * (+y); *m0 = (0, |m_e,xy|, m_e,z) for the aligned attitude. Returns false when mag has no direction.
+ * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points at the
+ * azimuth D (the declination, east of north; D = 0: north, +y); *m0 = (|m_e,xy| sin D, |m_e,xy| cos D,
+ * m_e,z) for the aligned attitude. Returns false when mag has no direction.
  */
-static ATT_NOINLINE bool att_mars_align(float qw, float qx, float qy, float qz, const att_vec3_t *mag,
-                                        att_quat_t *q_out, att_vec3_t *m0)
+static ATT_NOINLINE bool att_mars_align(const att_mars_coeffs_t *c, float qw, float qx, float qy, float qz,
+                                        const att_vec3_t *mag, att_quat_t *q_out, att_vec3_t *m0)
 {
     const att_quat_t q = att_i_quat(qw, qx, qy, qz);
     att_vec3_t me = att_i_quat_rotate(q, *mag);
     att_vec3_t unit;
     att_quat_t qa;
+    float h;
     if (!att_i_vec3_normalize(me, &unit)) {
         return false;
     }
-    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_mars_up, att_atan2f(me.x, me.y)), q);
+    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_mars_up, att_atan2f(me.x, me.y) - c->decl), q);
     if (!att_i_quat_normalize_bounded(qa, &qa)) {
         return false;
     }
     me = att_i_quat_rotate(qa, *mag);
-    *m0 = att_i_vec3(0.0f, att_i_sqrtf(me.x * me.x + me.y * me.y), me.z);
+    h = att_i_sqrtf(me.x * me.x + me.y * me.y);
+    *m0 = att_i_vec3(h * c->decl_sin, h * c->decl_cos, me.z);
     *q_out = qa;
     return true;
 }
@@ -450,7 +457,7 @@ static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars
 {
     att_vec3_t m0;
     if (c->init_from_sensors) {
-        if (att_mars_align(qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
+        if (att_mars_align(c, qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
             st->flags |= ATT_FLAG_INITIALISED;
             st->fast_left = c->fast_start_n;
             return true;
@@ -481,7 +488,8 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     att_vec3_t m0;
     (void)att_i_quat_normalize_bounded(att_i_quat_from_euler(roll, pitch, 0.0f), &st->q);
     if (mag_ok) {
-        if (att_mars_align(st->q.w, st->q.x, st->q.y, st->q.z, mag, &qa, &m0) && att_mars_set_m0(&f->c, st, &m0)) {
+        if (att_mars_align(&f->c, st->q.w, st->q.x, st->q.y, st->q.z, mag, &qa, &m0) &&
+            att_mars_set_m0(&f->c, st, &m0)) {
             st->q = qa;
             st->fast_left = f->c.fast_start_n;
         } else {
@@ -568,7 +576,8 @@ static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c,
 }
 
 /*
- * m0 with norm n and sin(dip) s, its horizontal direction kept (north when it has none); a new block.
+ * m0 with norm n and sin(dip) s, its horizontal direction kept (the declination's azimuth when it has
+ * none); a new block.
  * |s| slightly above 1 (rounding of the sums) gives a vertical field.
  */
 static void att_mars_ref_set(const att_mars_coeffs_t *c, att_mars_state_t *st, float n, float s)
@@ -576,7 +585,7 @@ static void att_mars_ref_set(const att_mars_coeffs_t *c, att_mars_state_t *st, f
     const float s2 = s * s;
     const float h = (s2 < 1.0f) ? n * att_i_sqrtf(1.0f - s2) : 0.0f;
     const float h0 = att_i_sqrtf(st->m0.x * st->m0.x + st->m0.y * st->m0.y);
-    att_vec3_t m0 = att_i_vec3(0.0f, h, n * s);
+    att_vec3_t m0 = att_i_vec3(h * c->decl_sin, h * c->decl_cos, n * s);
     if (h0 >= ATT_MARS_M0_MIN) {
         const float r = h / h0;
         m0 = att_i_vec3(st->m0.x * r, st->m0.y * r, n * s);

@@ -46,6 +46,7 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, mag_new_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
     ATT_CK_IN(C, tau_mag_fast, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
     ATT_CK_IN(C, tau_bias_mag, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
-    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                       \
+    ATT_CK_IN(C, declination, -ATT_MARS_PI_F, ATT_MARS_PI_F, "[-pi, pi]", "rad")
 
 #endif /* ATT_MARS_CHECKS_H */

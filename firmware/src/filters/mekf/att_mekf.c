@@ -69,6 +69,7 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->gyro_scale_sd = 0.003f; /* 0.3 %: a calibrated MEMS gyro's scale-factor error (docs/accuracy.md) */
     settings->gyro_scale_init = 0.0f;
     settings->recovery_time = 2.0f; /* s: Fusion's recovery trigger period at 100 Hz is 5 s; ars and mars use 2 s */
+    settings->declination = 0.0f;
     settings->use_mag = true;
     settings->init_from_sensors = true;
     settings->q_init = att_i_quat_identity();
@@ -144,6 +145,9 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->lp_on = c->k_lp > 0.0f;
     c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
     att_mekf_rec_coeffs(c, s);
+    c->decl = s->declination;
+    c->decl_sin = att_sinf(s->declination);
+    c->decl_cos = att_cosf(s->declination);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -328,23 +332,28 @@ static ATT_ALWAYS_INLINE att_quat_t att_mekf_exp(att_vec3_t rv)
 }
 
 /*
- * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points north
- * (+y); *m0 = (0, |m_e,xy|, m_e,z) for the aligned attitude. Returns false when mag has no direction.
+ * Yaw alignment: rotate q about the earth z axis so that the horizontal part of q mag q* points at the
+ * azimuth D (the declination, east of north; D = 0: north, +y); *m0 = (|m_e,xy| sin D, |m_e,xy| cos D,
+ * m_e,z) for the aligned attitude. Returns false when mag has no direction.
  */
-static ATT_ALWAYS_INLINE bool att_mekf_align(att_quat_t q, att_vec3_t mag, att_quat_t *q_out, att_vec3_t *m0)
+static ATT_ALWAYS_INLINE bool att_mekf_align(const att_mekf_coeffs_t *c, att_quat_t q, att_vec3_t mag,
+                                             att_quat_t *q_out, att_vec3_t *m0)
 {
     att_vec3_t me = att_i_quat_rotate(q, mag);
     att_vec3_t unit;
     att_quat_t qa;
+    float h;
     if (!att_i_vec3_normalize(me, &unit)) {
         return false;
     }
-    qa = att_i_quat_mul(att_i_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y)), q);
+    qa = att_i_quat_mul(
+        att_i_quat_from_axis_angle(att_i_vec3(0.0f, 0.0f, 1.0f), att_atan2f(me.x, me.y) - c->decl), q);
     if (!att_i_quat_normalize_bounded(qa, &qa)) {
         return false;
     }
     me = att_i_quat_rotate(qa, mag);
-    *m0 = att_i_vec3(0.0f, att_i_sqrtf(me.x * me.x + me.y * me.y), me.z);
+    h = att_i_sqrtf(me.x * me.x + me.y * me.y);
+    *m0 = att_i_vec3(h * c->decl_sin, h * c->decl_cos, me.z);
     *q_out = qa;
     return true;
 }
@@ -393,7 +402,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     att_vec3_t m0;
     (void)att_i_quat_normalize_bounded(att_i_quat_from_euler(phi, theta, 0.0f), &q);
     if (mag_ok) {
-        if (att_mekf_align(q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+        if (att_mekf_align(c, q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
             q = qa;
             att_mekf_yaw_reset(c, st);
         } else {
@@ -419,7 +428,7 @@ static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_
     att_quat_t qa;
     att_vec3_t m0;
     if (c->init_from_sensors) {
-        if (att_mekf_align(*q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
+        if (att_mekf_align(c, *q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
             if (c->lp_on) {
                 /* the turn applied, qa q* = (w, 0, 0, z) (its x, y are rounding: dropped) */
                 const att_quat_t q0 = *q;
