@@ -716,12 +716,35 @@ def test_near_singular_roll_pitch_block(corr: float, near: bool) -> None:
 
 
 @pytest.mark.parametrize(
+    ("gyr", "recovers"),
+    [((NAN, 0, 0), False), ((0, INF, 0), True), ((0, 0, -40.0), True), ((34.3, 0, 0), True)],
+)
+def test_a_gyro_at_its_range_starts_a_recovery(gyr: Any, recovers: bool) -> None:
+    """Inf, beyond gyro_range or at 98 % of it (34.3 of 34.9 rad/s) is a clipping gyro: INITIALISED and
+    the roll and pitch variances + q_rec besides Q (docs/filters.md); NaN is no reading at all."""
+    f, ref = pair(ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3)))
+    p0 = state(f)[2]
+    fl = step_both(f, ref, gyr, (NAN, 0, 0))
+    assert bool(fl & Flag.INITIALISED) == recovers
+    p1 = state(f)[2]
+    c = f[0].c
+    for k, i in ((0, 0), (6, 1)):
+        want = F32(F32(p0[k]) + F32(c.q_step[i]))
+        assert p1[k] == (F32(want + F32(c.q_rec[i])) if recovers else want), k
+
+
+@pytest.mark.parametrize(
     ("gyr", "flag"),
     [((NAN, 0, 0), Flag.GYRO_INVALID), ((0, INF, 0), Flag.GYRO_INVALID), ((0, 0, -40.0), Flag.GYRO_RANGE)],
 )
 def test_bad_gyro_keeps_angles(gyr: Any, flag: Flag) -> None:
-    """An unusable gyro sample: prediction with w = 0 (angles and bias kept, variances + Q)."""
-    f, ref = pair(ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3), bias_init=(0.01, 0.0, 0.0)))
+    """An unusable gyro sample: prediction with w = 0 (angles and bias kept, variances + Q). Without the
+    recovery after a clipping gyro: an Inf or out-of-range sample starts one (below)."""
+    f, ref = pair(
+        ekf_default(
+            init_from_accel=False, euler_init=(0.1, -0.2, 0.3), bias_init=(0.01, 0.0, 0.0), recovery_time=0.0
+        )
+    )
     e0, b0, p0 = state(f)
     fl = step_both(f, ref, gyr, (NAN, 0, 0))  # no update either
     assert fl == flag | Flag.ACCEL_INVALID
@@ -881,6 +904,7 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
         cos_min=1e-6,
         euler_init=(0.0, 1.5707, 0.0),
         bias_init=(0.01, 0.0, -0.02),
+        recovery_time=0.0,  # 34.9 rad/s is a clipping gyro too: its recovery would flag INITIALISED later
     )
     f, ref = pair(s)
     f[0].st.lp_ready = True  # stages as if started: the rotation not followed makes them stale

@@ -207,6 +207,7 @@ class EkfSettings:
     euler_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
     bias_init: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise_rates: bool = True
+    recovery_time: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -386,6 +387,7 @@ SEED_OVERRIDES: dict[FilterKind, dict[str, Any]] = {
         "accel_reject": 0.1,
         "tau_acc_lp": 0.0,
         "noise_rates": False,
+        "recovery_time": 0.0,
     },
     FilterKind.GYRO: {},
     FilterKind.TILT: {},

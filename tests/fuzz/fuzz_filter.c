@@ -173,8 +173,9 @@ static const field_t f_mekf[] = {
  * bit 7 of its kind byte set (FZ_EXT), so every reproducer of tests/fuzz/regressions (kind bytes 0..6)
  * decodes as when it was found. ars_x .. mekf_x: the recoveries, mars's learnt reference and fast phase.
  * (kf's reproducer keeps a kind byte below 0x80 too: tests/test_fuzz.py.) The fields after a table's
- * first tier (FZ_MARS_X_TIER1, FZ_MEKF_X_TIER1: the declination, added after the reproducer of F14 was found with FZ_EXT) are
- * reached only with bit 5 set as well (FZ_EXT2), so that reproducer too decodes as when it was found.
+ * first tier (the *_X_TIER1 first ones: mars's and mekf's declination, ekf's recovery, added after the
+ * reproducers of F14 (mars, 0xd3) and of an ekf finding (0xff) were found with bit 7 set) are reached
+ * only with the kind byte's top bits 101 (FZ_EXT2), so those reproducers too decode as when found.
  */
 static const field_t f_ars_x[] = {
     FF(ars, recovery_time, T_F32),
@@ -191,6 +192,10 @@ static const field_t f_mekf_x[] = {
     FF(mekf, recovery_time, T_F32), FF(mekf, declination, T_F32),
 };
 #define FZ_MEKF_X_TIER1 1u
+static const field_t f_ekf_x[] = {
+    FF(ekf, recovery_time, T_F32),
+};
+#define FZ_EKF_X_TIER1 0u
 static const field_t f_gyro[] = {
     FF(gyro, dt, T_F32), FF(gyro, gyro_range, T_F32), FF(gyro, cos_min, T_F32), FV(gyro, euler_init),
 };
@@ -206,8 +211,8 @@ typedef struct {
     size_t nx1; /* the first nx1 of them: FZ_EXT alone; all nx: FZ_EXT and FZ_EXT2 */
 } fields_t;
 
-#define FZ_EXT 0x80u  /* bit 7 of the kind byte: the later fields (their first tier) can be mutated too */
-#define FZ_EXT2 0x20u /* bit 5 with bit 7: every later field */
+#define FZ_EXT 0x80u /* bit 7 of the kind byte: the later fields (their first tier) can be mutated too */
+#define FZ_EXT2(b0) (((b0) & 0xE0u) == 0xA0u) /* top bits 101: every later field */
 
 /* Field i of the first table, then of the later ones. */
 static const field_t *field_at(const fields_t *fs, size_t i)
@@ -224,7 +229,7 @@ static fields_t fields_of(att_filter_kind_t kind)
     case ATT_FILTER_ARS: FZ_SET(f_ars); FZ_SET_X(f_ars_x, 1u); break;
     case ATT_FILTER_MARS: FZ_SET(f_mars); FZ_SET_X(f_mars_x, FZ_MARS_X_TIER1); break;
     case ATT_FILTER_KF: FZ_SET(f_kf); FZ_SET_X(f_kf_x, 1u); break;
-    case ATT_FILTER_EKF: FZ_SET(f_ekf); break;
+    case ATT_FILTER_EKF: FZ_SET(f_ekf); FZ_SET_X(f_ekf_x, FZ_EKF_X_TIER1); break;
     case ATT_FILTER_MEKF: FZ_SET(f_mekf); FZ_SET_X(f_mekf_x, FZ_MEKF_X_TIER1); break;
     case ATT_FILTER_GYRO: FZ_SET(f_gyro); break;
     default: FZ_SET(f_tilt); break;
@@ -721,7 +726,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     c.fs = fields_of(kind);
     c.failed = false;
     nmut = (size_t)((b1 >> 1) & 7u) + ((b1 & 0x08u) ? 5u : 0u);
-    nsel = c.fs.n + (((b0 & FZ_EXT) != 0u) ? (((b0 & FZ_EXT2) != 0u) ? c.fs.nx : c.fs.nx1) : 0u);
+    nsel = c.fs.n + (((b0 & FZ_EXT) != 0u) ? (FZ_EXT2(b0) ? c.fs.nx : c.fs.nx1) : 0u);
     for (i = 0; i < nmut; ++i) {
         mutate(&s, field_at(&c.fs, fz_u8(&r) % nsel), &r);
     }

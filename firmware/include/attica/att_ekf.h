@@ -55,6 +55,14 @@
  *     the heading frame of yaw lp_psi: each update first turns them about z into the predicted one
  *     (by psi - lp_psi: the yaw's change since, flips to the equivalent attitude included); an applied
  *     update rotates them by its correction (to first order) and sets lp_psi to the predicted yaw.
+ *  3. recovery after a clipping gyro (recovery_time > 0, as att_kf.h step 5): a gyro sample with any
+ *     |w_i| >= 0.98 gyro_range (or beyond) starts a recovery of recovery_time (a later one restarts it),
+ *     flagged ATT_FLAG_INITIALISED: the integration has lost rotation it cannot know. With k = dt /
+ *     (recovery_time / 8 + dt) each prediction adds k^2 r / (1 - k) (at most p_max; r = r_phi, r_theta
+ *     per sample) to the roll and pitch variances, the process noise whose steady-state Kalman gain is
+ *     k; the low-pass stages run with the gain max(k_lp, k) and the gate is off. So the filter follows
+ *     the accelerometer with the time constant recovery_time / 8 until the recovery ends (the bias
+ *     states keep their gain: holding them, as att_mekf.h does, changed nothing measurable here).
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
  *  (-pi, pi]. One test per step, on the state it leaves (the update tests its result; a step without
@@ -129,6 +137,8 @@ typedef struct {
     att_vec3_t euler_init; /**< start angles without init_from_accel, rad; x (phi), z (psi) in [-8192, 8192], y (theta) in [-pi/2, pi/2] */
     att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     bool noise_rates;      /**< true: q_* rates (Q = q dt), r_* densities (R = r / dt); false: per step */
+    float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
+                                this long the recovery of step 3, s; [0, 1e4]; 0 = none */
 } att_ekf_settings_t;
 
 /** Coefficients derived from the settings by att_ekf_init: what a step needs, and the reset values. */
@@ -153,6 +163,10 @@ typedef struct {
     bool init_from_accel;   /**< wait for the first usable accel sample */
     bool lp_on;             /**< k_lp > 0 */
     bool need_norm;         /**< |a| is needed (r_accel or accel_reject set) */
+    float clip;             /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
+    float k_lp_rec;         /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float q_rec[2];         /**< roll, pitch process noise per step of a recovery, min(k^2 r_step / (1 - k), p_max) */
+    uint32_t rec_n;         /**< samples of a recovery (0 = none) */
 } att_ekf_coeffs_t;
 
 /** Dynamic state of an Euler EKF instance. */
@@ -171,6 +185,7 @@ typedef struct {
                                re-initialises roll and pitch, the yaw kept, P restarted */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
+    uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */
     bool initialised;     /**< euler holds a valid attitude */
 } att_ekf_state_t;
 
@@ -186,7 +201,10 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt);
 att_status_t att_ekf_settings_validate(const att_ekf_settings_t *settings);
 /** Validate settings and initialise f. On error f is left unchanged. */
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings);
-/** New settings (noises, limits), the angles, bias and covariance kept; on error f is unchanged. */
+/**
+ * New settings (noises, limits), the angles, bias and covariance kept (a recovery under way no longer
+ * than the new recovery_time); on error f is unchanged.
+ */
 att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings);
 /** Back to the state right after att_ekf_init, keeping the settings. */
 void att_ekf_reset(att_ekf_t *f);

@@ -12,7 +12,17 @@ from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
-from attica.reference._common import StateSpec, carry_state, run_steps, setting, split3, stack
+from attica.reference._common import (
+    StateSpec,
+    carry_state,
+    recovery_params,
+    recovery_q,
+    recovery_step,
+    run_steps,
+    setting,
+    split3,
+    stack,
+)
 from attica.reference.ars import align_up
 from attica.settings import EkfSettings, Flag
 
@@ -229,6 +239,7 @@ class Ekf:
         "st.recover": "bool",
         "st.steps": "u32",
         "st.flags": "u32",
+        "st.rec_left": "u32",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -256,6 +267,10 @@ class Ekf:
         "c.init_from_accel": "bool",
         "c.lp_on": "bool",
         "c.need_norm": "bool",
+        "c.clip": "f32",
+        "c.k_lp_rec": "f32",
+        "c.q_rec": "f32x2",
+        "c.rec_n": "u32",
     }
     """Every C coefficient of att_ekf_coeffs_t (set by att_ekf_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -296,8 +311,18 @@ class Ekf:
         self.init_from_accel = setting(s.init_from_accel, n, np.bool_)
         self.need_norm = (self.r_accel > dm.ZERO) | (self.accel_reject > dm.ZERO)
         self.lp_on = self.k_lp > dm.ZERO
+        self._rec_coeffs(s)
         self._zeros = np.zeros(n, np.float32)
         self.reset()
+
+    def _rec_coeffs(self, s: EkfSettings) -> None:
+        """att_ekf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
+        self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
+        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        on = self.rec_n > _U0
+        self.q_rec = tuple(
+            np.where(on, recovery_q(k, r, self.p_max), dm.ZERO).astype(np.float32) for r in self.r_step
+        )
 
     def _p_start(self) -> list[Any]:
         """att_ekf_p_diag(p0, p0_bias): P at reset, and after a step whose P cannot be used."""
@@ -323,6 +348,7 @@ class Ekf:
         self.recover = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
+        self.rec_left = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
 
     def _guard(self, c: Any) -> tuple[Any, Any]:
@@ -330,7 +356,7 @@ class Ekf:
         return np.where(small, np.where(c < dm.ZERO, -self.cos_min, self.cos_min), c), small
 
     def _predict(
-        self, w: dm.Vec3, gyro_ok: Any
+        self, w: dm.Vec3, gyro_ok: Any, rec: Any
     ) -> tuple[Any, Any, dm.Vec3, list[Any], Any, tuple[Any, ...], Any]:
         """att_ekf_predict: (usable, taken, angles, P, flags, sin/cos of roll and pitch, condition now).
 
@@ -422,6 +448,8 @@ class Ekf:
             dy = np.where(gyro_ok, dy, dm.ZERO).astype(np.float32)
             for i, qi in ((0, 0), (1, 1), (2, 2), (3, 3), (4, 3), (5, 3)):
                 pn[_IX[i][i]] = pn[_IX[i][i]] + self.q_step[qi]
+            for i in (0, 1):  # a recovery (step 3): roll and pitch follow the accelerometer with its gain
+                pn[_IX[i][i]] = np.where(rec, pn[_IX[i][i]] + self.q_rec[i], pn[_IX[i][i]]).astype(np.float32)
             e, pn, flip = _canon(e, pn)
             # increments beyond the wrap's range (adversarial rates, dt, cos_min): the angles kept, P
             # restarted
@@ -444,7 +472,7 @@ class Ekf:
         return ok, ok_e, e, pn, flags, trig, big
 
     def _update(
-        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...]
+        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...], rec: Any
     ) -> tuple[Any, Any, Any, tuple[Any, ...]]:
         """att_ekf_update: (applied, discarded, flags, new state parts) of the update at the current state.
 
@@ -478,8 +506,9 @@ class Ekf:
             start = dm.vec3_where(agrees & ~self.converging, up, va)
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
-            lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), self.k_lp))
-            lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), self.k_lp))
+            k_lp = np.where(rec, self.k_lp_rec, self.k_lp).astype(np.float32)
+            lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
+            lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
             vv = dm.vec3_where(lp_on, lp2, va)
@@ -510,7 +539,7 @@ class Ekf:
             i01 = (-p[1]) * inv
             i11 = (p[0] + r0) * inv
             d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1)
-            gate_on = self.gate > dm.ZERO
+            gate_on = (self.gate > dm.ZERO) & ~rec  # off during a recovery
             gated = gate_on & (d2 > self.gate)
             fk = np.where(gate_on & (d2 > self.soft), self.soft / d2, dm.ONE).astype(np.float32)
             db = yb0 * (i00 * yb0 + i01 * yb1) + yb1 * (i01 * yb0 + i11 * yb1)
@@ -604,8 +633,12 @@ class Ekf:
                 waiting, np.where(accel_ok, _u(Flag.INITIALISED), _u(Flag.NOT_READY)), _U0
             )
             run = ~waiting
+            # the recovery after a clipping gyro (step 3)
+            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            rec = run & (self.rec_left > _U0)
+            flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
-            ok_p, taken_p, e_p, p_p, fl_p, trig, big_p = self._predict(w, gyro_ok)
+            ok_p, taken_p, e_p, p_p, fl_p, trig, big_p = self._predict(w, gyro_ok, rec)
             flags = flags | np.where(run, fl_p, _U0)
             e_before = self.euler
             self.euler = dm.vec3_where(run, e_p, self.euler)
@@ -622,7 +655,7 @@ class Ekf:
             self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
             applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
-                a, e2, self.lp_ready, trig
+                a, e2, self.lp_ready, trig, rec
             )
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
@@ -685,6 +718,7 @@ class Ekf:
         """att_ekf_retune: new settings (coefficients), the state kept."""
         new = Ekf(settings, self.n)
         carry_state(self, new)
+        new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

@@ -70,6 +70,7 @@ void att_ekf_settings_default(att_ekf_settings_t *settings, float dt)
     settings->euler_init = att_i_vec3(0.0f, 0.0f, 0.0f);
     settings->bias_init = att_i_vec3(0.0f, 0.0f, 0.0f);
     settings->noise_rates = true;
+    settings->recovery_time = 2.0f; /* s: as ars, mars, kf and mekf */
 }
 
 att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
@@ -80,6 +81,18 @@ att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
     }
     ok = true ATT_EKF_CHECKS(ATT_CHECK_AND);
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
+}
+
+/*
+ * The coefficients of the recovery after a clipping gyro (att_ekf.h, step 3); after r_step, k_lp, lp_on
+ * and p_max. The process noise k^2 r / (1 - k) is the one whose steady-state Kalman gain is k.
+ */
+static void att_ekf_rec_coeffs(att_ekf_coeffs_t *c, const att_ekf_settings_t *s)
+{
+    const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
+    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->q_rec[0] = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step[0], c->p_max) : 0.0f;
+    c->q_rec[1] = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step[1], c->p_max) : 0.0f;
 }
 
 static void att_ekf_coeffs(att_ekf_coeffs_t *c, const att_ekf_settings_t *s)
@@ -110,6 +123,7 @@ static void att_ekf_coeffs(att_ekf_coeffs_t *c, const att_ekf_settings_t *s)
     c->init_from_accel = s->init_from_accel;
     c->lp_on = c->k_lp > 0.0f;
     c->need_norm = s->r_accel > 0.0f || s->accel_reject > 0.0f;
+    att_ekf_rec_coeffs(c, s);
 }
 
 att_status_t att_ekf_init(att_ekf_t *f, const att_ekf_settings_t *settings)
@@ -136,6 +150,9 @@ att_status_t att_ekf_retune(att_ekf_t *f, const att_ekf_settings_t *settings)
     st = att_ekf_settings_validate(settings);
     if (st == ATT_OK) {
         att_ekf_coeffs(&f->c, settings);
+        if (f->st.rec_left > f->c.rec_n) {
+            f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
+        }
     }
     return st;
 }
@@ -170,6 +187,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.recover = false;
     f->st.steps = 0u;
     f->st.flags = 0u;
+    f->st.rec_left = 0u;
     f->st.initialised = !f->c.init_from_accel;
 }
 
@@ -667,6 +685,11 @@ static ATT_NOINLINE uint32_t att_ekf_predict(const att_ekf_coeffs_t *c, att_ekf_
     P_(pn, 3, 3) = P_(pn, 3, 3) + c->q_step[3];
     P_(pn, 4, 4) = P_(pn, 4, 4) + c->q_step[3];
     P_(pn, 5, 5) = P_(pn, 5, 5) + c->q_step[3];
+    if (st->rec_left > 0u) {
+        /* a recovery (step 3): roll and pitch follow the accelerometer with its gain */
+        P_(pn, 0, 0) = P_(pn, 0, 0) + c->q_rec[0];
+        P_(pn, 1, 1) = P_(pn, 1, 1) + c->q_rec[1];
+    }
     flipped = att_ekf_canon(&e, pn);
     if (!att_i_isfinitef((e.x + e.y) + e.z)) {
         return flags | att_ekf_out_of_range(c, st); /* no update follows (tr unused) */
@@ -829,7 +852,7 @@ static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *
             *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
             *lp2 = *lp1;
         }
-        att_i_lowpass2(vv, c->k_lp, lp1, lp2);
+        att_i_lowpass2(vv, (st->rec_left > 0u) ? c->k_lp_rec : c->k_lp, lp1, lp2);
         vv = *lp2;
     }
     return vv;
@@ -943,7 +966,7 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     i01 = -P_(p, 0, 1) * inv;
     i11 = (P_(p, 0, 0) + r0) * inv;
     d2 = y0 * (i00 * y0 + i01 * y1) + y1 * (i01 * y0 + i11 * y1);
-    if (c->gate > 0.0f) {
+    if (c->gate > 0.0f && st->rec_left == 0u) { /* the gate is off during a recovery */
         if (d2 > c->gate) {
             return ATT_FLAG_ACCEL_REJECTED | att_ekf_check(c, st); /* outside the gate: not applied */
         }
@@ -1064,6 +1087,10 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->flags = flags;
         return flags;
     }
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left); /* step 3 */
+    if (st->rec_left > 0u) {
+        flags |= ATT_FLAG_INITIALISED;
+    }
     if (!gyro_ok) {
         st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's heading frame) are stale */
     }
@@ -1137,6 +1164,7 @@ void att_ekf_preset(att_ekf_settings_t *s, att_preset_t preset, float dt)
         s->accel_reject = 0.1f;
         s->tau_acc_lp = 0.0f;
         s->noise_rates = false;
+        s->recovery_time = 0.0f;
     }
 }
 

@@ -48,6 +48,7 @@ static inline bool att_ekf_noise_ok(float v)
     ATT_CK_IN(C, euler_init.y, -ATT_EKF_PIO2_F, ATT_EKF_PIO2_F, "[-pi/2, pi/2]", "rad")                        \
     ATT_CK_IN(C, euler_init.x, -8192.0f, 8192.0f, "[-8192, 8192]", "rad")                                      \
     ATT_CK_IN(C, euler_init.z, -8192.0f, 8192.0f, "[-8192, 8192]", "rad")                                      \
-    ATT_CK_VEC(C, bias_init, s->gyro_range, "each component in [-gyro_range, gyro_range]", "rad/s")
+    ATT_CK_VEC(C, bias_init, s->gyro_range, "each component in [-gyro_range, gyro_range]", "rad/s")      \
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
 
 #endif /* ATT_EKF_CHECKS_H */
