@@ -53,7 +53,7 @@ ANALYSED = [
 """The files of the static-analysis baseline: every firmware source (filters, math, calib, CAN codec
 and its generated code, node), the Linux port, the Cortex-M CAN HALs and floating-point environment,
 and the flash persistence example. Clean, with one inline suppression: cppcheck
-uninitvar at att_ekf.c att_ekf_pd_ok (a false positive: d[k] and l[j][k] are read only for k < j,
+uninitvar at att_core.h att_i_pd6 (a false positive: d[k] and l[j][k] are read only for k < j,
 written by the earlier passes of the same loop). cppcheck runs with ATT_CONFIG_HEADER undefined (it
 would try the configuration with a user's header it does not have)."""
 

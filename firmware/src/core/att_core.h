@@ -429,4 +429,75 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
     return false;
 }
 
+/** Index of P_ij (i <= j) in a symmetric 6x6 matrix stored as its upper triangle row by row (21 floats). */
+#define ATT_I_P6(i, j) ((uint32_t)(i) * (11u - (uint32_t)(i)) / 2u + (uint32_t)(j))
+
+/* Full unrolling of the loops over a 6x6 matrix (the indices fold into constants), not when optimising
+ * for size (-Os); no effect on results. */
+#if defined(__GNUC__) && !defined(__OPTIMIZE_SIZE__)
+#define ATT_I_PRAGMA(x) _Pragma(#x)
+#define ATT_I_UNROLL6 ATT_I_PRAGMA(GCC unroll 6)
+#else
+#define ATT_I_UNROLL6
+#endif
+
+/**
+ * Positive definite with margin, a test float32 rounding cannot fool (the ekf's and the mekf's P, 6x6
+ * packed as ATT_I_P6): the pivots of P = L D L^T satisfy d_0 > 0 and d_j > margin (P_jj + sum_{i<j}
+ * m_ji^2 P_ii), m = L^-1 (unit diagonal); NaN fails. The sum is the pivot's sensitivity to the rounding
+ * of the factorisation: the computed factors are exact for P + E with |E_ik| <= ~7 u sqrt(P_ii P_kk)
+ * (u = 2^-24, the backward error), and the pivot d_j = min x^T P x over x with x_j = 1, x_i = 0 for
+ * i > j, attained at x = row j of L^-1, so P's own pivot is at least the computed one less about
+ * 6 * 7 u sum_i m_ji^2 P_ii. The margins (ekf 2^-12, mekf 2^-16) leave a factor of 100 and of six to
+ * seven above that. A margin on P_jj alone is not sound: after a small earlier pivot float32 rounding
+ * passed an indefinite P (F15: pivots 5e-3 and 1.05e-3 in float32, the last one -3.8e-4 exact; F16 in the
+ * mekf). Mirrored by reference/_common.pd6.
+ */
+static ATT_ALWAYS_INLINE bool att_i_pd6(const float *p, float margin)
+{
+    float l[6][6];
+    float m[6][6];
+    float d[6];
+    int i;
+    int j;
+    int k;
+    ATT_I_UNROLL6
+    for (j = 0; j < 6; j++) {
+        float dj = p[ATT_I_P6(j, j)];
+        float sj = dj;
+        ATT_I_UNROLL6
+        for (k = 0; k < j; k++) {
+            /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
+            /* cppcheck-suppress uninitvar */
+            dj = dj - (l[j][k] * l[j][k]) * d[k];
+        }
+        /* row j of L^-1: m_ji = -(l_ji + sum_{i<k<j} l_jk m_ki), i from j - 1 down */
+        ATT_I_UNROLL6
+        for (i = j - 1; i >= 0; i--) {
+            float v = l[j][i];
+            ATT_I_UNROLL6
+            for (k = i + 1; k < j; k++) {
+                /* cppcheck-suppress uninitvar */
+                v = v + l[j][k] * m[k][i];
+            }
+            m[j][i] = -v;
+            sj = sj + (m[j][i] * m[j][i]) * p[ATT_I_P6(i, i)];
+        }
+        if (!(dj > ((j == 0) ? 0.0f : margin * sj))) {
+            return false;
+        }
+        d[j] = dj;
+        ATT_I_UNROLL6
+        for (i = j + 1; i < 6; i++) {
+            float v = p[ATT_I_P6(j, i)];
+            ATT_I_UNROLL6
+            for (k = 0; k < j; k++) {
+                v = v - (l[i][k] * l[j][k]) * d[k];
+            }
+            l[i][j] = v / dj;
+        }
+    }
+    return true;
+}
+
 #endif /* ATT_CORE_H */

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -214,3 +215,43 @@ def recovery_step(
     nxt = np.where(clipped, rec_n, nxt)
     ended = run & ~clipped & (left == np.uint32(1))
     return np.where(run, nxt, left).astype(np.uint32), ended
+
+
+def p6(i: int, j: int) -> int:
+    """ATT_I_P6: index of P_ij in a symmetric 6x6 matrix packed as its upper triangle, row by row."""
+    lo, hi = min(i, j), max(i, j)
+    return lo * (11 - lo) // 2 + hi
+
+
+def pd6(p: Sequence[Any], margin: Any) -> Any:
+    """att_i_pd6: L D L^T pivots d_0 > 0, d_j > margin (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1.
+
+    ``p`` is the packed upper triangle (21 arrays). The C loop stops at the first failure; here the test
+    of each pivot is accumulated, which gives the same answer.
+    """
+    with np.errstate(all="ignore"):
+        ok = np.ones(np.shape(p[0]), np.bool_)
+        lo: dict[tuple[int, int], Any] = {}
+        mi: dict[tuple[int, int], Any] = {}
+        d: list[Any] = []
+        for j in range(6):
+            dj = p[p6(j, j)]
+            sj = dj
+            for k in range(j):
+                dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
+            # row j of L^-1 (unit diagonal), i from j - 1 down
+            for i in range(j - 1, -1, -1):
+                v = lo[(j, i)]
+                for k in range(i + 1, j):
+                    v = v + lo[(j, k)] * mi[(k, i)]
+                mi[(j, i)] = -v
+                sj = sj + (mi[(j, i)] * mi[(j, i)]) * p[p6(i, i)]
+            limit = dm.ZERO if j == 0 else margin * sj
+            ok = ok & (dj > limit)
+            d.append(dj)
+            for i in range(j + 1, 6):
+                v = p[p6(j, i)]
+                for k in range(j):
+                    v = v - (lo[(i, k)] * lo[(j, k)]) * d[k]
+                lo[(i, j)] = v / dj
+    return ok

@@ -15,6 +15,7 @@ from attica.reference import sensor
 from attica.reference._common import (
     StateSpec,
     carry_state,
+    pd6,
     recovery_params,
     recovery_q,
     recovery_step,
@@ -148,37 +149,8 @@ def _usable(p: list[Any]) -> Any:
 
 
 def _pd_ok(p: list[Any]) -> Any:
-    """att_ekf_pd_ok: L D L^T pivots d_0 > 0, d_j > 2^-12 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1.
-
-    The C loop stops at the first failure; here the test of each pivot is accumulated, which gives the
-    same answer.
-    """
-    with np.errstate(all="ignore"):
-        ok = np.ones(np.shape(p[0]), np.bool_)
-        lo: dict[tuple[int, int], Any] = {}
-        mi: dict[tuple[int, int], Any] = {}
-        d: list[Any] = []
-        for j in range(6):
-            dj = p[_IX[j][j]]
-            sj = p[_IX[j][j]]
-            for k in range(j):
-                dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
-            # row j of L^-1 (unit diagonal), i from j - 1 down
-            for i in range(j - 1, -1, -1):
-                v = lo[(j, i)]
-                for k in range(i + 1, j):
-                    v = v + lo[(j, k)] * mi[(k, i)]
-                mi[(j, i)] = -v
-                sj = sj + (mi[(j, i)] * mi[(j, i)]) * p[_IX[i][i]]
-            limit = dm.ZERO if j == 0 else PIVOT_MIN * sj
-            ok = ok & (dj > limit)
-            d.append(dj)
-            for i in range(j + 1, 6):
-                v = p[_IX[i][j]]
-                for k in range(j):
-                    v = v - (lo[(i, k)] * lo[(j, k)]) * d[k]
-                lo[(i, j)] = v / dj
-        return ok
+    """att_ekf_pd_ok: att_i_pd6 with the margin 2^-12."""
+    return pd6(p, PIVOT_MIN)
 
 
 def _near_singular(p: list[Any]) -> Any:

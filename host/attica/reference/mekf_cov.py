@@ -13,6 +13,7 @@ import numpy as np
 
 from attica.reference import detmath as dm
 from attica.reference import mekf_scale as msc
+from attica.reference._common import pd6
 
 P_LEN = 21
 PIVOT_MIN = dm.c("0x1p-16")
@@ -198,37 +199,8 @@ def yaw_reset(p: Cov, p0_att: Any) -> Cov:
 
 
 def pd(p: Cov) -> Any:
-    """att_mekf_pd: L D L^T pivots d_0 > 0, d_j > 2^-16 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1.
-
-    The C loop stops at the first failure; here the test of each pivot is accumulated, which gives the
-    same answer.
-    """
-    with np.errstate(all="ignore"):
-        ok = np.ones(np.shape(p[0]), np.bool_)
-        lo: dict[tuple[int, int], Any] = {}
-        mi: dict[tuple[int, int], Any] = {}
-        d: list[Any] = []
-        for j in range(6):
-            dj = p[ix(j, j)]
-            sj = dj
-            for k in range(j):
-                dj = dj - (lo[(j, k)] * lo[(j, k)]) * d[k]
-            # row j of L^-1 (unit diagonal), i from j - 1 down
-            for i in range(j - 1, -1, -1):
-                v = lo[(j, i)]
-                for k in range(i + 1, j):
-                    v = v + lo[(j, k)] * mi[(k, i)]
-                mi[(j, i)] = -v
-                sj = sj + (mi[(j, i)] * mi[(j, i)]) * p[ix(i, i)]
-            limit = dm.ZERO if j == 0 else PIVOT_MIN * sj
-            ok = ok & (dj > limit)
-            d.append(dj)
-            for i in range(j + 1, 6):
-                v = p[ix(j, i)]
-                for k in range(j):
-                    v = v - (lo[(i, k)] * lo[(j, k)]) * d[k]
-                lo[(i, j)] = v / dj
-    return ok
+    """att_mekf_pd: att_i_pd6 with the margin 2^-16."""
+    return pd6(p, PIVOT_MIN)
 
 
 def shrink(p: Cov, s: Any) -> Cov:

@@ -732,14 +732,15 @@ EXPLAINED: tuple[Explained, ...] = (
         ),
     ),
     Explained(
-        "firmware/src/filters/mekf/att_mekf.c",
+        "firmware/src/core/att_core.h",
         "for (k = i + 1; k < j; k++) {",
         "CONST",
         "1 -> 2",
         (
             "unproven: the row of L^-1 without its first inner term changes the rounding bound s_j of the "
-            "pivot test, which changes the verdict only for a pivot between the two thresholds 2^-16 s_j; "
-            "the F16 stream and the 200 near-singular states of edges:mekf:pd do not land there"
+            "pivot test (att_i_pd6, the ekf's and the mekf's), which changes the verdict only for a pivot "
+            "between the two thresholds margin s_j; the F15 and F16 streams and the 200 near-singular "
+            "states of edges:mekf:pd do not land there"
         ),
     ),
 )

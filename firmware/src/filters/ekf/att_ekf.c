@@ -262,61 +262,10 @@ static ATT_ALWAYS_INLINE bool att_ekf_usable(att_vec3_t e, const float *p)
            p[20] > 0.0f;
 }
 
-/*
- * Positive definite with margin, a test that float32 rounding cannot fool: the L D L^T pivots satisfy
- * d_0 > 0 and d_j > 2^-12 (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1 (unit lower triangular).
- * Why the sum: the computed factors are the exact ones of P + dP with |dP_ij| <= ~7 u sqrt(P_ii P_jj)
- * (u = 2^-24, the backward error of the factorisation), and the pivot d_j = min x^T P x over x with
- * x_j = 1, x_i = 0 for i > j, attained at x = row j of L^-1; so P's own pivot is at least the computed
- * one less 6 * 7 u sum_i m_ji^2 P_ii. 2^-12 leaves a factor of 100 above that. Testing d_j against
- * 2^-12 P_jj alone is not enough after a small earlier pivot (F15: pivots 5e-3 and 1.05e-3 in float32,
- * the last one -3.8e-4 in exact arithmetic: P indefinite).
- */
+/* Positive definite with margin 2^-12 (att_core.h, att_i_pd6: the test float32 rounding cannot fool). */
 static bool att_ekf_pd_ok(const float *p)
 {
-    float l[6][6];
-    float m[6][6];
-    float d[6];
-    int i;
-    int j;
-    int k;
-    ATT_EKF_UNROLL
-    for (j = 0; j < 6; j++) {
-        float dj = P_(p, j, j);
-        float sj = P_(p, j, j);
-        ATT_EKF_UNROLL
-        for (k = 0; k < j; k++) {
-            /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
-            /* cppcheck-suppress uninitvar */
-            dj = dj - (l[j][k] * l[j][k]) * d[k];
-        }
-        /* row j of L^-1 (m_jj = 1): m_ji = -(l_ji + sum_{i<k<j} l_jk m_ki), i from j - 1 down */
-        ATT_EKF_UNROLL
-        for (i = j - 1; i >= 0; i--) {
-            float v = l[j][i];
-            ATT_EKF_UNROLL
-            for (k = i + 1; k < j; k++) {
-                /* cppcheck-suppress uninitvar */
-                v = v + l[j][k] * m[k][i];
-            }
-            m[j][i] = -v;
-            sj = sj + (m[j][i] * m[j][i]) * P_(p, i, i);
-        }
-        if (!(dj > ((j == 0) ? 0.0f : ATT_EKF_PIVOT_MIN * sj))) {
-            return false;
-        }
-        d[j] = dj;
-        ATT_EKF_UNROLL
-        for (i = j + 1; i < 6; i++) {
-            float v = P_(p, i, j);
-            ATT_EKF_UNROLL
-            for (k = 0; k < j; k++) {
-                v = v - (l[i][k] * l[j][k]) * d[k];
-            }
-            l[i][j] = v / dj;
-        }
-    }
-    return true;
+    return att_i_pd6(p, ATT_EKF_PIVOT_MIN);
 }
 
 /*

@@ -666,60 +666,10 @@ static ATT_ALWAYS_INLINE bool att_mekf_mag_apply(const att_mekf_coeffs_t *c, att
     return true;
 }
 
-/*
- * Positive definite with margin: the pivots of P = L D L^T satisfy d_0 > 0 and d_j > ATT_MEKF_PIVOT_MIN
- * (P_jj + sum_{i<j} m_ji^2 P_ii), m = L^-1 (unit diagonal); NaN fails. The sum is the pivot's
- * sensitivity to the rounding of the factorisation: the computed factors are exact for P + E with
- * |E_ik| <= 6 u sqrt(P_ii P_kk) (u = 2^-24), which moves d_j by at most 36 u times that sum, six to
- * seven times below the margin. A margin on P_jj alone is not sound: after a small earlier pivot, float32 rounding
- * passed an indefinite P (F16: computed pivots 1.57e-5 and 5.7e-5, the last one -5e-6 exact; as the
- * ekf's F15). Mirrored by reference/mekf_cov.pd.
- */
+/* Positive definite with margin 2^-16 (att_core.h, att_i_pd6: the test float32 rounding cannot fool). */
 static ATT_NOINLINE bool att_mekf_pd(const float *p)
 {
-    float l[6][6];
-    float m[6][6];
-    float d[6];
-    int i;
-    int j;
-    int k;
-    ATT_MEKF_UNROLL
-    for (j = 0; j < 6; j++) {
-        float dj = p[ATT_MEKF_IX((uint32_t)j, (uint32_t)j)];
-        float sj = dj;
-        ATT_MEKF_UNROLL
-        for (k = 0; k < j; k++) {
-            /* d[k] and l[j][k] (k < j) were written by the earlier passes of the j loop */
-            /* cppcheck-suppress uninitvar */
-            dj = dj - (l[j][k] * l[j][k]) * d[k];
-        }
-        /* row j of L^-1: m_ji = -(l_ji + sum_{i<k<j} l_jk m_ki), i from j - 1 down */
-        ATT_MEKF_UNROLL
-        for (i = j - 1; i >= 0; i--) {
-            float v = l[j][i];
-            ATT_MEKF_UNROLL
-            for (k = i + 1; k < j; k++) {
-                /* cppcheck-suppress uninitvar */
-                v = v + l[j][k] * m[k][i];
-            }
-            m[j][i] = -v;
-            sj = sj + (m[j][i] * m[j][i]) * p[ATT_MEKF_IX((uint32_t)i, (uint32_t)i)];
-        }
-        if (!(dj > ((j == 0) ? 0.0f : ATT_MEKF_PIVOT_MIN * sj))) {
-            return false;
-        }
-        d[j] = dj;
-        ATT_MEKF_UNROLL
-        for (i = j + 1; i < 6; i++) {
-            float v = p[ATT_MEKF_IX((uint32_t)j, (uint32_t)i)];
-            ATT_MEKF_UNROLL
-            for (k = 0; k < j; k++) {
-                v = v - (l[i][k] * l[j][k]) * d[k];
-            }
-            l[i][j] = v / dj;
-        }
-    }
-    return true;
+    return att_i_pd6(p, ATT_MEKF_PIVOT_MIN);
 }
 
 /* Multiply every correlation (off-diagonal entry) of P by s. */
