@@ -1,4 +1,4 @@
-"""The clipping streams of the recovery tests (tests/test_{ars,kf,mekf}_recovery.py): 100 Hz, a gyro of
+"""The clipping streams of the recovery tests (tests/test_{ars,kf,ekf,mekf}_recovery.py): 100 Hz, a gyro of
 500 deg/s full scale, three turns to 14 rad/s that clip it."""
 
 from __future__ import annotations

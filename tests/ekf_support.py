@@ -382,6 +382,11 @@ ADVERSARIAL_VARIANTS: list[dict[str, Any]] = [
     {"gravity": 1.0, "accel_range": 1.0001, "gyro_range": 1e-3, "p_max": 1e-6, "p0": 1e-6, "p0_bias": 1e-20},
     {"gravity": 100.0, "accel_range": 1e4, "cos_min": 0.999999, "init_from_accel": False,
      "euler_init": (0.0, -1.5707964, 8192.0)},
+    # the recovery after a clipping gyro (off in the seed preset): the default's and a short one with the
+    # gate on and a small range, so that the adversarial samples clip often
+    {"recovery_time": 2.0},
+    {"recovery_time": 0.05, "gate": 9.0, "tau_acc_lp": 0.5, "gyro_range": 5.0, "noise_rates": True,
+     "q_phi": 1e-3, "q_theta": 1e-3, "q_psi": 1e-3, "r_phi": 1e-4, "r_theta": 1e-4},
 ]  # fmt: skip
 """Settings on top of the seed preset: every range limit of the contract reached somewhere."""
 

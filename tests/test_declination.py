@@ -124,3 +124,57 @@ def test_declination_out_of_range_is_refused(kind: FilterKind, bad: float) -> No
 def test_declination_bounds_accepted(kind: FilterKind) -> None:
     for d in (PI_F, -PI_F, 0.0, -0.0):
         assert native.settings_problem(kind, _settings(kind, declination=d)) is None
+
+
+def test_a_reference_without_horizontal_part_takes_the_declination() -> None:
+    """mars's reference reset (att_mars_ref_set) when the old reference has no horizontal part: the new one
+    points at the declination's azimuth. FULL mode from a vertical m0_init (no alignment), the real field
+    rejected by dip and then adopted as the new reference; C and reference bit for bit."""
+    d = 0.5
+    rec = _rec(6, d, 40.0)
+    s = _settings(
+        FilterKind.MARS,
+        declination=d,
+        mag_mode=MagMode.FULL,
+        init_from_sensors=False,
+        q_init=tuple(float(x) for x in rec.quat_true[0]),
+        m0_init=(0.0, 0.0, -49.0),
+        mag_new_time=3.0,
+    )
+    res = crosscheck(FilterKind.MARS, [Stream(rec.gyr, rec.acc, rec.mag, name="vertical m0")], settings=s)
+    assert res.ok, res.first_mismatch
+    f = native.Filter(FilterKind.MARS, s)
+    f.run_q(rec.gyr, rec.acc, rec.mag)
+    m0 = f.state.u.mars.st.m0
+    assert math.hypot(m0.x, m0.y) > 10.0, "a field with a horizontal part was adopted"
+    assert abs(math.atan2(m0.x, m0.y) - d) < 1e-5, f"azimuth {math.atan2(m0.x, m0.y):.6f}, declination {d}"
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_a_retune_of_the_declination_keeps_the_heading(kind: FilterKind) -> None:
+    """A retune to another declination changes the coefficients only: C and reference bit for bit after it,
+    the heading kept; the new declination applies at the next alignment (a reset)."""
+    from attica.reference.filter import Filter as RefFilter
+
+    rec = _rec(7, 0.0, 30.0)
+    half = 1500
+    s = _settings(kind)
+    c = native.Filter(kind, s)
+    c.run(rec.gyr[:half], rec.acc[:half], rec.mag[:half])
+    ref = RefFilter(kind, s)
+    ref.load_c_states([c.state.copy()[0]])
+    q_before = c.output()["q"].copy()
+    s2 = replace(s, declination=0.4)
+    c.retune(s2)
+    ref.retune(s2)
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+    assert c.output()["q"].tobytes() == q_before.tobytes(), "the heading is kept"
+    out = c.run(rec.gyr[half:], rec.acc[half:], rec.mag[half:])
+    q_ref = np.array(
+        [ref.step(rec.gyr[i], rec.acc[i], rec.mag[i])["q"][0] for i in range(half, len(rec.gyr))]
+    )
+    assert out["q"].view(np.uint32).tobytes() == q_ref.astype(np.float32).view(np.uint32).tobytes()
+    c.reset()
+    q_reset = c.run_q(rec.gyr, rec.acc, rec.mag)
+    q_fresh = native.Filter(kind, s2).run_q(rec.gyr, rec.acc, rec.mag)
+    assert q_reset.tobytes() == q_fresh.tobytes(), "after a reset the new declination applies"

@@ -4,8 +4,9 @@
   clips: the defaults, without the low-pass, with the gate on (off during a recovery), per-step noises,
   the recovery off; and across a retune in the middle of a recovery (the counter limited);
 - the mechanism: during a recovery the roll and pitch variances grow by q_rec per prediction;
-- what it buys on the simulator: after turns that clip the gyro the inclination comes back (RMSE at most
-  half of the one without it), every clipped sample and the recovery after it flagged INITIALISED;
+- what it buys on the simulator: after turns that clip the gyro the inclination comes back (RMSE below
+  0.6 of the one without it; 0.45 measured), every clipped sample and the recovery after it flagged
+  INITIALISED;
 - with recovery_time 0 (the seed preset's) nothing is flagged after the start.
 """
 
@@ -90,15 +91,17 @@ def test_a_clipping_gyro_is_recovered_from() -> None:
             assert 1.9 * RATE * 3 <= flagged[late].sum() <= 4.0 * RATE * 3, "2 s after each clip: recovering"
         else:
             assert not flagged[late].any()
-    assert err[2.0] < 0.5 * err[0.0], (
+    # measured: 0.45 on this seed, 0.45-0.50 on seeds 1-8; the bound leaves room for simulator changes
+    assert err[2.0] < 0.6 * err[0.0], (
         f"inclination RMSE {err[2.0]:.2f} with the recovery vs {err[0.0]:.2f} without"
     )
 
 
 def test_a_recovery_raises_the_roll_and_pitch_variances() -> None:
     """q_rec = k^2 r / (1 - k) per prediction (k = dt / (recovery_time / 8 + dt), r = r_phi, r_theta per
-    sample): at rest after one clipped sample the roll and pitch variances settle near k r (the gain k)
-    instead of the normal prediction's; the yaw variance is left to the normal prediction."""
+    sample): at rest after one clipped sample the roll and pitch variances are more than three times the
+    normal ones within the recovery, the yaw variance is the normal prediction's, and after it both
+    settle back to the normal ones; the 20 steps of the recovery, and no later one, are flagged."""
     n, spike = 300, 200
     gyr = np.zeros((n, 3), np.float32)
     gyr[spike] = (CLIP, 0.0, 0.0)  # one sample at the full scale, then rest again
@@ -114,7 +117,7 @@ def test_a_recovery_raises_the_roll_and_pitch_variances() -> None:
             for i in (0, 1):
                 assert co.q_rec[i] == pytest.approx(float(k * k / (1 - k) * co.r_step[i]), rel=1e-5)
             flagged = (out["flags"] & INITIALISED) != 0
-            assert flagged[spike : spike + 20].all() and not flagged[spike + 21 :].any(), "0.2 s flagged"
+            assert flagged[spike : spike + 20].all() and not flagged[spike + 20 :].any(), "0.2 s flagged"
     # 15 steps after the spike: within the recovery of 20 steps
     c = native.Filter(FilterKind.EKF, _settings(recovery_time=0.2))
     c.run(gyr[: spike + 15], acc[: spike + 15], check_units=False)

@@ -42,10 +42,12 @@
  *
  * No heap. Stack (Cortex-M4F, -Os): att_persist_node_init 856 bytes (one record image and one
  * att_node_settings_t) plus att_node_init's, att_persist_save and att_persist_poll about 460 (one image of
- * 376 bytes; the read-back is compared 32 bytes at a time). The layout of
+ * 384 bytes; the read-back is compared 32 bytes at a time). The layout of
  * the configuration is part of the record: bump ATT_PERSIST_VERSION when it changes (length catches most
- * changes by itself, e.g. another set of kinds compiled in). Records of version 1 (the calibration alone,
- * one page) are not read: after the update the node starts from the caller's settings.
+ * changes by itself, e.g. another set of kinds compiled in). Records of an earlier version (1: the
+ * calibration alone, one page; 2: the filter settings before mars/mekf declination and ekf recovery_time)
+ * are not read (ATT_PERSIST_SLOT_LAYOUT): after the update the node starts from the caller's settings, so
+ * a calibration saved by older firmware is to be sent again.
  */
 #ifndef ATT_PERSIST_H
 #define ATT_PERSIST_H
@@ -64,7 +66,8 @@ extern "C" {
 #endif
 
 #define ATT_PERSIST_MAGIC 0x43545441u /* "ATTC" in memory order on a little-endian MCU */
-#define ATT_PERSIST_VERSION 2u        /* layout of the record and of att_persist_config_t */
+#define ATT_PERSIST_VERSION 3u        /* layout of the record and of att_persist_config_t (3: the filter
+                                         settings grew, mars/mekf declination and ekf recovery_time) */
 #define ATT_PERSIST_ALIGN 8u          /* flash programming unit the image is padded to (STM32G4: 64 bits) */
 #define ATT_PERSIST_SLOTS 2u          /* flash pages, written in turn */
 #define ATT_PERSIST_NO_SLOT 0xFFu     /* att_persist_boot_t.slot when nothing was loaded */

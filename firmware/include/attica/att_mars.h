@@ -152,8 +152,10 @@ typedef struct {
     float recovery_time;          /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
                                        accel and mag are trusted strongly for this long, s, [0, 1e4]; 0 = off */
     float declination;            /**< magnetic declination, rad, [-pi, pi], east of true north positive: the
-                                       heading alignment puts the field at this azimuth, so yaw is relative
-                                       to true north; 0 = magnetic north (default) */
+                                       heading alignment from the sensors (init_from_sensors) puts the field
+                                       at this azimuth, so yaw is relative to true north; 0 = magnetic north
+                                       (default). Unused without init_from_sensors (q_init and m0_init are
+                                       the caller's frame) */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -268,7 +270,8 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
  * is limited to the new one's length after an alignment (fast_start_n); a recovery under way runs out. A new
  * declination applies from the next heading alignment (reset): the heading and the reference are kept;
- * to apply it at once, turn the heading by the change (att_filter_set_heading). On error f is left
+ * to apply it at once, set the heading to the current one turned by the change: ENU yaw (counter-clockwise)
+ * minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is left
  * unchanged.
  */
 att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings);

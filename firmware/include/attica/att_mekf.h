@@ -186,8 +186,9 @@ typedef struct {
     float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
                                 this long the recovery of step 6, s; [0, 1e4]; 0 = none */
     float declination;     /**< magnetic declination, rad, [-pi, pi], east of true north positive: the yaw
-                                alignment puts the field at this azimuth, so yaw is relative to true north;
-                                0 = magnetic north (default) */
+                                alignment from the sensors (init_from_sensors, use_mag) puts the field at
+                                this azimuth, so yaw is relative to true north; 0 = magnetic north
+                                (default). Unused without init_from_sensors or use_mag */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -293,8 +294,8 @@ att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
  * derived limits recomputed, counters); the new caps apply from the next step. A new declination applies
- * from the next yaw alignment (reset): to apply it at once, turn the heading by the change
- * (att_filter_set_heading). On error f is unchanged.
+ * from the next yaw alignment (reset): to apply it at once, set the heading to the current one turned by
+ * the change: ENU yaw (counter-clockwise) minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is unchanged.
  */
 att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings);
 /** Back to the state right after att_mekf_init, keeping the settings. */

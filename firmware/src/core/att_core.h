@@ -403,7 +403,7 @@ static inline float att_i_recovery_params(float recovery_time, float gyro_range,
 /**
  * The process noise whose steady-state Kalman gain is k for a measurement of noise r (a random walk: the
  * prior k r / (1 - k), its step k^2 r / (1 - k)), at most cap; k = 1 (Inf) gives cap. The Kalman filters'
- * recoveries (att_kf.h, att_mekf.h) add it per prediction.
+ * recoveries (att_kf.h, att_ekf.h, att_mekf.h) add it per prediction.
  */
 static inline float att_i_recovery_q(float k, float r, float cap)
 {
