@@ -128,3 +128,44 @@ def test_a_recovery_raises_the_roll_and_pitch_variances() -> None:
     assert float(pr[11]) == float(po[11]), "yaw's variance: the prediction's alone"
     # after the recovery both settle back to the same variances
     assert p[0.2][0] == pytest.approx(p[0.0][0], rel=0.05) and p[0.2][6] == pytest.approx(p[0.0][6], rel=0.05)
+
+
+def test_f17_p_stays_positive_definite_in_a_recovery() -> None:
+    """F17 (fuzz_filter at 2cbcd63, tests/fuzz/regressions/filter-ekf-P_SPD-recovery.bin): dt 0.5 s, a bias
+    variance of 1e6 (p0_bias = p_max), a gyro sample of FLT_MAX starting a recovery; the next step's
+    update, from the recovery's process noise (k = 2/3 at this dt), left P indefinite in float32 (the
+    conditioning ran only every 16th step). P is now conditioned at every step of a recovery: positive
+    definite after each step here, C and reference bit for bit."""
+    hx = float.fromhex
+    s = replace(
+        EkfSettings(),
+        dt=hx("0x1.01017cp-1"),
+        q_psi=hx("0x1.018104p-7"),
+        gate=hx("0x1.ec73fep-52"),
+        p0_bias=1e6,
+        p_max=1e6,
+        accel_reject=hx("0x1.305c3p-79"),
+        bias_init=(hx("0x1.30303p-79"), 0.0, hx("0x1.78018p-79")),
+    )
+    gyr = np.array([[0.0, 0.0, 0.0], [hx("0x1.fffffep+127"), 0.0, 0.0], [0.0, 0.0, 0.0]], np.float32)
+    acc = np.array(
+        [
+            [-8.0, hx("0x1.fcp+2"), hx("0x1.39d014p+3")],
+            [0.0, 0.0, hx("0x1.39d014p+3")],
+            [0.0, hx("0x1.7dd1ccp-127"), hx("0x1.39d014p+3")],
+        ],
+        np.float32,
+    )
+    c = native.Filter(FilterKind.EKF, s)
+    ref = RefFilter(FilterKind.EKF, s)
+    for i in range(3):
+        out = c.run(gyr[i : i + 1], acc[i : i + 1], check_units=False)
+        r = ref.step(gyr[i], acc[i], None)
+        assert_same_bits(out["euler"], r["euler"], f"step {i + 1}")
+        assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+        p = np.asarray(c.state.u.ekf.st.p[0:21], np.float64)
+        full = np.zeros((6, 6))
+        full[np.triu_indices(6)] = p
+        full = full + np.triu(full, 1).T
+        assert np.linalg.eigvalsh(full).min() > 0.0, f"step {i + 1}: P not positive definite"
+    assert out["flags"][0] & INITIALISED, "the last step is in the recovery"

@@ -191,6 +191,10 @@ FILTER_FINDINGS = {
     "attitude's variances at p_max and P indefinite at step 24 (eigenvalue -4.7e-9), passed by the pivot "
     "test d_j > 2^-16 P_jj (float32 pivots 1.57e-5 and 5.7e-5, the last -5e-6 exact); the test now counts "
     "the rounding after a small pivot, as the ekf's since F15 (tests/test_mekf_f16.py)",
+    "filter-ekf-P_SPD-recovery.bin": "F17 ekf (fuzz_filter at 2cbcd63, the ekf's new recovery): dt 0.5 s, "
+    "p0_bias = p_max = 1e6, a gyro sample of FLT_MAX starting a recovery; the next step's update, from the "
+    "recovery's process noise (k = 2/3), left P indefinite (eigenvalue -4.4e-3) between the every-16-steps "
+    "conditionings; P is now conditioned at every step of a recovery (tests/test_ekf_recovery.py)",
     "filter-tilt-STUCK-harness-range.bin": "F13, the harness's own: a normalising tilt with gravity 1.57 and "
     "accel_range 2.77 (valid: accel_range > gravity) got rest samples of |a| 9.81, beyond its range "
     "(SATURATED, rightly); the good samples now have the kind's gravity",

@@ -655,7 +655,8 @@ class Ekf:
             # roll/pitch block (F12), and at every step without an applied update whose P is usable
             # (att_ekf_check, F15); not after a restart
             now = ~drop_u & (~take_u | _near_singular(p_p))
-            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | now)
+            # and at every step of a recovery (F17: its process noise moves P fast)
+            cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | now | rec)
             r2 = self.gyro_range * self.gyro_range
             rb = np.where(r2 > self.p0_bias, r2, self.p0_bias)
             p_c, changed = _condition(self.p, self.p_max, np.where(rb < self.p_max, rb, self.p_max))

@@ -1058,7 +1058,10 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->initialised = false;
         st->recover = true;
     }
-    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u) {
+    if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u ||
+        st->rec_left > 0u) {
+        /* during a recovery (step 3) too: its process noise moves P fast, and with a large bias variance
+         * the update's rounding can leave it indefinite (F17) */
         /* near gimbal lock F grows as 1 / cos(theta), after a large increment it is far from I, and a
          * near singular roll/pitch block cannot take rounding (F12), and without an update nothing bounds
          * P (att_ekf_check, F15): P is conditioned at once */
