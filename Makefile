@@ -116,8 +116,8 @@ clean:
 # --- robustness: fuzzing, sanitizers, soak (docs/robustness.md) ---------------------------------
 # libFuzzer targets (clang): ASan+UBSan builds and a MemorySanitizer build of each C target; atheris
 # for the host-side parsers. `make fuzz` runs every target FUZZ_TIME seconds (default 600) from the
-# seed corpora (build/fuzz/seeds, made from the test streams) into build/fuzz/corpus; the bounded CI
-# slice is tests/test_fuzz.py.
+# seed corpora (build/fuzz/seeds: made from the test streams, and the kept corpora of the long runs,
+# tests/fuzz/corpus) into build/fuzz/corpus; the bounded CI slice is tests/test_fuzz.py.
 FUZZ_CC ?= clang
 FUZZ_TIME ?= 600
 FUZZ_DIR := build/fuzz

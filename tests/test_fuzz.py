@@ -57,7 +57,8 @@ def _run(
     ["fuzz_can", "fuzz_node", "fuzz_filter", "fuzz_can-msan", "fuzz_node-msan", "fuzz_filter-msan"],
 )
 def test_fuzz_slice(built: Path, exe: str, tmp_path: Path) -> None:
-    """A few seconds of each target from the seeds: no finding outside the known list."""
+    """A few seconds of each target from the seeds (the kept corpora of the long runs among them): no
+    finding outside the known list."""
     target = exe.split("-")[0]
     seconds = SLICE_S if "msan" not in exe else max(SLICE_S // 2, 3)
     r = _run(
@@ -77,10 +78,18 @@ def test_fuzz_slice(built: Path, exe: str, tmp_path: Path) -> None:
     assert runs > 100
 
 
+# inputs of each kept corpus (tests/fuzz/corpus/<target>.tar.xz, the long runs' corpora minimised): at least
+KEPT_MIN = {"fuzz_can": 100, "fuzz_node": 2000, "fuzz_filter": 2000}
+
+
 def test_seeds_pass_every_invariant(built: Path) -> None:
-    """The seed corpora themselves (the test streams) break no invariant, even the strict ones."""
+    """The seed corpora themselves (the test streams, and the kept corpora of the long runs that
+    seeds.py unpacks beside them) break no invariant, even the strict ones: every kept input runs once
+    at the current code."""
     for target in ("fuzz_can", "fuzz_node", "fuzz_filter"):
-        r = _run(built / target, "-runs=0", str(built / "seeds" / target))
+        kept = list((built / "seeds" / target).glob("kept-*"))
+        assert len(kept) >= KEPT_MIN[target], (target, len(kept), "kept corpus missing from the seeds")
+        r = _run(built / target, "-runs=0", str(built / "seeds" / target), timeout=600)
         assert r.returncode == 0, (target, r.stderr[-3000:])
 
 

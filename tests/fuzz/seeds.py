@@ -9,13 +9,18 @@ Each seed is a fuzz input in the target's own format (see the target's header co
 - ``fuzz_filter``: per kind and preset, the simulated stream as raw samples, and one with bad samples
   (NaN, Inf, huge, zero, saturated) in the middle.
 
-Usage: ``python tests/fuzz/seeds.py OUTDIR`` (writes OUTDIR/<target>/seed-*).
+Beside them the kept corpora of the long runs (tests/fuzz/corpus/<target>.tar.xz: the corpus of a long
+run minimised with libFuzzer's ``-merge=1``, the inputs that reach its coverage) are unpacked as
+``kept-<name>``, so the CI slice and ``make fuzz`` start from what the long runs found.
+
+Usage: ``python tests/fuzz/seeds.py OUTDIR`` (writes OUTDIR/<target>/seed-* and kept-*).
 """
 
 from __future__ import annotations
 
 import struct
 import sys
+import tarfile
 from pathlib import Path
 
 import numpy as np
@@ -118,6 +123,26 @@ def filter_seeds(out: Path) -> int:
     return n
 
 
+KEPT = Path(__file__).resolve().parent / "corpus"
+"""The kept corpora, one archive per C target (regular files only, flat)."""
+
+
+def kept_corpus(target: str, out: Path) -> int:
+    """Unpack tests/fuzz/corpus/<target>.tar.xz into ``out`` as kept-<name>; the number of inputs."""
+    archive = KEPT / f"{target}.tar.xz"
+    if not archive.exists():
+        return 0
+    n = 0
+    with tarfile.open(archive, "r:xz") as tf:
+        for member in tf.getmembers():
+            f = tf.extractfile(member) if member.isfile() and "/" not in member.name else None
+            if f is None:
+                raise ValueError(f"{archive}: {member.name!r} is not a flat regular file")
+            (out / f"kept-{member.name}").write_bytes(f.read())
+            n += 1
+    return n
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 2:
         print(__doc__.strip().splitlines()[-1], file=sys.stderr)
@@ -126,7 +151,7 @@ def main(argv: list[str]) -> int:
     for target, make in (("fuzz_can", can_seeds), ("fuzz_node", node_seeds), ("fuzz_filter", filter_seeds)):
         d = root / target
         d.mkdir(parents=True, exist_ok=True)
-        print(f"{target}: {make(d)} seeds in {d}")
+        print(f"{target}: {make(d)} seeds and {kept_corpus(target, d)} kept inputs in {d}")
     return 0
 
 
