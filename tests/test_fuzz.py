@@ -204,6 +204,11 @@ FILTER_FINDINGS = {
     "p0_bias = p_max = 1e6, a gyro sample of FLT_MAX starting a recovery; the next step's update, from the "
     "recovery's process noise (k = 2/3), left P indefinite (eigenvalue -4.4e-3) between the every-16-steps "
     "conditionings; P is now conditioned at every step of a recovery (tests/test_ekf_recovery.py)",
+    "filter-ekf-P_SPD-collapse.bin": "F18 ekf (fuzz_filter at 1bd98f6; 1aadc0f fails too): dt 0.5 s, "
+    "p0_bias = p_max = 1e6, six steps without a usable accel sample drive roll's and pitch's variances to "
+    "p_max through the bias; the second update after them collapses them 1e6 -> 2e-4 and the rounding of "
+    "the bias rows left P indefinite (eigenvalue -1.2e-4); P is now conditioned after an update whose "
+    "prior roll or pitch variance exceeds 2^12 times its noise (tests/test_ekf_f18.py)",
     "filter-tilt-STUCK-harness-range.bin": "F13, the harness's own: a normalising tilt with gravity 1.57 and "
     "accel_range 2.77 (valid: accel_range > gravity) got rest samples of |a| 9.81, beyond its range "
     "(SATURATED, rightly); the good samples now have the kind's gravity",

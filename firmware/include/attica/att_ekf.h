@@ -80,7 +80,9 @@
  *  with a constant sample would fail again at every step; with every conditioning of P (below) the bias
  *  is limited to +-gyro_range per axis (ATT_FLAG_CLAMPED when that acts). Every 16 steps, at every
  *  step of a recovery (step 3; F17: its process noise moves P fast), at every step flagged GIMBAL, at
- *  every step without an applied accel update (nothing else bounds P then), after a roll or pitch increment beyond 1/16 rad, and at a step whose roll/pitch block of P is
+ *  every step without an applied accel update (nothing else bounds P then), after an update whose prior
+ *  roll or pitch variance exceeds 2^12 times its measurement noise (F18: the rounding of the bias rows
+ *  of a collapse that large can leave P indefinite), after a roll or pitch increment beyond 1/16 rad, and at a step whose roll/pitch block of P is
  *  within the margin below of singular (det P2 <= 2^-12 P00 P11: float32 cannot carry a correlation
  *  that close to +-1), P is conditioned: variances
  *  above p_max (the bias variances above min(p_max, max(gyro_range^2, p0_bias)): a bias beyond the

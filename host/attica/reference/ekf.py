@@ -33,6 +33,7 @@ PIO2 = dm.c("0x1.921fb6p+0")
 TWOPI_HI = dm.c("0x1.921fb6p+2")
 TWOPI_LO = dm.c("-0x1.777a5cp-23")
 PIVOT_MIN = dm.c("0x1p-12")
+COLLAPSE = dm.c("0x1p+12")  # ATT_EKF_COLLAPSE: a roll or pitch variance this far above its noise
 SHRINK = dm.c("0x1.ff8p-1")
 QUARTER = dm.c("0x1p-2")
 THIRD = dm.c("0x1.555556p-2")
@@ -445,8 +446,10 @@ class Ekf:
 
     def _update(
         self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...], rec: Any
-    ) -> tuple[Any, Any, Any, tuple[Any, ...]]:
-        """att_ekf_update: (applied, discarded, flags, new state parts) of the update at the current state.
+    ) -> tuple[Any, Any, Any, Any, tuple[Any, ...]]:
+        """att_ekf_update: (applied, discarded, flags, collapse, new state parts) of the update here.
+
+        ``collapse``: P is conditioned after it when applied (a prior variance far above its noise, F18).
 
         ``discarded``: computed but not usable (C updates P in place: P restarts, att_ekf_p_restart).
 
@@ -499,6 +502,8 @@ class Ekf:
             fa = dm.ONE + self.r_accel * e2
             r1 = self.r_step[1] * fa
             r0 = (self.r_step[0] * fa) * (sec * sec)
+            # a prior variance 2^12 times its noise collapses in this update: P conditioned after it (F18)
+            collapse = (p[0] > COLLAPSE * r0) | (p[6] > COLLAPSE * r1)
             pp = p[0] * p[6]
             dp = pp - p[1] * p[1]
             dp = np.where(dp > dm.ZERO, dp, dm.ZERO).astype(np.float32)
@@ -567,6 +572,7 @@ class Ekf:
             applied,
             discarded,
             flags,
+            collapse,
             (
                 e,
                 bias,
@@ -626,7 +632,7 @@ class Ekf:
             from_init = (b[0] == bi[0]) & (b[1] == bi[1]) & (b[2] == bi[2])
             self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
-            applied, discarded, fl_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
+            applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig, rec
             )
             flags = flags | np.where(measure, fl_u, _U0)
@@ -654,7 +660,7 @@ class Ekf:
             # conditioned now: after an applied update whose prior (the predicted P) has a near singular
             # roll/pitch block (F12), and at every step without an applied update whose P is usable
             # (att_ekf_check, F15); not after a restart
-            now = ~drop_u & (~take_u | _near_singular(p_p))
+            now = ~drop_u & (~take_u | _near_singular(p_p) | collapse_u)
             # and at every step of a recovery (F17: its process noise moves P fast)
             cond = run & (((self.steps & COND_MASK) == _U0) | gimbal | big_p | now | rec)
             r2 = self.gyro_range * self.gyro_range

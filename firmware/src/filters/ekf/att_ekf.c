@@ -18,6 +18,7 @@
 
 #define ATT_EKF_PI_F 0x1.921fb6p+1f
 #define ATT_EKF_PIVOT_MIN 0x1p-12f           /* relative pivot margin of the positive definiteness test */
+#define ATT_EKF_COLLAPSE 0x1p+12f            /* a roll or pitch variance this far above its noise: P conditioned */
 #define ATT_EKF_SHRINK 0x1.ff8p-1f           /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_EKF_SETTLED 0x1.47ae14p-7f       /* (0.1 rad)^2: the tilt error (sin^2) that ends the convergence phase */
 #define ATT_EKF_BIAS_SOFT 0x1p-4f /* full bias gain up to a raw d^2 of 1/16, then (1/16) / d^2 */
@@ -890,6 +891,12 @@ static ATT_NOINLINE uint32_t att_ekf_update(const att_ekf_coeffs_t *c, att_ekf_s
     fa = 1.0f + c->r_accel * e2;
     r1 = c->r_step[1] * fa;
     r0 = (c->r_step[0] * fa) * (sec * sec);
+    /* a prior roll or pitch variance more than 2^12 times its measurement noise collapses by that factor
+     * in this update, and the rounding of the bias rows (P - K H P) can leave P indefinite (F18: 1e6
+     * against 2e-4 with a bias variance of 1e6): P conditioned after the update */
+    if (P_(p, 0, 0) > ATT_EKF_COLLAPSE * r0 || P_(p, 1, 1) > ATT_EKF_COLLAPSE * r1) {
+        cond = ATT_EKF_COND_NOW;
+    }
     /* det S = det P2 + r1 P00 + r0 P11 + r0 r1 (P2 = P[0:2,0:2], det P2 >= 0): > 0 by construction.
      * det P2 within the pivot margin of singular (F12: P00 P11 - P01^2 not above 2^-12 P00 P11, a
      * correlation of roll and pitch beyond 1 - 2^-13 in magnitude, or not finite): P conditioned after
