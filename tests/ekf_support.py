@@ -8,10 +8,12 @@ from typing import Any
 
 import numpy as np
 
+from attica import native
 from attica.native import ffi, lib
 from attica.reference import detmath as dm
 from attica.reference._common import c_state_values, state_values
 from attica.reference.ekf import Ekf, EkfSettings
+from attica.reference.filter import Filter as RefFilter
 from attica.settings import FilterKind, Preset, preset_settings
 
 from helpers import adversarial_floats, assert_same_bits, same_bits
@@ -431,3 +433,35 @@ def adversarial_inputs(m: int, steps: int, seed: int) -> tuple[np.ndarray, np.nd
     acc[(sel >= 0.08) & (sel < 0.09)] = [0.0, 0.0, 1.5 * G]  # rejected norm
     acc[(sel >= 0.09) & (sel < 0.10)] = [1e4, 0.0, 0.0]  # the largest range of the contract
     return gyr, acc
+
+
+def replay_positive_definite(s: EkfSettings, gyr: np.ndarray, acc: np.ndarray) -> dict[str, np.ndarray]:
+    """Replay a fuzz finding's steps one by one through the C filter and the reference.
+
+    After every step the Euler angles and the whole state must match bit for bit and the C filter's P
+    must be positive definite (its least eigenvalue, in float64, above 0).
+
+    Parameters
+    ----------
+    s : EkfSettings
+        The finding's settings.
+    gyr, acc : np.ndarray
+        (n, 3) float32 samples, rad/s and m/s^2, sensor frame; no magnetometer.
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        The C filter's outputs of the last step.
+    """
+    c = native.Filter(FilterKind.EKF, s)
+    ref = RefFilter(FilterKind.EKF, s)
+    out: dict[str, np.ndarray] = {}
+    for i in range(len(gyr)):
+        out = c.run(gyr[i : i + 1], acc[i : i + 1], check_units=False)
+        r = ref.step(gyr[i], acc[i], None)
+        assert_same_bits(out["euler"], r["euler"], f"step {i + 1}")
+        assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+        p = np.asarray(c.state.u.ekf.st.p[0:21], np.float64)
+        least = float(np.linalg.eigvalsh(p[IX6]).min())
+        assert least > 0.0, f"step {i + 1}: P not positive definite (least eigenvalue {least:.3g})"
+    return out

@@ -8,11 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from attica import native
-from attica.reference.filter import Filter as RefFilter
-from attica.settings import EkfSettings, FilterKind
+from attica.settings import EkfSettings
 
-from helpers import assert_same_bits
+from ekf_support import replay_positive_definite
 
 NAN = math.nan
 
@@ -65,15 +63,4 @@ def test_f18_p_stays_positive_definite_when_a_variance_collapses() -> None:
         ],
         np.float32,
     )
-    c = native.Filter(FilterKind.EKF, s)
-    ref = RefFilter(FilterKind.EKF, s)
-    for i in range(len(gyr)):
-        out = c.run(gyr[i : i + 1], acc[i : i + 1], check_units=False)
-        r = ref.step(gyr[i], acc[i], None)
-        assert_same_bits(out["euler"], r["euler"], f"step {i + 1}")
-        assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
-        p = np.asarray(c.state.u.ekf.st.p[0:21], np.float64)
-        full = np.zeros((6, 6))
-        full[np.triu_indices(6)] = p
-        full = full + np.triu(full, 1).T
-        assert np.linalg.eigvalsh(full).min() > 0.0, f"step {i + 1}: P not positive definite"
+    replay_positive_definite(s, gyr, acc)
