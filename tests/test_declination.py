@@ -178,3 +178,65 @@ def test_a_retune_of_the_declination_keeps_the_heading(kind: FilterKind) -> None
     q_reset = c.run_q(rec.gyr, rec.acc, rec.mag)
     q_fresh = native.Filter(kind, s2).run_q(rec.gyr, rec.acc, rec.mag)
     assert q_reset.tobytes() == q_fresh.tobytes(), "after a reset the new declination applies"
+
+
+def _node_run(kind: FilterKind, rec: Any, cmds: dict[int, float | None], **settings: Any) -> Any:
+    """A node of ``kind`` fed ``rec``; before sample i it gets SET_GAIN DECLINATION cmds[i] (None: RESET).
+
+    Returns the decoded output sets and the answers.
+    """
+    from attica.can import codec as c
+
+    node = c.Node(kind.label, sample_rate=RATE, bitrate=1_000_000, **settings)
+    samples = c.encode_imu(rec.gyr, rec.acc, rec.mag)
+    parts = []
+    start = 0
+    for j, (i, v) in enumerate(sorted(cmds.items())):
+        parts.append(samples[start * 3 : i * 3])
+        if v is None:
+            parts.append(c.encode_cmd(c.Cmd.RESET, counter=j + 1))
+        else:
+            parts.append(c.encode_cmd(c.Cmd.SET_GAIN, c.Gain.DECLINATION, v, counter=j + 1))
+        start = i
+    parts.append(samples[start * 3 :])
+    out, _ = node.run(np.concatenate(parts))
+    return c.decode_outputs(out), node
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_declination_over_can(kind: FilterKind) -> None:
+    """The node's SET_GAIN 5 (ATT_CAN_GAIN_DECLINATION; docs/can.md) writes the kind's declination.
+
+    Sent before the first sample the node starts on true north: its outputs are those of a node built
+    with the declination, bit for bit. Sent to a running node it keeps the heading (the outputs those of
+    the node without it) until a RESET, after which they are those of a node built with it that was
+    reset at the same sample. Out of range or NaN: refused, nothing changed.
+    """
+    from attica.can import codec as c
+
+    d = 0.4
+    rec = _rec(3, d, 30.0)
+    built, _ = _node_run(kind, rec, {}, declination=d)
+    plain, _ = _node_run(kind, rec, {})
+    yaw_err = np.degrees(np.abs(built.sets["euler"][-1, 2] - plain.sets["euler"][-1, 2]))
+    assert abs(yaw_err - np.degrees(d)) < 1.0, f"the declination turns the heading: {yaw_err:.2f} deg"
+
+    early, node = _node_run(kind, rec, {0: d})
+    assert [a.result for a in early.answers] == [c.Ack.OK]
+    assert getattr(node.state.fs, kind.label).declination == np.float32(d)
+    assert early.sets.tobytes() == built.sets.tobytes(), "sent before the first sample: as if built with it"
+
+    late, _ = _node_run(kind, rec, {1000: d, 2000: None})
+    reset_plain, _ = _node_run(kind, rec, {2000: None})
+    reset_built, _ = _node_run(kind, rec, {2000: None}, declination=d)
+    assert [a.result for a in late.answers] == [c.Ack.OK, c.Ack.OK]
+    steps = late.sets["steps"].astype(np.int64)
+    n_before = int(np.nonzero(np.diff(steps) < 0)[0][0]) + 1  # the sets before the reset's restart of steps
+    assert n_before > 900, n_before
+    assert late.sets[:n_before].tobytes() == reset_plain.sets[:n_before].tobytes(), "the heading is kept"
+    assert late.sets[n_before:].tobytes() == reset_built.sets[n_before:].tobytes(), "RESET applies it"
+
+    for bad in (3.1416, -4.0, math.nan, math.inf):
+        refused, node = _node_run(kind, _rec(3, d, 1.0), {10: bad})
+        assert [a.result for a in refused.answers] == [c.Ack.REFUSED], bad
+        assert getattr(node.state.fs, kind.label).declination == 0.0

@@ -385,7 +385,13 @@ def test_command_and_answer_codes() -> None:
     )
 
 
-_VALUES = {c.Gain.TAU_ACC: (0.5, 0.0), c.Gain.TAU_MAG: (4.0, 0.0), c.Gain.KF_R: (2.5,), c.Gain.EKF_R: (2.0,)}
+_VALUES = {
+    c.Gain.TAU_ACC: (0.5, 0.0),
+    c.Gain.TAU_MAG: (4.0, 0.0),
+    c.Gain.KF_R: (2.5,),
+    c.Gain.EKF_R: (2.0,),
+    c.Gain.DECLINATION: (0.3, -2.5),
+}
 """The values each SET_GAIN parameter is sent with (a time constant also 0: the full correction)."""
 
 

@@ -211,7 +211,13 @@ def test_heading(k: KindInfo, settings: Any, imu: Any) -> None:
 @pytest.mark.parametrize("gain", list(c.Gain), ids=lambda g: g.name)
 def test_can_gains(k: KindInfo, gain: c.Gain) -> None:
     """The node takes a SET_GAIN of the kind's gains (OK) and no other (BAD_ARG, nothing changed)."""
-    value = {c.Gain.TAU_ACC: 0.5, c.Gain.TAU_MAG: 4.0, c.Gain.KF_R: 2.5, c.Gain.EKF_R: 2.0}[gain]
+    value = {
+        c.Gain.TAU_ACC: 0.5,
+        c.Gain.TAU_MAG: 4.0,
+        c.Gain.KF_R: 2.5,
+        c.Gain.EKF_R: 2.0,
+        c.Gain.DECLINATION: 0.3,
+    }[gain]
     node = c.Node(k.label, sample_rate=RATE)
     still = np.zeros((5, 3), np.float32)
     node.run(c.encode_imu(still, still + np.float32([0.0, 0.0, 9.8]), still + np.float32([20.0, 0.0, -40.0])))

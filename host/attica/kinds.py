@@ -238,7 +238,7 @@ KINDS: tuple[KindInfo, ...] = (
         gyro_bias=True,
         covariance=False,
         heading_mode=Heading.SET,
-        gain_names=("TAU_ACC", "TAU_MAG"),
+        gain_names=("TAU_ACC", "TAU_MAG", "DECLINATION"),
         gain_time_constants=(("alpha_acc", "tau_acc"), ("alpha_mag", "tau_mag")),
     ),
     KindInfo(
@@ -299,6 +299,7 @@ KINDS: tuple[KindInfo, ...] = (
         heading_mode=Heading.SET,
         mag_switch="use_mag",
         heading_no_mag=Heading.UPDATE,
+        gain_names=("DECLINATION",),
     ),
 )
 """Every kind, in the order of their values (the order of the C table)."""

@@ -76,6 +76,8 @@ enum {
     ATT_CAN_GAIN_TAU_MAG = 2,      /**< mag correction time constant: mars.tau_mag (s) */
     ATT_CAN_GAIN_KF_R = 3,         /**< KF measurement noise r_noise */
     ATT_CAN_GAIN_EKF_R = 4,        /**< EKF measurement noise r_phi and r_theta */
+    ATT_CAN_GAIN_DECLINATION = 5,  /**< magnetic declination: mars.declination, mekf.declination (rad); from
+                                        the next heading alignment (RESET applies it at once) */
     ATT_CAN_ACK_ANSWER = 0x80,     /**< ATT_STATUS.ack bit 7: this STATUS answers a command */
     ATT_CAN_ACK_OK = 0,            /**< ack result (bits 4..6): done */
     ATT_CAN_ACK_UNKNOWN_CMD = 1,   /**< ack result: unknown command code */

@@ -55,7 +55,8 @@ typedef enum {
     ATT_GAIN_TAU_ACC = 1, /**< accel correction time constant, s (the per-sample gain follows) */
     ATT_GAIN_TAU_MAG = 2, /**< mag correction time constant, s */
     ATT_GAIN_KF_R = 3,    /**< KF measurement noise */
-    ATT_GAIN_EKF_R = 4    /**< EKF measurement noise of roll and pitch */
+    ATT_GAIN_EKF_R = 4,   /**< EKF measurement noise of roll and pitch */
+    ATT_GAIN_DECLINATION = 5 /**< magnetic declination, rad, east of true north positive (mars, mekf) */
 } att_gain_t;
 
 /**

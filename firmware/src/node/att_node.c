@@ -27,7 +27,8 @@
 typedef char att_node_check_gains[((int)ATT_GAIN_TAU_ACC == (int)ATT_CAN_GAIN_TAU_ACC &&
                                    (int)ATT_GAIN_TAU_MAG == (int)ATT_CAN_GAIN_TAU_MAG &&
                                    (int)ATT_GAIN_KF_R == (int)ATT_CAN_GAIN_KF_R &&
-                                   (int)ATT_GAIN_EKF_R == (int)ATT_CAN_GAIN_EKF_R)
+                                   (int)ATT_GAIN_EKF_R == (int)ATT_CAN_GAIN_EKF_R &&
+                                   (int)ATT_GAIN_DECLINATION == (int)ATT_CAN_GAIN_DECLINATION)
                                       ? 1
                                       : -1];
 
@@ -620,19 +621,11 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
     return (uint8_t)ATT_CAN_ACK_OK;
 }
 
-/**
- * Retune the live filter to new settings without losing its state. fresh_new and fresh_old are filters
- * just initialised with the new and the current settings: the bytes in which they differ are exactly
- * those that depend on the changed settings at init (the settings copy and the gains derived from it,
- * e.g. ars.k, mars.k_acc, kf.r_step); they are taken from fresh_new. Everything else (attitude, bias,
- * covariance, counters...) stays. Valid for parameters that only set constant derived gains, not the
- * state after reset (true for every ATT_CAN_GAIN_*); tests/test_node.py checks it against the
- * reference for every kind.
- */
 /*
  * A new gain for the running filter, keeping its state (att_filter_retune). A time constant set here
  * replaces the kind's per-sample gain (set to 0 for tau > 0, to 1, the full correction, for tau = 0),
- * since a filter accepts only one of the two.
+ * since a filter accepts only one of the two. A declination, like a retune's, applies from the next
+ * heading alignment: the heading is kept until a RESET (docs/can.md).
  */
 static uint8_t att_node_set_gain(att_node_t *n, uint8_t param, float value)
 {

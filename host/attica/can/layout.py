@@ -99,6 +99,7 @@ class Gain(enum.IntEnum):
     TAU_MAG = 2
     KF_R = 3
     EKF_R = 4
+    DECLINATION = 5
 
 
 class Ack(enum.IntEnum):

@@ -1503,7 +1503,7 @@ struct att_can_db_cmd_t {
     uint8_t cmd;
 
     /**
-     * select: filter kind; set gain: 1 accel time constant tau (ars.tau, mars.tau_acc), 2 mag time constant (mars.tau_mag), 3 KF r_noise, 4 EKF r (r_phi and r_theta).
+     * select: filter kind; set gain: 1 accel time constant tau (ars.tau, mars.tau_acc), 2 mag time constant (mars.tau_mag), 3 KF r_noise, 4 EKF r (r_phi and r_theta), 5 magnetic declination (mars.declination, mekf.declination; from the next heading alignment, RESET applies it at once).
      *
      * Range: 0..255 (0..255 -)
      * Scale: 1
@@ -1512,7 +1512,7 @@ struct att_can_db_cmd_t {
     uint8_t arg;
 
     /**
-     * set gain: the new value (float32, s or variance); set field: the field's value (float32; integer fields as exact integers).
+     * set gain: the new value (float32, s, variance or rad); set field: the field's value (float32; integer fields as exact integers).
      *
      * Range: -
      * Scale: 1

@@ -877,5 +877,9 @@ bool att_mars_set_gain(att_mars_settings_t *s, att_gain_t gain, float value)
         s->alpha_mag = att_i_gain_for_tau(value);
         return true;
     }
+    if (gain == ATT_GAIN_DECLINATION) {
+        s->declination = value;
+        return true;
+    }
     return false;
 }

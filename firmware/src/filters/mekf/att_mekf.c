@@ -1231,8 +1231,9 @@ att_status_t att_mekf_yaw_to(att_mekf_t *f, float target, float gain)
 
 bool att_mekf_set_gain(att_mekf_settings_t *s, att_gain_t gain, float value)
 {
-    (void)s;
-    (void)gain;
-    (void)value;
-    return false; /* no CAN gain command for mekf yet (the DBC's SET_GAIN parameters: docs/can.md) */
+    if (gain == ATT_GAIN_DECLINATION) {
+        s->declination = value; /* the only SET_GAIN parameter of mekf (docs/can.md) */
+        return true;
+    }
+    return false;
 }
