@@ -30,7 +30,7 @@ from attica.sim import SimConfig, simulate
 
 from helpers import ROOT, need
 
-RUN_KINDS = ("ars", "kf", "ekf", "mekf")
+RUN_KINDS = ("ars", "kf", "ekf", "mekf", "gyro")
 """One kind per covariance layout: none, quaternion, Euler angles, earth-frame rotation vector."""
 
 T0 = 1_700_000_000.25
@@ -99,7 +99,8 @@ def test_csv_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind: 
         np.testing.assert_array_equal(col[name].astype(np.float32), ref["euler"][:, i])
     for i, axis in enumerate("xyz"):
         np.testing.assert_array_equal(col[f"gyro_bias_{axis}"].astype(np.float32), ref["gyro_bias"][:, i])
-    cov_names = export.COVARIANCE[info(kind).kind].columns if kind != "ars" else ()
+    cov = export.COVARIANCE.get(info(kind).kind)
+    cov_names = cov.columns if cov is not None else ()
     assert [c for c in columns if c.startswith("var_")] == list(cov_names)
     for i, name in enumerate(cov_names):
         np.testing.assert_array_equal(col[name].astype(np.float32), ref["cov"][:, i])
@@ -152,21 +153,23 @@ def test_mcap_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind:
     # covariance layout: 3x3 row-major rad^2, the kind's diagonal; -1 = no estimate / no value
     cov = np.array([m.orientation_covariance for m in imu])
     no_estimate = (ref["flags"] & export.OUTPUT_INVALID) != 0
-    assert no_estimate[:3].all() and not no_estimate[3:].any()
-    np.testing.assert_array_equal(cov[no_estimate], np.tile([-1.0] + [0.0] * 8, (3, 1)))
+    waits = 3 if kind != "gyro" else 0  # the gyro baseline needs no accel sample to start
+    assert no_estimate[:waits].all() and not no_estimate[waits:].any()
+    np.testing.assert_array_equal(cov[no_estimate], np.tile([-1.0] + [0.0] * 8, (waits, 1)))
     est = cov[~no_estimate].reshape(-1, 3, 3)
     off = ~np.eye(3, dtype=bool)
     assert (est[:, off] == 0.0).all()
     c = ref["cov"][~no_estimate].astype(np.float64)
     diag = np.diagonal(est, axis1=1, axis2=2)
     expected = {
-        "ars": np.zeros((len(c), 3)),  # no covariance: all zeros, "unknown"
+        "ars": c[:, :3],  # the model's tilt, tilt, heading
+        "gyro": np.zeros((len(c), 3)),  # no covariance: all zeros, "unknown"
         "kf": np.repeat(4.0 * c.mean(axis=1)[:, None], 3, axis=1),  # P = p I on q: 4 p rad^2
         "ekf": c[:, :3],  # roll, pitch, yaw
         "mekf": c[:, :3],  # earth-frame rotation vector
     }[kind]
     np.testing.assert_array_equal(diag, expected)
-    if kind != "ars":
+    if kind != "gyro":
         assert (diag > 0.0).all()
     gyr_cov = np.array([m.angular_velocity_covariance for m in imu])
     assert gyr_cov[10, 0] == -1.0 and not gyr_cov[np.arange(n) != 10].any()
@@ -228,7 +231,7 @@ def test_csv_of_a_simulation_counts_from_zero(tmp_path: Path) -> None:
     path = tmp_path / "sim.csv"
     assert main(["run", "--filter", "mars", "--duration", "2", "-q", "-o", str(path)]) == 0
     comments, columns, table = _read_csv(path)
-    assert "var_att_e" not in columns and any("from the first sample" in c for c in comments)
+    assert "var_att_e" in columns and any("from the first sample" in c for c in comments)  # mars's model
     rate = SimConfig().rate
     np.testing.assert_allclose(table[:, 0], np.arange(len(table)) / rate, atol=5e-10, rtol=0)
 

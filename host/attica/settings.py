@@ -85,6 +85,8 @@ class ArsSettings:
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))
     tau_acc_lp: float = 1.5
     recovery_time: float = 2.0
+    gyro_noise: float = 0.002
+    accel_noise: float = 0.24
 
 
 @dataclass(frozen=True)
@@ -179,6 +181,9 @@ class MarsSettings:
     tau_bias_mag: float = 0.0
     recovery_time: float = 2.0
     declination: float = 0.0
+    gyro_noise: float = 0.002
+    accel_noise: float = 0.24
+    mag_noise: float = 3.5
 
 
 @dataclass(frozen=True)

@@ -176,13 +176,15 @@ static const field_t f_mekf[] = {
  * first tier (the *_X_TIER1 first ones: mars's and mekf's declination, ekf's recovery, added after the
  * reproducers of F14 (mars, 0xd3) and of an ekf finding (0xff) were found with bit 7 set) are reached
  * only with the kind byte's top bits 101 (FZ_EXT2), so those reproducers too decode as when found.
+ * ars's covariance model (gyro_noise, accel_noise) and mars's are in that second tier.
  */
 static const field_t f_ars_x[] = {
-    FF(ars, recovery_time, T_F32),
+    FF(ars, recovery_time, T_F32), FF(ars, gyro_noise, T_F32), FF(ars, accel_noise, T_F32),
 };
 static const field_t f_mars_x[] = {
     FF(mars, mag_ref_tau, T_F32), FF(mars, mag_new_time, T_F32), FF(mars, tau_mag_fast, T_F32),
     FF(mars, tau_bias_mag, T_F32), FF(mars, recovery_time, T_F32), FF(mars, declination, T_F32),
+    FF(mars, gyro_noise, T_F32), FF(mars, accel_noise, T_F32), FF(mars, mag_noise, T_F32),
 };
 #define FZ_MARS_X_TIER1 5u
 static const field_t f_kf_x[] = {

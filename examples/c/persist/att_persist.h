@@ -45,7 +45,8 @@
  * 384 bytes; the read-back is compared 32 bytes at a time). The layout of
  * the configuration is part of the record: bump ATT_PERSIST_VERSION when it changes (length catches most
  * changes by itself, e.g. another set of kinds compiled in). Records of an earlier version (1: the
- * calibration alone, one page; 2: the filter settings before mars/mekf declination and ekf recovery_time)
+ * calibration alone, one page; 2: the filter settings before mars/mekf declination and ekf recovery_time;
+ * 3: before ars's and mars's covariance settings)
  * are not read (ATT_PERSIST_SLOT_LAYOUT): after the update the node starts from the caller's settings, so
  * a calibration saved by older firmware is to be sent again.
  */
@@ -66,8 +67,9 @@ extern "C" {
 #endif
 
 #define ATT_PERSIST_MAGIC 0x43545441u /* "ATTC" in memory order on a little-endian MCU */
-#define ATT_PERSIST_VERSION 3u        /* layout of the record and of att_persist_config_t (3: the filter
-                                         settings grew, mars/mekf declination and ekf recovery_time) */
+#define ATT_PERSIST_VERSION 4u        /* layout of the record and of att_persist_config_t (3: the filter
+                                         settings grew, mars/mekf declination and ekf recovery_time; 4: ars's
+                                         and mars's covariance model) */
 #define ATT_PERSIST_ALIGN 8u          /* flash programming unit the image is padded to (STM32G4: 64 bits) */
 #define ATT_PERSIST_SLOTS 2u          /* flash pages, written in turn */
 #define ATT_PERSIST_NO_SLOT 0xFFu     /* att_persist_boot_t.slot when nothing was loaded */

@@ -34,6 +34,15 @@
  *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
  *     (the attitude and low-pass states are then kept from before the step): no state can become
  *     NaN or Inf, since samples are bounded by the (finite) ranges.
+ *  5. Covariance (att_filter_output's cov, on request; docs/filters.md): a documented model of the
+ *     fixed-gain correction with white gyro noise (gyro_noise) and a white disturbance of the specific
+ *     force (accel_noise: the sensor's noise and the motion's linear acceleration). cov[0], cov[1]: the
+ *     tilt error variance about the earth's x and y axes, the steady state of the correction's gains
+ *     plus gyro_noise^2 dt per step since the last accepted correction (rejected or missing samples
+ *     raise it); during a recovery the gains of the recovery plus pi^2/48 (a +-45 deg error) fading
+ *     over it; at most pi^2/12. cov[2]: the heading variance about the earth's z, pi^2/3 (unknown: the
+ *     yaw starts at 0) until att_filter_set_heading, then gyro_noise^2 dt per step since, at most
+ *     pi^2/3 (a heading update of gain < 1 leaves it). cov[3] = 0. Units rad^2.
  *
  * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
  */
@@ -85,6 +94,9 @@ typedef struct {
     float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     float recovery_time;           /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
                                         the accel is trusted strongly for this long, s, [0, 1e4]; 0 = off */
+    float gyro_noise;              /**< covariance model: gyro white noise density, rad/s/sqrt(Hz), [0, 1] */
+    float accel_noise;             /**< covariance model: density of the specific force's disturbance (noise
+                                        and linear acceleration), m/s^2/sqrt(Hz), [0, 1e3] */
 } att_ars_settings_t;
 
 /** Coefficients derived from the settings by att_ars_init: what a step needs, and the reset values. */
@@ -110,6 +122,9 @@ typedef struct {
     float k_lp_rec;           /**< per-sample gain of the accel low-pass stages during a recovery */
     float k_rec;              /**< per-sample accel correction gain during a recovery */
     uint32_t rec_n;           /**< samples of a recovery (0 = none) */
+    float var_step;           /**< covariance: gyro_noise^2 dt, the variance a step adds, rad^2 */
+    float var_tilt;           /**< covariance: steady-state tilt variance of the correction, rad^2 */
+    float var_tilt_rec;       /**< covariance: the same with the recovery's gains, rad^2 */
 } att_ars_coeffs_t;
 
 /** Dynamic state of an ARS instance. */
@@ -123,7 +138,10 @@ typedef struct {
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t acc_step;     /**< steps before the step of the last accepted accel correction (or the start): covariance */
+    uint32_t head_step;    /**< steps at the last att_filter_set_heading: covariance */
     bool initialised;      /**< q holds a valid attitude */
+    bool head_known;       /**< a heading was set (att_filter_set_heading): covariance */
 } att_ars_state_t;
 
 /** One complementary ARS instance (no heap; copy freely): coefficients and state, no settings copy. */

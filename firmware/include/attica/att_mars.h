@@ -60,6 +60,13 @@
  *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
  *     starts the fast heading phase of an alignment (the tilt is still settling).
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
+ *  5. Covariance (att_filter_output's cov, on request; docs/filters.md): the model of att_ars.h (step 5)
+ *     for the tilt (accel gain k_acc, its low-pass, the recovery's gains), cov[0] and cov[1]; for the
+ *     heading, cov[2], the first-order model of the mag correction's gain (k_mag; k_fast in the fast
+ *     phase, k_rec in a recovery) with the heading noise density mag_noise / |m0_xy| (a weak horizontal
+ *     field gives a noisy heading), plus gyro_noise^2 dt per step since the last accepted mag sample or
+ *     the alignment, at most pi^2/3; pi^2/3 (unknown) before the reference field is known. The model
+ *     treats the full mag mode's correction as a heading correction. cov[3] = 0. Units rad^2.
  *  When the direction to correct is exactly opposite to the reference (cross product too small to
  *  normalise), a fixed axis perpendicular to the reference is used: accel: x = (1, 0, 0); full mag:
  *  the horizontal unit vector perpendicular to m0 (x when m0 is vertical).
@@ -156,6 +163,11 @@ typedef struct {
                                        at this azimuth, so yaw is relative to true north; 0 = magnetic north
                                        (default). Unused without init_from_sensors (q_init and m0_init are
                                        the caller's frame) */
+    float gyro_noise;             /**< covariance model: gyro white noise density, rad/s/sqrt(Hz), [0, 1] */
+    float accel_noise;            /**< covariance model: density of the specific force's disturbance (noise
+                                       and linear acceleration), m/s^2/sqrt(Hz), [0, 1e3] */
+    float mag_noise;              /**< covariance model: density of the field's disturbance, uT/sqrt(Hz),
+                                       [0, 1e3] */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -203,6 +215,11 @@ typedef struct {
     float decl;              /**< declination D, rad (east of true north positive) */
     float decl_sin;          /**< sin D: the east part of the reference's horizontal unit direction */
     float decl_cos;          /**< cos D: its north part */
+    float var_step;          /**< covariance: gyro_noise^2 dt, the variance a step adds, rad^2 */
+    float var_tilt;          /**< covariance: steady-state tilt variance of the accel correction, rad^2 */
+    float var_tilt_rec;      /**< covariance: the same with the recovery's low-pass gain, rad^2 */
+    float gyro_noise2;       /**< covariance: gyro_noise^2, (rad/s)^2/Hz */
+    float mag_noise2;        /**< covariance: mag_noise^2, uT^2/Hz */
 } att_mars_coeffs_t;
 
 /** Dynamic state of a 9-axis filter instance. */
@@ -234,6 +251,8 @@ typedef struct {
     uint32_t cand_n;       /**< consecutive steady blocks of the candidate (0 = none) */
     uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */
+    uint32_t mag_step;     /**< steps before the step of the last accepted mag sample or alignment: covariance */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
     bool initialised;      /**< q holds a valid attitude */

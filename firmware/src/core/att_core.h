@@ -411,6 +411,67 @@ static inline float att_i_recovery_q(float k, float r, float cap)
     return (q < cap) ? q : cap;
 }
 
+/*
+ * The orientation covariance of the complementary filters (ars, mars; docs/filters.md "Covariance"),
+ * a documented model, computed when the output is asked for. With s2 = gyro_noise^2 ((rad/s)^2/Hz), dt
+ * the sample period and a2 the noise density^2 of the corrected angle (rad^2/Hz: (accel_noise / g)^2
+ * for the tilt, (mag_noise / |m0_xy|)^2 for the heading), a correction of per-sample gain k alone (no
+ * low-pass) is a first-order filter of the angle error: its steady-state variance is exactly
+ * ((1 - k)^2 s2 dt + k^2 a2 / dt) / (k (2 - k)). Two low-pass stages of time constant tl followed by a
+ * correction of time constant tc (0: the full alignment) are, in continuous time, the error e and the
+ * stages l1, l2 (their angles in the filter's earth frame, turned by every correction):
+ * de = -l2 / tc dt + dW_gyro, dl1 = ((e - l1) / tl - l2 / tc) dt + dW_acc / tl, dl2 = ((l1 - l2) / tl -
+ * l2 / tc) dt. The steady state of that Lyapunov equation gives var(e) = (a2 (2 tc + tl) + s2 (2 tc^3 +
+ * 12 tc^2 tl + 14 tc tl^2 + 5 tl^3)) / (4 (tc + tl)^2) (tc = 0: 5/4 s2 tl + a2 / (4 tl)), with tl =
+ * dt (1 - k_lp) / k_lp and tc = dt (1 - k) / k. Since the last accepted correction each step adds s2 dt
+ * (the gyro's random walk).
+ */
+#define ATT_COV_UNKNOWN 0x1.a51a66p+1f  /* pi^2 / 3, rad^2: an angle uniform on the circle (heading unknown) */
+#define ATT_COV_TILT_MAX 0x1.a51a66p-1f /* pi^2 / 12, rad^2: a tilt uniform within +-90 deg */
+#define ATT_COV_CLIP 0x1.a51a66p-3f     /* pi^2 / 48, rad^2: uniform within +-45 deg, after a clipping gyro */
+
+/* The steady-state variance of a first-order correction of per-sample gain k in (0, 1] (above), rad^2. */
+static inline float att_i_cov_first(float dt, float k, float s2, float a2)
+{
+    const float k1 = 1.0f - k;
+    return (k1 * k1 * (s2 * dt) + k * k * (a2 / dt)) / (k * (2.0f - k));
+}
+
+/*
+ * The steady-state tilt variance of the accel correction (above), rad^2: low-pass stages of per-sample
+ * gain k_lp in (0, 1) (0: none), then the correction of per-sample gain k in (0, 1]. tc is at most
+ * ATT_COV_TC_MAX (a gain of 1e-30 would overflow the cubes; the variance is then capped anyway).
+ */
+#define ATT_COV_TC_MAX 1000000.0f /* s */
+static inline float att_i_cov_tilt(float dt, float k_lp, float k, float s2, float a2)
+{
+    float tl;
+    float tc = 0.0f;
+    float t;
+    float g;
+    if (!(k_lp > 0.0f && k_lp < 1.0f)) {
+        return att_i_cov_first(dt, k, s2, a2);
+    }
+    tl = dt * (1.0f - k_lp) / k_lp;
+    if (k < 1.0f) {
+        tc = dt * (1.0f - k) / k;
+        tc = (tc < ATT_COV_TC_MAX) ? tc : ATT_COV_TC_MAX;
+    }
+    t = tc + tl;
+    g = ((2.0f * tc + 12.0f * tl) * tc + 14.0f * (tl * tl)) * tc + 5.0f * ((tl * tl) * tl);
+    return (a2 * (2.0f * tc + tl) + s2 * g) / (4.0f * (t * t));
+}
+
+/*
+ * A variance v (rad^2) grown by s2dt = s2 dt per step over the n steps since the last correction, at
+ * most cap.
+ */
+static inline float att_i_cov_grow(float v, float s2dt, uint32_t n, float cap)
+{
+    const float g = v + s2dt * (float)n;
+    return (g < cap) ? g : cap;
+}
+
 /**
  * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
  * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), else counted down. Returns

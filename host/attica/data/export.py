@@ -94,7 +94,19 @@ def _kf_diagonal(cov: F64) -> F64:
     return np.repeat(4.0 * p[:, None], 3, axis=1)
 
 
+_COMPLEMENTARY = Covariance(
+    ("var_att_e", "var_att_n", "var_att_u"),
+    "variance of the attitude error about the earth's east, north, up axes from the covariance model of "
+    "docs/filters.md (tilt: both horizontal axes alike; up: the heading), rad^2",
+    "the model's tilt and heading variances about the earth's x (east), y (north), z (up) axes on the "
+    "diagonal; the heading's pi^2/3 where it is unknown",
+    lambda cov: cov[:, :3],
+)
+"""ars and mars: the covariance model of the complementary filters (att_ars.h, att_mars.h)."""
+
 COVARIANCE: dict[FilterKind, Covariance] = {
+    FilterKind.ARS: _COMPLEMENTARY,
+    FilterKind.MARS: _COMPLEMENTARY,
     FilterKind.KF: Covariance(
         ("var_q_w", "var_q_x", "var_q_y", "var_q_z"),
         "variance of each quaternion component, (unit quaternion)^2 (the KF carries P = p I: all equal)",
@@ -264,8 +276,8 @@ def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void]) -> F64
     """The (N, 9) row-major orientation covariance of ``sensor_msgs/msg/Imu`` for each output, rad^2.
 
     As the message definition asks: the kind's variances on the diagonal (:data:`COVARIANCE`, 0 off
-    it: only the diagonal is reported); all zeros, "covariance unknown", for a kind without one (ars,
-    mars, gyro, tilt); element 0 = -1, "no orientation estimate", for the samples whose flags say q
+    it: only the diagonal is reported); all zeros, "covariance unknown", for a kind without one (gyro,
+    tilt); element 0 = -1, "no orientation estimate", for the samples whose flags say q
     is not one (:data:`OUTPUT_INVALID`: before the first valid sample).
     """
     k = info(kind)

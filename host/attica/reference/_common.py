@@ -197,6 +197,47 @@ def recovery_q(k: Any, r: Any, cap: Any) -> NDArray[np.float32]:
     return out
 
 
+# the covariance model of the complementary filters (att_core.h: att_i_cov_first, att_i_cov_tilt)
+COV_UNKNOWN = dm.c("0x1.a51a66p+1")  # ATT_COV_UNKNOWN, pi^2 / 3
+COV_TILT_MAX = dm.c("0x1.a51a66p-1")  # ATT_COV_TILT_MAX, pi^2 / 12
+COV_CLIP = dm.c("0x1.a51a66p-3")  # ATT_COV_CLIP, pi^2 / 48
+_F4 = np.float32(4.0)
+_F5 = np.float32(5.0)
+_F12 = np.float32(12.0)
+_F14 = np.float32(14.0)
+COV_TC_MAX = np.float32(1000000.0)  # ATT_COV_TC_MAX, s
+
+
+def cov_first(dt: Any, k: Any, s2: Any, a2: Any) -> NDArray[np.float32]:
+    """att_i_cov_first: the steady-state variance of a first-order correction of per-sample gain k."""
+    with np.errstate(all="ignore"):
+        k1 = dm.ONE - k
+        out = (k1 * k1 * (s2 * dt) + k * k * (a2 / dt)) / (k * (dm.TWO - k))
+    return np.asarray(out, np.float32)
+
+
+def cov_tilt(dt: Any, k_lp: Any, k: Any, s2: Any, a2: Any) -> NDArray[np.float32]:
+    """att_i_cov_tilt: the steady-state tilt variance of the low-pass stages and the correction."""
+    with np.errstate(all="ignore"):
+        tl = dt * (dm.ONE - k_lp) / k_lp
+        tc = dt * (dm.ONE - k) / k
+        tc = np.where(k < dm.ONE, np.where(tc < COV_TC_MAX, tc, COV_TC_MAX), dm.ZERO).astype(np.float32)
+        t = tc + tl
+        g = ((dm.TWO * tc + _F12 * tl) * tc + _F14 * (tl * tl)) * tc + _F5 * ((tl * tl) * tl)
+        lp = (a2 * (dm.TWO * tc + tl) + s2 * g) / (_F4 * (t * t))
+    lp_on = (k_lp > dm.ZERO) & (k_lp < dm.ONE)
+    out: NDArray[np.float32] = np.where(lp_on, lp, cov_first(dt, k, s2, a2)).astype(np.float32)
+    return out
+
+
+def cov_grow(v: Any, s2dt: Any, n: Any, cap: Any) -> NDArray[np.float32]:
+    """att_i_cov_grow: v grown by s2dt per step over n steps (uint32), at most cap."""
+    with np.errstate(all="ignore"):
+        g = v + s2dt * np.asarray(n, np.uint32).astype(np.float32)
+    out: NDArray[np.float32] = np.where(g < cap, g, cap).astype(np.float32)
+    return out
+
+
 def recovery_step(
     g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any
 ) -> tuple[NDArray[np.uint32], NDArray[np.bool_]]:

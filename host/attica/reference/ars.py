@@ -10,8 +10,13 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
+    COV_CLIP,
+    COV_TILT_MAX,
+    COV_UNKNOWN,
     StateSpec,
     carry_state,
+    cov_grow,
+    cov_tilt,
     recovery_params,
     recovery_step,
     run_steps,
@@ -62,7 +67,10 @@ class Ars:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        "st.acc_step": "u32",
+        "st.head_step": "u32",
         "st.initialised": "bool",
+        "st.head_known": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
     EARTH: tuple[str, ...] = ("lp1", "lp2")
@@ -94,6 +102,9 @@ class Ars:
         "c.k_lp_rec": "f32",
         "c.k_rec": "f32",
         "c.rec_n": "u32",
+        "c.var_step": "f32",
+        "c.var_tilt": "f32",
+        "c.var_tilt_rec": "f32",
     }
     """Every C coefficient of att_ars_coeffs_t (set by att_ars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -142,7 +153,41 @@ class Ars:
         self.lp_on = self.k_lp > dm.ZERO
         self.reject_on = self.accel_reject > dm.ZERO
         self._rec_coeffs(s)
+        self._cov_coeffs(s)
         self.reset()
+
+    def _cov_coeffs(self, s: ArsSettings) -> None:
+        """att_ars_cov_coeffs: the covariance model's coefficients."""
+        gn = setting(s.gyro_noise, self.n)
+        s2 = gn * gn
+        an = setting(s.accel_noise, self.n) / self.gravity
+        a2 = an * an
+        self.var_step = (s2 * self.dt).astype(np.float32)
+        # no accel correction (k = 0): the tilt is not observed
+        self.var_tilt = np.where(self.k > dm.ZERO, cov_tilt(self.dt, self.k_lp, self.k, s2, a2), COV_TILT_MAX)
+        self.var_tilt_rec = np.where(
+            self.k_rec > dm.ZERO, cov_tilt(self.dt, self.k_lp_rec, self.k_rec, s2, a2), COV_TILT_MAX
+        ).astype(np.float32)
+        self.var_tilt = self.var_tilt.astype(np.float32)
+
+    def heading_set(self) -> None:
+        """att_ars_yaw_to with gain 1: the covariance's heading is known from this step."""
+        self.head_known = np.ones(self.n, np.bool_)
+        self.head_step = self.steps.copy()
+
+    def output_cov(self) -> tuple[Any, Any, Any, Any]:
+        """att_ars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
+        with np.errstate(all="ignore"):
+            rec = self.var_tilt_rec + COV_CLIP * (
+                self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
+            )
+        tilt = np.where(self.rec_left > _U0, rec, self.var_tilt).astype(np.float32)
+        tilt = cov_grow(tilt, self.var_step, self.steps - self.acc_step - np.uint32(1), COV_TILT_MAX)
+        known = cov_grow(
+            np.zeros(self.n, np.float32), self.var_step, self.steps - self.head_step, COV_UNKNOWN
+        )
+        yaw = np.where(self.head_known, known, COV_UNKNOWN).astype(np.float32)
+        return (tilt, tilt.copy(), yaw, np.zeros(self.n, np.float32))
 
     def _rec_coeffs(self, s: ArsSettings) -> None:
         """att_ars_rec_coeffs: the recovery after a clipping gyro."""
@@ -167,6 +212,9 @@ class Ars:
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.acc_step = np.zeros(n, np.uint32)
+        self.head_step = np.zeros(n, np.uint32)
+        self.head_known = np.zeros(n, np.bool_)
 
     def _increment(self, rate: dm.Vec3) -> dm.Quat:
         rv = dm.vec3_scale(rate, self.dt)
@@ -286,6 +334,9 @@ class Ars:
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp2, lp2_c))
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
+        # the covariance's last accepted correction: the start, or a correction that was applied
+        before = self.steps - np.uint32(1)  # the stamp holds the steps before the step (as in C)
+        self.acc_step = np.where(init_now | (correct & ~numeric), before, self.acc_step).astype(np.uint32)
         self.flags = flags.astype(np.uint32)
         return self.flags
 

@@ -320,6 +320,8 @@ def yaw_to(kind: str, impl: Any, target: Any, gain: Any) -> None:
         hs, hc = dm.sinf(delta * dm.HALF), dm.cosf(delta * dm.HALF)
         _, qn = dm.quat_normalize_bounded(dm.quat_mul_z(hc, hs, q))
         impl.q = tuple(dm.f32(v) for v in qn)
+    if gain == 1 and hasattr(impl, "heading_set"):  # the covariance's heading (ars)
+        impl.heading_set()
 
 
 def _heading_ok(h: Any) -> bool:

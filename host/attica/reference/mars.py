@@ -10,8 +10,14 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
+    COV_CLIP,
+    COV_TILT_MAX,
+    COV_UNKNOWN,
     StateSpec,
     carry_state,
+    cov_first,
+    cov_grow,
+    cov_tilt,
     recovery_params,
     recovery_step,
     run_steps,
@@ -24,6 +30,7 @@ from attica.reference.bias import bias_params, bias_retune, bias_step
 from attica.settings import BiasMode, Flag, Integration, MagMode, MarsSettings
 
 _U0 = np.uint32(0)
+_U1 = np.uint32(1)
 
 _M0Parts = tuple[dm.Vec3, dm.Vec3, dm.Vec3, Any, Any, Any, Any, Any]
 """(m0, m0_ref, m0_perp, m0_ref_ok, m0_lo, m0_hi, dip_lo, dip_hi) as att_mars_set_m0 stores them."""
@@ -103,6 +110,8 @@ class Mars:
         "st.cand_n": "u32",
         "st.fast_left": "u32",
         "st.rec_left": "u32",
+        "st.acc_step": "u32",
+        "st.mag_step": "u32",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
         "st.steps": "u32",
@@ -163,6 +172,11 @@ class Mars:
         "c.decl": "f32",
         "c.decl_sin": "f32",
         "c.decl_cos": "f32",
+        "c.var_step": "f32",
+        "c.var_tilt": "f32",
+        "c.var_tilt_rec": "f32",
+        "c.gyro_noise2": "f32",
+        "c.mag_noise2": "f32",
     }
     """Every C coefficient of att_mars_coeffs_t (set by att_mars_init / retune), derived here alike
     from the settings; state_matches compares them after the state."""
@@ -218,6 +232,7 @@ class Mars:
         self.rest_n = sensor.samples(self.rest_time, self.dt)
         self._ref_coeffs(s)
         self._rec_coeffs(s)
+        self._cov_coeffs(s)
         self.decl = setting(s.declination, n)
         self.decl_sin = dm.sinf(self.decl)
         self.decl_cos = dm.cosf(self.decl)
@@ -270,6 +285,42 @@ class Mars:
         self.k_rec = np.where(k > self.k_mag, k, self.k_mag).astype(np.float32)
         self.k_rec1 = (dm.ONE - self.k_rec).astype(np.float32)
 
+    def _cov_coeffs(self, s: MarsSettings) -> None:
+        """att_mars_cov_coeffs: the covariance model's coefficients."""
+        n = self.n
+        an = setting(s.accel_noise, n) / self.gravity
+        a2 = an * an
+        on = self.k_acc > dm.ZERO
+        gn = setting(s.gyro_noise, n)
+        mn = setting(s.mag_noise, n)
+        self.gyro_noise2 = (gn * gn).astype(np.float32)
+        self.mag_noise2 = (mn * mn).astype(np.float32)
+        self.var_step = (self.gyro_noise2 * self.dt).astype(np.float32)
+        self.var_tilt = np.where(
+            on, cov_tilt(self.dt, self.k_lp, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
+        ).astype(np.float32)
+        self.var_tilt_rec = np.where(
+            on, cov_tilt(self.dt, self.k_lp_rec, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
+        ).astype(np.float32)
+
+    def output_cov(self) -> tuple[Any, Any, Any, Any]:
+        """att_mars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
+        rec = self.rec_left > _U0
+        with np.errstate(all="ignore"):
+            t_rec = self.var_tilt_rec + COV_CLIP * (
+                self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
+            )
+            since = self.steps - self.acc_step - _U1
+            tilt = cov_grow(np.where(rec, t_rec, self.var_tilt), self.var_step, since, COV_TILT_MAX)
+            mx, my, _ = self.m0
+            h2 = mx * mx + my * my
+            k = np.where(rec, self.k_rec, np.where(self.fast_left > _U0, self.k_fast, self.k_mag))
+            v = cov_first(self.dt, k, self.gyro_noise2, self.mag_noise2 / h2)
+            known = self.m0_valid & (k > dm.ZERO) & (h2 > dm.ZERO)
+            grown = cov_grow(v, self.var_step, self.steps - self.mag_step - _U1, COV_UNKNOWN)
+        yaw = np.where(known, grown, COV_UNKNOWN).astype(np.float32)
+        return (tilt, tilt.copy(), yaw, np.zeros(self.n, np.float32))
+
     def _block_clear(self, cond: Any) -> None:
         """att_mars_block_clear where cond."""
         for name in ("acc_norm", "acc_z", "rej_norm", "rej_z"):
@@ -297,6 +348,8 @@ class Mars:
         self.cand_n = np.zeros(n, np.uint32)
         self.fast_left = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.acc_step = np.zeros(n, np.uint32)
+        self.mag_step = np.zeros(n, np.uint32)
         self.acc_norm: Any = z.copy()
         self.acc_z: Any = z.copy()
         self.rej_norm: Any = z.copy()
@@ -524,6 +577,12 @@ class Mars:
         self._ref_count(count, use_corr & ~gated, use_corr & gated, mnorm, me[2])
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
+        # the covariance's last accepted corrections (the start, an alignment, a sample used)
+        acc_now = init_now | use_acc  # stamped before the commit, as in C
+        mag_now = init_mag | (use_align & good_l) | (use_set & ok_ds) | (count & use_corr & ~gated)
+        before = self.steps - _U1  # the stamps hold the steps before the step (as in C)
+        self.acc_step = np.where(acc_now, before, self.acc_step).astype(np.uint32)
+        self.mag_step = np.where(mag_now, before, self.mag_step).astype(np.uint32)
         self.flags = flags.astype(np.uint32)
         return self.flags
 

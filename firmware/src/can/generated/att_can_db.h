@@ -1061,7 +1061,7 @@ struct att_can_db_att_out_fd_t {
     float bias_z;
 
     /**
-     * Covariance diagonal element 0 (KF: w, EKF: phi, MEKF: earth-frame attitude error x, rad^2), float32.
+     * Covariance diagonal element 0 (KF: w, EKF: phi, MEKF: earth-frame attitude error x, rad^2; ARS, MARS: the covariance model's tilt about earth x, rad^2), float32.
      *
      * Range: -
      * Scale: 1
@@ -1084,7 +1084,7 @@ struct att_can_db_att_out_fd_t {
     float cov_2;
 
     /**
-     * Covariance diagonal element 3 (KF: z, EKF: 0, MEKF: mean gyro bias variance, (rad/s)^2), float32.
+     * Covariance diagonal element 3 (KF: z, EKF: 0, MEKF: mean gyro bias variance, (rad/s)^2; ARS, MARS: 0), float32.
      *
      * Range: -
      * Scale: 1

@@ -12,6 +12,10 @@
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 
+/* The covariance model's default densities (docs/filters.md "Covariance": how they were chosen). */
+#define ATT_ARS_GYRO_NOISE 0.002f  /* rad/s/sqrt(Hz) */
+#define ATT_ARS_ACCEL_NOISE 0.24f  /* m/s^2/sqrt(Hz) */
+
 void att_ars_settings_default(att_ars_settings_t *settings, float dt)
 {
     if (settings == NULL) {
@@ -36,6 +40,8 @@ void att_ars_settings_default(att_ars_settings_t *settings, float dt)
     settings->q_init = att_i_quat_identity();
     settings->tau_acc_lp = 1.5f;
     settings->recovery_time = 2.0f;
+    settings->gyro_noise = ATT_ARS_GYRO_NOISE;
+    settings->accel_noise = ATT_ARS_ACCEL_NOISE;
 }
 
 att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
@@ -54,6 +60,23 @@ static void att_ars_rec_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
     c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->k_rec = (k > c->k) ? k : c->k;
+}
+
+/* att_i_cov_tilt out of line (init only: one copy for both calls), 0 gain: the tilt is not observed. */
+static ATT_NOINLINE float att_ars_cov_tilt(float dt, float k_lp, float k, float s2, float a2)
+{
+    return (k > 0.0f) ? att_i_cov_tilt(dt, k_lp, k, s2, a2) : ATT_COV_TILT_MAX;
+}
+
+/* The covariance model's coefficients (att_ars.h, step 5); after the gains. */
+static void att_ars_cov_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
+{
+    const float s2 = s->gyro_noise * s->gyro_noise;
+    const float an = s->accel_noise / s->gravity;
+    const float a2 = an * an;
+    c->var_step = s2 * s->dt;
+    c->var_tilt = att_ars_cov_tilt(s->dt, c->k_lp, c->k, s2, a2);
+    c->var_tilt_rec = att_ars_cov_tilt(s->dt, c->k_lp_rec, c->k_rec, s2, a2);
 }
 
 static void att_ars_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
@@ -76,6 +99,7 @@ static void att_ars_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
     c->reject_on = s->accel_reject > 0.0f;
     c->full = (c->k == 1.0f && s->gain_c == 0.0f);
     att_ars_rec_coeffs(c, s);
+    att_ars_cov_coeffs(c, s);
 }
 
 att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings)
@@ -122,7 +146,10 @@ void att_ars_reset(att_ars_t *f)
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.rec_left = 0u;
+    f->st.acc_step = 0u;
+    f->st.head_step = 0u;
     f->st.initialised = !f->c.init_from_accel;
+    f->st.head_known = false;
 }
 
 /*
@@ -227,6 +254,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     if (!st->initialised) {
         if (accel_ok) {
             att_ars_start(st, acc_in);
+            st->acc_step = st->steps;
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;
@@ -268,6 +296,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
             if (att_i_align_up(u, &qw, &qx, &qy, &n) &&
                 att_i_quat_normalize_bounded(att_i_quat_mul_hz(qw, qx, qy, q), &qn)) {
                 st->q = qn;
+                st->acc_step = st->steps;
                 if (c->lp_on) {
                     st->lp1 = att_i_quat_rotate_hz(qw, qx, qy, lp1);
                     st->lp2 = att_i_vec3(0.0f, 0.0f, n);
@@ -284,6 +313,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
             }
             if (att_i_quat_normalize_bounded(att_i_quat_mul(qc, q), &qn)) {
                 st->q = qn;
+                st->acc_step = st->steps;
                 st->lp1 = lp1;
                 st->lp2 = lp2;
             } else {
@@ -340,6 +370,26 @@ float att_ars_period(const att_ars_settings_t *s)
     return s->dt;
 }
 
+/* The covariance (att_ars.h, step 5): tilt about earth x and y, heading about z, rad^2. */
+static void att_ars_cov(const att_ars_t *f, float cov[4])
+{
+    const att_ars_coeffs_t *c = &f->c;
+    const att_ars_state_t *st = &f->st;
+    float tilt = c->var_tilt;
+    float yaw = ATT_COV_UNKNOWN;
+    if (st->rec_left > 0u) {
+        tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
+    }
+    tilt = att_i_cov_grow(tilt, c->var_step, st->steps - st->acc_step - 1u, ATT_COV_TILT_MAX);
+    if (st->head_known) {
+        yaw = att_i_cov_grow(0.0f, c->var_step, st->steps - st->head_step, ATT_COV_UNKNOWN);
+    }
+    cov[0] = tilt;
+    cov[1] = tilt;
+    cov[2] = yaw;
+    cov[3] = 0.0f;
+}
+
 void att_ars_output(const att_ars_t *f, att_output_t *out)
 {
     out->q = f->st.q;
@@ -347,6 +397,7 @@ void att_ars_output(const att_ars_t *f, att_output_t *out)
     out->flags = f->st.flags;
     out->steps = f->st.steps;
     out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    att_ars_cov(f, out->cov);
 }
 
 att_heading_t att_ars_heading_kind(const att_ars_t *f)
@@ -359,7 +410,12 @@ att_status_t att_ars_yaw_to(att_ars_t *f, float target, float gain)
 {
     float s;
     float c;
-    return att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+    const att_status_t st = att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+    if (st == ATT_OK && gain == 1.0f) {
+        f->st.head_known = true; /* the covariance's heading: known from here (att_ars.h, step 5) */
+        f->st.head_step = f->st.steps;
+    }
+    return st;
 }
 
 bool att_ars_set_gain(att_ars_settings_t *s, att_gain_t gain, float value)

@@ -26,6 +26,8 @@
     ATT_CK_BOOL(C, init_from_accel)                                                                            \
     ATT_CK_QUAT(C, q_init)                                                                                     \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                             \
-    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")
+    ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                          \
+    ATT_CK_IN(C, gyro_noise, 0.0f, 1.0f, "[0, 1]", "rad/s/sqrt(Hz)")                                        \
+    ATT_CK_IN(C, accel_noise, 0.0f, 1000.0f, "[0, 1e3]", "m/s^2/sqrt(Hz)")
 
 #endif /* ATT_ARS_CHECKS_H */

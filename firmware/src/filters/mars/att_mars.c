@@ -18,6 +18,11 @@
 #define ATT_MARS_MAG_ACCEPTED 1u /* the sample passed the norm and dip tests */
 #define ATT_MARS_MAG_GATED 2u    /* the sample failed them */
 
+/* The covariance model's default densities (docs/filters.md "Covariance": how they were chosen). */
+#define ATT_MARS_GYRO_NOISE 0.002f /* rad/s/sqrt(Hz) */
+#define ATT_MARS_ACCEL_NOISE 0.24f /* m/s^2/sqrt(Hz) */
+#define ATT_MARS_MAG_NOISE 3.5f    /* uT/sqrt(Hz) */
+
 void att_mars_settings_default(att_mars_settings_t *settings, float dt)
 {
     if (settings == NULL) {
@@ -53,6 +58,9 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->tau_bias_mag = 0.0f; /* off: on BROAD it costs 0.07 deg (docs/filters.md) */
     settings->recovery_time = 2.0f;
     settings->declination = 0.0f;
+    settings->gyro_noise = ATT_MARS_GYRO_NOISE;
+    settings->accel_noise = ATT_MARS_ACCEL_NOISE;
+    settings->mag_noise = ATT_MARS_MAG_NOISE;
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -105,6 +113,24 @@ static void att_mars_rec_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     c->k_rec1 = 1.0f - c->k_rec;
 }
 
+/* att_i_cov_tilt out of line (init only: one copy for both calls), 0 gain: the tilt is not observed. */
+static ATT_NOINLINE float att_mars_cov_tilt(float dt, float k_lp, float k, float s2, float a2)
+{
+    return (k > 0.0f) ? att_i_cov_tilt(dt, k_lp, k, s2, a2) : ATT_COV_TILT_MAX;
+}
+
+/* The covariance model's coefficients (att_mars.h, step 5); after the gains and the recovery's. */
+static void att_mars_cov_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
+{
+    const float an = s->accel_noise / s->gravity;
+    const float a2 = an * an;
+    c->gyro_noise2 = s->gyro_noise * s->gyro_noise;
+    c->mag_noise2 = s->mag_noise * s->mag_noise;
+    c->var_step = c->gyro_noise2 * s->dt;
+    c->var_tilt = att_mars_cov_tilt(s->dt, c->k_lp, c->k_acc, c->gyro_noise2, a2);
+    c->var_tilt_rec = att_mars_cov_tilt(s->dt, c->k_lp_rec, c->k_acc, c->gyro_noise2, a2);
+}
+
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
 {
     c->dt = s->dt;
@@ -132,6 +158,7 @@ static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
     c->full = (c->k_acc == 1.0f);
     att_mars_ref_coeffs(c, s);
     att_mars_rec_coeffs(c, s);
+    att_mars_cov_coeffs(c, s);
     c->decl = s->declination;
     c->decl_sin = att_sinf(s->declination);
     c->decl_cos = att_cosf(s->declination);
@@ -284,6 +311,8 @@ void att_mars_reset(att_mars_t *f)
     st->cand_sin = 0.0f;
     st->cand_n = 0u;
     st->fast_left = 0u;
+    st->acc_step = 0u;
+    st->mag_step = 0u;
     st->rec_left = 0u;
     att_mars_block_clear(st);
     st->m0_ref_ok = false;
@@ -460,13 +489,16 @@ static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars
         if (att_mars_align(c, qw, qx, qy, qz, mag, qa, &m0) && att_mars_set_m0(c, st, &m0)) {
             st->flags |= ATT_FLAG_INITIALISED;
             st->fast_left = c->fast_start_n;
+            st->mag_step = st->steps; /* the covariance's heading: aligned at this step */
             return true;
         }
         st->flags |= ATT_FLAG_MAG_REJECTED;
         return false;
     }
     m0 = att_i_quat_rotate(att_i_quat(qw, qx, qy, qz), *mag);
-    if (!att_mars_set_m0(c, st, &m0)) {
+    if (att_mars_set_m0(c, st, &m0)) {
+        st->mag_step = st->steps;
+    } else {
         st->flags |= ATT_FLAG_MAG_REJECTED;
     }
     return false;
@@ -492,6 +524,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
             att_mars_set_m0(&f->c, st, &m0)) {
             st->q = qa;
             st->fast_left = f->c.fast_start_n;
+            st->mag_step = st->steps;
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
@@ -499,6 +532,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
     st->initialised = true;
+    st->acc_step = st->steps;
     st->steps = st->steps + 1u;
     st->flags = flags;
     return flags;
@@ -657,6 +691,7 @@ static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att
                                                  float mnorm, float mz)
 {
     if (use == ATT_MARS_MAG_ACCEPTED) {
+        st->mag_step = st->steps; /* the covariance's last mag sample that passed the norm and dip tests */
         st->acc_norm = st->acc_norm + mnorm;
         st->acc_z = st->acc_z + mz;
         st->acc_n = st->acc_n + 1u;
@@ -755,6 +790,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? c->k_lp_rec : c->k_lp, &q, &lp1, &lp2);
+        st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
     if (mag_ok) {
         q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use, &theta);
@@ -837,6 +873,36 @@ float att_mars_period(const att_mars_settings_t *s)
     return s->dt;
 }
 
+/* The covariance (att_mars.h, step 5): tilt about earth x and y, heading about z, rad^2. */
+static void att_mars_cov(const att_mars_t *f, float cov[4])
+{
+    const att_mars_coeffs_t *c = &f->c;
+    const att_mars_state_t *st = &f->st;
+    float tilt = c->var_tilt;
+    float yaw = ATT_COV_UNKNOWN;
+    if (st->rec_left > 0u) {
+        tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
+    }
+    tilt = att_i_cov_grow(tilt, c->var_step, st->steps - st->acc_step - 1u, ATT_COV_TILT_MAX);
+    if (st->m0_valid) {
+        const float h2 = st->m0.x * st->m0.x + st->m0.y * st->m0.y;
+        float k = c->k_mag;
+        if (st->rec_left > 0u) {
+            k = c->k_rec;
+        } else if (st->fast_left > 0u) {
+            k = c->k_fast;
+        }
+        if (k > 0.0f && h2 > 0.0f) { /* else no heading correction (or no horizontal field): unknown */
+            const float v = att_i_cov_first(c->dt, k, c->gyro_noise2, c->mag_noise2 / h2);
+            yaw = att_i_cov_grow(v, c->var_step, st->steps - st->mag_step - 1u, ATT_COV_UNKNOWN);
+        }
+    }
+    cov[0] = tilt;
+    cov[1] = tilt;
+    cov[2] = yaw;
+    cov[3] = 0.0f;
+}
+
 void att_mars_output(const att_mars_t *f, att_output_t *out)
 {
     out->q = f->st.q;
@@ -844,6 +910,7 @@ void att_mars_output(const att_mars_t *f, att_output_t *out)
     out->flags = f->st.flags;
     out->steps = f->st.steps;
     out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
+    att_mars_cov(f, out->cov);
 }
 
 att_heading_t att_mars_heading_kind(const att_mars_t *f)

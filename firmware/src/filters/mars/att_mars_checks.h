@@ -47,6 +47,9 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, tau_mag_fast, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
     ATT_CK_IN(C, tau_bias_mag, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                        \
     ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                       \
-    ATT_CK_IN(C, declination, -ATT_MARS_PI_F, ATT_MARS_PI_F, "[-pi, pi]", "rad")
+    ATT_CK_IN(C, declination, -ATT_MARS_PI_F, ATT_MARS_PI_F, "[-pi, pi]", "rad")                         \
+    ATT_CK_IN(C, gyro_noise, 0.0f, 1.0f, "[0, 1]", "rad/s/sqrt(Hz)")                                        \
+    ATT_CK_IN(C, accel_noise, 0.0f, 1000.0f, "[0, 1e3]", "m/s^2/sqrt(Hz)")                                  \
+    ATT_CK_IN(C, mag_noise, 0.0f, 1000.0f, "[0, 1e3]", "uT/sqrt(Hz)")
 
 #endif /* ATT_MARS_CHECKS_H */

@@ -1,0 +1,242 @@
+"""The covariance model of the complementary filters (ars, mars; issue 23, docs/filters.md "Covariance").
+
+- C and the reference bit for bit, the covariance included, on streams with rejected and missing accel
+  samples, a clipping gyro, a disturbed field, with the defaults, the seed preset (no low-pass, a
+  partial correction), a time constant after the low-pass, no accel correction at all;
+- the model against Monte Carlo: a still sensor with white gyro and accel noise of the densities the
+  settings state; the tilt error's measured variance against cov[0], within 10 %;
+- what moves it: missing or rejected accel samples add gyro_noise^2 dt per step; a recovery raises
+  it; the heading is unknown (pi^2/3) until set (ars) or aligned (mars), then small and growing without
+  mag samples; a weak horizontal field gives a larger heading variance;
+- the settings contract of the three densities;
+- docs/accuracy.md's table of the model against BROAD is what ``attica_dev.cov_check`` computes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from attica import native
+from attica.crosscheck import Stream, crosscheck
+from attica.evaluate import load_trials
+from attica.settings import ArsSettings, BiasMode, FilterKind, MarsSettings, Preset, preset_settings
+from attica.sim import SimConfig, simulate
+from attica_dev import cov_check
+
+from helpers import BROAD, broad_trials
+
+RATE = 100.0
+DT = float(np.float32(1.0 / RATE))
+G = 9.80665
+UNKNOWN = float(np.float32(math.pi**2 / 3.0))
+KINDS = {FilterKind.ARS: ArsSettings, FilterKind.MARS: MarsSettings}
+
+
+def _settings(kind: FilterKind, **over: Any) -> Any:
+    return replace(KINDS[kind](dt=DT), **over)
+
+
+def _streams(seed: int) -> list[Stream]:
+    """A simulated run with gaps, rejected-looking samples, a clipping gyro and a disturbed field."""
+    r = simulate(
+        SimConfig(duration=40.0, rate=RATE, seed=seed, mag_disturbances=((5.0, 15.0, (8.0, -6.0, 4.0)),))
+    )
+    gyr, acc, mag = r.gyr.copy(), r.acc.copy(), r.mag.copy()
+    acc[500:700] = np.nan  # accel missing for 2 s
+    acc[1200:1300] *= 1.6  # far from g: rejected where accel_reject is set
+    mag[2000:2400] = np.nan  # mag missing for 4 s
+    gyr[2600:2605, 0] = 40.0  # beyond the 2000 deg/s range: a recovery
+    return [Stream(gyr, acc, mag, name=f"seed {seed}")]
+
+
+SETTINGS = {
+    "defaults": {},
+    "reject": {"accel_reject": 0.2},
+    "tau after the low-pass": {"tau_acc_lp": 0.8},
+    "no low-pass": {"tau_acc_lp": 0.0},
+    "zero noise": {"gyro_noise": 0.0, "accel_noise": 0.0},
+}
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+@pytest.mark.parametrize("name", list(SETTINGS))
+def test_bit_exact_with_the_covariance(kind: FilterKind, name: str) -> None:
+    over = dict(SETTINGS[name])
+    if name == "tau after the low-pass":
+        over.update({"tau": 0.5} if kind == FilterKind.ARS else {"tau_acc": 0.5, "alpha_acc": 0.0})
+    res = crosscheck(kind, _streams(3), settings=_settings(kind, **over), segment=700)
+    assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
+    cov = res.c_outputs[0]["cov"]
+    assert np.isfinite(cov).all() and (cov >= 0.0).all()
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_bit_exact_seed_preset_and_no_accel_correction(kind: FilterKind) -> None:
+    seed = preset_settings(kind, Preset.SEED, dt=DT)
+    off = _settings(kind, **({"gain": 0.0} if kind == FilterKind.ARS else {"alpha_acc": 0.0}))
+    for s in (seed, off):
+        res = crosscheck(kind, _streams(4), settings=s, segment=900)
+        assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
+    out = native.Filter(kind, off).run(*(_streams(4)[0].gyr, _streams(4)[0].acc), check_units=False)
+    # no accel correction: the tilt is not observed (before the recovery after the clipping sample at 2600)
+    assert (out["cov"][5:2600, 0] == np.float32(math.pi**2 / 12.0)).all(), "no accel correction: unknown"
+
+
+def _still(seed: int, seconds: float, gyro_noise: float, accel_noise: float) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    n = int(seconds * RATE)
+    gyr = rng.standard_normal((n, 3)) * (gyro_noise / math.sqrt(DT))
+    acc = np.array([0.0, 0.0, G]) + rng.standard_normal((n, 3)) * (accel_noise / math.sqrt(DT))
+    return gyr.astype(np.float32), acc.astype(np.float32)
+
+
+MONTE_CARLO = {
+    # name: (settings, accel_noise, bounds of measured / model)
+    "defaults (two low-pass stages, full alignment)": ({}, 0.3, (0.9, 1.1)),
+    "short low-pass": ({"tau_acc_lp": 0.3}, 0.3, (0.9, 1.1)),
+    "long low-pass": ({"tau_acc_lp": 5.0}, 0.3, (0.9, 1.1)),
+    "no low-pass, partial gain (exact)": ({"gain": 0.1, "tau_acc_lp": 0.0}, 0.05, (0.9, 1.1)),
+    "no low-pass, full alignment (exact)": ({"tau_acc_lp": 0.0}, 0.05, (0.9, 1.1)),
+    "partial gain after the low-pass": ({"tau": 0.5}, 0.3, (0.9, 1.1)),
+}
+
+
+@pytest.mark.parametrize("name", list(MONTE_CARLO))
+def test_tilt_variance_against_monte_carlo(name: str) -> None:
+    """A still ars with white noise of the stated densities (bias off, no recovery): the measured variance
+    of the tilt error about x and y over an hour, against cov[0] (the model's steady state)."""
+    over, accel_noise, (lo, hi) = MONTE_CARLO[name]
+    gyro_noise = 0.002
+    s = _settings(
+        FilterKind.ARS,
+        bias_mode=BiasMode.OFF,
+        recovery_time=0.0,
+        gyro_noise=gyro_noise,
+        accel_noise=accel_noise,
+        **over,
+    )
+    gyr, acc = _still(11, 3600.0, gyro_noise, accel_noise)
+    out = native.Filter(FilterKind.ARS, s).run(gyr, acc, check_units=False)
+    q = out["q"][len(out) // 10 :].astype(np.float64)
+    sign = np.sign(q[:, 0])
+    measured = (np.var(2.0 * q[:, 1] * sign) + np.var(2.0 * q[:, 2] * sign)) / 2.0
+    model = float(out["cov"][-1, 0])
+    assert out["cov"][-1, 1] == out["cov"][-1, 0]
+    assert lo < measured / model < hi, f"{name}: measured {measured:.3e} rad^2, model {model:.3e}"
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_what_moves_the_tilt_variance(kind: FilterKind) -> None:
+    """Missing accel samples add gyro_noise^2 dt per step (float32 of it, to rounding); the next accepted
+    sample brings the steady state back; a clipping gyro raises it by up to pi^2/48 over the recovery."""
+    r = simulate(SimConfig(duration=20.0, rate=RATE, seed=5))
+    gyr, acc, mag = r.gyr.copy(), r.acc.copy(), r.mag.copy()
+    acc[600:800] = np.nan
+    gyr[1200, 2] = 40.0
+    s = _settings(kind)
+    out = native.Filter(kind, s).run(gyr, acc, mag, check_units=False)
+    tilt = out["cov"][:, 0].astype(np.float64)
+    steady = tilt[590]
+    step = float(np.float32(np.float32(s.gyro_noise) ** 2 * np.float32(DT)))
+    grown = tilt[600:800] - steady
+    np.testing.assert_allclose(grown, step * np.arange(1, 201), rtol=1e-4)
+    assert tilt[800] == steady, "the first accepted sample after the gap"
+    rec = tilt[1200:1300]
+    assert rec[0] > steady + 0.2 and np.all(np.diff(rec) < 0), "the recovery's term fades"
+    assert tilt[1200 + int(s.recovery_time * RATE) + 5] == steady
+
+
+def test_ars_heading_unknown_until_set() -> None:
+    r = simulate(SimConfig(duration=10.0, rate=RATE, seed=6))
+    f = native.Filter(FilterKind.ARS, _settings(FilterKind.ARS))
+    out = f.run(r.gyr[:300], r.acc[:300], check_units=False)
+    assert (out["cov"][1:, 2] == np.float32(UNKNOWN)).all()
+    f.set_heading(0.5)
+    assert f.output()["cov"][2] == 0.0
+    out = f.run(r.gyr[300:], r.acc[300:], check_units=False)
+    step = np.float32(np.float32(0.002) ** 2 * np.float32(DT))
+    np.testing.assert_allclose(out["cov"][:, 2], step * np.arange(1, len(out) + 1), rtol=1e-4)
+
+
+def test_mars_heading_variance() -> None:
+    """Unknown before the alignment, the model's steady state after it (larger in a weaker horizontal
+    field: up to the ratio of the fields' squares, the gyro term being the same), growing while the mag
+    is missing and back at the next accepted sample."""
+    outs = {}
+    for h in (20.0, 5.0):  # the horizontal field, uT, of a 49 uT field
+        r = simulate(SimConfig(duration=40.0, rate=RATE, seed=7, mag_dip=math.acos(h / 49.0)))
+        mag = r.mag.copy()
+        mag[:100] = np.nan
+        mag[2500:2700] = np.nan  # after the fast phase of the alignment (15 s)
+        outs[h] = native.Filter(FilterKind.MARS, _settings(FilterKind.MARS)).run(r.gyr, r.acc, mag)
+    yaw = outs[20.0]["cov"][:, 2].astype(np.float64)
+    assert (yaw[:100] == np.float32(UNKNOWN)).all() and yaw[101] < 1e-2
+    base = yaw[2490]
+    assert (
+        np.all(np.diff(yaw[2500:2700]) > 0) and yaw[2700] <= base * 1.01
+    )  # the learnt reference moves h a little
+    ratio = outs[5.0]["cov"][2490, 2] / outs[20.0]["cov"][2490, 2]
+    assert 4.0 < ratio <= 16.0, ratio  # 16: the mag term alone, (20 / 5)^2; the gyro term is in both
+
+
+DENSITIES = [
+    (kind, field)
+    for kind in KINDS
+    for field in ("gyro_noise", "accel_noise", "mag_noise")
+    if not (kind == FilterKind.ARS and field == "mag_noise")
+]
+
+
+@pytest.mark.parametrize(("kind", "field"), DENSITIES, ids=lambda x: getattr(x, "label", x))
+@pytest.mark.parametrize("bad", [-1e-3, math.nan, math.inf, 2e3])
+def test_densities_out_of_range_are_refused(kind: FilterKind, field: str, bad: float) -> None:
+    with pytest.raises(native.NativeError, match=field):
+        native.Filter(kind, _settings(kind, **{field: bad}))
+
+
+def _doc_rows(marker: str) -> list[list[str]]:
+    text = (Path(__file__).resolve().parent.parent / "docs" / "accuracy.md").read_text(encoding="utf-8")
+    rows = []
+    for line in text[text.index(f"<!-- {marker}") :].splitlines()[1:]:
+        if not line.startswith("|"):
+            if len(rows) > 2:
+                break
+            continue
+        rows.append([c.strip() for c in line.strip().strip("|").split("|")])
+    return rows[2:]
+
+
+def test_docs_cov_check_table() -> None:
+    """docs/accuracy.md's BROAD table of the covariance model is what attica_dev.cov_check computes."""
+    broad_trials()
+    recs = load_trials(BROAD)
+    got = {}
+    for kind in (FilterKind.ARS, FilterKind.MARS):
+        for name, c in cov_check.measure(recs, kind).items():
+            r = c.per_trial
+            held = float(np.mean(c.held_out() * c.var) / np.mean(c.var))
+            got[f"{kind.label} {name}"] = [
+                f"{np.degrees(np.sqrt(c.mse.mean())):.2f}",
+                f"{np.degrees(np.sqrt(c.var.mean())):.2f}",
+                f"{c.pooled:.2f}",
+                f"{held:.2f}",
+                f"{r.min():.2f}, {np.median(r):.2f}, {r.max():.2f}",
+            ]
+    assert {row[0]: row[1:] for row in _doc_rows("cov-check")} == got
+
+
+def test_docs_cov_check_simulator_table() -> None:
+    """docs/accuracy.md's simulator table of the covariance model (the rows it shows) is cov_check's."""
+    ars = cov_check.simulated(FilterKind.ARS)
+    mars = cov_check.simulated(FilterKind.MARS)
+    rows = _doc_rows("cov-check-sim")
+    assert len(rows) >= 8
+    for name, *cells in rows:
+        got = [ars[name]["tilt"].pooled, mars[name]["tilt"].pooled, mars[name]["heading"].pooled]
+        assert cells == [f"{x:.2f}" for x in got], name
