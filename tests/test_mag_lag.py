@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from attica.evaluate import load_trials
@@ -45,3 +46,30 @@ def test_mag_lag_table(name: str) -> None:
         assert m is not None, cell
         assert float(m.group(1)) == round(score, 3), f"{name}: {cell} against {score:.3f}"
         assert (int(m.group(2)), int(m.group(3))) == (min(lags), max(lags)), f"{name}: {cell} against {lags}"
+
+
+def test_mag_lag_prose() -> None:
+    """The paragraph's figures: mekf's best L = 3 improves 7 of 20 trials, two make 93 % of the gain,
+    0.017 deg without them; the inclination moves by less than 0.002 deg over the lags (both filters)."""
+    broad_trials()
+    recs = load_trials(BROAD)
+    text = DOC.read_text(encoding="utf-8")
+    for name, kind in mag_lag.FILTERS.items():
+        r = mag_lag.measure(recs, kind)
+        inc = r.inclination.mean(axis=1)
+        assert inc.max() - inc.min() < 0.002, name
+        if name != "mekf":
+            continue
+        best = int(np.argmin(r.total.mean(axis=1)))
+        gain = r.total[0] - r.total[best]
+        top = np.argsort(-gain)[:2]
+        rest = np.ones(len(recs), np.bool_)
+        rest[top] = False
+        figures = (
+            f"at its best L = {mag_lag.LAGS[best]} only {int(np.sum(gain > 0))} of the 20 trials improve",
+            f"make {100.0 * gain[top].sum() / gain.sum():.0f} % of the gain",
+            f"without them it is {gain[rest].mean():.3f} deg",
+        )
+        flat = " ".join(text.split())
+        for f in figures:
+            assert f in flat, f

@@ -13,7 +13,8 @@
  *   exactly that counter by one, runs no step and leaves the filter's output bit for bit as it was.
  * - N3 every command with a good CRC gets exactly one answer (STATUS, ack bit, its cmd and counter);
  *   unknown commands answer UNKNOWN_CMD; a select answered OK runs the asked kind from step 0.
- * - N4 a set-gain answered OK keeps the filter's state: att_filter_output is bit for bit unchanged.
+ * - N4 a set-gain answered OK keeps the filter's state: att_filter_output is bit for bit unchanged but for
+ *   cov (ars's and mars's covariance model follows the new gains at once); a refused one changes nothing.
  * - N5 a clean sample (the next counter, no partial pending) runs exactly one step.
  * - N6 samples <= steps <= 15 samples (a sample steps over 1 .. 15 periods), tx_overflows == 0,
  *   rx_frames + rx_overflows == frames pushed; a frame that completes a sample steps the filter over
@@ -52,6 +53,14 @@ static bool same_out(const att_output_t *x, const att_output_t *y)
     return memcmp(&x->q, &y->q, sizeof x->q) == 0 && memcmp(&x->euler, &y->euler, sizeof x->euler) == 0 &&
            memcmp(&x->gyro_bias, &y->gyro_bias, sizeof x->gyro_bias) == 0 &&
            memcmp(x->cov, y->cov, sizeof x->cov) == 0 && x->flags == y->flags && x->steps == y->steps;
+}
+
+/* same_out but the covariance: the estimate (ars's and mars's covariance model follows a new gain at once). */
+static bool same_estimate(const att_output_t *x, const att_output_t *y)
+{
+    return memcmp(&x->q, &y->q, sizeof x->q) == 0 && memcmp(&x->euler, &y->euler, sizeof x->euler) == 0 &&
+           memcmp(&x->gyro_bias, &y->gyro_bias, sizeof x->gyro_bias) == 0 && x->flags == y->flags &&
+           x->steps == y->steps;
 }
 
 static void filter_out(const att_node_t *n, att_output_t *o)
@@ -249,8 +258,11 @@ static void one_frame(att_node_t *n, tracker_t *t, const att_can_frame_t *f, boo
             FZ_CHECK(n->kind == kind0 && same_out(&o0, &o1), "a refused select changed the filter");
         }
         if (cmd.cmd == ATT_CAN_CMD_SET_GAIN) {
-            FZ_CHECK(same_out(&o0, &o1), "set gain (%u, %a) answered %u changed the filter's output", cmd.arg,
-                     (double)cmd.value, result);
+            /* a gain taken changes no estimate (the complementary filters' covariance model follows it at
+               once); a gain refused changes nothing at all */
+            FZ_CHECK(result == ATT_CAN_ACK_OK ? same_estimate(&o0, &o1) : same_out(&o0, &o1),
+                     "set gain (%u, %a) answered %u changed the filter's output", cmd.arg, (double)cmd.value,
+                     result);
         }
         if (cmd.cmd == ATT_CAN_CMD_RESET) {
             FZ_CHECK(result == ATT_CAN_ACK_OK && o1.steps == 0u, "reset");

@@ -12,7 +12,7 @@ preset) and :func:`attica.evaluate.parallel.score_trial` (the BROAD metric). It 
   attached magnet, office, mixed...) scored with the L best on the other conditions, since the trials
   of one condition share their field and a lag can trade against a condition's heading offset.
 
-docs/accuracy.md quotes its output (tests/test_docs_figures.py recomputes it). It takes about 7 s.
+docs/accuracy.md quotes its output (tests/test_mag_lag.py recomputes the table). It takes about 7 s.
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ class LagResult:
 
     Attributes
     ----------
-    total, heading : ndarray, shape (lags, trials)
+    total, heading, inclination : ndarray, shape (lags, trials)
         RMSE, deg, per lag of :data:`LAGS` and trial.
     by_trial, by_condition : float
         Mean over the trials of the held-out scores, leaving out one trial / one condition at a time.
@@ -98,6 +98,7 @@ class LagResult:
 
     total: NDArray[np.float64]
     heading: NDArray[np.float64]
+    inclination: NDArray[np.float64]
     by_trial: float
     by_condition: float
     lags_trial: tuple[int, ...]
@@ -106,16 +107,17 @@ class LagResult:
 
 def measure(recs: Sequence[Recording], kind: FilterKind) -> LagResult:
     """Run ``kind`` (defaults) on ``recs`` at every lag of :data:`LAGS` and choose the lag out of sample."""
-    err = np.empty((2, len(LAGS), len(recs)))
+    err = np.empty((3, len(LAGS), len(recs)))
     for j, rec in enumerate(recs):
         for i, lag in enumerate(LAGS):
             e = score_trial(attica_method(kind, Preset.DEFAULT), advanced(rec, lag)).errors
-            err[:, i, j] = (e.total, e.heading)
+            err[:, i, j] = (e.total, e.heading, e.inclination)
     by_trial, c_trial = held_out(err[0], [r.name for r in recs])
     by_cond, c_cond = held_out(err[0], [condition(r) for r in recs])
     return LagResult(
         err[0],
         err[1],
+        err[2],
         float(by_trial.mean()),
         float(by_cond.mean()),
         tuple(sorted({LAGS[c] for c in c_trial})),
@@ -143,9 +145,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         gain = r.total[0] - r.total[best]
         top = np.argsort(-gain)[:2]
         share = 100.0 * gain[top].sum() / max(gain.sum(), 1e-12)
+        rest = np.ones(len(recs), np.bool_)
+        rest[top] = False
+        inc = r.inclination.mean(axis=1)
         print(
             f"  best L = {LAGS[best]}: better than L = 0 in {int(np.sum(gain > 0))} of {len(recs)} trials; "
-            f"the two largest gains ({', '.join(recs[t].name[:2] for t in top)}) are {share:.0f} % of it\n"
+            f"the two largest gains ({', '.join(recs[t].name[:2] for t in top)}) are {share:.0f} % of it; "
+            f"without them the mean gain is {gain[rest].mean():.3f} deg\n"
+            f"  inclination over the lags: {inc.min():.3f} .. {inc.max():.3f} deg\n"
         )
     print(f"{len(recs)} trials in {time.perf_counter() - t0:.1f} s")
     return 0

@@ -41,8 +41,9 @@
  *     plus gyro_noise^2 dt per step since the last accepted correction (rejected or missing samples
  *     raise it); during a recovery the gains of the recovery plus pi^2/48 (a +-45 deg error) fading
  *     over it; at most pi^2/12. cov[2]: the heading variance about the earth's z, pi^2/3 (unknown: the
- *     yaw starts at 0) until att_filter_set_heading, then gyro_noise^2 dt per step since, at most
- *     pi^2/3 (a heading update of gain < 1 leaves it). cov[3] = 0. Units rad^2.
+ *     yaw starts at 0) until att_filter_set_heading (or a heading update of gain 1), then gyro_noise^2
+ *     dt per step since, at most pi^2/3 (a heading update of gain < 1 leaves it). Before the first
+ *     usable sample pi^2/12 and pi^2/3. cov[3] = 0. Units rad^2.
  *
  * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).
  */
@@ -166,8 +167,8 @@ att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);
 /**
  * New settings for a running instance: the coefficients are replaced and the state is kept (attitude,
  * bias, low-pass states, counters), except that the bias becomes 0 (mode OFF) or bias_init (mode
- * FROZEN) and the counters are limited to the new rest_n / bias_n_max; a recovery under way runs out.
- * On error f is left unchanged.
+ * FROZEN) and the counters are limited to the new rest_n / bias_n_max; a recovery under way is limited
+ * to the new recovery_time (0: ended). On error f is left unchanged.
  */
 att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings);
 /** Back to the state right after att_ars_init, keeping the settings. */

@@ -65,8 +65,10 @@
  *     heading, cov[2], the first-order model of the mag correction's gain (k_mag; k_fast in the fast
  *     phase, k_rec in a recovery) with the heading noise density mag_noise / |m0_xy| (a weak horizontal
  *     field gives a noisy heading), plus gyro_noise^2 dt per step since the last accepted mag sample or
- *     the alignment, at most pi^2/3; pi^2/3 (unknown) before the reference field is known. The model
- *     treats the full mag mode's correction as a heading correction. cov[3] = 0. Units rad^2.
+ *     the alignment, at most pi^2/3; pi^2/3 (unknown) before the reference field is known or without a
+ *     mag gain or a horizontal field. Accepted: an accel sample that passed its tests, a mag sample that
+ *     passed the norm and dip tests. Before the first usable sample the caps (pi^2/12, pi^2/3). The
+ *     model treats the full mag mode's correction as a heading correction. cov[3] = 0. Units rad^2.
  *  When the direction to correct is exactly opposite to the reference (cross product too small to
  *  normalise), a fixed axis perpendicular to the reference is used: accel: x = (1, 0, 0); full mag:
  *  the horizontal unit vector perpendicular to m0 (x when m0 is vertical).
@@ -287,8 +289,8 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
  * states, reference field and its statistics, counters), except that the bias becomes 0 (mode OFF) or bias_init
  * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
- * is limited to the new one's length after an alignment (fast_start_n); a recovery under way runs out. A new
- * declination applies from the next heading alignment (reset): the heading and the reference are kept;
+ * is limited to the new one's length after an alignment (fast_start_n); a recovery under way is
+ * limited to the new recovery_time (0: ended). A new declination applies from the next heading alignment (reset): the heading and the reference are kept;
  * to apply it at once, set the heading to the current one turned by the change: ENU yaw (counter-clockwise)
  * minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is left
  * unchanged.

@@ -463,12 +463,13 @@ static inline float att_i_cov_tilt(float dt, float k_lp, float k, float s2, floa
 }
 
 /*
- * A variance v (rad^2) grown by s2dt = s2 dt per step over the n steps since the last correction, at
- * most cap.
+ * A variance v (rad^2) grown by s2dt = s2 dt per step over the steps after the one whose count (before
+ * it) was stamp, at most cap: steps - stamp - 1 of them (0 when stamp == steps, before any step).
  */
-static inline float att_i_cov_grow(float v, float s2dt, uint32_t n, float cap)
+static inline float att_i_cov_grow(float v, float s2dt, uint32_t steps, uint32_t stamp, float cap)
 {
-    const float g = v + s2dt * (float)n;
+    const uint32_t d = steps - stamp;
+    const float g = v + s2dt * (float)((d > 0u) ? d - 1u : 0u);
     return (g < cap) ? g : cap;
 }
 

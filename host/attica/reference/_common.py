@@ -230,10 +230,12 @@ def cov_tilt(dt: Any, k_lp: Any, k: Any, s2: Any, a2: Any) -> NDArray[np.float32
     return out
 
 
-def cov_grow(v: Any, s2dt: Any, n: Any, cap: Any) -> NDArray[np.float32]:
-    """att_i_cov_grow: v grown by s2dt per step over n steps (uint32), at most cap."""
+def cov_grow(v: Any, s2dt: Any, steps: Any, stamp: Any, cap: Any) -> NDArray[np.float32]:
+    """att_i_cov_grow: v grown by s2dt per step after the stamped one (steps - stamp - 1, uint32), capped."""
+    d = (np.asarray(steps, np.uint32) - np.asarray(stamp, np.uint32)).astype(np.uint32)
+    n = np.where(d > np.uint32(0), d - np.uint32(1), np.uint32(0)).astype(np.uint32)
     with np.errstate(all="ignore"):
-        g = v + s2dt * np.asarray(n, np.uint32).astype(np.float32)
+        g = v + s2dt * n.astype(np.float32)
     out: NDArray[np.float32] = np.where(g < cap, g, cap).astype(np.float32)
     return out
 

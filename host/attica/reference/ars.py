@@ -182,10 +182,10 @@ class Ars:
                 self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
             )
         tilt = np.where(self.rec_left > _U0, rec, self.var_tilt).astype(np.float32)
-        tilt = cov_grow(tilt, self.var_step, self.steps - self.acc_step - np.uint32(1), COV_TILT_MAX)
-        known = cov_grow(
-            np.zeros(self.n, np.float32), self.var_step, self.steps - self.head_step, COV_UNKNOWN
-        )
+        tilt = cov_grow(tilt, self.var_step, self.steps, self.acc_step, COV_TILT_MAX)
+        tilt = np.where(self.initialised, tilt, COV_TILT_MAX).astype(np.float32)  # no attitude yet
+        zero = np.zeros(self.n, np.float32)
+        known = cov_grow(zero, self.var_step, self.steps + np.uint32(1), self.head_step, COV_UNKNOWN)
         yaw = np.where(self.head_known, known, COV_UNKNOWN).astype(np.float32)
         return (tilt, tilt.copy(), yaw, np.zeros(self.n, np.float32))
 
@@ -345,6 +345,7 @@ class Ars:
         new = Ars(settings, self.n)
         carry_state(self, new)
         bias_retune(new)
+        new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

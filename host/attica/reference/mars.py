@@ -310,14 +310,16 @@ class Mars:
             t_rec = self.var_tilt_rec + COV_CLIP * (
                 self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
             )
-            since = self.steps - self.acc_step - _U1
-            tilt = cov_grow(np.where(rec, t_rec, self.var_tilt), self.var_step, since, COV_TILT_MAX)
+            tilt = cov_grow(
+                np.where(rec, t_rec, self.var_tilt), self.var_step, self.steps, self.acc_step, COV_TILT_MAX
+            )
+            tilt = np.where(self.initialised, tilt, COV_TILT_MAX).astype(np.float32)  # no attitude yet
             mx, my, _ = self.m0
             h2 = mx * mx + my * my
             k = np.where(rec, self.k_rec, np.where(self.fast_left > _U0, self.k_fast, self.k_mag))
             v = cov_first(self.dt, k, self.gyro_noise2, self.mag_noise2 / h2)
-            known = self.m0_valid & (k > dm.ZERO) & (h2 > dm.ZERO)
-            grown = cov_grow(v, self.var_step, self.steps - self.mag_step - _U1, COV_UNKNOWN)
+            known = self.m0_valid & self.initialised & (k > dm.ZERO) & (h2 > dm.ZERO)
+            grown = cov_grow(v, self.var_step, self.steps, self.mag_step, COV_UNKNOWN)
         yaw = np.where(known, grown, COV_UNKNOWN).astype(np.float32)
         return (tilt, tilt.copy(), yaw, np.zeros(self.n, np.float32))
 
@@ -674,6 +676,7 @@ class Mars:
         new._commit_m0(new.m0_valid & ok, parts)
         new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z = blk  # limits only
         new.fast_left = np.minimum(new.fast_left, new.fast_start_n).astype(np.uint32)
+        new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)
 
     @property

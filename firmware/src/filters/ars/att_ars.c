@@ -129,6 +129,9 @@ att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings)
     }
     att_ars_coeffs(&f->c, settings);
     att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    if (f->st.rec_left > f->c.rec_n) {
+        f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
+    }
     return ATT_OK;
 }
 
@@ -380,9 +383,12 @@ static void att_ars_cov(const att_ars_t *f, float cov[4])
     if (st->rec_left > 0u) {
         tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
     }
-    tilt = att_i_cov_grow(tilt, c->var_step, st->steps - st->acc_step - 1u, ATT_COV_TILT_MAX);
+    tilt = att_i_cov_grow(tilt, c->var_step, st->steps, st->acc_step, ATT_COV_TILT_MAX);
+    if (!st->initialised) {
+        tilt = ATT_COV_TILT_MAX; /* no attitude yet */
+    }
     if (st->head_known) {
-        yaw = att_i_cov_grow(0.0f, c->var_step, st->steps - st->head_step, ATT_COV_UNKNOWN);
+        yaw = att_i_cov_grow(0.0f, c->var_step, st->steps + 1u, st->head_step, ATT_COV_UNKNOWN);
     }
     cov[0] = tilt;
     cov[1] = tilt;

@@ -281,6 +281,9 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (f->st.fast_left > f->c.fast_start_n) {
         f->st.fast_left = f->c.fast_start_n;
     }
+    if (f->st.rec_left > f->c.rec_n) {
+        f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
+    }
     return ATT_OK;
 }
 
@@ -883,8 +886,11 @@ static void att_mars_cov(const att_mars_t *f, float cov[4])
     if (st->rec_left > 0u) {
         tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
     }
-    tilt = att_i_cov_grow(tilt, c->var_step, st->steps - st->acc_step - 1u, ATT_COV_TILT_MAX);
-    if (st->m0_valid) {
+    tilt = att_i_cov_grow(tilt, c->var_step, st->steps, st->acc_step, ATT_COV_TILT_MAX);
+    if (!st->initialised) {
+        tilt = ATT_COV_TILT_MAX; /* no attitude yet */
+    }
+    if (st->m0_valid && st->initialised) {
         const float h2 = st->m0.x * st->m0.x + st->m0.y * st->m0.y;
         float k = c->k_mag;
         if (st->rec_left > 0u) {
@@ -894,7 +900,7 @@ static void att_mars_cov(const att_mars_t *f, float cov[4])
         }
         if (k > 0.0f && h2 > 0.0f) { /* else no heading correction (or no horizontal field): unknown */
             const float v = att_i_cov_first(c->dt, k, c->gyro_noise2, c->mag_noise2 / h2);
-            yaw = att_i_cov_grow(v, c->var_step, st->steps - st->mag_step - 1u, ATT_COV_UNKNOWN);
+            yaw = att_i_cov_grow(v, c->var_step, st->steps, st->mag_step, ATT_COV_UNKNOWN);
         }
     }
     cov[0] = tilt;
