@@ -473,6 +473,24 @@ static inline float att_i_cov_grow(float v, float s2dt, uint32_t steps, uint32_t
     return (g < cap) ? g : cap;
 }
 
+/*
+ * The tilt variance of ars's and mars's covariance (att_ars.h, step 5), rad^2: pi^2/12 before the first
+ * usable sample; else the steady state var_tilt (during a recovery var_tilt_rec plus pi^2/48 fading over
+ * its rec_n steps) grown by var_step per step since the last accepted accel sample (stamp acc_step).
+ */
+static inline float att_i_cov_tilt_now(float var_tilt, float var_tilt_rec, float var_step, uint32_t rec_left,
+                                       uint32_t rec_n, uint32_t steps, uint32_t acc_step, bool initialised)
+{
+    float tilt = var_tilt;
+    if (!initialised) {
+        return ATT_COV_TILT_MAX; /* no attitude yet */
+    }
+    if (rec_left > 0u) {
+        tilt = var_tilt_rec + ATT_COV_CLIP * ((float)rec_left / (float)rec_n);
+    }
+    return att_i_cov_grow(tilt, var_step, steps, acc_step, ATT_COV_TILT_MAX);
+}
+
 /**
  * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
  * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), else counted down. Returns

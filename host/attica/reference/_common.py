@@ -240,6 +240,16 @@ def cov_grow(v: Any, s2dt: Any, steps: Any, stamp: Any, cap: Any) -> NDArray[np.
     return out
 
 
+def cov_tilt_now(f: Any) -> NDArray[np.float32]:
+    """att_i_cov_tilt_now for ars's and mars's reference ``f`` (its coefficients and state), rad^2."""
+    with np.errstate(all="ignore"):
+        rec = f.var_tilt_rec + COV_CLIP * (f.rec_left.astype(np.float32) / f.rec_n.astype(np.float32))
+    tilt = np.where(f.rec_left > np.uint32(0), rec, f.var_tilt).astype(np.float32)
+    tilt = cov_grow(tilt, f.var_step, f.steps, f.acc_step, COV_TILT_MAX)
+    out: NDArray[np.float32] = np.where(f.initialised, tilt, COV_TILT_MAX).astype(np.float32)
+    return out
+
+
 def recovery_step(
     g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any
 ) -> tuple[NDArray[np.uint32], NDArray[np.bool_]]:

@@ -10,13 +10,13 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
-    COV_CLIP,
     COV_TILT_MAX,
     COV_UNKNOWN,
     StateSpec,
     carry_state,
     cov_grow,
     cov_tilt,
+    cov_tilt_now,
     recovery_params,
     recovery_step,
     run_steps,
@@ -177,13 +177,7 @@ class Ars:
 
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
         """att_ars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
-        with np.errstate(all="ignore"):
-            rec = self.var_tilt_rec + COV_CLIP * (
-                self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
-            )
-        tilt = np.where(self.rec_left > _U0, rec, self.var_tilt).astype(np.float32)
-        tilt = cov_grow(tilt, self.var_step, self.steps, self.acc_step, COV_TILT_MAX)
-        tilt = np.where(self.initialised, tilt, COV_TILT_MAX).astype(np.float32)  # no attitude yet
+        tilt = cov_tilt_now(self)
         zero = np.zeros(self.n, np.float32)
         known = cov_grow(zero, self.var_step, self.steps + np.uint32(1), self.head_step, COV_UNKNOWN)
         yaw = np.where(self.head_known, known, COV_UNKNOWN).astype(np.float32)

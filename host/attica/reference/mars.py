@@ -10,7 +10,6 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
-    COV_CLIP,
     COV_TILT_MAX,
     COV_UNKNOWN,
     StateSpec,
@@ -18,6 +17,7 @@ from attica.reference._common import (
     cov_first,
     cov_grow,
     cov_tilt,
+    cov_tilt_now,
     recovery_params,
     recovery_step,
     run_steps,
@@ -306,14 +306,8 @@ class Mars:
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
         """att_mars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
         rec = self.rec_left > _U0
+        tilt = cov_tilt_now(self)
         with np.errstate(all="ignore"):
-            t_rec = self.var_tilt_rec + COV_CLIP * (
-                self.rec_left.astype(np.float32) / self.rec_n.astype(np.float32)
-            )
-            tilt = cov_grow(
-                np.where(rec, t_rec, self.var_tilt), self.var_step, self.steps, self.acc_step, COV_TILT_MAX
-            )
-            tilt = np.where(self.initialised, tilt, COV_TILT_MAX).astype(np.float32)  # no attitude yet
             mx, my, _ = self.m0
             h2 = mx * mx + my * my
             k = np.where(rec, self.k_rec, np.where(self.fast_left > _U0, self.k_fast, self.k_mag))

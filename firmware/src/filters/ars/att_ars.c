@@ -378,15 +378,9 @@ static void att_ars_cov(const att_ars_t *f, float cov[4])
 {
     const att_ars_coeffs_t *c = &f->c;
     const att_ars_state_t *st = &f->st;
-    float tilt = c->var_tilt;
+    const float tilt = att_i_cov_tilt_now(c->var_tilt, c->var_tilt_rec, c->var_step, st->rec_left, c->rec_n,
+                                          st->steps, st->acc_step, st->initialised);
     float yaw = ATT_COV_UNKNOWN;
-    if (st->rec_left > 0u) {
-        tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
-    }
-    tilt = att_i_cov_grow(tilt, c->var_step, st->steps, st->acc_step, ATT_COV_TILT_MAX);
-    if (!st->initialised) {
-        tilt = ATT_COV_TILT_MAX; /* no attitude yet */
-    }
     if (st->head_known) {
         yaw = att_i_cov_grow(0.0f, c->var_step, st->steps + 1u, st->head_step, ATT_COV_UNKNOWN);
     }

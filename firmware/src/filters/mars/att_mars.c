@@ -881,15 +881,9 @@ static void att_mars_cov(const att_mars_t *f, float cov[4])
 {
     const att_mars_coeffs_t *c = &f->c;
     const att_mars_state_t *st = &f->st;
-    float tilt = c->var_tilt;
+    const float tilt = att_i_cov_tilt_now(c->var_tilt, c->var_tilt_rec, c->var_step, st->rec_left, c->rec_n,
+                                          st->steps, st->acc_step, st->initialised);
     float yaw = ATT_COV_UNKNOWN;
-    if (st->rec_left > 0u) {
-        tilt = c->var_tilt_rec + ATT_COV_CLIP * ((float)st->rec_left / (float)c->rec_n);
-    }
-    tilt = att_i_cov_grow(tilt, c->var_step, st->steps, st->acc_step, ATT_COV_TILT_MAX);
-    if (!st->initialised) {
-        tilt = ATT_COV_TILT_MAX; /* no attitude yet */
-    }
     if (st->m0_valid && st->initialised) {
         const float h2 = st->m0.x * st->m0.x + st->m0.y * st->m0.y;
         float k = c->k_mag;
