@@ -248,6 +248,8 @@ class MekfSettings:
     gyro_scale_init: float = 0.0
     recovery_time: float = 2.0
     declination: float = 0.0
+    mag_ref_tau: float = 20.0
+    mag_new_time: float = 20.0
     use_mag: bool = True
     init_from_sensors: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))

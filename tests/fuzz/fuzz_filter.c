@@ -176,7 +176,8 @@ static const field_t f_mekf[] = {
  * first tier (the *_X_TIER1 first ones: mars's and mekf's declination, ekf's recovery, added after the
  * reproducers of F14 (mars, 0xd3) and of an ekf finding (0xff) were found with bit 7 set) are reached
  * only with the kind byte's top bits 101 (FZ_EXT2), so those reproducers too decode as when found.
- * ars's covariance model (gyro_noise, accel_noise) and mars's are in that second tier.
+ * ars's covariance model (gyro_noise, accel_noise) and mars's are in that second tier, and mekf's learnt
+ * reference (mag_ref_tau, mag_new_time).
  */
 static const field_t f_ars_x[] = {
     FF(ars, recovery_time, T_F32), FF(ars, gyro_noise, T_F32), FF(ars, accel_noise, T_F32),
@@ -191,7 +192,8 @@ static const field_t f_kf_x[] = {
     FF(kf, recovery_time, T_F32),
 };
 static const field_t f_mekf_x[] = {
-    FF(mekf, recovery_time, T_F32), FF(mekf, declination, T_F32),
+    FF(mekf, recovery_time, T_F32), FF(mekf, declination, T_F32), FF(mekf, mag_ref_tau, T_F32),
+    FF(mekf, mag_new_time, T_F32),
 };
 #define FZ_MEKF_X_TIER1 1u
 static const field_t f_ekf_x[] = {

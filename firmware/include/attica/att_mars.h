@@ -100,6 +100,7 @@
 
 #include "attica/att_config.h"
 #include "attica/att_ars.h"
+#include "attica/att_magref.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus
@@ -196,14 +197,9 @@ typedef struct {
     bool lp_on;               /**< k_lp > 0: the accel low-pass is used */
     bool reject_on;           /**< accel_reject > 0: the rejection test is made */
     bool full;               /**< k_acc == 1: full alignment with the low-passed gravity, no trig */
-    bool ref_on;             /**< mag_ref_tau > 0: the reference's norm and dip follow the accepted samples */
+    att_magref_params_t ref; /**< the learnt reference field (att_magref.h) */
     float k_fast;            /**< per-sample mag gain of the fast phase (k_mag when tau_mag_fast is 0) */
     float k_fast1;           /**< 1 - k_fast */
-    float k_ref;             /**< per-block gain of the reference's norm and sin(dip), [0, 1) */
-    float cand_tol_n;        /**< relative norm tolerance of a steady new field (mag_norm_reject / 2; Inf = none) */
-    float cand_tol_s;        /**< sin(dip) tolerance of a steady new field (mag_dip_reject / 2; Inf = none) */
-    uint32_t blk_n;          /**< samples per block of the reference statistics (1 s, at least 1) */
-    uint32_t new_n;          /**< steady blocks before a new field is adopted (0 = never) */
     uint32_t fast_n;         /**< blocks of the fast phase after a new reference (0 = none) */
     uint32_t fast_start_n;   /**< blocks of the fast phase after the heading alignment: also the accel
                                   low-pass's settling time 6 tau_acc_lp (the tilt of a first sample can be off) */
@@ -241,16 +237,7 @@ typedef struct {
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
-    float acc_norm;        /**< sum of |m| of the accepted samples of this block, uT */
-    float acc_z;           /**< sum of the vertical (earth z) field of the accepted samples of this block, uT */
-    float rej_norm;        /**< sum of |m| of the samples rejected by norm or dip in this block, uT */
-    float rej_z;           /**< sum of their vertical field, uT */
-    float cand_norm;       /**< candidate new reference: mean |m| of the steady rejected blocks, uT */
-    float cand_sin;        /**< candidate's sin(dip): mean vertical / |m| of those blocks */
-    uint32_t blk;          /**< steps of this block (since the reference was set) */
-    uint32_t acc_n;        /**< accepted samples in this block */
-    uint32_t rej_n;        /**< samples rejected by norm or dip in this block */
-    uint32_t cand_n;       /**< consecutive steady blocks of the candidate (0 = none) */
+    att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */

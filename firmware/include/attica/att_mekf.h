@@ -60,6 +60,15 @@
  *     Heading is relative to magnetic north (m0 = (0, |m_xy|, m_z) after the yaw alignment), or to true
  *     north with the setting declination D (the alignment of att_mars.h puts the field at the azimuth
  *     D: m0 = (|m_xy| sin D, |m_xy| cos D, m_z)).
+ *     The reference is estimated, not frozen (att_magref.h, as in att_mars.h): after the mag phase every
+ *     step with a known m0 counts its sample, accepted (it passed the norm and dip tests, whatever the
+ *     chi-square gate then did) or rejected by them, with |m| and m'_z, in blocks of 1 s. At a block's
+ *     end the norm and sin(dip) of m0 move toward the accepted samples' means (mag_ref_tau), its
+ *     horizontal direction kept; or a rejected field that stays steady for mag_new_time becomes m0, and
+ *     the heading is then unknown against it: its variance is set to p_max and its correlations to zero,
+ *     so the next samples set the heading at the pace their noise allows (a few seconds at the defaults,
+ *     where the steady heading variance is about p0_att). The heading is not tied to the field of the
+ *     first samples.
  *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
  *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
  *     unobservable yaw variance at p_max, a normal condition that is not flagged). P must then pass a
@@ -134,6 +143,7 @@
 #define ATT_MEKF_H
 
 #include "attica/att_config.h"
+#include "attica/att_magref.h"
 #include "attica/att_types.h"
 
 #ifdef __cplusplus
@@ -189,6 +199,10 @@ typedef struct {
                                 alignment from the sensors (init_from_sensors, use_mag) puts the field at
                                 this azimuth, so yaw is relative to true north; 0 = magnetic north
                                 (default). Unused without init_from_sensors or use_mag */
+    float mag_ref_tau;     /**< time constant of the reference field's norm and dip, learnt from the
+                                accepted samples (att_magref.h), s, [0, 1e4]; 0 = kept as first set */
+    float mag_new_time;    /**< a rejected field that stays steady this long becomes the reference (its
+                                heading variance reset, as at the alignment), s, [0, 1e4]; 0 = never */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -238,6 +252,7 @@ typedef struct {
     float decl;            /**< declination D, rad (east of true north positive) */
     float decl_sin;        /**< sin D: the east part of the reference's horizontal unit direction */
     float decl_cos;        /**< cos D: its north part */
+    att_magref_params_t ref; /**< the learnt reference field (att_magref.h) */
     att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
     att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
     att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
@@ -270,6 +285,7 @@ typedef struct {
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
     bool initialised;      /**< q holds a valid attitude */

@@ -12,6 +12,7 @@
 #include "../math/att_inline.h"
 
 #include "attica/att_bias.h"
+#include "attica/att_magref.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
 #include "attica/att_types.h"
@@ -489,6 +490,134 @@ static inline float att_i_cov_tilt_now(float var_tilt, float var_tilt_rec, float
         tilt = var_tilt_rec + ATT_COV_CLIP * ((float)rec_left / (float)rec_n);
     }
     return att_i_cov_grow(tilt, var_step, steps, acc_step, ATT_COV_TILT_MAX);
+}
+
+/*
+ * The learnt reference field (att_magref.h), shared by mars and mekf. A step's mag sample is counted as
+ * ATT_MAGREF_ACCEPTED (it passed the norm and dip tests), ATT_MAGREF_GATED (it failed them) or neither.
+ */
+#define ATT_MAGREF_BLOCK_S 1.0f    /* s: the length of a block of the statistics */
+#define ATT_MAGREF_M0_MIN 0x1.0624dep-10f /* 1e-3 uT: a horizontal field below this has no direction */
+#define ATT_MAGREF_ACCEPTED 1u
+#define ATT_MAGREF_GATED 2u
+#define ATT_MAGREF_KEEP 0u   /* the end of a block: the reference stays */
+#define ATT_MAGREF_FOLLOW 1u /* its norm and sin(dip) move toward the accepted samples' */
+#define ATT_MAGREF_ADOPT 2u  /* a steady new field becomes the reference */
+
+/* The coefficients from the owner's settings (s, rad; the rejection bounds 0 = none). */
+static inline void att_i_magref_params(att_magref_params_t *p, float dt, float ref_tau, float new_time,
+                                       float norm_reject, float dip_reject)
+{
+    const uint32_t blk_n = att_sensor_samples(ATT_MAGREF_BLOCK_S, dt);
+    float t;
+    p->blk_n = (blk_n > 0u) ? blk_n : 1u;
+    t = (float)p->blk_n * dt;
+    p->ref_on = ref_tau > 0.0f;
+    p->k_ref = p->ref_on ? t / (ref_tau + t) : 0.0f;
+    p->new_n = att_sensor_samples(new_time, t);
+    p->cand_tol_n = (norm_reject > 0.0f) ? 0.5f * norm_reject : INFINITY;
+    p->cand_tol_s = (dip_reject > 0.0f) ? 0.5f * dip_reject : INFINITY;
+}
+
+/* A new block of the statistics. */
+static inline void att_i_magref_clear(att_magref_t *r)
+{
+    r->acc_norm = 0.0f;
+    r->acc_z = 0.0f;
+    r->rej_norm = 0.0f;
+    r->rej_z = 0.0f;
+    r->blk = 0u;
+    r->acc_n = 0u;
+    r->rej_n = 0u;
+}
+
+/* No candidate, a new block (reset). */
+static inline void att_i_magref_reset(att_magref_t *r)
+{
+    r->cand_norm = 0.0f;
+    r->cand_sin = 0.0f;
+    r->cand_n = 0u;
+    att_i_magref_clear(r);
+}
+
+/* Count a step with a known reference: use (ATT_MAGREF_*), |m| (uT), the vertical field (uT). True at
+   the end of a block (then call att_i_magref_block). */
+static ATT_ALWAYS_INLINE bool att_i_magref_count(const att_magref_params_t *p, att_magref_t *r, uint32_t use,
+                                                 float mnorm, float mz)
+{
+    if (use == ATT_MAGREF_ACCEPTED) {
+        r->acc_norm = r->acc_norm + mnorm;
+        r->acc_z = r->acc_z + mz;
+        r->acc_n = r->acc_n + 1u;
+    } else if (use == ATT_MAGREF_GATED) {
+        r->rej_norm = r->rej_norm + mnorm;
+        r->rej_z = r->rej_z + mz;
+        r->rej_n = r->rej_n + 1u;
+    }
+    r->blk = r->blk + 1u;
+    return r->blk >= p->blk_n;
+}
+
+/*
+ * The end of a block (att_magref.h) with the reference m0 (uT, earth): ATT_MAGREF_FOLLOW or
+ * ATT_MAGREF_ADOPT with the new reference's norm *n (uT) and sin(dip) *s, or ATT_MAGREF_KEEP; the
+ * candidate updated, a new block.
+ */
+static inline uint32_t att_i_magref_block(const att_magref_params_t *p, att_magref_t *r, att_vec3_t m0, float *n,
+                                          float *s)
+{
+    uint32_t out = ATT_MAGREF_KEEP;
+    if (r->acc_n > r->rej_n) {
+        if (p->ref_on && r->acc_norm > 0.0f) {
+            const float n0 = att_i_vec3_norm(m0);
+            const float s0 = m0.z / n0;
+            const float nb = r->acc_norm / (float)r->acc_n;
+            const float sb = r->acc_z / r->acc_norm;
+            *n = n0 + p->k_ref * (nb - n0);
+            *s = s0 + p->k_ref * (sb - s0);
+            out = ATT_MAGREF_FOLLOW;
+        }
+        r->cand_n = 0u;
+    } else if (r->rej_n > 0u && p->new_n > 0u && r->rej_norm > 0.0f) {
+        const float nb = r->rej_norm / (float)r->rej_n;
+        const float sb = r->rej_z / r->rej_norm;
+        if (r->cand_n > 0u && att_i_absf(nb - r->cand_norm) <= p->cand_tol_n * r->cand_norm &&
+            att_i_absf(sb - r->cand_sin) <= p->cand_tol_s) {
+            const float w = 1.0f / (float)(r->cand_n + 1u);
+            r->cand_norm = r->cand_norm + (nb - r->cand_norm) * w;
+            r->cand_sin = r->cand_sin + (sb - r->cand_sin) * w;
+            r->cand_n = r->cand_n + 1u;
+        } else {
+            r->cand_norm = nb;
+            r->cand_sin = sb;
+            r->cand_n = 1u;
+        }
+        if (r->cand_n >= p->new_n) {
+            *n = r->cand_norm;
+            *s = r->cand_sin;
+            r->cand_n = 0u;
+            out = ATT_MAGREF_ADOPT;
+        }
+    }
+    att_i_magref_clear(r);
+    return out;
+}
+
+/*
+ * The reference field of norm n (uT) and sin(dip) s with the horizontal direction of m0 (uT, earth), or
+ * the declination's azimuth (sin, cos) when m0 has none; |s| slightly above 1 (rounding of the sums) gives
+ * a vertical field.
+ */
+static inline att_vec3_t att_i_magref_m0(att_vec3_t m0, float n, float s, float decl_sin, float decl_cos)
+{
+    const float s2 = s * s;
+    const float h = (s2 < 1.0f) ? n * att_i_sqrtf(1.0f - s2) : 0.0f;
+    const float h0 = att_i_sqrtf(m0.x * m0.x + m0.y * m0.y);
+    if (h0 >= ATT_MAGREF_M0_MIN) {
+        const float r = h / h0;
+        return att_i_vec3(m0.x * r, m0.y * r, n * s);
+    }
+    return att_i_vec3(h * decl_sin, h * decl_cos, n * s);
 }
 
 /**

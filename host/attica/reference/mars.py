@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
+from attica.reference import magref as mr
 from attica.reference import sensor
 from attica.reference._common import (
     COV_TILT_MAX,
@@ -36,8 +37,6 @@ _M0Parts = tuple[dm.Vec3, dm.Vec3, dm.Vec3, Any, Any, Any, Any, Any]
 """(m0, m0_ref, m0_perp, m0_ref_ok, m0_lo, m0_hi, dip_lo, dip_hi) as att_mars_set_m0 stores them."""
 
 PIO2 = dm.c("0x1.921fb6p+0")
-M0_MIN = dm.c("0x1.0624dep-10")  # ATT_MARS_M0_MIN
-BLOCK_S = dm.ONE  # ATT_MARS_BLOCK_S, s
 THREE = dm.c("0x1.8p+1")
 SIX = dm.c("0x1.8p+2")
 
@@ -98,16 +97,7 @@ class Mars:
         "st.m0_hi": "f32",
         "st.dip_lo": "f32",
         "st.dip_hi": "f32",
-        "st.acc_norm": "f32",
-        "st.acc_z": "f32",
-        "st.rej_norm": "f32",
-        "st.rej_z": "f32",
-        "st.cand_norm": "f32",
-        "st.cand_sin": "f32",
-        "st.blk": "u32",
-        "st.acc_n": "u32",
-        "st.rej_n": "u32",
-        "st.cand_n": "u32",
+        **mr.state_spec("st.ref"),
         "st.fast_left": "u32",
         "st.rec_left": "u32",
         "st.acc_step": "u32",
@@ -152,14 +142,9 @@ class Mars:
         "c.lp_on": "bool",
         "c.reject_on": "bool",
         "c.full": "bool",
-        "c.ref_on": "bool",
+        **mr.coeff_spec("c.ref"),
         "c.k_fast": "f32",
         "c.k_fast1": "f32",
-        "c.k_ref": "f32",
-        "c.cand_tol_n": "f32",
-        "c.cand_tol_s": "f32",
-        "c.blk_n": "u32",
-        "c.new_n": "u32",
         "c.fast_n": "u32",
         "c.fast_start_n": "u32",
         "c.k_bias_mag": "f32",
@@ -245,18 +230,15 @@ class Mars:
     def _ref_coeffs(self, s: MarsSettings) -> None:
         """att_mars_ref_coeffs: the reference field's estimation and the fast phase."""
         n = self.n
-        blk_n = sensor.samples(BLOCK_S, self.dt)
-        self.blk_n = np.where(blk_n > _U0, blk_n, np.uint32(1)).astype(np.uint32)
-        t = self.blk_n.astype(np.float32) * self.dt
-        ref_tau = setting(s.mag_ref_tau, n)
-        self.ref_on = ref_tau > dm.ZERO
+        t = mr.params(
+            self,
+            self.dt,
+            setting(s.mag_ref_tau, n),
+            setting(s.mag_new_time, n),
+            self.mag_norm_reject,
+            self.mag_dip_reject,
+        )
         with np.errstate(all="ignore"):
-            self.k_ref = np.where(self.ref_on, t / (ref_tau + t), dm.ZERO).astype(np.float32)
-            self.new_n = sensor.samples(setting(s.mag_new_time, n), t)
-            nr = self.mag_norm_reject
-            dr = self.mag_dip_reject
-            self.cand_tol_n = np.where(nr > dm.ZERO, dm.HALF * nr, dm.INF).astype(np.float32)
-            self.cand_tol_s = np.where(dr > dm.ZERO, dm.HALF * dr, dm.INF).astype(np.float32)
             tau_fast = setting(s.tau_mag_fast, n)
             k_fast = np.where(tau_fast > dm.ZERO, self.dt / (tau_fast + self.dt), self.k_mag)
         self.k_fast = k_fast.astype(np.float32)
@@ -317,13 +299,6 @@ class Mars:
         yaw = np.where(known, grown, COV_UNKNOWN).astype(np.float32)
         return (tilt, tilt.copy(), yaw, np.zeros(self.n, np.float32))
 
-    def _block_clear(self, cond: Any) -> None:
-        """att_mars_block_clear where cond."""
-        for name in ("acc_norm", "acc_z", "rej_norm", "rej_z"):
-            setattr(self, name, np.where(cond, dm.ZERO, getattr(self, name)).astype(np.float32))
-        for name in ("blk", "acc_n", "rej_n"):
-            setattr(self, name, np.where(cond, _U0, getattr(self, name)).astype(np.uint32))
-
     def reset(self) -> None:
         """Back to the state after construction (att_mars_reset)."""
         n = self.n
@@ -339,20 +314,11 @@ class Mars:
         self.dip_hi: Any = z.copy()
         self.m0_ref_ok: Any = np.zeros(n, np.bool_)
         self.m0_valid: Any = np.zeros(n, np.bool_)
-        self.cand_norm: Any = z.copy()
-        self.cand_sin: Any = z.copy()
-        self.cand_n = np.zeros(n, np.uint32)
         self.fast_left = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
         self.acc_step = np.zeros(n, np.uint32)
         self.mag_step = np.zeros(n, np.uint32)
-        self.acc_norm: Any = z.copy()
-        self.acc_z: Any = z.copy()
-        self.rej_norm: Any = z.copy()
-        self.rej_z: Any = z.copy()
-        self.blk = np.zeros(n, np.uint32)
-        self.acc_n = np.zeros(n, np.uint32)
-        self.rej_n = np.zeros(n, np.uint32)
+        mr.reset(self, n)
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = self._derive_m0(mi)
@@ -394,7 +360,8 @@ class Mars:
             dip_hi = np.where((t > dm.ZERO) & (d_hi < PIO2), dm.sinf(d_hi), two)
         return ok, (m0, ref, perp, ref_ok, lo, hi, dip_lo, dip_hi)
 
-    def _commit_m0(self, cond: Any, parts: _M0Parts) -> None:
+    def _commit_m0(self, cond: Any, parts: _M0Parts, new_block: bool = True) -> None:
+        """att_mars_set_m0's stores where ``cond`` (``new_block`` False: att_mars_m0_limits' only)."""
         m0, ref, perp, ref_ok, lo, hi, dip_lo, dip_hi = parts
         self.m0 = dm.vec3_where(cond, m0, self.m0)
         self.m0_ref = dm.vec3_where(cond, ref, self.m0_ref)
@@ -405,7 +372,8 @@ class Mars:
         self.dip_lo = np.where(cond, dip_lo, self.dip_lo).astype(np.float32)
         self.dip_hi = np.where(cond, dip_hi, self.dip_hi).astype(np.float32)
         self.m0_valid = self.m0_valid | cond
-        self._block_clear(cond)
+        if new_block:
+            mr.clear(self, cond)
 
     def _align(self, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
         """att_mars_align: (ok, q turned about z so the field is at the declination's azimuth, m0)."""
@@ -598,67 +566,17 @@ class Mars:
             )
         self.bias = dm.vec3_where(cond, b, self.bias)
 
-    def _ref_set(self, cond: Any, n: Any, s: Any) -> None:
-        """att_mars_ref_set where cond: m0 (norm n, sin(dip) s), horizontal direction kept (else D's)."""
-        with np.errstate(all="ignore"):
-            s2 = s * s
-            h = np.where(s2 < dm.ONE, n * dm.sqrtf(dm.ONE - s2), dm.ZERO)
-            mx, my, _ = self.m0
-            h0 = dm.sqrtf(mx * mx + my * my)
-            r = h / h0
-            big = h0 >= M0_MIN
-            m0 = (np.where(big, mx * r, h * self.decl_sin), np.where(big, my * r, h * self.decl_cos), n * s)
-        ok, parts = self._derive_m0(m0)
-        self._commit_m0(cond & ok, parts)
-
     def _ref_count(self, count: Any, accepted: Any, gated: Any, mnorm: Any, mz: Any) -> None:
         """att_mars_ref_count (and att_mars_ref_block at the end of a block) where count."""
-        f32 = np.float32
-        acc = count & accepted
-        rej = count & gated
-        self.acc_norm = np.where(acc, self.acc_norm + mnorm, self.acc_norm).astype(f32)
-        self.acc_z = np.where(acc, self.acc_z + mz, self.acc_z).astype(f32)
-        self.acc_n = np.where(acc, self.acc_n + np.uint32(1), self.acc_n).astype(np.uint32)
-        self.rej_norm = np.where(rej, self.rej_norm + mnorm, self.rej_norm).astype(f32)
-        self.rej_z = np.where(rej, self.rej_z + mz, self.rej_z).astype(f32)
-        self.rej_n = np.where(rej, self.rej_n + np.uint32(1), self.rej_n).astype(np.uint32)
-        self.blk = np.where(count, self.blk + np.uint32(1), self.blk).astype(np.uint32)
-        end = count & (self.blk >= self.blk_n)
+        end = mr.count(self, count, accepted, gated, mnorm, mz)
         if not end.any():
             return
         dec = end & (self.fast_left > _U0)  # the fast phase is counted in blocks
-        self.fast_left = np.where(dec, self.fast_left - np.uint32(1), self.fast_left).astype(np.uint32)
-        with np.errstate(all="ignore"):
-            most = self.acc_n > self.rej_n
-            # the reference follows the accepted samples
-            do_a = end & most & self.ref_on & (self.acc_norm > dm.ZERO)
-            n0 = dm.vec3_norm(self.m0)
-            s0 = self.m0[2] / n0
-            nb = self.acc_norm / self.acc_n.astype(f32)
-            sb = self.acc_z / self.acc_norm
-            n_a = n0 + self.k_ref * (nb - n0)
-            s_a = s0 + self.k_ref * (sb - s0)
-            # or the rejected ones form a candidate
-            do_b = end & ~most & (self.rej_n > _U0) & (self.new_n > _U0) & (self.rej_norm > dm.ZERO)
-            nr = self.rej_norm / self.rej_n.astype(f32)
-            sr = self.rej_z / self.rej_norm
-            steady = (
-                (self.cand_n > _U0)
-                & (dm.absf(nr - self.cand_norm) <= self.cand_tol_n * self.cand_norm)
-                & (dm.absf(sr - self.cand_sin) <= self.cand_tol_s)
-            )
-            w = dm.ONE / (self.cand_n + np.uint32(1)).astype(f32)
-            cn = np.where(steady, self.cand_norm + (nr - self.cand_norm) * w, nr).astype(f32)
-            cs = np.where(steady, self.cand_sin + (sr - self.cand_sin) * w, sr).astype(f32)
-            ck = np.where(steady, self.cand_n + np.uint32(1), np.uint32(1)).astype(np.uint32)
-            adopt = do_b & (ck >= self.new_n)
-        self.cand_norm = np.where(do_b, cn, self.cand_norm).astype(f32)
-        self.cand_sin = np.where(do_b, cs, self.cand_sin).astype(f32)
-        self.cand_n = np.where(end & most, _U0, np.where(do_b, np.where(adopt, _U0, ck), self.cand_n))
-        self.cand_n = self.cand_n.astype(np.uint32)
-        self._ref_set(do_a | adopt, np.where(adopt, cn, n_a), np.where(adopt, cs, s_a))
+        self.fast_left = np.where(dec, self.fast_left - _U1, self.fast_left).astype(np.uint32)
+        follow, adopt, n, s = mr.block(self, end, self.m0)
+        ok, parts = self._derive_m0(mr.m0_from(self.m0, n, s, self.decl_sin, self.decl_cos))
+        self._commit_m0((follow | adopt) & ok, parts)
         self.fast_left = np.where(adopt, self.fast_n, self.fast_left).astype(np.uint32)
-        self._block_clear(end)
 
     def retune(self, settings: MarsSettings) -> None:
         """att_mars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
@@ -666,9 +584,7 @@ class Mars:
         carry_state(self, new)
         bias_retune(new)
         ok, parts = new._derive_m0(new.m0)
-        blk = (new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z)
-        new._commit_m0(new.m0_valid & ok, parts)
-        new.blk, new.acc_n, new.rej_n, new.acc_norm, new.acc_z, new.rej_norm, new.rej_z = blk  # limits only
+        new._commit_m0(new.m0_valid & ok, parts, new_block=False)  # the limits only: the block is kept
         new.fast_left = np.minimum(new.fast_left, new.fast_start_n).astype(np.uint32)
         new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         self.__dict__.update(new.__dict__)

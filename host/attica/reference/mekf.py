@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
+from attica.reference import magref as mr
 from attica.reference import mekf_cov as cv
 from attica.reference import mekf_mag as mg
 from attica.reference import mekf_scale as msc
@@ -85,6 +86,12 @@ class Work:
     """(|a|/g - 1)^2 of a usable accel sample (0 when not needed)."""
     mnorm: Any
     """|m| of a usable mag sample."""
+    mz: Any
+    """The vertical (earth z) field of a sample tested against m0 (the learnt reference)."""
+    accepted: Any
+    """The sample passed the norm and dip tests (wk.use == ATT_MAGREF_ACCEPTED)."""
+    gated: Any
+    """The sample failed them (ATT_MAGREF_GATED)."""
     p: cv.Cov
     """P (st->p)."""
     sv: msc.Sens
@@ -130,6 +137,7 @@ class Mekf:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        **mr.state_spec("st.ref"),
         "st.m0_valid": "bool",
         "st.lp_valid": "bool",
         "st.initialised": "bool",
@@ -165,6 +173,7 @@ class Mekf:
         "c.decl": "f32",
         "c.decl_sin": "f32",
         "c.decl_cos": "f32",
+        **mr.coeff_spec("c.ref"),
         "c.q_init": "quat",
         "c.r_accel": "f32",
         "c.gate": "f32",
@@ -249,6 +258,14 @@ class Mekf:
         self.decl = setting(s.declination, n)
         self.decl_sin = dm.sinf(self.decl)
         self.decl_cos = dm.cosf(self.decl)
+        mr.params(
+            self,
+            self.dt,
+            setting(s.mag_ref_tau, n),
+            setting(s.mag_new_time, n),
+            self.mag_norm_reject,
+            self.mag_dip_reject,
+        )
         self.reset()
 
     def _rec_coeffs(self, s: MekfSettings) -> None:
@@ -284,6 +301,7 @@ class Mekf:
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        mr.reset(self, n)
         self.m0_valid: Any = np.zeros(n, np.bool_)
         self.lp_valid: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
@@ -334,6 +352,7 @@ class Mekf:
             flags = flags | self._accel(wk, run & ck.accel_ok & ~ck.rejected, rec)
             flags = flags | mg.mag(self, wk, run & ck.mag_ok & self.m0_valid, m)
             flags = flags | mg.mag_first(self, wk, run & ck.mag_ok & ~self.m0_valid, m)
+            mg.ref_count(self, wk, run & self.m0_valid)
             # 4. conditioning of P and the scale estimate, 5. normalisation
             flags = flags | self._condition(wk, run)
             flags = flags | self._scale_bound(wk, run)
@@ -374,6 +393,9 @@ class Mekf:
             (z, z, z),
             ck.e2,
             ck.mnorm,
+            z,
+            np.zeros(self.n, np.bool_),
+            np.zeros(self.n, np.bool_),
             list(self.p),
             list(self.scale_v),
             self.p_scale,
@@ -535,7 +557,7 @@ class Mekf:
         new = Mekf(settings, self.n)
         carry_state(self, new)
         ok, parts = mg.derive_m0(new, new.m0)
-        mg.commit_m0(new, new.m0_valid & ok, parts)
+        mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)
         new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         off = ~(new.p0_scale > dm.ZERO)

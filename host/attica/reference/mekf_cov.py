@@ -188,13 +188,16 @@ def rest_apply(
     return out, dth, b, v, ps, scale
 
 
-def yaw_reset(p: Cov, p0_att: Any) -> Cov:
-    """att_mekf_yaw_reset: the heading row and column to (0, .., p0_att, .., 0)."""
+def yaw_reset(p: Cov, var: Any) -> Cov:
+    """att_mekf_yaw_reset: the heading row and column to (0, .., var, .., 0).
+
+    ``var`` is p0_att at the alignment, p_max when a new reference field is adopted.
+    """
     out = list(p)
     zero = np.zeros(np.shape(p[0]), np.float32)
     for i, j in ((0, 2), (1, 2), (2, 3), (2, 4), (2, 5)):
         out[ix(i, j)] = zero
-    out[ix(2, 2)] = np.broadcast_to(np.asarray(p0_att, np.float32), np.shape(p[0])).copy()
+    out[ix(2, 2)] = np.broadcast_to(np.asarray(var, np.float32), np.shape(p[0])).copy()
     return out
 
 

@@ -1,7 +1,8 @@
 """The MEKF's reference field and magnetometer phases (firmware/src/filters/mekf/att_mekf.c), in lockstep.
 
 att_mekf_set_m0 with att_mekf_m0_limits, att_mekf_align, att_mekf_heading, att_mekf_lp_turn,
-att_mekf_yaw_reset, att_mekf_start, att_mekf_mag and att_mekf_mag_first as functions of the filter ``f``
+att_mekf_yaw_reset, att_mekf_start, att_mekf_mag, att_mekf_mag_first and att_mekf_ref_block (the learnt
+reference, :mod:`attica.reference.magref`) as functions of the filter ``f``
 (C's coefficients ``c`` and state ``st``) and the step's work record ``wk``: every C branch an
 ``np.where``, every operation the C one in the same order. The driver is
 :meth:`attica.reference.mekf.Mekf.step`.
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from attica.reference import detmath as dm
+from attica.reference import magref as mr
 from attica.reference import mekf_cov as cv
 from attica.reference import mekf_scale as msc
 from attica.reference import sensor
@@ -60,8 +62,11 @@ def derive_m0(f: Mekf, m0: dm.Vec3) -> tuple[Any, M0Parts]:
     return ok, (m0, ref, hx, hy, lo, hi, dip_lo, dip_hi)
 
 
-def commit_m0(f: Mekf, cond: Any, parts: M0Parts) -> None:
-    """Mirror of att_mekf_set_m0's stores, where ``cond``: the parts of :func:`derive_m0` into ``f``."""
+def commit_m0(f: Mekf, cond: Any, parts: M0Parts, new_block: bool = True) -> None:
+    """Mirror of att_mekf_set_m0's stores, where ``cond``: the parts of :func:`derive_m0` into ``f``.
+
+    ``new_block`` False: only att_mekf_m0_limits' (a retune keeps the learnt reference's block).
+    """
     m0, ref, hx, hy, lo, hi, dip_lo, dip_hi = parts
     w = np.where
     f.m0 = dm.vec3_where(cond, m0, f.m0)
@@ -73,6 +78,8 @@ def commit_m0(f: Mekf, cond: Any, parts: M0Parts) -> None:
     f.dip_lo = w(cond, dip_lo, f.dip_lo).astype(np.float32)
     f.dip_hi = w(cond, dip_hi, f.dip_hi).astype(np.float32)
     f.m0_valid = f.m0_valid | cond
+    if new_block:
+        mr.clear(f, cond)
 
 
 def align(f: Mekf, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
@@ -88,8 +95,8 @@ def align(f: Mekf, q: dm.Quat, mag: dm.Vec3) -> tuple[Any, dm.Quat, dm.Vec3]:
     return ok1 & ok2, qa, m0
 
 
-def heading(f: Mekf, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any]:
-    """Mirror of att_mekf_heading: (usable, y = 2 sin(alpha / 2))."""
+def heading(f: Mekf, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any, Any]:
+    """Mirror of att_mekf_heading: (usable, y = 2 sin(alpha / 2), rejected by norm or dip)."""
     with np.errstate(all="ignore"):
         reject = (
             (mnorm < f.m0_lo) | (mnorm > f.m0_hi) | (me[2] < f.dip_lo * mnorm) | (me[2] > f.dip_hi * mnorm)
@@ -102,7 +109,7 @@ def heading(f: Mekf, me: dm.Vec3, mnorm: Any) -> tuple[Any, Any]:
         b = me[0] * ry - me[1] * rx
         arc = (dm.TWO * b) / dm.sqrtf((dm.TWO * hn) * a)
         y = np.where(a > A_MIN * hn, arc, dm.TWO).astype(np.float32)
-    return ~reject & ok_h, y
+    return ~reject & ok_h, y, reject
 
 
 def lp_turn(cond: Any, qw: Any, qz: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, dm.Vec3]:
@@ -114,11 +121,11 @@ def lp_turn(cond: Any, qw: Any, qz: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm
     return dm.vec3_where(cond, t1, lp1), dm.vec3_where(cond, t2, lp2)
 
 
-def yaw_reset(cond: Any, p: cv.Cov, sv: msc.Sens, p0_att: Any) -> tuple[cv.Cov, msc.Sens]:
-    """Mirror of att_mekf_yaw_reset where ``cond``: (P, V) with the heading's row and sensitivity reset."""
+def yaw_reset(cond: Any, p: cv.Cov, sv: msc.Sens, var: Any) -> tuple[cv.Cov, msc.Sens]:
+    """Mirror of att_mekf_yaw_reset where ``cond``: (P, V) with the heading's row reset (variance ``var``)."""
     v = list(sv)
     v[2] = np.where(cond, dm.ZERO, v[2]).astype(np.float32)
-    return cv.where(cond, cv.yaw_reset(p, p0_att), p), v
+    return cv.where(cond, cv.yaw_reset(p, var), p), v
 
 
 # --- the phases ----------------------------------------------------------------------------------
@@ -163,7 +170,10 @@ def mag(f: Mekf, wk: Work, use_corr: Any, m: dm.Vec3) -> Any:
     """Mirror of att_mekf_mag: the heading update where ``use_corr``; returns its flags."""
     w = np.where
     me = dm.quat_rotate(wk.q, m)
-    ok_h, ym = heading(f, me, wk.mnorm)
+    ok_h, ym, gated = heading(f, me, wk.mnorm)
+    wk.mz = w(use_corr, me[2], wk.mz).astype(np.float32)
+    wk.accepted = use_corr & ~gated
+    wk.gated = use_corr & gated
     ok_g, p_m, dz, db, sv_m = cv.mag_apply(
         wk.p, f.mag_hx, f.mag_hy, f.r_mag, f.mag_gate, f.mag_soft, ym, wk.sv
     )
@@ -198,3 +208,14 @@ def mag_first(f: Mekf, wk: Work, first: Any, m: dm.Vec3) -> Any:
     commit_m0(f, use_set & ok_ds, parts_s)
     flags = w(good_l, _u(Flag.INITIALISED), _U0)
     return flags | w((use_align & ~good_l) | (use_set & ~ok_ds), _u(Flag.MAG_REJECTED), _U0)
+
+
+def ref_count(f: Mekf, wk: Work, cond: Any) -> None:
+    """Mirror of the learnt reference's count where ``cond`` and att_mekf_ref_block at a block's end."""
+    end = mr.count(f, cond, wk.accepted, wk.gated, wk.mnorm, wk.mz)
+    if not end.any():
+        return
+    follow, adopt, n, s = mr.block(f, end, f.m0)
+    ok, parts = derive_m0(f, mr.m0_from(f.m0, n, s, f.decl_sin, f.decl_cos))
+    commit_m0(f, (follow | adopt) & ok, parts)
+    wk.p, wk.sv = yaw_reset(adopt, wk.p, wk.sv, f.p_max)  # the heading is unknown against the new field

@@ -14,9 +14,8 @@
 #include "attica/att_sensor.h"
 
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
-#define ATT_MARS_BLOCK_S 1.0f /* s: the length of a block of the reference field's statistics */
-#define ATT_MARS_MAG_ACCEPTED 1u /* the sample passed the norm and dip tests */
-#define ATT_MARS_MAG_GATED 2u    /* the sample failed them */
+#define ATT_MARS_MAG_ACCEPTED ATT_MAGREF_ACCEPTED /* the sample passed the norm and dip tests */
+#define ATT_MARS_MAG_GATED ATT_MAGREF_GATED       /* the sample failed them */
 
 /* The covariance model's default densities (docs/filters.md "Covariance": how they were chosen). */
 #define ATT_MARS_GYRO_NOISE 0.002f /* rad/s/sqrt(Hz) */
@@ -81,15 +80,9 @@ static float att_mars_gain(float tau, float alpha, float dt)
 /* The coefficients of the reference field's estimation and of the fast phase (att_mars.h, step 3). */
 static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
 {
-    const uint32_t blk_n = att_sensor_samples(ATT_MARS_BLOCK_S, s->dt);
     float t;
-    c->blk_n = (blk_n > 0u) ? blk_n : 1u;
-    t = (float)c->blk_n * s->dt;
-    c->ref_on = s->mag_ref_tau > 0.0f;
-    c->k_ref = c->ref_on ? t / (s->mag_ref_tau + t) : 0.0f;
-    c->new_n = att_sensor_samples(s->mag_new_time, t);
-    c->cand_tol_n = (s->mag_norm_reject > 0.0f) ? 0.5f * s->mag_norm_reject : INFINITY;
-    c->cand_tol_s = (s->mag_dip_reject > 0.0f) ? 0.5f * s->mag_dip_reject : INFINITY;
+    att_i_magref_params(&c->ref, s->dt, s->mag_ref_tau, s->mag_new_time, s->mag_norm_reject, s->mag_dip_reject);
+    t = (float)c->ref.blk_n * s->dt;
     c->k_fast = (s->tau_mag_fast > 0.0f) ? s->dt / (s->tau_mag_fast + s->dt) : c->k_mag;
     c->k_fast1 = 1.0f - c->k_fast;
     c->fast_n = att_sensor_samples(3.0f * s->tau_mag_fast, t);
@@ -221,18 +214,6 @@ static void att_mars_m0_limits(const att_mars_coeffs_t *c, att_mars_state_t *st)
     }
 }
 
-/* A new block of the reference statistics. */
-static void att_mars_block_clear(att_mars_state_t *st)
-{
-    st->acc_norm = 0.0f;
-    st->acc_z = 0.0f;
-    st->rej_norm = 0.0f;
-    st->rej_z = 0.0f;
-    st->blk = 0u;
-    st->acc_n = 0u;
-    st->rej_n = 0u;
-}
-
 /* Set the reference field m0 and start a new block; returns false (and changes nothing) when m0 has no
    direction. */
 static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, const att_vec3_t *m0)
@@ -244,7 +225,7 @@ static bool att_mars_set_m0(const att_mars_coeffs_t *c, att_mars_state_t *st, co
     st->m0 = *m0;
     st->m0_valid = true;
     att_mars_m0_limits(c, st);
-    att_mars_block_clear(st);
+    att_i_magref_clear(&st->ref);
     return true;
 }
 
@@ -310,14 +291,11 @@ void att_mars_reset(att_mars_t *f)
     st->rest_count = 0u;
     st->steps = 0u;
     st->flags = 0u;
-    st->cand_norm = 0.0f;
-    st->cand_sin = 0.0f;
-    st->cand_n = 0u;
     st->fast_left = 0u;
     st->acc_step = 0u;
     st->mag_step = 0u;
     st->rec_left = 0u;
-    att_mars_block_clear(st);
+    att_i_magref_reset(&st->ref);
     st->m0_ref_ok = false;
     st->m0_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -613,63 +591,26 @@ static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c,
 }
 
 /*
- * m0 with norm n and sin(dip) s, its horizontal direction kept (the declination's azimuth when it has
- * none); a new block.
- * |s| slightly above 1 (rounding of the sums) gives a vertical field.
- */
-static void att_mars_ref_set(const att_mars_coeffs_t *c, att_mars_state_t *st, float n, float s)
-{
-    const float s2 = s * s;
-    const float h = (s2 < 1.0f) ? n * att_i_sqrtf(1.0f - s2) : 0.0f;
-    const float h0 = att_i_sqrtf(st->m0.x * st->m0.x + st->m0.y * st->m0.y);
-    att_vec3_t m0 = att_i_vec3(h * c->decl_sin, h * c->decl_cos, n * s);
-    if (h0 >= ATT_MARS_M0_MIN) {
-        const float r = h / h0;
-        m0 = att_i_vec3(st->m0.x * r, st->m0.y * r, n * s);
-    }
-    (void)att_mars_set_m0(c, st, &m0); /* n > 0: the mean of valid norms */
-}
-
-/*
- * The end of a block of the reference statistics (att_mars.h, step 3): the reference follows the
- * accepted samples, or the rejected ones form a candidate that becomes the reference once steady for
- * new_n blocks (then the fast phase starts).
+ * The end of a block of the reference statistics (att_mars.h, step 3, att_magref.h): the reference
+ * follows the accepted samples, or a steady new field becomes the reference (then the fast phase
+ * starts); its horizontal direction is kept.
  */
 static ATT_NOINLINE void att_mars_ref_block(const att_mars_coeffs_t *c, att_mars_state_t *st)
 {
+    float n;
+    float s;
+    uint32_t out;
     if (st->fast_left > 0u) {
         st->fast_left = st->fast_left - 1u; /* the fast phase is counted in blocks */
     }
-    if (st->acc_n > st->rej_n) {
-        if (c->ref_on && st->acc_norm > 0.0f) {
-            const float n0 = att_i_vec3_norm(st->m0);
-            const float s0 = st->m0.z / n0;
-            const float nb = st->acc_norm / (float)st->acc_n;
-            const float sb = st->acc_z / st->acc_norm;
-            att_mars_ref_set(c, st, n0 + c->k_ref * (nb - n0), s0 + c->k_ref * (sb - s0));
-        }
-        st->cand_n = 0u;
-    } else if (st->rej_n > 0u && c->new_n > 0u && st->rej_norm > 0.0f) {
-        const float nb = st->rej_norm / (float)st->rej_n;
-        const float sb = st->rej_z / st->rej_norm;
-        if (st->cand_n > 0u && att_i_absf(nb - st->cand_norm) <= c->cand_tol_n * st->cand_norm &&
-            att_i_absf(sb - st->cand_sin) <= c->cand_tol_s) {
-            const float w = 1.0f / (float)(st->cand_n + 1u);
-            st->cand_norm = st->cand_norm + (nb - st->cand_norm) * w;
-            st->cand_sin = st->cand_sin + (sb - st->cand_sin) * w;
-            st->cand_n = st->cand_n + 1u;
-        } else {
-            st->cand_norm = nb;
-            st->cand_sin = sb;
-            st->cand_n = 1u;
-        }
-        if (st->cand_n >= c->new_n) {
-            att_mars_ref_set(c, st, st->cand_norm, st->cand_sin);
-            st->cand_n = 0u;
+    out = att_i_magref_block(&c->ref, &st->ref, st->m0, &n, &s);
+    if (out != ATT_MAGREF_KEEP) {
+        const att_vec3_t m0 = att_i_magref_m0(st->m0, n, s, c->decl_sin, c->decl_cos);
+        (void)att_mars_set_m0(c, st, &m0); /* n > 0: the mean of valid norms */
+        if (out == ATT_MAGREF_ADOPT) {
             st->fast_left = c->fast_n;
         }
     }
-    att_mars_block_clear(st);
 }
 
 /*
@@ -695,16 +636,8 @@ static ATT_ALWAYS_INLINE void att_mars_ref_count(const att_mars_coeffs_t *c, att
 {
     if (use == ATT_MARS_MAG_ACCEPTED) {
         st->mag_step = st->steps; /* the covariance's last mag sample that passed the norm and dip tests */
-        st->acc_norm = st->acc_norm + mnorm;
-        st->acc_z = st->acc_z + mz;
-        st->acc_n = st->acc_n + 1u;
-    } else if (use == ATT_MARS_MAG_GATED) {
-        st->rej_norm = st->rej_norm + mnorm;
-        st->rej_z = st->rej_z + mz;
-        st->rej_n = st->rej_n + 1u;
     }
-    st->blk = st->blk + 1u;
-    if (st->blk >= c->blk_n) {
+    if (att_i_magref_count(&c->ref, &st->ref, use, mnorm, mz)) {
         att_mars_ref_block(c, st);
     }
 }

@@ -70,6 +70,8 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->gyro_scale_init = 0.0f;
     settings->recovery_time = 2.0f; /* s: Fusion's recovery trigger period at 100 Hz is 5 s; ars and mars use 2 s */
     settings->declination = 0.0f;
+    settings->mag_ref_tau = 20.0f;  /* s: the learnt reference field, as mars (att_magref.h) */
+    settings->mag_new_time = 20.0f; /* s */
     settings->use_mag = true;
     settings->init_from_sensors = true;
     settings->q_init = att_i_quat_identity();
@@ -148,6 +150,7 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->decl = s->declination;
     c->decl_sin = att_sinf(s->declination);
     c->decl_cos = att_cosf(s->declination);
+    att_i_magref_params(&c->ref, s->dt, s->mag_ref_tau, s->mag_new_time, s->mag_norm_reject, s->mag_dip_reject);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -196,7 +199,7 @@ static ATT_ALWAYS_INLINE void att_mekf_m0_limits(const att_mekf_coeffs_t *c, att
 }
 
 /* Set the reference field m0; returns false (and changes nothing) when m0 has no direction. */
-static ATT_ALWAYS_INLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t m0)
+static ATT_NOINLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_vec3_t m0)
 {
     att_vec3_t unit;
     if (!att_i_vec3_normalize(m0, &unit)) {
@@ -205,6 +208,7 @@ static ATT_ALWAYS_INLINE bool att_mekf_set_m0(const att_mekf_coeffs_t *c, att_me
     st->m0 = m0;
     st->m0_valid = true;
     att_mekf_m0_limits(c, st);
+    att_i_magref_clear(&st->ref);
     return true;
 }
 
@@ -306,6 +310,7 @@ void att_mekf_reset(att_mekf_t *f)
     st->steps = 0u;
     st->flags = 0u;
     st->rec_left = 0u;
+    att_i_magref_reset(&st->ref);
     st->m0_valid = false;
     st->lp_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -374,16 +379,17 @@ static ATT_ALWAYS_INLINE void att_mekf_lp_turn(att_mekf_state_t *st, float w, fl
 }
 
 /*
- * The heading was aligned: its variance back to p0_att, its correlations to zero (P stays PD), and its
- * sensitivity to the scale error to zero.
+ * The heading was aligned (var = p0_att) or a new reference field adopted (var = p_max: the heading is
+ * unknown against it): its variance to var, its correlations to zero (P stays PD), and its sensitivity to
+ * the scale error to zero.
  */
-static void att_mekf_yaw_reset(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
+static void att_mekf_yaw_reset(att_mekf_state_t *st, float var)
 {
     float *p = st->p;
     st->scale_v[2] = 0.0f;
     p[ATT_MEKF_IX(0u, 2u)] = 0.0f;
     p[ATT_MEKF_IX(1u, 2u)] = 0.0f;
-    p[ATT_MEKF_IX(2u, 2u)] = c->p0_att;
+    p[ATT_MEKF_IX(2u, 2u)] = var;
     p[ATT_MEKF_IX(2u, 3u)] = 0.0f;
     p[ATT_MEKF_IX(2u, 4u)] = 0.0f;
     p[ATT_MEKF_IX(2u, 5u)] = 0.0f;
@@ -404,7 +410,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     if (mag_ok) {
         if (att_mekf_align(c, q, *mag, &qa, &m0) && att_mekf_set_m0(c, st, m0)) {
             q = qa;
-            att_mekf_yaw_reset(c, st);
+            att_mekf_yaw_reset(st, c->p0_att);
         } else {
             flags |= ATT_FLAG_MAG_REJECTED;
         }
@@ -437,7 +443,7 @@ static ATT_NOINLINE uint32_t att_mekf_mag_first(const att_mekf_coeffs_t *c, att_
                 att_mekf_lp_turn(st, tw, tz);
             }
             *q = qa;
-            att_mekf_yaw_reset(c, st);
+            att_mekf_yaw_reset(st, c->p0_att);
             return ATT_FLAG_INITIALISED;
         }
         return ATT_FLAG_MAG_REJECTED;
@@ -792,17 +798,21 @@ static ATT_ALWAYS_INLINE uint32_t att_mekf_condition(const att_mekf_coeffs_t *c,
 
 /*
  * The heading innovation of the earth-frame field me (reference known, sample of norm mnorm): false
- * when the sample is rejected (norm, dip, no horizontal part), else *y = 2 sin(alpha / 2).
+ * when the sample is rejected (norm, dip, no horizontal part), else *y = 2 sin(alpha / 2); *use tells the
+ * learnt reference whether it passed the norm and dip tests (att_magref.h).
  */
-static ATT_ALWAYS_INLINE bool att_mekf_heading(const att_mekf_state_t *st, att_vec3_t me, float mnorm, float *y)
+static ATT_ALWAYS_INLINE bool att_mekf_heading(const att_mekf_state_t *st, att_vec3_t me, float mnorm, float *y,
+                                               uint32_t *use)
 {
     float h2;
     float hn;
     float a;
     float b;
     if (mnorm < st->m0_lo || mnorm > st->m0_hi || me.z < st->dip_lo * mnorm || me.z > st->dip_hi * mnorm) {
+        *use = ATT_MAGREF_GATED;
         return false;
     }
+    *use = ATT_MAGREF_ACCEPTED;
     h2 = me.x * me.x + me.y * me.y;
     if (!(h2 >= ATT_NORM2_MIN)) {
         return false; /* vertical field: no heading information */
@@ -905,6 +915,8 @@ typedef struct {
     att_vec3_t v; /**< R a of the predicted attitude, m/s^2, earth frame */
     float e2;     /**< (|a|/g - 1)^2 of a usable accel sample (0 when not needed) */
     float mnorm;  /**< |m| of a usable mag sample, uT */
+    float mz;     /**< the vertical (earth z) field of a usable mag sample, uT (the learnt reference) */
+    uint32_t use; /**< ATT_MAGREF_ACCEPTED / ATT_MAGREF_GATED for a sample tested against m0, else 0 */
 } att_mekf_work_t;
 
 /* Step 1a: integration of (1 + s)(w - b); returns qa, the attitude process noise of the step. */
@@ -1043,14 +1055,15 @@ static ATT_ALWAYS_INLINE void att_mekf_rec_noise(const att_mekf_coeffs_t *c, flo
  * (att_mekf_lp_turn).
  */
 static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_quat_t *q,
-                                          const att_vec3_t *mag, float mnorm)
+                                          const att_vec3_t *mag, att_mekf_work_t *wk)
 {
     const att_vec3_t me = att_i_quat_rotate(*q, *mag);
     float y;
     float dz;
     att_vec3_t db;
     att_quat_t dq;
-    if (!att_mekf_heading(st, me, mnorm, &y) || !att_mekf_mag_apply(c, st, st->p, y, &dz, &db)) {
+    wk->mz = me.z;
+    if (!att_mekf_heading(st, me, wk->mnorm, &y, &wk->use) || !att_mekf_mag_apply(c, st, st->p, y, &dz, &db)) {
         return ATT_FLAG_MAG_REJECTED;
     }
     dq = att_mekf_exp(att_i_vec3(0.0f, 0.0f, dz));
@@ -1060,6 +1073,25 @@ static ATT_NOINLINE uint32_t att_mekf_mag(const att_mekf_coeffs_t *c, att_mekf_s
         att_mekf_lp_turn(st, dq.w, dq.z);
     }
     return ATT_FLAG_BIAS_UPDATED;
+}
+
+/*
+ * The end of a block of the learnt reference's statistics (att_magref.h): the reference's norm and dip
+ * follow the accepted samples, or a steady new field becomes the reference, its horizontal direction
+ * kept; the heading is then unknown against the new field: its variance p_max, its correlations zero
+ * (att_mekf_yaw_reset), so the next samples set it at the pace their noise allows (fast convergence).
+ */
+static ATT_NOINLINE void att_mekf_ref_block(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
+{
+    float n;
+    float s;
+    const uint32_t out = att_i_magref_block(&c->ref, &st->ref, st->m0, &n, &s);
+    if (out != ATT_MAGREF_KEEP) {
+        (void)att_mekf_set_m0(c, st, att_i_magref_m0(st->m0, n, s, c->decl_sin, c->decl_cos)); /* n > 0 */
+        if (out == ATT_MAGREF_ADOPT) {
+            att_mekf_yaw_reset(st, c->p_max);
+        }
+    }
 }
 
 /*
@@ -1094,6 +1126,8 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     flags |= accel_flags;
     wk.e2 = 0.0f;
     wk.mnorm = 0.0f;
+    wk.mz = 0.0f;
+    wk.use = 0u;
     if (accel_ok && c->need_norm) {
         const float e = att_i_sqrtf(n2) / c->gravity - 1.0f;
         wk.e2 = e * e;
@@ -1148,7 +1182,10 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
         flags |= att_mekf_accel(c, st, &wk, rec);
     }
     if (mag_ok) {
-        flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, wk.mnorm) : att_mekf_mag_first(c, st, &wk.q, mag_in);
+        flags |= st->m0_valid ? att_mekf_mag(c, st, &wk.q, mag_in, &wk) : att_mekf_mag_first(c, st, &wk.q, mag_in);
+    }
+    if (st->m0_valid && att_i_magref_count(&c->ref, &st->ref, wk.use, wk.mnorm, wk.mz)) {
+        att_mekf_ref_block(c, st);
     }
     /* 4. conditioning of P and the scale estimate, 5. normalisation */
     flags |= att_mekf_condition(c, st->p);

@@ -56,6 +56,8 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, gyro_scale_init, -ATT_MEKF_SCALE_MAX, ATT_MEKF_SCALE_MAX, "[-0.1, 0.1]", "")                  \
     ATT_CK_IN(C, recovery_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                            \
     ATT_CK_IN(C, declination, -ATT_MEKF_PI_F, ATT_MEKF_PI_F, "[-pi, pi]", "rad")                               \
+    ATT_CK_IN(C, mag_ref_tau, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                              \
+    ATT_CK_IN(C, mag_new_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                             \
     ATT_CK_BOOL(C, use_mag)                                                                                    \
     ATT_CK_BOOL(C, init_from_sensors)                                                                          \
     ATT_CK_QUAT(C, q_init)                                                                                     \
