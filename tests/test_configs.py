@@ -30,11 +30,13 @@ CONFIGS: dict[str, list[str]] = {
     "ars-mars-only": footprint.only("ARS", "MARS"),
     "no-stages": ["-DATT_WITH_CALIB=0"],
     "ars-only-no-stages": footprint.only("ARS", calib=False),
+    "no-hard-iron": ["-DATT_WITH_HARD_IRON=0"],
 }
 """Configurations built here (CI builds each of them; the default is every other test)."""
 
 ATT_ERR_DISABLED = -5
 ATT_ERR_KIND = -3
+ATT_ERR_SETTINGS = -2
 ACK_OK, ACK_BAD_ARG, ACK_REFUSED = 0, 2, 3
 
 
@@ -89,6 +91,7 @@ class ConfigReport:
     selects: dict[int, int]  # kind value -> the node's SELECT answer (ack result)
     size: tuple[int, int]  # sizeof(att_filter_t), the largest kind compiled in
     calibrate: int  # att_filter_calibrate's status
+    hard_iron: dict[str, tuple[int, int]]  # mars / mekf: init with hard_iron_tau 60, att_filter_mag_offset
 
 
 def _config_program(defines: list[str], out: Path) -> ConfigReport:
@@ -106,7 +109,12 @@ def _config_program(defines: list[str], out: Path) -> ConfigReport:
     size = re.search(r"^sizeof att_filter_t=(\d+) largest_kind=(\d+)$", text, re.M)
     cal = re.search(r"^calibrate=(-?\d+)$", text, re.M)
     assert size and cal, text
-    return ConfigReport(kinds, selects, (int(size.group(1)), int(size.group(2))), int(cal.group(1)))
+    hard_iron = {
+        m.group(1): (int(m.group(2)), int(m.group(3)))
+        for m in re.finditer(r"^hard_iron (\S+) init=(-?\d+) offset=(-?\d+)$", text, re.M)
+    }
+    sizes = (int(size.group(1)), int(size.group(2)))
+    return ConfigReport(kinds, selects, sizes, int(cal.group(1)), hard_iron)
 
 
 @pytest.mark.parametrize("name", ["default", *sorted(CONFIGS)])
@@ -131,6 +139,12 @@ def test_configuration_interface(name: str, tmp_path: Path) -> None:
     size, largest = res.size
     stages = "-DATT_WITH_CALIB=0" not in defines
     assert res.calibrate == (0 if stages else ATT_ERR_DISABLED)
+    hard = "-DATT_WITH_HARD_IRON=0" not in defines
+    assert set(res.hard_iron) == {"mars", "mekf"} & kinds, res.hard_iron
+    for label, (init, offset) in res.hard_iron.items():
+        # compiled out: hard_iron_tau > 0 refused (ATT_ERR_SETTINGS), the offset ATT_ERR_DISABLED
+        want = (0, 0) if hard else (ATT_ERR_SETTINGS, ATT_ERR_DISABLED)
+        assert (init, offset) == want, f"{name}: {label}"
     if not stages:
         assert size <= largest + 16, f"{name}: att_filter_t {size} B for a largest kind of {largest} B"
 

@@ -421,6 +421,17 @@ class Filter:
         vecs = (a.gravity, a.linear, a.earth)
         return tuple(np.array([v.x, v.y, v.z], np.float32) for v in vecs)  # type: ignore[return-value]
 
+    def mag_offset(self) -> tuple[NDArray[np.float32], bool]:
+        """att_filter_mag_offset (mars, mekf): the hard-iron offset estimated on the device.
+
+        Returns the offset, (3,) uT, and whether it has been observable (``hard_iron_tau`` > 0; the offset
+        is 0 before and without it).
+        """
+        h = ffi.new("att_vec3_t *")
+        est = ffi.new("bool *")
+        _check(lib.att_filter_mag_offset(self._f, h, est), "att_filter_mag_offset")
+        return np.array([h.x, h.y, h.z], np.float32), bool(est[0])
+
     def set_heading(self, heading: float) -> None:
         """att_filter_set_heading (rad, the output convention's yaw)."""
         _check(lib.att_filter_set_heading(self._f, heading), "att_filter_set_heading")

@@ -184,6 +184,8 @@ class MarsSettings:
     gyro_noise: float = 0.002
     accel_noise: float = 0.24
     mag_noise: float = 3.5
+    hard_iron_tau: float = 0.0
+    hard_iron_rate: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -250,6 +252,8 @@ class MekfSettings:
     declination: float = 0.0
     mag_ref_tau: float = 20.0
     mag_new_time: float = 20.0
+    hard_iron_tau: float = 0.0
+    hard_iron_rate: float = 1.0
     use_mag: bool = True
     init_from_sensors: bool = True
     q_init: tuple[float, float, float, float] = field(default=(1.0, 0.0, 0.0, 0.0))

@@ -8,6 +8,9 @@
  *   sizeof att_filter_t=N largest_kind=N       the union against the largest kind compiled in
  *   calibrate=STATUS                           att_filter_calibrate on an initialised filter
  *   select NUM result=R                        the node's SELECT command for each kind (R: ack result)
+ *   hard_iron KIND init=STATUS offset=STATUS   mars and mekf (when compiled in) with hard_iron_tau 60 s:
+ *                                              att_filter_init, then att_filter_mag_offset on the
+ *                                              default settings
  */
 #include <stdio.h>
 #include <string.h>
@@ -15,6 +18,38 @@
 #include "attica/att_can.h"
 #include "attica/att_filter.h"
 #include "attica/att_node.h"
+
+/* The hard-iron estimate (att_config.h ATT_WITH_HARD_IRON) of mars and mekf, where compiled in. */
+static void hard_iron(void)
+{
+    static const att_filter_kind_t kinds[2] = {ATT_FILTER_MARS, ATT_FILTER_MEKF};
+    unsigned i;
+    for (i = 0u; i < 2u; i++) {
+        static att_filter_t f;
+        att_filter_settings_t s;
+        att_vec3_t h;
+        bool est;
+        int init;
+        if (att_filter_settings_default(kinds[i], 0.01f, &s) != ATT_OK) {
+            continue;
+        }
+#if ATT_WITH_MARS
+        if (kinds[i] == ATT_FILTER_MARS) {
+            s.mars.hard_iron_tau = 60.0f;
+        }
+#endif
+#if ATT_WITH_MEKF
+        if (kinds[i] == ATT_FILTER_MEKF) {
+            s.mekf.hard_iron_tau = 60.0f;
+        }
+#endif
+        init = (int)att_filter_init(&f, kinds[i], &s);
+        (void)att_filter_settings_default(kinds[i], 0.01f, &s);
+        (void)att_filter_init(&f, kinds[i], &s);
+        printf("hard_iron %s init=%d offset=%d\n", att_filter_name(kinds[i]), init,
+               (int)att_filter_mag_offset(&f, &h, &est));
+    }
+}
 
 static size_t largest_kind(void)
 {
@@ -91,6 +126,7 @@ int main(void)
     (void)att_filter_init(&f, running, &s);
     att_calib_settings_default(&cs);
     printf("calibrate=%d\n", (int)att_filter_calibrate(&f, &cs));
+    hard_iron();
     for (k = 1; k <= 8; k++) {
         printf("select %d result=%d\n", k, node_select(running, k));
     }

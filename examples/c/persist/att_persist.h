@@ -67,9 +67,10 @@ extern "C" {
 #endif
 
 #define ATT_PERSIST_MAGIC 0x43545441u /* "ATTC" in memory order on a little-endian MCU */
-#define ATT_PERSIST_VERSION 5u        /* layout of the record and of att_persist_config_t (3: the filter
+#define ATT_PERSIST_VERSION 6u        /* layout of the record and of att_persist_config_t (3: the filter
                                          settings grew, mars/mekf declination and ekf recovery_time; 4: ars's
-                                         and mars's covariance model; 5: mekf's learnt reference field) */
+                                         and mars's covariance model; 5: mekf's learnt reference field; 6:
+                                         mars's and mekf's hard-iron estimate) */
 #define ATT_PERSIST_ALIGN 8u          /* flash programming unit the image is padded to (STM32G4: 64 bits) */
 #define ATT_PERSIST_SLOTS 2u          /* flash pages, written in turn */
 #define ATT_PERSIST_NO_SLOT 0xFFu     /* att_persist_boot_t.slot when nothing was loaded */

@@ -70,6 +70,16 @@
 #endif
 
 /**
+ * The hard-iron offset estimated on the device by mars and mekf (att_hardiron.h; opt-in at run time with
+ * their setting hard_iron_tau > 0). With 0 its code is left out (about 2 KB of flash per kind on a
+ * Cortex-M4F at -Os), their settings validation refuses hard_iron_tau > 0 and att_filter_mag_offset
+ * returns ATT_ERR_DISABLED; the state keeps its fields.
+ */
+#ifndef ATT_WITH_HARD_IRON
+#define ATT_WITH_HARD_IRON 1
+#endif
+
+/**
  * CAN FD in the node: IMU_FD in, ATT_OUT_FD / ATT_ACCEL_FD out (att_node_settings_t.fd). With 0 the
  * node handles classic frames only: its rings store 8 data bytes a frame instead of 64, settings with
  * fd true are refused, and an IMU_FD frame is not for it (counted in unknown_ids).
@@ -112,6 +122,9 @@
 #endif
 #if (ATT_WITH_CALIB != 0) && (ATT_WITH_CALIB != 1)
 #error "ATT_WITH_CALIB must be 0 or 1"
+#endif
+#if (ATT_WITH_HARD_IRON != 0) && (ATT_WITH_HARD_IRON != 1)
+#error "ATT_WITH_HARD_IRON must be 0 or 1"
 #endif
 #if (ATT_WITH_ARS + ATT_WITH_MARS + ATT_WITH_KF + ATT_WITH_EKF + ATT_WITH_GYRO + ATT_WITH_TILT + ATT_WITH_MEKF) == 0
 #error "attica needs at least one filter kind: set one of ATT_WITH_ARS ... ATT_WITH_MEKF to 1"

@@ -281,6 +281,15 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
  */
 void att_filter_accel(const att_filter_t *f, att_accel_t *out);
 /**
+ * The hard-iron offset a mars or mekf filter estimates on the device and subtracts from its mag samples
+ * (settings hard_iron_tau > 0; att_hardiron.h): *offset in uT, in the frame of the samples the kind sees
+ * (the body frame after the calibration stage's hard- and soft-iron correction), *estimated true once the
+ * rotations have made it observable (before that the offset is 0, as with the estimate off).
+ * ATT_ERR_KIND for the other kinds or an uninitialised f, ATT_ERR_DISABLED in a build without it
+ * (att_config.h ATT_WITH_HARD_IRON 0), ATT_ERR_NULL for a NULL argument.
+ */
+att_status_t att_filter_mag_offset(const att_filter_t *f, att_vec3_t *offset, bool *estimated);
+/**
  * Set the heading: keep the tilt, replace the yaw by heading (rad, the yaw of the output convention:
  * ENU counter-clockwise from east, NED / NWU from north, NED clockwise), |heading| <= 8192. The
  * earth-frame memories (accel low-passes, the 9-axis filter's reference field) turn with the attitude.

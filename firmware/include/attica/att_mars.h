@@ -86,6 +86,11 @@
  * q_init from the start and m0 = m0_init; when m0_init is zero, m0 = q m q* of the first valid mag
  * sample (the yaw of q_init is trusted, no alignment).
  *
+ * Hard-iron offset estimated on the device (hard_iron_tau > 0, opt-in; att_hardiron.h): from the rotation
+ * the gyro measures between mag samples, independent of the attitude and of m0; the applied offset
+ * (moving at most hard_iron_rate) is subtracted from every valid mag sample before step 3 and the
+ * alignment; it stays 0 until the rotations have made it observable. att_filter_mag_offset reports it.
+ *
  * Flags: the sensor checks of att_sensor.h (mag: zero or NaN vector = ATT_FLAG_MAG_ABSENT, Inf or
  * |m| > mag_range = ATT_FLAG_MAG_INVALID); ATT_FLAG_ACCEL_REJECTED when ||a|/g - 1| > accel_reject;
  * ATT_FLAG_MAG_REJECTED when a valid mag sample was not used (norm/dip rejection, degenerate
@@ -100,6 +105,7 @@
 
 #include "attica/att_config.h"
 #include "attica/att_ars.h"
+#include "attica/att_hardiron.h"
 #include "attica/att_magref.h"
 #include "attica/att_types.h"
 
@@ -171,6 +177,10 @@ typedef struct {
                                        and linear acceleration), m/s^2/sqrt(Hz), [0, 1e3] */
     float mag_noise;              /**< covariance model: density of the field's disturbance, uT/sqrt(Hz),
                                        [0, 1e3] */
+    float hard_iron_tau;          /**< hard-iron offset estimated on the device from rotation (att_hardiron.h):
+                                       the memory of its estimate, s, [0, 1e4]; 0 = off (default) */
+    float hard_iron_rate;         /**< the applied hard-iron offset moves by at most this per axis, uT/s,
+                                       [1e-3, 1e3] */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */
@@ -218,6 +228,7 @@ typedef struct {
     float var_tilt_rec;      /**< covariance: the same with the recovery's low-pass gain, rad^2 */
     float gyro_noise2;       /**< covariance: gyro_noise^2, (rad/s)^2/Hz */
     float mag_noise2;        /**< covariance: mag_noise^2, uT^2/Hz */
+    att_hardiron_params_t hi; /**< the hard-iron estimate (att_hardiron.h) */
 } att_mars_coeffs_t;
 
 /** Dynamic state of a 9-axis filter instance. */
@@ -238,6 +249,7 @@ typedef struct {
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
+    att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */

@@ -108,6 +108,12 @@
  * diag(p0_att I3, p0_bias I3), b as bias_init. The low-pass states start from the first usable sample
  * (q a q*), never from a prior: a fictitious history would tell the filter its tilt is right.
  *
+ * Hard-iron offset estimated on the device (hard_iron_tau > 0, opt-in; att_hardiron.h): from the rotation
+ * the gyro measures between mag samples ((1 + s)(w - b)), independent of the attitude and of m0; the
+ * applied offset (moving at most hard_iron_rate) is subtracted from every valid mag sample before the
+ * start, the alignment and step 3; it stays 0 until the rotations have made it observable.
+ * att_filter_mag_offset reports it.
+ *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
  * during any motion that tilts, the vertical one from the heading in 9-axis use), and at rest (step 0,
  * before the prediction: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time) by the zero-rate
@@ -143,6 +149,7 @@
 #define ATT_MEKF_H
 
 #include "attica/att_config.h"
+#include "attica/att_hardiron.h"
 #include "attica/att_magref.h"
 #include "attica/att_types.h"
 
@@ -203,6 +210,9 @@ typedef struct {
                                 accepted samples (att_magref.h), s, [0, 1e4]; 0 = kept as first set */
     float mag_new_time;    /**< a rejected field that stays steady this long becomes the reference (its
                                 heading variance reset, as at the alignment), s, [0, 1e4]; 0 = never */
+    float hard_iron_tau;   /**< hard-iron offset estimated on the device from rotation (att_hardiron.h): the
+                                memory of its estimate, s, [0, 1e4]; 0 = off (default) */
+    float hard_iron_rate;  /**< the applied hard-iron offset moves by at most this per axis, uT/s, [1e-3, 1e3] */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
@@ -253,6 +263,7 @@ typedef struct {
     float decl_sin;        /**< sin D: the east part of the reference's horizontal unit direction */
     float decl_cos;        /**< cos D: its north part */
     att_magref_params_t ref; /**< the learnt reference field (att_magref.h) */
+    att_hardiron_params_t hi; /**< the hard-iron estimate (att_hardiron.h) */
     att_quat_t q_init;     /**< attitude after reset without init_from_sensors (unit) */
     att_vec3_t m0_init;    /**< reference field after reset, uT, earth (zero: none) */
     att_vec3_t bias_init;  /**< bias after reset, rad/s, sensor frame */
@@ -286,6 +297,7 @@ typedef struct {
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
+    att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
     bool initialised;      /**< q holds a valid attitude */

@@ -12,6 +12,7 @@
 #include "../math/att_inline.h"
 
 #include "attica/att_bias.h"
+#include "attica/att_hardiron.h"
 #include "attica/att_magref.h"
 #include "attica/att_math.h"
 #include "attica/att_sensor.h"
@@ -618,6 +619,190 @@ static inline att_vec3_t att_i_magref_m0(att_vec3_t m0, float n, float s, float 
         return att_i_vec3(m0.x * r, m0.y * r, n * s);
     }
     return att_i_vec3(h * decl_sin, h * decl_cos, n * s);
+}
+
+/*
+ * The hard-iron offset estimated on the device (att_hardiron.h), shared by mars and mekf.
+ */
+#define ATT_HI_KEY_S 1.0f               /* s: the longest keyframe pair */
+#define ATT_HI_KEY_N_MAX 1024u          /* steps: the longest keyframe pair (its rotation's rounding) */
+#define ATT_HI_KEY_V2 0x1.f56bfcp-5f    /* sin^2(0.25): a pair closes after a rotation of 0.5 rad */
+#if ATT_WITH_HARD_IRON
+#define ATT_HI_TAU_MAX ATT_TAU_MAX /* s: the largest hard_iron_tau */
+#define ATT_HI_TAU_RULE "[0, 1e4]"
+#else
+#define ATT_HI_TAU_MAX 0.0f /* left out of the build (att_config.h): only 0 */
+#define ATT_HI_TAU_RULE "0 (ATT_WITH_HARD_IRON is 0)"
+#endif
+#define ATT_HI_OBS 1.0f                 /* the smallest eigenvalue of the information that makes it observable */
+
+/* The coefficients from the owner's settings: dt (s), hard_iron_tau (s, 0 = off), hard_iron_rate (uT/s),
+   the norm gate (mag_norm_reject), the target's bound per axis (mag_range, uT). */
+static inline void att_i_hi_params(att_hardiron_params_t *p, float dt, float tau, float rate, float gate,
+                                   float limit)
+{
+    const uint32_t n = att_sensor_samples(ATT_HI_KEY_S, dt);
+    p->on = tau > 0.0f;
+    p->limit = limit;
+    p->k_forget = p->on ? dt / tau : 0.0f;
+    p->step_max = rate * dt;
+    p->gate = gate;
+    p->key_n = (n < 1u) ? 1u : ((n > ATT_HI_KEY_N_MAX) ? ATT_HI_KEY_N_MAX : n);
+}
+
+/* Nothing estimated: offset 0, no information, no keyframe. */
+static inline void att_i_hi_reset(att_hardiron_t *s)
+{
+    const att_vec3_t zero = att_i_vec3(0.0f, 0.0f, 0.0f);
+    uint32_t i;
+    s->offset = zero;
+    s->target = zero;
+    s->d = att_i_quat_identity();
+    s->m_key = zero;
+    s->w_key = zero;
+    for (i = 0u; i < 10u; i++) {
+        s->info[i] = 0.0f;
+    }
+    for (i = 0u; i < 4u; i++) {
+        s->z[i] = 0.0f;
+    }
+    s->lag = 0.0f;
+    s->key_steps = 0u;
+    s->observable = false;
+}
+
+/*
+ * The target from the information when observable (att_hardiron.h): the lag L eliminated (Schur
+ * complement of its entry ll when ll > 0), the 3x3 system's smallest eigenvalue >= ATT_HI_OBS by the
+ * bound det / (trace / 2)^2 <= it, solved by the adjugate over the determinant, each axis within +-limit.
+ */
+static inline void att_i_hi_solve(const att_hardiron_params_t *p, att_hardiron_t *s)
+{
+    const float *i = s->info;
+    float a[6] = {i[0], i[1], i[2], i[4], i[5], i[7]};
+    float z0 = s->z[0];
+    float z1 = s->z[1];
+    float z2 = s->z[2];
+    float c00;
+    float c01;
+    float c02;
+    float c11;
+    float c12;
+    float c22;
+    float det;
+    float tr;
+    if (i[9] > 0.0f) {
+        const float u0 = i[3] / i[9];
+        const float u1 = i[6] / i[9];
+        const float u2 = i[8] / i[9];
+        a[0] = a[0] - u0 * i[3];
+        a[1] = a[1] - u0 * i[6];
+        a[2] = a[2] - u0 * i[8];
+        a[3] = a[3] - u1 * i[6];
+        a[4] = a[4] - u1 * i[8];
+        a[5] = a[5] - u2 * i[8];
+        z0 = z0 - u0 * s->z[3];
+        z1 = z1 - u1 * s->z[3];
+        z2 = z2 - u2 * s->z[3];
+    }
+    c00 = a[3] * a[5] - a[4] * a[4];
+    c01 = a[2] * a[4] - a[1] * a[5];
+    c02 = a[1] * a[4] - a[2] * a[3];
+    c11 = a[0] * a[5] - a[2] * a[2];
+    c12 = a[1] * a[2] - a[0] * a[4];
+    c22 = a[0] * a[3] - a[1] * a[1];
+    det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+    tr = a[0] + a[3] + a[5];
+    if (det >= ATT_HI_OBS * (0.25f * (tr * tr)) && det > 0.0f) {
+        const float l = p->limit;
+        const att_vec3_t h = att_i_vec3(att_i_clampf((c00 * z0 + c01 * z1 + c02 * z2) / det, -l, l),
+                                        att_i_clampf((c01 * z0 + c11 * z1 + c12 * z2) / det, -l, l),
+                                        att_i_clampf((c02 * z0 + c12 * z1 + c22 * z2) / det, -l, l));
+        s->target = h;
+        s->lag = 0.0f;
+        if (i[9] > 0.0f) {
+            s->lag = (s->z[3] - (i[3] * h.x + i[6] * h.y + i[8] * h.z)) / i[9];
+        }
+        s->observable = true;
+    }
+}
+
+/* A keyframe pair ends at the raw sample m with the rate w (rad/s): its information, unless the field
+   changed between the two samples. */
+static inline void att_i_hi_pair(const att_hardiron_params_t *p, att_hardiron_t *s, att_vec3_t m, att_vec3_t w)
+{
+    const att_quat_t d = s->d;
+    const att_quat_t dc = att_i_quat_conj(d);
+    const att_vec3_t y = att_i_vec3_sub(m, att_i_quat_rotate(dc, s->m_key));
+    const att_vec3_t r = att_i_vec3_sub(y, att_i_quat_rotate(d, y));
+    const att_vec3_t b = att_i_vec3_sub(att_i_vec3_cross(w, m),
+                                        att_i_quat_rotate(dc, att_i_vec3_cross(s->w_key, s->m_key)));
+    const att_vec3_t ab = att_i_vec3_sub(b, att_i_quat_rotate(d, b));
+    const float v2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    float f = 1.0f - (float)(s->key_steps - 1u) * p->k_forget;
+    float *a = s->info;
+    float *z = s->z;
+    if (s->observable && p->gate > 0.0f) {
+        const float na = att_i_vec3_norm(att_i_vec3_sub(m, s->target));
+        const float nb = att_i_vec3_norm(att_i_vec3_sub(s->m_key, s->target));
+        if (att_i_absf(na - nb) > p->gate * nb) {
+            return; /* the field changed between the two samples */
+        }
+    }
+    f = (f > 0.0f) ? f : 0.0f;
+    a[0] = f * a[0] + 4.0f * (v2 - d.x * d.x);
+    a[1] = f * a[1] - 4.0f * (d.x * d.y);
+    a[2] = f * a[2] - 4.0f * (d.x * d.z);
+    a[3] = f * a[3] + ab.x;
+    a[4] = f * a[4] + 4.0f * (v2 - d.y * d.y);
+    a[5] = f * a[5] - 4.0f * (d.y * d.z);
+    a[6] = f * a[6] + ab.y;
+    a[7] = f * a[7] + 4.0f * (v2 - d.z * d.z);
+    a[8] = f * a[8] + ab.z;
+    a[9] = f * a[9] + att_i_vec3_dot(b, b);
+    z[0] = f * z[0] + r.x;
+    z[1] = f * z[1] + r.y;
+    z[2] = f * z[2] + r.z;
+    z[3] = f * z[3] + att_i_vec3_dot(b, y);
+    att_i_hi_solve(p, s);
+}
+
+/*
+ * One step of the estimate (att_hardiron.h): w the bias-corrected rate (rad/s) of a usable gyro sample
+ * (gyro_ok), m the raw mag sample (uT) when valid (mag_ok), dt (s). The applied offset then moves toward
+ * the target by at most step_max per axis.
+ */
+static inline void att_i_hi_step(const att_hardiron_params_t *p, att_hardiron_t *s, float dt, att_vec3_t w,
+                                 bool gyro_ok, att_vec3_t m, bool mag_ok)
+{
+    if (s->key_steps > 0u) {
+        if (gyro_ok) {
+            s->d = att_i_quat_mul(s->d, att_i_quat_from_rotvec_fast(att_i_vec3_scale(w, dt)));
+            s->key_steps = s->key_steps + 1u;
+        } else {
+            s->key_steps = 0u; /* the rotation since the keyframe is unknown */
+        }
+    }
+    if (mag_ok) {
+        const att_quat_t d = s->d;
+        const bool close = s->key_steps > 0u &&
+                           (d.x * d.x + d.y * d.y + d.z * d.z >= ATT_HI_KEY_V2 || s->key_steps > p->key_n);
+        if (close) {
+            att_i_hi_pair(p, s, m, w);
+        }
+        if (close || (s->key_steps == 0u && gyro_ok)) {
+            s->m_key = m;
+            s->w_key = w;
+            s->d = att_i_quat_identity();
+            s->key_steps = 1u;
+        }
+    }
+    if (s->observable) {
+        const float h = p->step_max;
+        s->offset = att_i_vec3(s->offset.x + att_i_clampf(s->target.x - s->offset.x, -h, h),
+                               s->offset.y + att_i_clampf(s->target.y - s->offset.y, -h, h),
+                               s->offset.z + att_i_clampf(s->target.z - s->offset.z, -h, h));
+    }
 }
 
 /**

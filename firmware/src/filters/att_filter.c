@@ -528,6 +528,33 @@ static bool att_filter_heading_ok(float heading)
     return att_i_in(heading, -ATT_FILTER_HEADING_MAX, ATT_FILTER_HEADING_MAX);
 }
 
+att_status_t att_filter_mag_offset(const att_filter_t *f, att_vec3_t *offset, bool *estimated)
+{
+    const att_hardiron_t *hi = NULL;
+    if (f == NULL || offset == NULL || estimated == NULL) {
+        return ATT_ERR_NULL;
+    }
+#if ATT_WITH_MARS
+    if (f->kind == ATT_FILTER_MARS) {
+        hi = &f->u.mars.st.hi;
+    }
+#endif
+#if ATT_WITH_MEKF
+    if (f->kind == ATT_FILTER_MEKF) {
+        hi = &f->u.mekf.st.hi;
+    }
+#endif
+    if (hi == NULL) {
+        return ATT_ERR_KIND;
+    }
+    if (!ATT_WITH_HARD_IRON) {
+        return ATT_ERR_DISABLED; /* left out of the build (att_config.h) */
+    }
+    *offset = hi->offset;
+    *estimated = hi->observable;
+    return ATT_OK;
+}
+
 att_status_t att_filter_set_heading(att_filter_t *f, float heading)
 {
     if (f == NULL) {

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
+from attica.reference import hardiron as hiron
 from attica.reference import magref as mr
 from attica.reference import sensor
 from attica.reference._common import (
@@ -85,6 +86,9 @@ class Mars:
     may be given as (3,)/(4,) or (n, 3)/(n, 4).
     """
 
+    hi_on: Any
+    """Per instance: the hard-iron estimate is on (C's ``c.hi.on``; set by :func:`hardiron.params`)."""
+
     STATE: StateSpec = {
         "st.q": "quat",
         "st.bias": "vec3",
@@ -98,6 +102,7 @@ class Mars:
         "st.dip_lo": "f32",
         "st.dip_hi": "f32",
         **mr.state_spec("st.ref"),
+        **hiron.state_spec("st.hi"),
         "st.fast_left": "u32",
         "st.rec_left": "u32",
         "st.acc_step": "u32",
@@ -143,6 +148,7 @@ class Mars:
         "c.reject_on": "bool",
         "c.full": "bool",
         **mr.coeff_spec("c.ref"),
+        **hiron.coeff_spec("c.hi"),
         "c.k_fast": "f32",
         "c.k_fast1": "f32",
         "c.fast_n": "u32",
@@ -216,6 +222,14 @@ class Mars:
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
         self._ref_coeffs(s)
+        hiron.params(
+            self,
+            self.dt,
+            setting(s.hard_iron_tau, n),
+            setting(s.hard_iron_rate, n),
+            self.mag_norm_reject,
+            self.mag_range,
+        )
         self._rec_coeffs(s)
         self._cov_coeffs(s)
         self.decl = setting(s.declination, n)
@@ -319,6 +333,7 @@ class Mars:
         self.acc_step = np.zeros(n, np.uint32)
         self.mag_step = np.zeros(n, np.uint32)
         mr.reset(self, n)
+        hiron.reset(self, n)
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = self._derive_m0(mi)
@@ -417,11 +432,19 @@ class Mars:
             theta = dm.TWO * qz
         return gated, reject, dm.quat_where(reject, q, qc), theta
 
+    def _hard_iron(self, g: dm.Vec3, m: dm.Vec3) -> dm.Vec3:
+        """att_mars_step_hi where hard_iron_tau > 0: the estimate's step, the sample the step then sees."""
+        with np.errstate(all="ignore"):
+            gyro_ok = sensor.check_gyro(g, self.gyro_range) == _U0
+            mag_ok = sensor.check_mag(m, self.mag_range)[0] == _U0
+            hiron.step(self, self.hi_on, self.dt, dm.vec3_sub(g, self.bias), gyro_ok, m, mag_ok)
+            return hiron.apply(self, self.hi_on & mag_ok, m)[0]
+
     def step(self, gyr: Any, acc: Any, mag: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc, mag of shape (n, 3) or (3,). Returns flags (n,)."""
         g = split3(gyr, self.n)
         a = split3(acc, self.n)
-        m = split3(mag, self.n)
+        m = self._hard_iron(g, split3(mag, self.n))
         flags = sensor.check_gyro(g, self.gyro_range)
         gyro_ok = flags == _U0
         accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.reference import detmath as dm
+from attica.reference import hardiron as hiron
 from attica.reference import magref as mr
 from attica.reference import mekf_cov as cv
 from attica.reference import mekf_mag as mg
@@ -115,6 +116,9 @@ class Mekf:
     may be given as (3,)/(4,) or (n, 3)/(n, 4). Settings are not validated here (att_mekf_init does).
     """
 
+    hi_on: Any
+    """Per instance: the hard-iron estimate is on (C's ``c.hi.on``; set by :func:`hardiron.params`)."""
+
     STATE: StateSpec = {
         "st.q": "quat",
         "st.bias": "vec3",
@@ -138,6 +142,7 @@ class Mekf:
         "st.flags": "u32",
         "st.rec_left": "u32",
         **mr.state_spec("st.ref"),
+        **hiron.state_spec("st.hi"),
         "st.m0_valid": "bool",
         "st.lp_valid": "bool",
         "st.initialised": "bool",
@@ -174,6 +179,7 @@ class Mekf:
         "c.decl_sin": "f32",
         "c.decl_cos": "f32",
         **mr.coeff_spec("c.ref"),
+        **hiron.coeff_spec("c.hi"),
         "c.q_init": "quat",
         "c.r_accel": "f32",
         "c.gate": "f32",
@@ -266,6 +272,14 @@ class Mekf:
             self.mag_norm_reject,
             self.mag_dip_reject,
         )
+        hiron.params(
+            self,
+            self.dt,
+            setting(s.hard_iron_tau, n),
+            setting(s.hard_iron_rate, n),
+            self.mag_norm_reject,
+            self.mag_range,
+        )
         self.reset()
 
     def _rec_coeffs(self, s: MekfSettings) -> None:
@@ -302,6 +316,7 @@ class Mekf:
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
         mr.reset(self, n)
+        hiron.reset(self, n)
         self.m0_valid: Any = np.zeros(n, np.bool_)
         self.lp_valid: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
@@ -336,6 +351,12 @@ class Mekf:
         run = self.initialised
         with np.errstate(all="ignore"):
             ck = self._check(g, a, m)
+            # the hard-iron estimate (att_mekf_hard_iron), then its offset off a valid mag sample
+            on = self.use_mag & self.hi_on
+            w_hi = dm.vec3_scale(dm.vec3_sub(g, self.bias), dm.ONE + self.scale)
+            hiron.step(self, on, self.dt, w_hi, ck.gyro_ok, m, ck.mag_ok)
+            m, mnorm_hi = hiron.apply(self, on & ck.mag_ok, m)
+            ck = ck._replace(mnorm=np.where(on & ck.mag_ok, mnorm_hi, ck.mnorm).astype(np.float32))
             start = mg.start(self, a, m, ck.accel_ok, ck.mag_ok)
             flags = ck.flags | start.flags
             # 6. the recovery after a clipping gyro: its counter where initialised

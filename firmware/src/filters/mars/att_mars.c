@@ -60,6 +60,8 @@ void att_mars_settings_default(att_mars_settings_t *settings, float dt)
     settings->gyro_noise = ATT_MARS_GYRO_NOISE;
     settings->accel_noise = ATT_MARS_ACCEL_NOISE;
     settings->mag_noise = ATT_MARS_MAG_NOISE;
+    settings->hard_iron_tau = 0.0f;  /* s: the hard-iron estimate is opt-in (60 s: docs/filters.md) */
+    settings->hard_iron_rate = 1.0f; /* uT/s */
 }
 
 att_status_t att_mars_settings_validate(const att_mars_settings_t *s)
@@ -150,6 +152,8 @@ static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
     c->reject_on = s->accel_reject > 0.0f;
     c->full = (c->k_acc == 1.0f);
     att_mars_ref_coeffs(c, s);
+    att_i_hi_params(&c->hi, s->dt, s->hard_iron_tau, s->hard_iron_rate, s->mag_norm_reject,
+                    s->mag_range);
     att_mars_rec_coeffs(c, s);
     att_mars_cov_coeffs(c, s);
     c->decl = s->declination;
@@ -296,6 +300,7 @@ void att_mars_reset(att_mars_t *f)
     st->mag_step = 0u;
     st->rec_left = 0u;
     att_i_magref_reset(&st->ref);
+    att_i_hi_reset(&st->hi);
     st->m0_ref_ok = false;
     st->m0_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -751,11 +756,41 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     return flags;
 }
 
-/* One step: att_mars_update, then att_mars_start for the first usable sample. */
+#if ATT_WITH_HARD_IRON
+/*
+ * A step with the hard-iron estimate on (hard_iron_tau > 0; att_hardiron.h): its step from the raw samples
+ * (the rate minus the bias of the step before), then the filter's step with a valid mag sample minus the
+ * applied offset (the filter's own checks see that sample).
+ */
+static ATT_NOINLINE uint32_t att_mars_step_hi(att_mars_t *f, const att_vec3_t *gyr, const att_vec3_t *acc,
+                                              const att_vec3_t *mag)
+{
+    float mnorm;
+    const bool gyro_ok = att_i_sensor_check_gyro(*gyr, f->c.gyro_range) == 0u;
+    const bool mag_ok = att_i_sensor_check_mag(*mag, f->c.mag_range, &mnorm) == 0u;
+    att_vec3_t m = *mag;
+    uint32_t flags;
+    att_i_hi_step(&f->c.hi, &f->st.hi, f->c.dt, att_i_vec3_sub(*gyr, f->st.bias), gyro_ok, m, mag_ok);
+    if (mag_ok) {
+        m = att_i_vec3_sub(m, f->st.hi.offset);
+    }
+    flags = att_mars_update(f, gyr, acc, &m);
+    return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, &m) : flags;
+}
+#endif
+
+/* One step: att_mars_update, then att_mars_start for the first usable sample (the hard-iron estimate's
+   step around them when it is on). */
 static ATT_ALWAYS_INLINE uint32_t att_mars_step_in(att_mars_t *f, const att_vec3_t *gyr, const att_vec3_t *acc,
                                                    const att_vec3_t *mag)
 {
-    const uint32_t flags = att_mars_update(f, gyr, acc, mag);
+    uint32_t flags;
+#if ATT_WITH_HARD_IRON
+    if (f->c.hi.on) {
+        return att_mars_step_hi(f, gyr, acc, mag);
+    }
+#endif
+    flags = att_mars_update(f, gyr, acc, mag);
     return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, mag) : flags;
 }
 

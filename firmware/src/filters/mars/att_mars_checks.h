@@ -50,6 +50,8 @@ static inline bool att_mars_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, declination, -ATT_MARS_PI_F, ATT_MARS_PI_F, "[-pi, pi]", "rad")                         \
     ATT_CK_IN(C, gyro_noise, 0.0f, 1.0f, "[0, 1]", "rad/s/sqrt(Hz)")                                        \
     ATT_CK_IN(C, accel_noise, 0.0f, 1000.0f, "[0, 1e3]", "m/s^2/sqrt(Hz)")                                  \
-    ATT_CK_IN(C, mag_noise, 0.0f, 1000.0f, "[0, 1e3]", "uT/sqrt(Hz)")
+    ATT_CK_IN(C, mag_noise, 0.0f, 1000.0f, "[0, 1e3]", "uT/sqrt(Hz)")                                      \
+    ATT_CK_IN(C, hard_iron_tau, 0.0f, ATT_HI_TAU_MAX, ATT_HI_TAU_RULE, "s")                                       \
+    ATT_CK_IN(C, hard_iron_rate, 1e-3f, 1000.0f, "[1e-3, 1e3]", "uT/s")
 
 #endif /* ATT_MARS_CHECKS_H */

@@ -72,6 +72,8 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->declination = 0.0f;
     settings->mag_ref_tau = 20.0f;  /* s: the learnt reference field, as mars (att_magref.h) */
     settings->mag_new_time = 20.0f; /* s */
+    settings->hard_iron_tau = 0.0f;  /* s: the hard-iron estimate is opt-in (60 s: docs/filters.md) */
+    settings->hard_iron_rate = 1.0f; /* uT/s */
     settings->use_mag = true;
     settings->init_from_sensors = true;
     settings->q_init = att_i_quat_identity();
@@ -151,6 +153,8 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->decl_sin = att_sinf(s->declination);
     c->decl_cos = att_cosf(s->declination);
     att_i_magref_params(&c->ref, s->dt, s->mag_ref_tau, s->mag_new_time, s->mag_norm_reject, s->mag_dip_reject);
+    att_i_hi_params(&c->hi, s->dt, s->hard_iron_tau, s->hard_iron_rate, s->mag_norm_reject,
+                    s->mag_range);
 }
 
 /* Dip angle of v: atan2(v.z, |v_xy|), rad. */
@@ -311,6 +315,7 @@ void att_mekf_reset(att_mekf_t *f)
     st->flags = 0u;
     st->rec_left = 0u;
     att_i_magref_reset(&st->ref);
+    att_i_hi_reset(&st->hi);
     st->m0_valid = false;
     st->lp_valid = false;
     st->initialised = !f->c.init_from_sensors;
@@ -917,6 +922,7 @@ typedef struct {
     float mnorm;  /**< |m| of a usable mag sample, uT */
     float mz;     /**< the vertical (earth z) field of a usable mag sample, uT (the learnt reference) */
     uint32_t use; /**< ATT_MAGREF_ACCEPTED / ATT_MAGREF_GATED for a sample tested against m0, else 0 */
+    att_vec3_t m; /**< the mag sample minus the hard-iron offset, uT (hard_iron_tau > 0) */
 } att_mekf_work_t;
 
 /* Step 1a: integration of (1 + s)(w - b); returns qa, the attitude process noise of the step. */
@@ -1094,6 +1100,27 @@ static ATT_NOINLINE void att_mekf_ref_block(const att_mekf_coeffs_t *c, att_mekf
     }
 }
 
+#if ATT_WITH_HARD_IRON
+/*
+ * The hard-iron estimate's step (hard_iron_tau > 0; att_hardiron.h) from the gyro sample (the rate the
+ * integration uses, (1 + s)(w - b)) and the raw mag sample; returns the sample the filter uses: with a
+ * valid one, the raw sample minus the applied offset (in wk->m, its norm in wk->mnorm).
+ */
+static ATT_NOINLINE const att_vec3_t *att_mekf_hard_iron(const att_mekf_coeffs_t *c, att_mekf_state_t *st,
+                                                        const att_vec3_t *gyr, bool gyro_ok, const att_vec3_t *mag,
+                                                        bool mag_ok, att_mekf_work_t *wk)
+{
+    const att_vec3_t w = att_i_vec3_scale(att_i_vec3_sub(*gyr, st->bias), 1.0f + st->scale);
+    att_i_hi_step(&c->hi, &st->hi, c->dt, w, gyro_ok, *mag, mag_ok);
+    if (!mag_ok) {
+        return mag;
+    }
+    wk->m = att_i_vec3_sub(*mag, st->hi.offset);
+    wk->mnorm = att_i_vec3_norm(wk->m);
+    return &wk->m;
+}
+#endif
+
 /*
  * One step: the sample checks, then the phases (each its own leaf function, so that the stack holds one
  * phase's frame at a time): rest update, propagation, accel update, mag update, conditioning.
@@ -1139,6 +1166,11 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
         const uint32_t mag_flags = att_i_sensor_check_mag(*mag_in, c->mag_range, &wk.mnorm);
         mag_ok = (mag_flags == 0u);
         flags |= mag_flags;
+#if ATT_WITH_HARD_IRON
+        if (c->hi.on) {
+            mag_in = att_mekf_hard_iron(c, st, gyr_in, gyro_ok, mag_in, mag_ok, &wk);
+        }
+#endif
     }
     {
         const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);

@@ -58,6 +58,8 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
     ATT_CK_IN(C, declination, -ATT_MEKF_PI_F, ATT_MEKF_PI_F, "[-pi, pi]", "rad")                               \
     ATT_CK_IN(C, mag_ref_tau, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                              \
     ATT_CK_IN(C, mag_new_time, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                             \
+    ATT_CK_IN(C, hard_iron_tau, 0.0f, ATT_HI_TAU_MAX, ATT_HI_TAU_RULE, "s")                                            \
+    ATT_CK_IN(C, hard_iron_rate, 1e-3f, 1000.0f, "[1e-3, 1e3]", "uT/s")                                        \
     ATT_CK_BOOL(C, use_mag)                                                                                    \
     ATT_CK_BOOL(C, init_from_sensors)                                                                          \
     ATT_CK_QUAT(C, q_init)                                                                                     \

@@ -1,0 +1,161 @@
+"""The hard-iron offset estimated on the device (issue 23; att_hardiron.h, mars and mekf, opt-in).
+
+- C and the reference bit for bit (every step, the state at every segment end) for both kinds on streams
+  with a hard-iron offset, soft iron and a gyro bias left, with dropped mag rows and invalid gyro rows (the
+  keyframe dropped), a magnet passing (the pair gate), and short memories (the decay clamped at 0);
+- the estimate finds the offset from rotation (within 0.5 uT of the simulator's truth; 0.2 uT after 30 s)
+  and, once the heading has followed the corrected field, the attitude error is that of a sensor without
+  hard iron;
+- never pulling the attitude while unobservable: with rotation about one axis only the offset stays
+  exactly 0 and every output is the one of the estimate off, bit for bit;
+- the applied offset moves by at most hard_iron_rate per axis and second;
+- att_filter_mag_offset: the offset and whether it was observable, ATT_ERR_KIND for the other kinds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from attica import metrics, native
+from attica.crosscheck import Stream, crosscheck
+from attica.settings import FilterKind, MarsSettings, MekfSettings
+from attica.sim import SimConfig
+from attica.sim.engine import simulate_with_truth
+from attica.sim.errors import ErrorSizes
+
+RATE = 100.0
+KINDS: dict[FilterKind, Any] = {FilterKind.MARS: MarsSettings, FilterKind.MEKF: MekfSettings}
+HARD = ErrorSizes(
+    gyro_offset=0.0,
+    gyro_scale=0.0,
+    gyro_misalignment=0.0,
+    accel_offset=0.0,
+    accel_scale=0.0,
+    accel_misalignment=0.0,
+    hard_iron=20.0,
+    soft_iron_scale=0.0,
+    soft_iron_coupling=0.0,
+)
+"""A hard-iron offset of up to 20 uT per axis and nothing else."""
+MAGNET = ((30.0, 50.0, (-1.5, 0.25, 0.1), (1.5, 0.25, 0.1), (0.0, 2.0, 2.2)),)  # a magnet passing 25 cm away
+
+
+def _sim(seed: int, duration: float = 120.0, errors: ErrorSizes = HARD, **kw: Any) -> tuple[Any, np.ndarray]:
+    rec, truth = simulate_with_truth(
+        SimConfig(duration=duration, rate=RATE, seed=seed, sensor_errors=errors, **kw)
+    )
+    assert truth.errors is not None
+    return rec, np.array(truth.errors.mag.hard_iron)
+
+
+def _settings(kind: FilterKind, **over: Any) -> Any:
+    return replace(KINDS[kind](dt=1.0 / RATE), **over)
+
+
+def _hi_state(f: native.Filter, kind: FilterKind) -> Any:
+    return getattr(f.state.u, kind.label).st.hi
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+@pytest.mark.parametrize(
+    "over",
+    [
+        {"hard_iron_tau": 30.0, "hard_iron_rate": 2.0},
+        {
+            "hard_iron_tau": 0.2,
+            "hard_iron_rate": 1000.0,
+        },  # memory shorter than a pair: the decay clamped at 0
+        {"hard_iron_tau": 60.0, "mag_norm_reject": 0.0},  # no pair gate
+    ],
+    ids=["defaults-ish", "short-memory", "no-gate"],
+)
+def test_bit_exact_with_the_reference(kind: FilterKind, over: dict[str, Any]) -> None:
+    errors = replace(HARD, gyro_offset=0.01, soft_iron_scale=0.02)
+    rec, _ = _sim(1, duration=70.0, errors=errors)
+    gyr, mag = rec.gyr.copy(), rec.mag.copy()
+    mag[1000:1030] = np.nan  # dropped mag rows
+    mag[2000:2200:3] = np.nan  # a slower magnetometer for 2 s
+    gyr[3000:3004] = np.nan  # invalid gyro rows: the keyframe is dropped
+    magnet, _ = _sim(2, duration=70.0, mag_dipoles=MAGNET)
+    streams = [
+        Stream(gyr, rec.acc, mag, name="gaps"),
+        Stream(magnet.gyr, magnet.acc, magnet.mag, name="magnet"),
+    ]
+    res = crosscheck(kind, streams, settings=_settings(kind, **over), segment=1500)
+    assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
+    f = native.Filter(kind, _settings(kind, **over))
+    f.run_q(gyr, rec.acc, mag)
+    # a memory shorter than a pair keeps one pair's information: one axis, never observable (offset 0)
+    long_memory = over["hard_iron_tau"] >= 10.0
+    assert _hi_state(f, kind).observable == long_memory
+    assert f.mag_offset()[0].any() == long_memory
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_offset_is_found_and_the_heading_follows(kind: FilterKind, seed: int) -> None:
+    rec, h_true = _sim(seed, duration=180.0)
+    scored = np.arange(rec.n) >= int(
+        120 * RATE
+    )  # the heading has followed the corrected field (mekf: ~100 s)
+    errs = {}
+    for tau in (0.0, 60.0):
+        f = native.Filter(kind, _settings(kind, hard_iron_tau=tau))
+        q = f.run_q(rec.gyr, rec.acc, rec.mag)
+        errs[tau] = metrics.evaluate(q, rec.quat_true, scored).total
+    h, est = f.mag_offset()
+    assert est and np.max(np.abs(h - h_true)) < 0.5, f"offset {h} against the truth {h_true}"
+    clean, _ = _sim(seed, duration=180.0, errors=replace(HARD, hard_iron=0.0))
+    q_clean = native.Filter(kind, _settings(kind)).run_q(clean.gyr, clean.acc, clean.mag)
+    ref = metrics.evaluate(q_clean, clean.quat_true, scored).total
+    assert errs[60.0] < ref + 0.5, f"{errs[60.0]:.2f} deg with the estimate, {ref:.2f} without hard iron"
+    assert errs[0.0] > errs[60.0] + 1.0, (
+        f"without the estimate {errs[0.0]:.2f} deg: the test would not see it"
+    )
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_unobservable_changes_nothing(kind: FilterKind) -> None:
+    """Turns about the vertical only: the offset's vertical part is unobservable, nothing is applied."""
+    spins = tuple((t, 2.0, 2.0, (0.0, 0.0, 1.0)) for t in range(5, 55, 5))
+    rec, _ = _sim(3, duration=60.0, rotation_rms=0.0, translation_rms=0.0, spins=spins)
+    on = native.Filter(kind, _settings(kind, hard_iron_tau=60.0))
+    off = native.Filter(kind, _settings(kind))
+    out_on = on.run(rec.gyr, rec.acc, rec.mag)
+    out_off = off.run(rec.gyr, rec.acc, rec.mag)
+    st = _hi_state(on, kind)
+    assert st.info[0] > 1.0 and st.info[3] > 1.0, "the turns gave no horizontal information"
+    assert not st.observable
+    h, est = on.mag_offset()
+    assert not est and not h.any()
+    for key in ("q", "flags"):
+        np.testing.assert_array_equal(out_on[key], out_off[key], err_msg=key)
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_the_offset_moves_at_the_bounded_rate(kind: FilterKind) -> None:
+    rec, _ = _sim(0, duration=60.0)
+    rate = 0.5
+    f = native.Filter(kind, _settings(kind, hard_iron_tau=60.0, hard_iron_rate=rate))
+    offsets = []
+    for i in range(0, rec.n, 10):
+        f.run(rec.gyr[i : i + 10], rec.acc[i : i + 10], rec.mag[i : i + 10])
+        offsets.append(f.mag_offset()[0])
+    steps = np.abs(np.diff(np.array(offsets), axis=0))
+    assert steps.max() <= rate * 10 / RATE + 1e-5, steps.max()  # 10 steps, each rounded near |offset| ~ 10 uT
+    assert steps.max() >= 0.9 * rate * 10 / RATE, "never at the bound: the test would not see it"
+
+
+def test_mag_offset_api() -> None:
+    ars = native.Filter(FilterKind.ARS, 0.01)
+    with pytest.raises(native.NativeError, match="not supported"):
+        ars.mag_offset()
+    f = native.Filter(FilterKind.MARS, _settings(FilterKind.MARS, hard_iron_tau=60.0))
+    h, est = f.mag_offset()
+    assert not est and not h.any()
+    with pytest.raises(native.NativeError):
+        native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF, hard_iron_rate=0.0))
