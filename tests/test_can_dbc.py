@@ -36,6 +36,11 @@ def _sample_frames() -> np.ndarray:
         sent, _ = node.run(np.concatenate([codec.encode_cmd(int(codec.Cmd.RESET), counter=1), imu]))
         out += [imu, sent, codec.encode_cmd(4, 0, 0.0, counter=2)]
     cal, _ = codec.Node("mars", sample_rate=RATE).run(codec.encode_cmd(4, 0, 0.0, counter=2))
+    # ATT_MAG_OFFSET: a filter that estimates a hard-iron offset (after each ATT_DIAG)
+    hard, _ = codec.Node("mars", sample_rate=RATE, hard_iron_tau=60.0).run(
+        codec.encode_imu(s.gyr, s.acc, s.mag)
+    )
+    out.append(hard)
     # ATT_DIAG_BUS comes from a node on a Cortex-M port (its CAN controller's counters): the C encoder's
     bus = codec.frames(1)
     counters = {"state": 3, "lec": 3, "bus_off": 2, "recoveries": 1, "error_passive": 4, "error_warning": 5}

@@ -55,7 +55,7 @@ def _untouched(obj: Any) -> bool:
 
 def test_the_guarded_functions() -> None:
     """The list is what att_can.h declares (a new function with a pointer joins it by itself)."""
-    assert len(GUARDED) == 24
+    assert len(GUARDED) == 26
     some = {"att_can_check", "att_can_seal", "att_can_decode_status", "att_can_encode_output_set"}
     assert some <= set(GUARDED)
 
@@ -98,6 +98,7 @@ DECODERS = {
     "att_can_decode_diag_bus": (lib.ATT_CAN_ID_DIAG_BUS, 8, "att_can_bus_diag_t"),
     "att_can_decode_imu_fd": (lib.ATT_CAN_ID_IMU_FD, 64, "att_sample_t"),
     "att_can_decode_imu_part": (lib.ATT_CAN_ID_IMU_GYRO, 8, "att_vec3_t"),
+    "att_can_decode_mag_offset": (lib.ATT_CAN_ID_MAG_OFFSET, 8, "att_mag_offset_t"),
     "att_can_decode_output": (lib.ATT_CAN_ID_EULER, 8, "att_output_t"),
     "att_can_decode_status": (lib.ATT_CAN_ID_STATUS, 8, "att_can_status_t"),
 }
@@ -127,7 +128,7 @@ def test_the_message_table() -> None:
     fd = {lib.ATT_CAN_ID_IMU_FD, lib.ATT_CAN_ID_OUT_FD, lib.ATT_CAN_ID_ACCEL_FD}
     no_crc = {lib.ATT_CAN_ID_QUAT_A, lib.ATT_CAN_ID_QUAT_B, lib.ATT_CAN_ID_QUAT16}
     known = [i for i in range(0x800) if lib.att_can_msg_len(i)]
-    assert len(known) == 18 and fd < set(known) and no_crc < set(known)
+    assert len(known) == 19 and fd < set(known) and no_crc < set(known)
     for i in known:
         assert lib.att_can_msg_len(i) == (64 if i in fd else 8)
         assert lib.att_can_msg_has_crc(i) == (i not in no_crc)

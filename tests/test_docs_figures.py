@@ -130,10 +130,16 @@ def test_set_max_with_and_without_the_stages() -> None:
     )
     assert int(m.group(1)) == lib.ATT_NODE_SET_MAX == int(_macros()["ATT_NODE_SET_MAX"])
     assert int(m.group(2)) == int(_macros(("-DATT_WITH_CALIB=0",))["ATT_NODE_SET_MAX"])
-    # what it counts: 6 (classic set) + 2 (acceleration) + 1 (DIAG) + 1 (DIAG_BUS), without the 2; a
-    # command's answer (1) comes instead of a set, never with one
-    assert _find(r"\((\d+) for a classic set, (\d+) acceleration frames, 1 ATT_DIAG, 1 ATT_DIAG_BUS; a ")
-    assert lib.ATT_NODE_SET_MAX == 6 + 2 + 1 + 1
+    # what it counts: 6 (classic set) + 2 (acceleration) + 1 (DIAG) + 1 (DIAG_BUS) + 1 (MAG_OFFSET),
+    # without the 2; a command's answer (1) comes instead of a set, never with one
+    assert _find(
+        r"\((\d+) for a classic set, (\d+) acceleration frames, 1 ATT_DIAG, 1 ATT_DIAG_BUS, 1 ATT_MAG_OFFSET"
+    )
+    assert lib.ATT_NODE_SET_MAX == 6 + 2 + 1 + 1 + 1
+    # one less without a kind that has the hard-iron estimate
+    assert _find(r"one less in a build\s+without a kind that estimates a hard-iron offset")
+    for cfg in (("-DATT_WITH_HARD_IRON=0",), ("-DATT_WITH_MARS=0", "-DATT_WITH_MEKF=0")):
+        assert int(_macros(cfg)["ATT_NODE_SET_MAX"]) == lib.ATT_NODE_SET_MAX - 1, cfg
 
 
 def test_ring_defaults_limits_and_entries() -> None:

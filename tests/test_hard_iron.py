@@ -9,7 +9,10 @@
 - never pulling the attitude while unobservable: with rotation about one axis only the offset stays
   exactly 0 and every output is the one of the estimate off, bit for bit;
 - the applied offset moves by at most hard_iron_rate per axis and second;
-- att_filter_mag_offset: the offset and whether it was observable, ATT_ERR_KIND for the other kinds.
+- att_filter_mag_offset: the offset, whether the estimate runs and whether it was observable,
+  ATT_ERR_KIND for the other kinds;
+- the node sends it (ATT_MAG_OFFSET after each ATT_DIAG, only while the estimate runs), and the C and
+  Python decoders agree with the DBC's scale.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import pytest
 
 from attica import metrics, native
+from attica.can import codec
 from attica.crosscheck import Stream, crosscheck
 from attica.settings import FilterKind, MarsSettings, MekfSettings
 from attica.sim import SimConfig
@@ -74,12 +78,15 @@ def _hi_state(f: native.Filter, kind: FilterKind) -> Any:
     ids=["defaults-ish", "short-memory", "no-gate"],
 )
 def test_bit_exact_with_the_reference(kind: FilterKind, over: dict[str, Any]) -> None:
+    gyr_range = float(_settings(kind).gyro_range)
     errors = replace(HARD, gyro_offset=0.01, soft_iron_scale=0.02)
     rec, _ = _sim(1, duration=70.0, errors=errors)
     gyr, mag = rec.gyr.copy(), rec.mag.copy()
     mag[1000:1030] = np.nan  # dropped mag rows
     mag[2000:2200:3] = np.nan  # a slower magnetometer for 2 s
     gyr[3000:3004] = np.nan  # invalid gyro rows: the keyframe is dropped
+    mag[4000:4350] = np.nan  # 3.5 s without a mag sample: the keyframe is dropped after 2 s
+    gyr[5000:5003] = 0.99 * gyr_range  # a clipping gyro: no pair over it
     magnet, _ = _sim(2, duration=70.0, mag_dipoles=MAGNET)
     streams = [
         Stream(gyr, rec.acc, mag, name="gaps"),
@@ -92,7 +99,7 @@ def test_bit_exact_with_the_reference(kind: FilterKind, over: dict[str, Any]) ->
     # a memory shorter than a pair keeps one pair's information: one axis, never observable (offset 0)
     long_memory = over["hard_iron_tau"] >= 10.0
     assert _hi_state(f, kind).observable == long_memory
-    assert f.mag_offset()[0].any() == long_memory
+    assert f.mag_offset().offset.any() == long_memory
 
 
 @pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
@@ -107,8 +114,8 @@ def test_the_offset_is_found_and_the_heading_follows(kind: FilterKind, seed: int
         f = native.Filter(kind, _settings(kind, hard_iron_tau=tau))
         q = f.run_q(rec.gyr, rec.acc, rec.mag)
         errs[tau] = metrics.evaluate(q, rec.quat_true, scored).total
-    h, est = f.mag_offset()
-    assert est and np.max(np.abs(h - h_true)) < 0.5, f"offset {h} against the truth {h_true}"
+    h, on, est = f.mag_offset()
+    assert on and est and np.max(np.abs(h - h_true)) < 0.5, f"offset {h} against the truth {h_true}"
     clean, _ = _sim(seed, duration=180.0, errors=replace(HARD, hard_iron=0.0))
     q_clean = native.Filter(kind, _settings(kind)).run_q(clean.gyr, clean.acc, clean.mag)
     ref = metrics.evaluate(q_clean, clean.quat_true, scored).total
@@ -128,10 +135,10 @@ def test_unobservable_changes_nothing(kind: FilterKind) -> None:
     out_on = on.run(rec.gyr, rec.acc, rec.mag)
     out_off = off.run(rec.gyr, rec.acc, rec.mag)
     st = _hi_state(on, kind)
-    assert st.info[0] > 1.0 and st.info[3] > 1.0, "the turns gave no horizontal information"
+    assert st.info[0] > 1.0 and st.info[4] > 1.0, "the turns gave no horizontal information"  # xx, yy
     assert not st.observable
-    h, est = on.mag_offset()
-    assert not est and not h.any()
+    h, running, est = on.mag_offset()
+    assert running and not est and not h.any()
     for key in ("q", "flags"):
         np.testing.assert_array_equal(out_on[key], out_off[key], err_msg=key)
 
@@ -144,7 +151,7 @@ def test_the_offset_moves_at_the_bounded_rate(kind: FilterKind) -> None:
     offsets = []
     for i in range(0, rec.n, 10):
         f.run(rec.gyr[i : i + 10], rec.acc[i : i + 10], rec.mag[i : i + 10])
-        offsets.append(f.mag_offset()[0])
+        offsets.append(f.mag_offset().offset)
     steps = np.abs(np.diff(np.array(offsets), axis=0))
     assert steps.max() <= rate * 10 / RATE + 1e-5, steps.max()  # 10 steps, each rounded near |offset| ~ 10 uT
     assert steps.max() >= 0.9 * rate * 10 / RATE, "never at the bound: the test would not see it"
@@ -155,7 +162,95 @@ def test_mag_offset_api() -> None:
     with pytest.raises(native.NativeError, match="not supported"):
         ars.mag_offset()
     f = native.Filter(FilterKind.MARS, _settings(FilterKind.MARS, hard_iron_tau=60.0))
-    h, est = f.mag_offset()
-    assert not est and not h.any()
+    h, on, est = f.mag_offset()
+    assert on and not est and not h.any()
+    off = native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF)).mag_offset()
+    assert not off.on and not off.estimated and not off.offset.any()
     with pytest.raises(native.NativeError):
         native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF, hard_iron_rate=0.0))
+
+
+def test_the_node_sends_the_offset() -> None:
+    rec, h_true = _sim(1, duration=80.0)
+    imu = codec.encode_imu(rec.gyr, rec.acc, rec.mag)
+    sent, _ = codec.Node("mars", sample_rate=RATE, hard_iron_tau=60.0).run(imu)
+    out = codec.decode_outputs(sent)
+    mo = out.mag_offset
+    assert len(mo) == len(out.diag) == rec.n // 16 and mo["crc_ok"].all()
+    np.testing.assert_array_equal(mo["counter"], out.diag["counter"])  # each after its ATT_DIAG
+    assert not mo["estimated"][0] and mo["estimated"][-1]
+    assert not mo["offset"][0].any() and np.max(np.abs(mo["offset"][-1] - h_true)) < 0.5, mo["offset"][-1]
+    # the C decoder agrees with the Python one, bit for bit
+    frames = sent[sent["id"] == codec.ID_MAG_OFFSET]
+    h = native.ffi.new("att_mag_offset_t *")
+    buf = native.ffi.from_buffer("att_can_frame_t[]", frames)
+    for i in range(len(frames)):
+        assert native.lib.att_can_decode_mag_offset(buf + i, h)
+        got = np.array([h.offset.x, h.offset.y, h.offset.z], np.float32)
+        np.testing.assert_array_equal(got.view(np.uint32), mo["offset"][i].view(np.uint32))
+        assert h.on and h.estimated == mo["estimated"][i]
+    # none without the estimate
+    plain, _ = codec.Node("mars", sample_rate=RATE).run(imu)
+    assert not (plain["id"] == codec.ID_MAG_OFFSET).any()
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_retune_and_calibrate_restart_the_estimate(kind: FilterKind) -> None:
+    """Turned off by a retune: no offset applied, none reported; on again, or a new calibration: it starts
+    again from nothing (its keyframe was in another setting or frame). C and reference bit for bit."""
+    from attica.calibration import Calibration
+    from attica.reference.filter import Filter as RefFilter
+
+    rec, _ = _sim(2, duration=90.0)
+    on = _settings(kind, hard_iron_tau=30.0)
+    off = _settings(kind)
+    c = native.Filter(kind, on)
+    ref = RefFilter(kind, on)
+    bounds = (0, 4000, 5000, 7000, 8000, rec.n)
+    for j, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if j == 1:
+            assert c.mag_offset().estimated
+            c.retune(off)
+            ref.retune(off)
+            h = c.mag_offset()
+            assert not h.on and not h.estimated and not h.offset.any()
+        elif j == 2:
+            c.retune(on)
+            ref.retune(on)
+            assert c.mag_offset().on and not c.mag_offset().estimated
+        elif j == 3:
+            assert c.mag_offset().estimated
+            cal = Calibration()
+            c.calibrate(cal)
+            ref.calibrate(cal)
+            assert not c.mag_offset().estimated and not c.mag_offset().offset.any()
+        out = c.run(rec.gyr[a:b], rec.acc[a:b], rec.mag[a:b])
+        q_ref = np.array([ref.step(rec.gyr[i], rec.acc[i], rec.mag[i])["q"][0] for i in range(a, b)])
+        np.testing.assert_array_equal(out["q"].view(np.uint32), q_ref.view(np.uint32), err_msg=f"segment {j}")
+        assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+
+
+def test_mekf_without_the_magnetometer_has_no_estimate() -> None:
+    f = native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF, use_mag=False, hard_iron_tau=60.0))
+    assert not f.mag_offset().on
+
+
+def test_the_monitor_shows_the_offset() -> None:
+    """`attica monitor` reports the last ATT_MAG_OFFSET and does not take its every-16th-set counter for a
+    gap or a repeat."""
+    from attica.can.monitor import Monitor
+
+    rec, h_true = _sim(1, duration=80.0)
+    sent, _ = codec.Node("mekf", sample_rate=RATE, hard_iron_tau=60.0).run(
+        codec.encode_imu(rec.gyr, rec.acc, rec.mag)
+    )
+    mon = Monitor()
+    msgs = [codec.to_message(f) for f in sent]
+    for i, m in enumerate(msgs):
+        m.timestamp = 1000.0 + i / (10 * RATE)
+    lines = [mon.feed(m) for m in msgs]
+    assert not any("!DUP" in ln or "!GAP" in ln for ln in lines)
+    assert mon.stats.mag_offset is not None
+    x, y, z, est = mon.stats.mag_offset
+    assert est and np.max(np.abs(np.array([x, y, z]) - h_true)) < 0.5
+    assert any("hard-iron offset (ATT_MAG_OFFSET):" in ln and "(estimated)" in ln for ln in mon.summary())

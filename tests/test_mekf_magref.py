@@ -78,7 +78,6 @@ def test_the_adoption_resets_the_heading_variance() -> None:
     rec = _rec(1, START, duration=80.0)
     s = MekfSettings(dt=1.0 / RATE)
     f = native.Filter(FilterKind.MEKF, s)
-    before = np.linalg.norm(_m0(f))
     p_zz = []
     m0n = []
     for i in range(len(rec.gyr)):
@@ -87,7 +86,7 @@ def test_the_adoption_resets_the_heading_variance() -> None:
         m0n.append(float(np.linalg.norm(_m0(f))))
     m0n_a = np.array(m0n)
     jumps = np.nonzero(np.abs(np.diff(m0n_a)) > 5.0)[0]
-    assert before == 0.0 and len(jumps) == 1, f"one adoption expected, at steps {jumps}"
+    assert len(jumps) == 1, f"one adoption expected, at steps {jumps}"
     k = int(jumps[0]) + 1
     assert k > int(40 * RATE), "adopted before the disturbance ended"
     assert p_zz[k] == pytest.approx(s.p_max, rel=0.2), f"P_zz {p_zz[k]:.3g} after the adoption"

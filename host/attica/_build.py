@@ -120,7 +120,8 @@ def config_defaults() -> dict[str, int]:
 def _default_branches(text: str) -> str:
     """Keep what the default configuration compiles of ``#if OPTION`` / ``#else`` / ``#endif`` blocks.
 
-    Every option named in such a condition (ATT_WITH_*, ATT_NODE_WITH_FD) is 1 in the default build;
+    Every option named in such a condition (ATT_WITH_*, ATT_NODE_WITH_FD, ATT_NODE_WITH_MAG_OFFSET) is 1
+    in the default build;
     anything else in a condition is an error (cffi's parser takes no conditionals).
     """
     keep: list[bool] = []
@@ -133,7 +134,7 @@ def _default_branches(text: str) -> str:
             continue
         word, name = m.group(1), m.group(2)
         if word == "if":
-            if not re.fullmatch(r"ATT_(?:NODE_)?WITH_[A-Z]+", name):
+            if not re.fullmatch(r"ATT_(?:NODE_)?WITH_[A-Z_]+", name):
                 raise ValueError(f"ATT_CDEF sections: unsupported condition {line.strip()!r}")
             keep.append(True)
         elif word == "else":

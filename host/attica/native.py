@@ -12,7 +12,7 @@ Scalar and batch entry points take float32 numpy arrays and loop in C without co
 from __future__ import annotations
 
 import re
-from typing import Any, Literal, overload
+from typing import Any, Literal, NamedTuple, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -334,6 +334,17 @@ def default_settings(kind: str | int | FilterKind, dt: float = 0.01, preset: str
     return out
 
 
+class MagOffset(NamedTuple):
+    """att_mag_offset_t: the hard-iron estimate of a mars or mekf filter (:meth:`Filter.mag_offset`)."""
+
+    offset: NDArray[np.float32]
+    """(3,) uT, the frame of the samples the filter sees; 0 until estimated."""
+    on: bool
+    """The estimate runs (``hard_iron_tau`` > 0)."""
+    estimated: bool
+    """The rotations have made the offset observable."""
+
+
 class Filter:
     """Any C filter through the unified interface (``att_filter_t``).
 
@@ -421,16 +432,16 @@ class Filter:
         vecs = (a.gravity, a.linear, a.earth)
         return tuple(np.array([v.x, v.y, v.z], np.float32) for v in vecs)  # type: ignore[return-value]
 
-    def mag_offset(self) -> tuple[NDArray[np.float32], bool]:
+    def mag_offset(self) -> MagOffset:
         """att_filter_mag_offset (mars, mekf): the hard-iron offset estimated on the device.
 
-        Returns the offset, (3,) uT, and whether it has been observable (``hard_iron_tau`` > 0; the offset
-        is 0 before and without it).
+        Returns the offset, (3,) uT, whether the estimate runs (``hard_iron_tau`` > 0) and whether it has
+        become observable (the offset is 0 before).
         """
-        h = ffi.new("att_vec3_t *")
-        est = ffi.new("bool *")
-        _check(lib.att_filter_mag_offset(self._f, h, est), "att_filter_mag_offset")
-        return np.array([h.x, h.y, h.z], np.float32), bool(est[0])
+        h = ffi.new("att_mag_offset_t *")
+        _check(lib.att_filter_mag_offset(self._f, h), "att_filter_mag_offset")
+        o = h.offset
+        return MagOffset(np.array([o.x, o.y, o.z], np.float32), bool(h.on), bool(h.estimated))
 
     def set_heading(self, heading: float) -> None:
         """att_filter_set_heading (rad, the output convention's yaw)."""

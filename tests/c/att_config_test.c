@@ -27,8 +27,7 @@ static void hard_iron(void)
     for (i = 0u; i < 2u; i++) {
         static att_filter_t f;
         att_filter_settings_t s;
-        att_vec3_t h;
-        bool est;
+        att_mag_offset_t h;
         int init;
         if (att_filter_settings_default(kinds[i], 0.01f, &s) != ATT_OK) {
             continue;
@@ -47,7 +46,7 @@ static void hard_iron(void)
         (void)att_filter_settings_default(kinds[i], 0.01f, &s);
         (void)att_filter_init(&f, kinds[i], &s);
         printf("hard_iron %s init=%d offset=%d\n", att_filter_name(kinds[i]), init,
-               (int)att_filter_mag_offset(&f, &h, &est));
+               (int)att_filter_mag_offset(&f, &h));
     }
 }
 

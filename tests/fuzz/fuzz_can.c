@@ -42,6 +42,7 @@
     X(att_earth_acc, 0x208, 8)                                                                         \
     X(att_cal_ack, 0x209, 8)                                                                           \
     X(att_diag_bus, 0x20a, 8)                                                                          \
+    X(att_mag_offset, 0x20b, 8)                                                                        \
     X(att_accel_fd, 0x211, 64)                                                                         \
     X(att_out_fd, 0x210, 64)                                                                           \
     X(cmd, 0x300, 8)
@@ -171,6 +172,17 @@ static void check_decoders(const att_can_frame_t *f)
             expect_masked(f, &re[0], 1u, 8u, "diag bus");
             FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded diag bus does not check");
         }
+        {
+            /* the hard-iron offset: NA decodes to NaN and encodes back to NA, so the frame inverts */
+            att_mag_offset_t h;
+            FZ_CHECK(att_can_decode_mag_offset(f, &h) == (f->id == 0x20Bu && f->len >= 8u),
+                     "decode_mag_offset acceptance");
+            if (f->id == 0x20Bu && f->len >= 8u) {
+                att_can_encode_mag_offset(&h, counter, &re[0]);
+                expect_masked(f, &re[0], 1u, 8u, "mag offset");
+                FZ_CHECK(att_can_check(&re[0]) == ATT_CAN_OK, "encoded mag offset does not check");
+            }
+        }
         FZ_CHECK(att_can_decode_accel_part(f, &v) == (is_acc && f->len == 8u), "decode_accel_part acceptance");
         if (is_acc && f->len == 8u) {
             memset(&acc, 0, sizeof acc);
@@ -289,8 +301,9 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
     return 0;
 }
 
+/* (0x20B last: the indices below it pick the IDs they picked before it was added) */
 static const uint32_t known_ids[] = {0x100, 0x101, 0x102, 0x110, 0x200, 0x201, 0x202, 0x203, 0x204, 0x205,
-                                     0x206, 0x207, 0x208, 0x209, 0x20A, 0x210, 0x211, 0x300};
+                                     0x206, 0x207, 0x208, 0x209, 0x20A, 0x210, 0x211, 0x300, 0x20B};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

@@ -46,6 +46,7 @@ enum {
     ATT_CAN_ID_EARTH_ACC = 0x208,  /**< node -> host: earth-frame acceleration, int16 2^-8 m/s^2 */
     ATT_CAN_ID_CAL_ACK = 0x209,    /**< node -> host: answer to a calibration command */
     ATT_CAN_ID_DIAG_BUS = 0x20A,   /**< node -> host: CAN controller counters of the port (after ATT_DIAG) */
+    ATT_CAN_ID_MAG_OFFSET = 0x20B, /**< node -> host: hard-iron offset estimated (mars, mekf), int16 2^-5 uT */
     ATT_CAN_ID_ACCEL_FD = 0x211,   /**< node -> host: gravity, linear, earth acceleration, CAN FD 64 B */
     ATT_CAN_ID_CMD = 0x300,        /**< host -> node: command */
     ATT_CAN_DATA_ID_BASE = 0x0A00, /**< E2E data ID = base + CAN ID */
@@ -227,6 +228,13 @@ void att_can_encode_diag(const att_can_diag_t *d, uint8_t counter, att_can_frame
 void att_can_encode_diag_bus(const att_can_bus_diag_t *d, uint8_t counter, att_can_frame_t *out);
 /** The fields of an ATT_DIAG_BUS frame (no CRC check; counters as on the bus, 0 .. 255). */
 bool att_can_decode_diag_bus(const att_can_frame_t *f, att_can_bus_diag_t *d);
+/**
+ * Encode ATT_MAG_OFFSET from att_filter_mag_offset's record: the hard-iron offset (uT; int16 2^-5 uT,
+ * saturated, NaN as NA) and whether it was observable, sealed.
+ */
+void att_can_encode_mag_offset(const att_mag_offset_t *h, uint8_t counter, att_can_frame_t *out);
+/** The fields of an ATT_MAG_OFFSET frame (no CRC check; NA as NaN; on is true: the node sends it only then). */
+bool att_can_decode_mag_offset(const att_can_frame_t *f, att_mag_offset_t *h);
 /** Encode a CMD frame, sealed. */
 void att_can_encode_cmd(const att_can_cmd_t *c, att_can_frame_t *out);
 /** Decode a CMD frame (no CRC check). */

@@ -135,9 +135,15 @@
 #if (ATT_NODE_RX_RING < 4) || (ATT_NODE_RX_RING > 65536) || ((ATT_NODE_RX_RING & (ATT_NODE_RX_RING - 1)) != 0)
 #error "ATT_NODE_RX_RING must be a power of two from 4 to 65536"
 #endif
-#if (ATT_NODE_TX_RING < 8 + 2 * ATT_WITH_CALIB) || (ATT_NODE_TX_RING > 65536) || \
+/* Derived, not an option: the node sends ATT_MAG_OFFSET (a kind with the hard-iron estimate is built). */
+#if ATT_WITH_HARD_IRON && (ATT_WITH_MARS || ATT_WITH_MEKF)
+#define ATT_NODE_WITH_MAG_OFFSET 1 /* (att_node.h: ATT_NODE_SET_MAX) */
+#else
+#define ATT_NODE_WITH_MAG_OFFSET 0 /* (att_node.h: ATT_NODE_SET_MAX) */
+#endif
+#if (ATT_NODE_TX_RING < 8 + 2 * ATT_WITH_CALIB + ATT_NODE_WITH_MAG_OFFSET) || (ATT_NODE_TX_RING > 65536) || \
     ((ATT_NODE_TX_RING & (ATT_NODE_TX_RING - 1)) != 0)
-#error "ATT_NODE_TX_RING must be a power of two from ATT_NODE_SET_MAX (8, or 10 with ATT_WITH_CALIB) to 65536"
+#error "ATT_NODE_TX_RING must be a power of two from ATT_NODE_SET_MAX (8, 10 with ATT_WITH_CALIB; 1 more with mars or mekf and ATT_WITH_HARD_IRON) to 65536"
 #endif
 
 #endif /* ATT_CONFIG_H */

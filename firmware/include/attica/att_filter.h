@@ -269,8 +269,10 @@ void att_filter_output(const att_filter_t *f, att_output_t *out);
  * Apply calibration, mounting and output convention (att_calib.h) to a running filter: from the next
  * step on, att_filter_step feeds the kind's step the calibrated body-frame sample and reports q (and
  * euler) in the convention's earth frame; att_filter_output likewise. The filter state is kept (it is
- * the attitude of the body frame in ENU). ATT_ERR_KIND when f is not initialised; ATT_ERR_SETTINGS
- * (att_calib_settings_check says why) / ATT_ERR_NULL leave f unchanged. Survives reset and retune.
+ * the attitude of the body frame in ENU), except that a mars or mekf hard-iron estimate starts again
+ * (att_hardiron.h: its samples are in another frame). ATT_ERR_KIND when f is not initialised;
+ * ATT_ERR_SETTINGS (att_calib_settings_check says why) / ATT_ERR_NULL leave f unchanged. Survives reset
+ * and retune.
  */
 att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s);
 /**
@@ -280,15 +282,22 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
  * was taken since init/reset/calibrate, or f is NULL / not initialised.
  */
 void att_filter_accel(const att_filter_t *f, att_accel_t *out);
+/** The hard-iron estimate of a mars or mekf filter (att_filter_mag_offset; att_hardiron.h). */
+typedef struct {
+    att_vec3_t offset; /**< the offset subtracted from the mag samples, uT, in the frame of the samples the
+                            kind sees (the body frame after the calibration stage's hard- and soft-iron
+                            correction); 0 until estimated */
+    bool on;           /**< the estimate runs (settings hard_iron_tau > 0) */
+    bool estimated;    /**< the rotations have made the offset observable (it moves toward its estimate) */
+} att_mag_offset_t;
+
 /**
  * The hard-iron offset a mars or mekf filter estimates on the device and subtracts from its mag samples
- * (settings hard_iron_tau > 0; att_hardiron.h): *offset in uT, in the frame of the samples the kind sees
- * (the body frame after the calibration stage's hard- and soft-iron correction), *estimated true once the
- * rotations have made it observable (before that the offset is 0, as with the estimate off).
- * ATT_ERR_KIND for the other kinds or an uninitialised f, ATT_ERR_DISABLED in a build without it
- * (att_config.h ATT_WITH_HARD_IRON 0), ATT_ERR_NULL for a NULL argument.
+ * (settings hard_iron_tau > 0; att_hardiron.h), into *out. ATT_ERR_KIND for the other kinds or an
+ * uninitialised f, ATT_ERR_DISABLED in a build without it (att_config.h ATT_WITH_HARD_IRON 0),
+ * ATT_ERR_NULL for a NULL argument.
  */
-att_status_t att_filter_mag_offset(const att_filter_t *f, att_vec3_t *offset, bool *estimated);
+att_status_t att_filter_mag_offset(const att_filter_t *f, att_mag_offset_t *out);
 /**
  * Set the heading: keep the tilt, replace the yaw by heading (rad, the yaw of the output convention:
  * ENU counter-clockwise from east, NED / NWU from north, NED clockwise), |heading| <= 8192. The

@@ -11,7 +11,9 @@
  * (a fixed earth field turns as -w x m in the sensor frame), which adds b L to that equation with
  * b = w x m - D^T (w_k x m_k) (w, w_k the rates at the two samples): L is estimated with h, so that the
  * lag (about 3.5 samples on BROAD's sensor) does not bias h when the rate changes within a pair.
- * Each keyframe pair (closed after a rotation of 0.5 rad or 1 s, at most 1024 steps) adds its rows
+ * A pair closes at the first mag sample after a rotation of 0.5 rad or after key_n steps (1 s, at most
+ * 1024); a keyframe is dropped by a gyro sample that is not usable (invalid, or any |w_i| at the recovery's
+ * clip level: a clipping gyro) and after 2 key_n steps without a mag sample. Each pair adds its rows
  * [A b] (A = I - D^T) to the 4x4 information [A b]^T [A b] and [A b]^T y (y = m - D^T m_k) to the
  * information vector; both first decay by 1 - n dt / hard_iron_tau for the n steps of the pair (the
  * estimate's memory). h is solved with L eliminated (the Schur complement of the lag's entry; without
@@ -22,8 +24,10 @@
  * unobservable (it starts at 0: the samples as they come). Pairs whose field norms (target removed)
  * differ by more than the owner's mag_norm_reject are skipped once the target is known (a field that
  * changed between the samples: a magnet passing). The filter subtracts the applied offset from every
- * valid mag sample before its own tests. Mirrored by host/attica/reference/hardiron.py. Units: uT,
- * rad/s, s; sensor frame.
+ * valid mag sample (mars: before its sample checks, which then see the corrected sample; mekf: after
+ * them, before its norm and dip tests). A retune that turns the estimate on or off, and a new
+ * calibration (att_filter_calibrate: another frame), start it again from nothing. Mirrored by
+ * host/attica/reference/hardiron.py. Units: uT, rad/s, s; sensor frame.
  */
 #ifndef ATT_HARDIRON_H
 #define ATT_HARDIRON_H

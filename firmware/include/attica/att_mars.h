@@ -289,7 +289,8 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
  * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
  * is limited to the new one's length after an alignment (fast_start_n); a recovery under way is
- * limited to the new recovery_time (0: ended). A new declination applies from the next heading alignment (reset): the heading and the reference are kept;
+ * limited to the new recovery_time (0: ended); a change of hard_iron_tau between 0 and > 0 starts the
+ * hard-iron estimate again (off: no offset applied). A new declination applies from the next heading alignment (reset): the heading and the reference are kept;
  * to apply it at once, set the heading to the current one turned by the change: ENU yaw (counter-clockwise)
  * minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is left
  * unchanged.

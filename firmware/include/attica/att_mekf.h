@@ -110,8 +110,9 @@
  *
  * Hard-iron offset estimated on the device (hard_iron_tau > 0, opt-in; att_hardiron.h): from the rotation
  * the gyro measures between mag samples ((1 + s)(w - b)), independent of the attitude and of m0; the
- * applied offset (moving at most hard_iron_rate) is subtracted from every valid mag sample before the
- * start, the alignment and step 3; it stays 0 until the rotations have made it observable.
+ * applied offset (moving at most hard_iron_rate) is subtracted from every valid mag sample (after its
+ * sample checks) before the start, the alignment and step 3; it stays 0 until the rotations have made it
+ * observable. Without use_mag there is none (hard_iron_tau is ignored).
  * att_filter_mag_offset reports it.
  *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
@@ -321,7 +322,8 @@ att_status_t att_mekf_settings_validate(const att_mekf_settings_t *settings);
 att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
- * derived limits recomputed, counters); the new caps apply from the next step. A new declination applies
+ * derived limits recomputed, counters); the new caps apply from the next step; turning the hard-iron
+ * estimate on or off (hard_iron_tau, use_mag) starts it again (off: no offset applied). A new declination applies
  * from the next yaw alignment (reset): to apply it at once, set the heading to the current one turned by
  * the change: ENU yaw (counter-clockwise) minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is unchanged.
  */

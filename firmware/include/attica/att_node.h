@@ -43,7 +43,9 @@
  *
  * Output, every output_divider-th filter step: classic QUAT_A, QUAT_B, QUAT16, EULER, BIAS, STATUS, or
  * one ATT_OUT_FD when settings.fd; then ATT_DIAG (classic) after every diag_divider-th set, followed by
- * ATT_DIAG_BUS when a port reports its CAN controller's counters (att_node_set_bus_diag). A sample
+ * ATT_DIAG_BUS when a port reports its CAN controller's counters (att_node_set_bus_diag) and by
+ * ATT_MAG_OFFSET while the filter estimates a hard-iron offset (mars, mekf: hard_iron_tau > 0;
+ * att_filter_mag_offset). A sample
  * stepped over n periods queues at most one set, after its last step, when its steps reach or pass a
  * multiple of output_divider (the filter's step count: from init, a reset or a select); the set's flags
  * are the OR over the n steps, its steps field the filter's step count. The counter of a set is the set
@@ -84,10 +86,18 @@ extern "C" {
 /* ATT_CDEF_BEGIN */
 /* The ring sizes ATT_NODE_RX_RING and ATT_NODE_TX_RING and ATT_NODE_WITH_FD are options of att_config.h. */
 /* Most frames one rx frame can queue: a set with everything that follows it, or (a command) 1 answer. */
+#if ATT_NODE_WITH_MAG_OFFSET
+#if ATT_WITH_CALIB
+#define ATT_NODE_SET_MAX 11 /* 6 (set) + 2 (accel) + 1 (DIAG) + 1 (DIAG_BUS) + 1 (MAG_OFFSET) */
+#else
+#define ATT_NODE_SET_MAX 9 /* 6 (set) + 1 (DIAG) + 1 (DIAG_BUS) + 1 (MAG_OFFSET) */
+#endif
+#else
 #if ATT_WITH_CALIB
 #define ATT_NODE_SET_MAX 10 /* 6 (set) + 2 (accel) + 1 (DIAG) + 1 (DIAG_BUS) */
 #else
 #define ATT_NODE_SET_MAX 8 /* 6 (set) + 1 (DIAG) + 1 (DIAG_BUS) */
+#endif
 #endif
 #if ATT_NODE_WITH_FD
 #define ATT_NODE_FRAME_LEN 64 /* data bytes a ring entry holds */
@@ -235,7 +245,8 @@ att_status_t att_node_settings_rule(const att_node_settings_t *s, uint32_t index
 att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s);
 /**
  * Fraction of the bus time taken by the node's periodic outputs (1.0 = 100 %), worst-case stuffing;
- * see docs/can.md. -1 for NULL or settings that cannot be evaluated (rates, bitrates, dividers).
+ * see docs/can.md (ATT_MAG_OFFSET counted when the init filter estimates a hard-iron offset). -1 for
+ * NULL or settings that cannot be evaluated (rates, bitrates, dividers).
  */
 float att_node_bus_load(const att_node_settings_t *s);
 /** Worst-case bits of a classic frame with len data bytes and an 11-bit ID (incl. 3 bits intermission). */

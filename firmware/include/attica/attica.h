@@ -12,8 +12,9 @@
  * - att_filter.h: the unified interface (att_filter_settings_default, att_filter_init,
  *   att_filter_step, att_filter_output, att_filter_retune) over every filter kind:
  *   att_ars.h, att_mars.h, att_kf.h, att_ekf.h, att_gyro.h, att_tilt.h (their settings structs);
- * - att_math.h, att_sensor.h, att_bias.h, att_magref.h: quaternion/Euler helpers, sample checks, the
- *   shared rest detector and gyro bias, the learnt reference field of mars and mekf;
+ * - att_math.h, att_sensor.h, att_bias.h, att_magref.h, att_hardiron.h: quaternion/Euler helpers, sample
+ *   checks, the shared rest detector and gyro bias, the learnt reference field and the hard-iron
+ *   estimate of mars and mekf;
  * - att_can.h, att_node.h: the CAN codec (firmware/can/attica.dbc) and the CAN node.
  *
  * Every header is self-contained: including only the one you need works as well. None exposes inline
@@ -30,6 +31,7 @@
 #include "attica/att_sensor.h"
 #include "attica/att_bias.h"
 #include "attica/att_magref.h"
+#include "attica/att_hardiron.h"
 #include "attica/att_ars.h"
 #include "attica/att_mars.h"
 #include "attica/att_kf.h"

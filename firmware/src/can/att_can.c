@@ -112,6 +112,7 @@ uint8_t att_can_msg_len(uint32_t id)
     case ATT_CAN_ID_EARTH_ACC:
     case ATT_CAN_ID_CAL_ACK:
     case ATT_CAN_ID_DIAG_BUS:
+    case ATT_CAN_ID_MAG_OFFSET:
     case ATT_CAN_ID_CMD:
         return (uint8_t)ATT_CAN_CLASSIC_LEN;
     case ATT_CAN_ID_IMU_FD:
@@ -509,6 +510,36 @@ bool att_can_decode_diag_bus(const att_can_frame_t *f, att_can_bus_diag_t *d)
     d->error_passive = m.error_passive;
     d->error_warning = m.error_warning;
     d->rx_overruns = m.rx_overruns;
+    return true;
+}
+
+void att_can_encode_mag_offset(const att_mag_offset_t *h, uint8_t counter, att_can_frame_t *out)
+{
+    struct att_can_db_att_mag_offset_t m;
+    if (h == NULL || out == NULL) {
+        return;
+    }
+    m.crc = 0u;
+    m.counter = att_can_c4(counter);
+    m.estimated = h->estimated ? 1u : 0u;
+    m.off_x = att_can_quantise(h->offset.x, ATT_CAN_MAG_FRAC);
+    m.off_y = att_can_quantise(h->offset.y, ATT_CAN_MAG_FRAC);
+    m.off_z = att_can_quantise(h->offset.z, ATT_CAN_MAG_FRAC);
+    att_can_frame_start(out, ATT_CAN_ID_MAG_OFFSET);
+    (void)att_can_db_att_mag_offset_pack(out->data, &m, sizeof out->data);
+    att_can_seal(out);
+}
+
+bool att_can_decode_mag_offset(const att_can_frame_t *f, att_mag_offset_t *h)
+{
+    struct att_can_db_att_mag_offset_t m;
+    if (f == NULL || h == NULL || f->id != ATT_CAN_ID_MAG_OFFSET || f->len < (uint8_t)ATT_CAN_CLASSIC_LEN) {
+        return false;
+    }
+    (void)att_can_db_att_mag_offset_unpack(&m, f->data, ATT_CAN_CLASSIC_LEN);
+    h->offset = att_can_vec3_dq(m.off_x, m.off_y, m.off_z, ATT_CAN_MAG_FRAC);
+    h->on = true;
+    h->estimated = m.estimated != 0u;
     return true;
 }
 

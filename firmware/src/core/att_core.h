@@ -769,18 +769,19 @@ static inline void att_i_hi_pair(const att_hardiron_params_t *p, att_hardiron_t 
 
 /*
  * One step of the estimate (att_hardiron.h): w the bias-corrected rate (rad/s) of a usable gyro sample
- * (gyro_ok), m the raw mag sample (uT) when valid (mag_ok), dt (s). The applied offset then moves toward
- * the target by at most step_max per axis.
+ * (gyro_ok: valid and not clipping), m the raw mag sample (uT) when valid (mag_ok), dt (s). A keyframe
+ * without a mag sample for 2 key_n steps is dropped. The applied offset then moves toward the target by
+ * at most step_max per axis.
  */
 static inline void att_i_hi_step(const att_hardiron_params_t *p, att_hardiron_t *s, float dt, att_vec3_t w,
                                  bool gyro_ok, att_vec3_t m, bool mag_ok)
 {
     if (s->key_steps > 0u) {
-        if (gyro_ok) {
+        if (gyro_ok && s->key_steps <= 2u * p->key_n) {
             s->d = att_i_quat_mul(s->d, att_i_quat_from_rotvec_fast(att_i_vec3_scale(w, dt)));
             s->key_steps = s->key_steps + 1u;
         } else {
-            s->key_steps = 0u; /* the rotation since the keyframe is unknown */
+            s->key_steps = 0u; /* the rotation since the keyframe is unknown, or no mag sample for 2 key_n */
         }
     }
     if (mag_ok) {
@@ -803,6 +804,19 @@ static inline void att_i_hi_step(const att_hardiron_params_t *p, att_hardiron_t 
                                s->offset.y + att_i_clampf(s->target.y - s->offset.y, -h, h),
                                s->offset.z + att_i_clampf(s->target.z - s->offset.z, -h, h));
     }
+}
+
+/* A usable gyro sample for the hard-iron estimate: valid (check_flags 0) and no |w_i| at the clip level
+   (rad/s; Inf without a recovery): the rotation of a clipping gyro is not what it measured. */
+static inline bool att_i_hi_gyro_ok(uint32_t check_flags, att_vec3_t w, float clip)
+{
+    return check_flags == 0u && att_i_absf(w.x) < clip && att_i_absf(w.y) < clip && att_i_absf(w.z) < clip;
+}
+
+/* The sample the filter uses: the raw valid sample m minus the applied offset (uT). */
+static inline att_vec3_t att_i_hi_correct(const att_hardiron_t *s, att_vec3_t m)
+{
+    return att_i_vec3_sub(m, s->offset);
 }
 
 /**

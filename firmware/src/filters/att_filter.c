@@ -400,6 +400,24 @@ uint32_t att_filter_step_n(att_filter_t *f, const att_sample_t *in, uint32_t n, 
 
 /* --- input and output stages ----------------------------------------------------------------- */
 
+#if ATT_WITH_CALIB
+/* The hard-iron estimate of mars and mekf starts again (offset 0, no information, no keyframe). */
+static void att_filter_hard_iron_restart(att_filter_t *f)
+{
+#if ATT_WITH_MARS
+    if (f->kind == ATT_FILTER_MARS) {
+        att_i_hi_reset(&f->u.mars.st.hi);
+    }
+#endif
+#if ATT_WITH_MEKF
+    if (f->kind == ATT_FILTER_MEKF) {
+        att_i_hi_reset(&f->u.mekf.st.hi);
+    }
+#endif
+    (void)f;
+}
+#endif
+
 att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s)
 {
 #if ATT_WITH_CALIB
@@ -414,6 +432,7 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
     st = att_calib_init(&c, s);
     if (st == ATT_OK) {
         f->cal = c;
+        att_filter_hard_iron_restart(f); /* its samples are in another frame now */
     }
     return st;
 #else
@@ -528,20 +547,23 @@ static bool att_filter_heading_ok(float heading)
     return att_i_in(heading, -ATT_FILTER_HEADING_MAX, ATT_FILTER_HEADING_MAX);
 }
 
-att_status_t att_filter_mag_offset(const att_filter_t *f, att_vec3_t *offset, bool *estimated)
+att_status_t att_filter_mag_offset(const att_filter_t *f, att_mag_offset_t *out)
 {
     const att_hardiron_t *hi = NULL;
-    if (f == NULL || offset == NULL || estimated == NULL) {
+    bool on = false;
+    if (f == NULL || out == NULL) {
         return ATT_ERR_NULL;
     }
 #if ATT_WITH_MARS
     if (f->kind == ATT_FILTER_MARS) {
         hi = &f->u.mars.st.hi;
+        on = f->u.mars.c.hi.on;
     }
 #endif
 #if ATT_WITH_MEKF
     if (f->kind == ATT_FILTER_MEKF) {
         hi = &f->u.mekf.st.hi;
+        on = f->u.mekf.c.hi.on;
     }
 #endif
     if (hi == NULL) {
@@ -550,8 +572,9 @@ att_status_t att_filter_mag_offset(const att_filter_t *f, att_vec3_t *offset, bo
     if (!ATT_WITH_HARD_IRON) {
         return ATT_ERR_DISABLED; /* left out of the build (att_config.h) */
     }
-    *offset = hi->offset;
-    *estimated = hi->observable;
+    out->offset = hi->offset;
+    out->on = on;
+    out->estimated = hi->observable;
     return ATT_OK;
 }
 

@@ -123,9 +123,28 @@ static float att_node_outputs_load(const att_node_settings_t *s, uint32_t diag_f
     return sets_per_s * t_set;
 }
 
+/* 1 when the init filter estimates a hard-iron offset (ATT_MAG_OFFSET after each ATT_DIAG), else 0. A
+   filter selected later starts from its defaults, where the estimate is off. */
+static uint32_t att_node_mag_offset_frames(const att_node_settings_t *s)
+{
+    uint32_t n = 0u;
+    (void)s;
+#if ATT_WITH_MARS
+    if (s->kind == ATT_FILTER_MARS && s->filter.mars.hard_iron_tau > 0.0f) {
+        n = 1u;
+    }
+#endif
+#if ATT_WITH_MEKF
+    if (s->kind == ATT_FILTER_MEKF && s->filter.mekf.use_mag && s->filter.mekf.hard_iron_tau > 0.0f) {
+        n = 1u;
+    }
+#endif
+    return n;
+}
+
 float att_node_bus_load(const att_node_settings_t *s)
 {
-    return att_node_outputs_load(s, 1u);
+    return (s == NULL) ? -1.0f : att_node_outputs_load(s, 1u + att_node_mag_offset_frames(s));
 }
 
 /** The filter's dt agrees with sample_rate (relative 1e-3), or the kind has no dt. */
@@ -280,7 +299,8 @@ att_status_t att_node_set_bus_diag(att_node_t *n, att_node_bus_diag_fn fn, void 
         return ATT_ERR_NULL;
     }
     if (fn != NULL) {
-        const float load = att_node_outputs_load(&n->s, 2u); /* ATT_DIAG and ATT_DIAG_BUS */
+        /* ATT_DIAG, ATT_DIAG_BUS (and ATT_MAG_OFFSET) */
+        const float load = att_node_outputs_load(&n->s, 2u + att_node_mag_offset_frames(&n->s));
         if (!(load >= 0.0f) || load > 1.0f) {
             return ATT_ERR_SETTINGS;
         }
@@ -427,6 +447,22 @@ uint8_t att_node_error_count(const att_node_t *n)
 
 /* --- outputs --------------------------------------------------------------------------------- */
 
+/* ATT_MAG_OFFSET after ATT_DIAG while the filter estimates a hard-iron offset (mars, mekf). */
+static void att_node_emit_mag_offset(att_node_t *n, uint8_t counter)
+{
+#if ATT_NODE_WITH_MAG_OFFSET
+    att_mag_offset_t h;
+    att_can_frame_t fr;
+    if (att_filter_mag_offset(&n->f, &h) == ATT_OK && h.on) {
+        att_can_encode_mag_offset(&h, counter, &fr);
+        att_node_queue(n, &fr, 1u);
+    }
+#else
+    (void)n;
+    (void)counter;
+#endif
+}
+
 static void att_node_emit(att_node_t *n)
 {
     att_can_frame_t set[ATT_NODE_SET_FRAMES];
@@ -470,6 +506,7 @@ static void att_node_emit(att_node_t *n)
             att_can_encode_diag_bus(&b, counter, &set[0]);
             att_node_queue(n, set, 1u);
         }
+        att_node_emit_mag_offset(n, counter);
     }
 }
 

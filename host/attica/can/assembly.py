@@ -19,7 +19,9 @@ INPUT_IDS = frozenset({codec.ID_IMU_GYRO, codec.ID_IMU_ACC, codec.ID_IMU_MAG, co
 """IDs the node receives (everything else is counted as unknown by the node)."""
 
 
-OUTPUT_IDS = frozenset({*codec.SET_IDS, codec.ID_DIAG, codec.ID_DIAG_BUS, codec.ID_OUT_FD})
+OUTPUT_IDS = frozenset(
+    {*codec.SET_IDS, codec.ID_DIAG, codec.ID_DIAG_BUS, codec.ID_MAG_OFFSET, codec.ID_OUT_FD}
+)
 """IDs the node sends."""
 
 

@@ -32,6 +32,7 @@ from attica.can.layout import (
     ID_IMU_FD,
     ID_IMU_GYRO,
     ID_IMU_MAG,
+    ID_MAG_OFFSET,
     ID_OUT_FD,
     ID_STATUS,
     MAG_FRAC,
@@ -320,6 +321,10 @@ DIAG_BUS_FIELDS = ("bus_off", "recoveries", "error_passive", "error_warning", "r
 """The counters of ATT_DIAG_BUS in frame order, bytes 2..6 (state: byte 1 bits 4..5, lec: byte 7 bits 0..2)"""
 
 
+MAG_OFFSET_DTYPE = np.dtype([("counter", "u1"), ("estimated", "?"), ("offset", "<f4", (3,)), ("crc_ok", "?")])
+"""One decoded ATT_MAG_OFFSET (the hard-iron offset a mars or mekf filter estimates, uT; NA as NaN)."""
+
+
 @dataclass
 class Answer:
     """A command answer (ATT_STATUS with ack bit 7)."""
@@ -339,6 +344,7 @@ class OutputStream:
     """A node output stream split into sets, DIAG frames and command answers (each in arrival order).
 
     ``diag_bus``: the ATT_DIAG_BUS frames (a node on a Cortex-M port that reports its CAN controller).
+    ``mag_offset``: the ATT_MAG_OFFSET frames (a filter that estimates a hard-iron offset).
     """
 
     sets: NDArray[np.void]
@@ -346,6 +352,7 @@ class OutputStream:
     answers: list[Answer] = field(default_factory=list)
     other: int = 0
     diag_bus: NDArray[np.void] = field(default_factory=lambda: np.zeros(0, DIAG_BUS_DTYPE))
+    mag_offset: NDArray[np.void] = field(default_factory=lambda: np.zeros(0, MAG_OFFSET_DTYPE))
 
 
 def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
@@ -422,6 +429,14 @@ def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
             diag_bus[name] = d[:, 2 + j]
         diag_bus["lec"] = d[:, 7] & 0x7
         diag_bus["crc_ok"] = _e2e_rows(ids[bi], d[:, 1:8]) == d[:, 0]
+    mi = np.nonzero(ids == ID_MAG_OFFSET)[0]
+    mag_offset = np.zeros(mi.shape[0], MAG_OFFSET_DTYPE)
+    if mi.shape[0]:
+        d = data[mi]
+        mag_offset["counter"] = d[:, 1] & 0xF
+        mag_offset["estimated"] = (d[:, 1] & 0x10) != 0
+        mag_offset["offset"] = dequantise(_get_i16(d, 2, 3), MAG_FRAC)
+        mag_offset["crc_ok"] = _e2e_rows(ids[mi], d[:, 1:8]) == d[:, 0]
     answers = []
     for i in np.nonzero(answer)[0].tolist():
         d = data[i]
@@ -438,5 +453,6 @@ def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
                 crc_ok=check(fr[i]) == Check.OK,
             )
         )
-    known = np.isin(ids, np.array([*SET_IDS, ID_OUT_FD, ID_DIAG, ID_DIAG_BUS], np.uint32))
-    return OutputStream(sets=sets, diag=diag, answers=answers, other=int((~known).sum()), diag_bus=diag_bus)
+    known = np.isin(ids, np.array([*SET_IDS, ID_OUT_FD, ID_DIAG, ID_DIAG_BUS, ID_MAG_OFFSET], np.uint32))
+    other = int((~known).sum())
+    return OutputStream(sets, diag, answers, other, diag_bus, mag_offset)

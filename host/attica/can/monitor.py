@@ -49,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 import can
+import numpy as np
 
 from attica.can import codec
 from attica.can.bus import BusReader
@@ -154,6 +155,7 @@ class MonitorStats:
     samples_behind: int = 0  # most steps the node reported beyond the IMU sample periods seen (module doc)
     dropped: int = 0  # frames the monitor had to drop (receive backlog full)
     diag_bus: dict[str, int] | None = None  # the node's last good ATT_DIAG_BUS (its CAN controller)
+    mag_offset: tuple[float, float, float, bool] | None = None  # the last good ATT_MAG_OFFSET (uT, estimated)
 
     @property
     def span(self) -> float:
@@ -349,6 +351,8 @@ class Monitor:
             self._node_step(data[6] | data[7] << 8, data[1] & 0xF)
         elif can_id == codec.ID_DIAG_BUS:
             st.diag_bus = diag_bus_values(data)
+        elif can_id == codec.ID_MAG_OFFSET:
+            st.mag_offset = mag_offset_values(data)
         elif can_id in (codec.ID_IMU_GYRO, codec.ID_IMU_FD):
             self._imu_sample(data[1] & 0xF)
         if answer and (data[7] & 0xF) == int(codec.Cmd.RESET) and not probs:
@@ -358,7 +362,7 @@ class Monitor:
             self._imu_offset = st.imu_periods
         if (
             can_id not in codec.NO_CRC
-            and can_id not in (codec.ID_DIAG, codec.ID_DIAG_BUS, codec.ID_CMD)
+            and can_id not in (codec.ID_DIAG, codec.ID_DIAG_BUS, codec.ID_MAG_OFFSET, codec.ID_CMD)
             and not answer
             and not probs
         ):
@@ -447,6 +451,10 @@ class Monitor:
             out.append(f"IMU samples seen {st.imu_samples}; no output set from a node")
         if st.diag_bus is not None:
             out.append("node CAN controller (ATT_DIAG_BUS): " + diag_bus_text(st.diag_bus))
+        if st.mag_offset is not None:
+            x, y, z, est = st.mag_offset
+            state = "estimated" if est else "not observable yet"
+            out.append(f"hard-iron offset (ATT_MAG_OFFSET): {x:.2f}, {y:.2f}, {z:.2f} uT ({state})")
         if st.dropped:
             out.append(f"DROPPED {st.dropped} frames: the monitor fell too far behind the bus")
         if self.id_offset or self.dbc_offset:
@@ -468,6 +476,13 @@ class Monitor:
         """True when the counters show lost or dropped frames."""
         st = self.stats
         return bool(st.missing_frames or st.missing_sets or st.samples_behind > 0 or st.dropped)
+
+
+def mag_offset_values(data: bytes) -> tuple[float, float, float, bool]:
+    """The fields of an ATT_MAG_OFFSET frame's 8 bytes: the offset (uT, NaN for NA) and whether estimated."""
+    raw = np.frombuffer(bytes(data[2:8]), "<i2")
+    x, y, z = (float(v) for v in codec.dequantise(raw, codec.MAG_FRAC))
+    return x, y, z, bool(data[1] & 0x10)
 
 
 def diag_bus_values(data: bytes) -> dict[str, int]:

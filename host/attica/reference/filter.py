@@ -12,6 +12,7 @@ from attica.checks import filter_settings, warn_units
 from attica.outputs import OUT_ALL, OUTPUT_DTYPE
 from attica.reference import calib as rc
 from attica.reference import detmath as dm
+from attica.reference import hardiron as hiron
 from attica.reference._common import as_batch, c_state_values, load_c_state, split3, stack, state_values
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Flag
@@ -83,8 +84,13 @@ class Filter:
         self.stages.acc_body = None
 
     def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
-        """att_filter_calibrate: new input/output stages, the state kept (ValueError when refused)."""
+        """att_filter_calibrate: new input/output stages, the state kept (ValueError when refused).
+
+        A mars or mekf hard-iron estimate starts again: its samples are in another frame now.
+        """
         self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
+        if hasattr(self.impl, "hi_on"):
+            hiron.reset_where(self.impl, np.ones(self.impl.n, np.bool_))
 
     def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
         """att_filter_accel: (gravity, linear, earth) accelerations, each (n, 3), m/s^2."""

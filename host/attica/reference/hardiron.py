@@ -83,6 +83,23 @@ def reset(f: Any, n: int) -> None:
     f.hi_observable = np.zeros(n, np.bool_)
 
 
+def reset_where(f: Any, cond: Any) -> None:
+    """att_i_hi_reset where ``cond`` (a retune that turns the estimate on or off, a new calibration)."""
+    fresh = type("Fresh", (), {})()
+    reset(fresh, np.shape(cond)[0])
+    for name in ("hi_offset", "hi_target", "hi_d", "hi_m_key", "hi_w_key", "hi_info", "hi_z"):
+        old, new = getattr(f, name), getattr(fresh, name)
+        setattr(f, name, type(old)(np.where(cond, b, a).astype(np.float32) for a, b in zip(old, new)))
+    f.hi_lag = np.where(cond, dm.ZERO, f.hi_lag).astype(np.float32)
+    f.hi_key_steps = np.where(cond, _U0, f.hi_key_steps).astype(np.uint32)
+    f.hi_observable = f.hi_observable & ~cond
+
+
+def gyro_ok(check_flags: Any, g: dm.Vec3, clip: Any) -> Any:
+    """att_i_hi_gyro_ok: a valid gyro sample with no component at the clip level."""
+    return (check_flags == _U0) & (dm.absf(g[0]) < clip) & (dm.absf(g[1]) < clip) & (dm.absf(g[2]) < clip)
+
+
 def _solve(f: Any, cond: Any) -> None:
     """att_i_hi_solve where ``cond``: the lag eliminated, the 3x3 system solved when observable."""
     i = f.hi_info
@@ -167,7 +184,7 @@ def step(f: Any, cond: Any, dt: Any, w: dm.Vec3, gyro_ok: Any, m: dm.Vec3, mag_o
     keyed = cond & (f.hi_key_steps > _U0)
     with np.errstate(all="ignore"):
         dn = dm.quat_mul(f.hi_d, dm.quat_from_rotvec_fast(dm.vec3_scale(w, dt)))
-    integ = keyed & gyro_ok
+    integ = keyed & gyro_ok & (f.hi_key_steps <= np.uint32(2) * f.hi_key_n)
     f.hi_d = dm.quat_where(integ, dn, f.hi_d)
     ks = np.where(integ, f.hi_key_steps + _U1, np.where(keyed, _U0, f.hi_key_steps))
     f.hi_key_steps = ks.astype(np.uint32)
@@ -195,7 +212,7 @@ def step(f: Any, cond: Any, dt: Any, w: dm.Vec3, gyro_ok: Any, m: dm.Vec3, mag_o
 
 
 def apply(f: Any, cond: Any, m: dm.Vec3) -> tuple[dm.Vec3, Any]:
-    """The sample minus the applied offset, and its norm, where ``cond`` (else ``m``, unchanged; norm 0)."""
+    """att_i_hi_correct where ``cond`` (else ``m``), and the corrected sample's norm (0 where not)."""
     with np.errstate(all="ignore"):
         mc = dm.vec3_sub(m, f.hi_offset)
         n = dm.vec3_norm(mc)

@@ -435,7 +435,7 @@ class Mars:
     def _hard_iron(self, g: dm.Vec3, m: dm.Vec3) -> dm.Vec3:
         """att_mars_step_hi where hard_iron_tau > 0: the estimate's step, the sample the step then sees."""
         with np.errstate(all="ignore"):
-            gyro_ok = sensor.check_gyro(g, self.gyro_range) == _U0
+            gyro_ok = hiron.gyro_ok(sensor.check_gyro(g, self.gyro_range), g, self.clip)
             mag_ok = sensor.check_mag(m, self.mag_range)[0] == _U0
             hiron.step(self, self.hi_on, self.dt, dm.vec3_sub(g, self.bias), gyro_ok, m, mag_ok)
             return hiron.apply(self, self.hi_on & mag_ok, m)[0]
@@ -605,6 +605,7 @@ class Mars:
         """att_mars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""
         new = Mars(settings, self.n)
         carry_state(self, new)
+        hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
         bias_retune(new)
         ok, parts = new._derive_m0(new.m0)
         new._commit_m0(new.m0_valid & ok, parts, new_block=False)  # the limits only: the block is kept

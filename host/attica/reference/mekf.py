@@ -275,7 +275,7 @@ class Mekf:
         hiron.params(
             self,
             self.dt,
-            setting(s.hard_iron_tau, n),
+            np.where(self.use_mag, setting(s.hard_iron_tau, n), dm.ZERO).astype(np.float32),
             setting(s.hard_iron_rate, n),
             self.mag_norm_reject,
             self.mag_range,
@@ -354,7 +354,8 @@ class Mekf:
             # the hard-iron estimate (att_mekf_hard_iron), then its offset off a valid mag sample
             on = self.use_mag & self.hi_on
             w_hi = dm.vec3_scale(dm.vec3_sub(g, self.bias), dm.ONE + self.scale)
-            hiron.step(self, on, self.dt, w_hi, ck.gyro_ok, m, ck.mag_ok)
+            g_ok = ck.gyro_ok & hiron.gyro_ok(_U0, g, self.clip)
+            hiron.step(self, on, self.dt, w_hi, g_ok, m, ck.mag_ok)
             m, mnorm_hi = hiron.apply(self, on & ck.mag_ok, m)
             ck = ck._replace(mnorm=np.where(on & ck.mag_ok, mnorm_hi, ck.mnorm).astype(np.float32))
             start = mg.start(self, a, m, ck.accel_ok, ck.mag_ok)
@@ -577,6 +578,7 @@ class Mekf:
         """att_mekf_retune: new settings, the state kept (reference limits recomputed, counter limited)."""
         new = Mekf(settings, self.n)
         carry_state(self, new)
+        hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)

@@ -2602,6 +2602,137 @@ bool att_can_db_att_diag_bus_lec_is_in_phys_range(float value)
     return ((value >= 0.0f) && (value <= 7.0f));
 }
 
+int att_can_db_att_mag_offset_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_mag_offset_t *src_p,
+    size_t size)
+{
+    uint16_t off_x;
+    uint16_t off_y;
+    uint16_t off_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 8);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->crc, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->counter, 0u, 0x0fu);
+    dst_p[1] |= pack_left_shift_u8(src_p->estimated, 4u, 0x10u);
+    off_x = (uint16_t)src_p->off_x;
+    dst_p[2] |= pack_left_shift_u16(off_x, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(off_x, 8u, 0xffu);
+    off_y = (uint16_t)src_p->off_y;
+    dst_p[4] |= pack_left_shift_u16(off_y, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u16(off_y, 8u, 0xffu);
+    off_z = (uint16_t)src_p->off_z;
+    dst_p[6] |= pack_left_shift_u16(off_z, 0u, 0xffu);
+    dst_p[7] |= pack_right_shift_u16(off_z, 8u, 0xffu);
+
+    return (8);
+}
+
+int att_can_db_att_mag_offset_unpack(
+    struct att_can_db_att_mag_offset_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint16_t off_x;
+    uint16_t off_y;
+    uint16_t off_z;
+
+    if (size < 8u) {
+        return (-EINVAL);
+    }
+
+    dst_p->crc = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->counter = unpack_right_shift_u8(src_p[1], 0u, 0x0fu);
+    dst_p->estimated = unpack_right_shift_u8(src_p[1], 4u, 0x10u);
+    off_x = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    off_x |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    dst_p->off_x = (int16_t)off_x;
+    off_y = unpack_right_shift_u16(src_p[4], 0u, 0xffu);
+    off_y |= unpack_left_shift_u16(src_p[5], 8u, 0xffu);
+    dst_p->off_y = (int16_t)off_y;
+    off_z = unpack_right_shift_u16(src_p[6], 0u, 0xffu);
+    off_z |= unpack_left_shift_u16(src_p[7], 8u, 0xffu);
+    dst_p->off_z = (int16_t)off_z;
+
+    return (0);
+}
+
+int att_can_db_att_mag_offset_init(struct att_can_db_att_mag_offset_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct att_can_db_att_mag_offset_t));
+
+    return 0;
+}
+
+bool att_can_db_att_mag_offset_crc_is_in_range(uint8_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool att_can_db_att_mag_offset_crc_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 255.0f));
+}
+
+bool att_can_db_att_mag_offset_counter_is_in_range(uint8_t value)
+{
+    return (value <= 15u);
+}
+
+bool att_can_db_att_mag_offset_counter_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 15.0f));
+}
+
+bool att_can_db_att_mag_offset_estimated_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool att_can_db_att_mag_offset_estimated_is_in_phys_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 1.0f));
+}
+
+bool att_can_db_att_mag_offset_off_x_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_mag_offset_off_x_is_in_phys_range(float value)
+{
+    return ((value >= -1023.96875f) && (value <= 1023.96875f));
+}
+
+bool att_can_db_att_mag_offset_off_y_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_mag_offset_off_y_is_in_phys_range(float value)
+{
+    return ((value >= -1023.96875f) && (value <= 1023.96875f));
+}
+
+bool att_can_db_att_mag_offset_off_z_is_in_range(int16_t value)
+{
+    return (value >= -32767);
+}
+
+bool att_can_db_att_mag_offset_off_z_is_in_phys_range(float value)
+{
+    return ((value >= -1023.96875f) && (value <= 1023.96875f));
+}
+
 int att_can_db_att_accel_fd_pack(
     uint8_t *dst_p,
     const struct att_can_db_att_accel_fd_t *src_p,

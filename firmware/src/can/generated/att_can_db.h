@@ -61,6 +61,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_EARTH_ACC_FRAME_ID (0x208u)
 #define ATT_CAN_DB_ATT_CAL_ACK_FRAME_ID (0x209u)
 #define ATT_CAN_DB_ATT_DIAG_BUS_FRAME_ID (0x20au)
+#define ATT_CAN_DB_ATT_MAG_OFFSET_FRAME_ID (0x20bu)
 #define ATT_CAN_DB_ATT_ACCEL_FD_FRAME_ID (0x211u)
 #define ATT_CAN_DB_CMD_FRAME_ID (0x300u)
 
@@ -81,6 +82,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_EARTH_ACC_LENGTH (8u)
 #define ATT_CAN_DB_ATT_CAL_ACK_LENGTH (8u)
 #define ATT_CAN_DB_ATT_DIAG_BUS_LENGTH (8u)
+#define ATT_CAN_DB_ATT_MAG_OFFSET_LENGTH (8u)
 #define ATT_CAN_DB_ATT_ACCEL_FD_LENGTH (64u)
 #define ATT_CAN_DB_CMD_LENGTH (8u)
 
@@ -101,6 +103,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_EARTH_ACC_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_CAL_ACK_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_DIAG_BUS_IS_EXTENDED (0)
+#define ATT_CAN_DB_ATT_MAG_OFFSET_IS_EXTENDED (0)
 #define ATT_CAN_DB_ATT_ACCEL_FD_IS_EXTENDED (0)
 #define ATT_CAN_DB_CMD_IS_EXTENDED (0)
 
@@ -189,6 +192,12 @@ extern "C" {
 #define ATT_CAN_DB_ATT_DIAG_BUS_LEC_BIT0_CHOICE (5u)
 #define ATT_CAN_DB_ATT_DIAG_BUS_LEC_CRC_CHOICE (6u)
 
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_X_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_Y_NA_CHOICE (-32768)
+
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_Z_NA_CHOICE (-32768)
+
 #define ATT_CAN_DB_CMD_CMD_SELECT_FILTER_CHOICE (1u)
 #define ATT_CAN_DB_CMD_CMD_RESET_CHOICE (2u)
 #define ATT_CAN_DB_CMD_CMD_SET_GAIN_CHOICE (3u)
@@ -216,6 +225,7 @@ extern "C" {
 #define ATT_CAN_DB_ATT_EARTH_ACC_NAME "ATT_EARTH_ACC"
 #define ATT_CAN_DB_ATT_CAL_ACK_NAME "ATT_CAL_ACK"
 #define ATT_CAN_DB_ATT_DIAG_BUS_NAME "ATT_DIAG_BUS"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_NAME "ATT_MAG_OFFSET"
 #define ATT_CAN_DB_ATT_ACCEL_FD_NAME "ATT_ACCEL_FD"
 #define ATT_CAN_DB_CMD_NAME "CMD"
 
@@ -325,6 +335,12 @@ extern "C" {
 #define ATT_CAN_DB_ATT_DIAG_BUS_ERROR_WARNING_NAME "error_warning"
 #define ATT_CAN_DB_ATT_DIAG_BUS_RX_OVERRUNS_NAME "rx_overruns"
 #define ATT_CAN_DB_ATT_DIAG_BUS_LEC_NAME "lec"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_CRC_NAME "crc"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_COUNTER_NAME "counter"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_ESTIMATED_NAME "estimated"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_X_NAME "off_x"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_Y_NAME "off_y"
+#define ATT_CAN_DB_ATT_MAG_OFFSET_OFF_Z_NAME "off_z"
 #define ATT_CAN_DB_ATT_ACCEL_FD_CRC_NAME "crc"
 #define ATT_CAN_DB_ATT_ACCEL_FD_COUNTER_NAME "counter"
 #define ATT_CAN_DB_ATT_ACCEL_FD_VALID_NAME "valid"
@@ -1360,6 +1376,69 @@ struct att_can_db_att_diag_bus_t {
      * Offset: 0
      */
     uint8_t lec;
+};
+
+/**
+ * Signals in message ATT_MAG_OFFSET.
+ *
+ * The hard-iron offset the filter estimates on the device and subtracts from its mag samples (mars, mekf with hard_iron_tau > 0; att_filter_mag_offset), after ATT_DIAG (and ATT_DIAG_BUS): every diag_divider-th set, only while the estimate is on.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct att_can_db_att_mag_offset_t {
+    /**
+     * E2E CRC-8 J1850 over data ID 0x0C0B and bytes 1..7.
+     *
+     * Range: 0..255 (0..255 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t crc;
+
+    /**
+     * Output set counter of the set it follows (the same as its ATT_DIAG).
+     *
+     * Range: 0..15 (0..15 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t counter;
+
+    /**
+     * 1 once the rotations have made the offset observable (before that the offset is 0).
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t estimated;
+
+    /**
+     * Offset x, uT, the frame of the samples the filter sees (after the calibration stage); -32768 = NA (not finite), beyond the range saturated.
+     *
+     * Range: -32767..32767 (-1023.96875..1023.96875 uT)
+     * Scale: 0.03125
+     * Offset: 0
+     */
+    int16_t off_x;
+
+    /**
+     * Offset y, uT (as off_x).
+     *
+     * Range: -32767..32767 (-1023.96875..1023.96875 uT)
+     * Scale: 0.03125
+     * Offset: 0
+     */
+    int16_t off_y;
+
+    /**
+     * Offset z, uT (as off_x).
+     *
+     * Range: -32767..32767 (-1023.96875..1023.96875 uT)
+     * Scale: 0.03125
+     * Offset: 0
+     */
+    int16_t off_z;
 };
 
 /**
@@ -4422,6 +4501,175 @@ bool att_can_db_att_diag_bus_lec_is_in_range(uint8_t value);
  * @return true if in range, false otherwise.
  */
 bool att_can_db_att_diag_bus_lec_is_in_phys_range(float value);
+
+/**
+ * Pack message ATT_MAG_OFFSET.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int att_can_db_att_mag_offset_pack(
+    uint8_t *dst_p,
+    const struct att_can_db_att_mag_offset_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message ATT_MAG_OFFSET.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int att_can_db_att_mag_offset_unpack(
+    struct att_can_db_att_mag_offset_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from ATT_MAG_OFFSET.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int att_can_db_att_mag_offset_init(struct att_can_db_att_mag_offset_t *msg_p);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_crc_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_crc_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_counter_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_counter_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_estimated_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_estimated_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_x_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_x_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_y_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_y_is_in_phys_range(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_z_is_in_range(int16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool att_can_db_att_mag_offset_off_z_is_in_phys_range(float value);
 
 /**
  * Pack message ATT_ACCEL_FD.

@@ -251,6 +251,7 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings)
 att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
 {
     att_status_t st;
+    bool hi_was_on;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
@@ -258,7 +259,11 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (st != ATT_OK) {
         return st;
     }
+    hi_was_on = f->c.hi.on;
     att_mars_coeffs(&f->c, settings);
+    if (f->c.hi.on != hi_was_on) {
+        att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
+    }
     att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
     if (f->st.m0_valid) {
         att_mars_m0_limits(&f->c, &f->st);
@@ -766,13 +771,13 @@ static ATT_NOINLINE uint32_t att_mars_step_hi(att_mars_t *f, const att_vec3_t *g
                                               const att_vec3_t *mag)
 {
     float mnorm;
-    const bool gyro_ok = att_i_sensor_check_gyro(*gyr, f->c.gyro_range) == 0u;
+    const bool gyro_ok = att_i_hi_gyro_ok(att_i_sensor_check_gyro(*gyr, f->c.gyro_range), *gyr, f->c.clip);
     const bool mag_ok = att_i_sensor_check_mag(*mag, f->c.mag_range, &mnorm) == 0u;
     att_vec3_t m = *mag;
     uint32_t flags;
     att_i_hi_step(&f->c.hi, &f->st.hi, f->c.dt, att_i_vec3_sub(*gyr, f->st.bias), gyro_ok, m, mag_ok);
     if (mag_ok) {
-        m = att_i_vec3_sub(m, f->st.hi.offset);
+        m = att_i_hi_correct(&f->st.hi, m);
     }
     flags = att_mars_update(f, gyr, acc, &m);
     return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, &m) : flags;

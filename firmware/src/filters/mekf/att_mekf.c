@@ -153,7 +153,7 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->decl_sin = att_sinf(s->declination);
     c->decl_cos = att_cosf(s->declination);
     att_i_magref_params(&c->ref, s->dt, s->mag_ref_tau, s->mag_new_time, s->mag_norm_reject, s->mag_dip_reject);
-    att_i_hi_params(&c->hi, s->dt, s->hard_iron_tau, s->hard_iron_rate, s->mag_norm_reject,
+    att_i_hi_params(&c->hi, s->dt, s->use_mag ? s->hard_iron_tau : 0.0f, s->hard_iron_rate, s->mag_norm_reject,
                     s->mag_range);
 }
 
@@ -258,6 +258,7 @@ att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings)
 att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
 {
     att_status_t st;
+    bool hi_was_on;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
@@ -265,7 +266,11 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     if (st != ATT_OK) {
         return st;
     }
+    hi_was_on = f->c.hi.on;
     att_mekf_coeffs(&f->c, settings);
+    if (f->c.hi.on != hi_was_on) {
+        att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
+    }
     if (!(f->c.p0_scale > 0.0f)) {
         f->st.p_scale = 0.0f; /* no longer estimated: the estimate is kept, fixed */
         att_mekf_scale_v_zero(&f->st);
@@ -1111,11 +1116,11 @@ static ATT_NOINLINE const att_vec3_t *att_mekf_hard_iron(const att_mekf_coeffs_t
                                                         bool mag_ok, att_mekf_work_t *wk)
 {
     const att_vec3_t w = att_i_vec3_scale(att_i_vec3_sub(*gyr, st->bias), 1.0f + st->scale);
-    att_i_hi_step(&c->hi, &st->hi, c->dt, w, gyro_ok, *mag, mag_ok);
+    att_i_hi_step(&c->hi, &st->hi, c->dt, w, gyro_ok && att_i_hi_gyro_ok(0u, *gyr, c->clip), *mag, mag_ok);
     if (!mag_ok) {
         return mag;
     }
-    wk->m = att_i_vec3_sub(*mag, st->hi.offset);
+    wk->m = att_i_hi_correct(&st->hi, *mag);
     wk->mnorm = att_i_vec3_norm(wk->m);
     return &wk->m;
 }
