@@ -641,8 +641,15 @@ HALS = {
     "fdcan": (cross.PORT / "att_fdcan_hal.c", cross.TESTS_C / "att_fdcan_hal_test.c"),
 }
 """Each CAN HAL of firmware/ports/cortex_m and its host test against a fake register block."""
-SMALL_NODE = ("-DATT_NODE_WITH_FD=0", "-DATT_WITH_CALIB=0", "-DATT_NODE_RX_RING=8", "-DATT_NODE_TX_RING=8")
-"""The small node of issue 22: classic frames only, no stages, rings of 8 (4 receive IDs instead of 5)."""
+SMALL_NODE = (
+    "-DATT_NODE_WITH_FD=0",
+    "-DATT_WITH_CALIB=0",
+    "-DATT_WITH_HARD_IRON=0",
+    "-DATT_NODE_RX_RING=8",
+    "-DATT_NODE_TX_RING=8",
+)
+"""The small node of issue 22: classic frames only, no stages, rings of 8 (4 receive IDs instead of 5); with
+every kind, the tx ring of 8 needs the hard-iron estimate left out (ATT_MAG_OFFSET would make a set 9)."""
 
 
 def _run_hal_test(hal: str, cc: str, tmp_path: Path, config: tuple[str, ...] = ()) -> str:

@@ -5,7 +5,8 @@ the firmware and hashes the raw bits of what comes out:
 each kind's step records (``att_filter_step`` only, as a firmware loop pays for) and whole output
 records (``att_filter_output`` after each step), with its default and seed settings, on a simulated
 9-axis stream and on an adversarial one (NaN, +-Inf, saturation, denormals, zero and absent mag);
-the calibration stages with accel outputs; heading set and heading updates; retune; and the CAN
+the calibration stages with accel outputs; heading set and heading updates; retune; mars's and mekf's
+hard-iron estimate on a stream with a hard-iron offset; and the CAN
 node's output frames (classic and FD, with commands). The inputs are hashed too, so that a change of
 the simulator is told apart from a change of the firmware.
 
@@ -234,6 +235,51 @@ def retune_digest(kind: Any) -> str:
     return sha(first, second)
 
 
+N_HARD = 8000
+
+
+def hard_iron_stream() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """A simulated stream whose magnetometer has a hard-iron offset of up to 20 uT per axis (40 s)."""
+    from attica import sim
+    from attica.sim.errors import ErrorSizes
+
+    sizes = ErrorSizes(
+        gyro_offset=0.0,
+        gyro_scale=0.0,
+        gyro_misalignment=0.0,
+        accel_offset=0.0,
+        accel_scale=0.0,
+        accel_misalignment=0.0,
+        hard_iron=20.0,
+        soft_iron_scale=0.0,
+        soft_iron_coupling=0.0,
+    )
+    cfg = sim.SimConfig(duration=N_HARD / RATE, rate=RATE, seed=5, sensor_errors=sizes)
+    rec = sim.simulate(cfg)
+    f = np.float32
+    return rec.gyr[:N_HARD].astype(f), rec.acc[:N_HARD].astype(f), rec.mag[:N_HARD].astype(f)
+
+
+def hard_iron_digest(kind: Any) -> str:
+    """The hard-iron estimate on (mars, mekf; att_hardiron.h).
+
+    Step records, then the offset, its target, information and lag after every quarter of the stream.
+    """
+    g, a, m = hard_iron_stream()
+    f = _filter(kind)
+    f.retune(hard_iron_tau=20.0, hard_iron_rate=4.0)
+    parts: list[Any] = []
+    for i in range(0, N_HARD, N_HARD // 4):
+        j = i + N_HARD // 4
+        parts.append(f.run(g[i:j], a[i:j], m[i:j], full=True, check_units=False))
+        h = f.mag_offset()
+        st = getattr(f.state.u, kind.label).st.hi
+        vals = [*h.offset, st.target.x, st.target.y, st.target.z, *st.info, *st.z, st.lag]
+        parts.append(np.array(vals, np.float32))
+        parts.append(np.array([h.on, h.estimated], np.uint8))
+    return sha(*parts)
+
+
 NODE_BITRATES = {False: (1_000_000, 0), True: (1_000_000, 5_000_000)}
 """(bitrate, data_bitrate) of the node digests, classic and FD."""
 
@@ -289,6 +335,7 @@ def cases() -> Iterator[Case]:
     yield Case("input.sim", partial(_inputs, sim_stream))
     yield Case("input.adversarial", partial(_inputs, adversarial_stream))
     yield Case("input.field", partial(_inputs, field_stream))
+    yield Case("input.hard_iron", partial(_inputs, hard_iron_stream))
     for kind in implemented_kinds():
         k = kind.label
         for preset in ("default", "seed"):
@@ -298,6 +345,8 @@ def cases() -> Iterator[Case]:
                     yield Case(f"{k}.{preset}.{stream}.{part}", partial(_run, kind, preset, stream, full))
         if uses_mag(kind):
             yield Case(f"{k}.default.field.run", partial(_run, kind, "default", "field", True))
+        if k in ("mars", "mekf"):
+            yield Case(f"{k}.hard_iron", partial(hard_iron_digest, kind))
         yield Case(f"{k}.calib", partial(calib_digest, kind))
         yield Case(f"{k}.retune", partial(retune_digest, kind))
         if k != "tilt":

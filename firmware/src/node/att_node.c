@@ -192,7 +192,6 @@ att_status_t att_node_settings_default(att_filter_kind_t kind, float sample_rate
 
 att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
 {
-    att_filter_t f;
     att_status_t st;
     float load;
     if (n == NULL || s == NULL) {
@@ -201,18 +200,15 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     if (!att_node_rates_ok(s)) {
         return ATT_ERR_SETTINGS;
     }
-    st = att_filter_init(&f, s->kind, &s->filter);
+    /* everything is validated before n is touched; the filter is then set up in place (no filter-sized
+       copy on the stack: the kinds' state is most of att_filter_t) */
+    st = att_filter_settings_validate(s->kind, &s->filter);
     if (st != ATT_OK) {
         return st;
     }
 #if ATT_WITH_CALIB
-    if (att_filter_calibrate(&f, &s->calib) != ATT_OK) {
+    if (att_calib_settings_validate(&s->calib) != ATT_OK) {
         return ATT_ERR_SETTINGS;
-    }
-    if (s->accel_out) {
-        att_calib_settings_t c = s->calib;
-        c.accel_outputs = true;
-        (void)att_filter_calibrate(&f, &c); /* valid: only accel_outputs changed */
     }
 #endif
     if (!att_node_dt_matches(s)) {
@@ -226,8 +222,11 @@ att_status_t att_node_init(att_node_t *n, const att_node_settings_t *s)
     n->s = *s;
     n->kind = s->kind;
     n->fs = s->filter;
-    n->f = f;
+    (void)att_filter_init(&n->f, s->kind, &s->filter); /* validated above */
 #if ATT_WITH_CALIB
+    n->cal = s->calib;
+    n->cal.accel_outputs = n->cal.accel_outputs || s->accel_out;
+    (void)att_filter_calibrate(&n->f, &n->cal); /* validated above: only accel_outputs may differ */
     n->cal = s->calib;
 #endif
     att_filter_output(&n->f, &n->out);
@@ -631,7 +630,6 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
 {
     att_filter_kind_t kind = (att_filter_kind_t)arg;
     att_filter_settings_t fs;
-    att_filter_t f;
     if (kind == n->s.kind) {
         fs = n->s.filter;
     } else {
@@ -643,16 +641,21 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
             return (uint8_t)ATT_CAN_ACK_BAD_ARG;
         }
     }
-    if (att_filter_init(&f, kind, &fs) != ATT_OK) {
+    if (att_filter_settings_validate(kind, &fs) != ATT_OK) {
         return (uint8_t)ATT_CAN_ACK_REFUSED;
     }
 #if ATT_WITH_CALIB
-    f.cal = n->f.cal; /* the calibration stays (it is not part of the filter's state) */
-    f.cal.have_acc = false;
+    {
+        const att_calib_t cal = n->f.cal; /* the calibration stays (it is not part of the filter's state) */
+        (void)att_filter_init(&n->f, kind, &fs); /* validated above; set up in place (no copy on the stack) */
+        n->f.cal = cal;
+        n->f.cal.have_acc = false;
+    }
+#else
+    (void)att_filter_init(&n->f, kind, &fs); /* validated above */
 #endif
     n->kind = kind;
     n->fs = fs;
-    n->f = f;
     n->div_count = 0u; /* the sets restart on the new filter's step grid */
     att_filter_output(&n->f, &n->out);
     return (uint8_t)ATT_CAN_ACK_OK;

@@ -38,6 +38,19 @@ _DIAG_OK_COV = (
 
 EXPLAINED: tuple[Explained, ...] = (
     Explained(
+        "firmware/src/core/att_core.h",
+        "} else if (r->rej_n > 0u && p->new_n > 0u && r->rej_norm > 0.0f) {",
+        "ROR",
+        "> -> >=",
+        (
+            "boundary: rej_norm is the sum of |m| of the block's rejected valid samples, > 0 whenever "
+            "rej_n > 0 unless every one of their norms underflows to 0 (a vector below about 1e-19 uT, "
+            "which the sample check passes as valid); rej_n >= 0 is then caught by rej_norm > 0, and "
+            "rej_norm >= 0 only differs for those underflowing samples (their candidate 0 / 0 is then "
+            "compared and dropped)"
+        ),
+    ),
+    Explained(
         "firmware/src/filters/ekf/att_ekf.c",
         "const float sum = ((((((((((((((((((p[0] + p[1]) + p[3]) + p[4]) + p[5]) + p[6]) + p[8]) + p[9])"
         " + p[10]) +",
