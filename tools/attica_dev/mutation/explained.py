@@ -623,13 +623,13 @@ EXPLAINED: tuple[Explained, ...] = (
     ),
     Explained(
         "firmware/src/node/att_node.c",
-        "f.cal.have_acc = false;",
+        "n->f.cal.have_acc = false;",
         "DEL",
-        "f.cal.have_acc = false; -> ;",
+        "n->f.cal.have_acc = false; -> ;",
         (
             "dead store: have_acc is read only by att_filter_accel in att_node_emit, which runs after "
             "att_node_step's att_filter_step_n (periods >= 1); with ATT_CALIB_ACTIVE_ACC set every step "
-            "goes through att_filter_step_cal, which sets acc_body and have_acc first (att_filter.c:322), "
+            "goes through att_filter_step_cal, which sets acc_body and have_acc first (att_filter.c:324), "
             "and without it att_filter_accel returns before reading them"
         ),
     ),
