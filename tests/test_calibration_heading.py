@@ -27,16 +27,9 @@ from attica.metrics import evaluate
 from attica.settings import FilterKind, make_settings
 from attica.sim import SimConfig, simulate
 from attica.sim.calib_motion import mag_sweep
-from attica.sim.errors import ErrorSizes, apply_errors, draw_errors
+from attica.sim.errors import apply_errors, draw_errors, mag_only
 
-MAG_ONLY = ErrorSizes(
-    gyro_offset=0.0,
-    gyro_scale=0.0,
-    gyro_misalignment=0.0,
-    accel_offset=0.0,
-    accel_scale=0.0,
-    accel_misalignment=0.0,
-)
+MAG_ONLY = mag_only()
 
 APPLIED_BY = "firmware" if "calibration" in inspect.signature(native.Filter).parameters else "numpy"
 

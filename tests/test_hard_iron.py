@@ -29,21 +29,11 @@ from attica.crosscheck import Stream, crosscheck
 from attica.settings import FilterKind, MarsSettings, MekfSettings
 from attica.sim import SimConfig
 from attica.sim.engine import simulate_with_truth
-from attica.sim.errors import ErrorSizes
+from attica.sim.errors import ErrorSizes, mag_only
 
 RATE = 100.0
 KINDS: dict[FilterKind, Any] = {FilterKind.MARS: MarsSettings, FilterKind.MEKF: MekfSettings}
-HARD = ErrorSizes(
-    gyro_offset=0.0,
-    gyro_scale=0.0,
-    gyro_misalignment=0.0,
-    accel_offset=0.0,
-    accel_scale=0.0,
-    accel_misalignment=0.0,
-    hard_iron=20.0,
-    soft_iron_scale=0.0,
-    soft_iron_coupling=0.0,
-)
+HARD = mag_only(hard_iron=20.0, soft_iron_scale=0.0, soft_iron_coupling=0.0)
 """A hard-iron offset of up to 20 uT per axis and nothing else."""
 MAGNET = ((30.0, 50.0, (-1.5, 0.25, 0.1), (1.5, 0.25, 0.1), (0.0, 2.0, 2.2)),)  # a magnet passing 25 cm away
 

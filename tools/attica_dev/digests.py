@@ -241,19 +241,9 @@ N_HARD = 8000
 def hard_iron_stream() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
     """A simulated stream whose magnetometer has a hard-iron offset of up to 20 uT per axis (40 s)."""
     from attica import sim
-    from attica.sim.errors import ErrorSizes
+    from attica.sim.errors import mag_only
 
-    sizes = ErrorSizes(
-        gyro_offset=0.0,
-        gyro_scale=0.0,
-        gyro_misalignment=0.0,
-        accel_offset=0.0,
-        accel_scale=0.0,
-        accel_misalignment=0.0,
-        hard_iron=20.0,
-        soft_iron_scale=0.0,
-        soft_iron_coupling=0.0,
-    )
+    sizes = mag_only(hard_iron=20.0, soft_iron_scale=0.0, soft_iron_coupling=0.0)
     cfg = sim.SimConfig(duration=N_HARD / RATE, rate=RATE, seed=5, sensor_errors=sizes)
     rec = sim.simulate(cfg)
     f = np.float32

@@ -82,6 +82,37 @@ class ErrorSizes:
                 raise ValueError(f"ErrorSizes.{name} must be < 0.5, got {getattr(self, name)}")
 
 
+def mag_only(
+    hard_iron: float = 25.0, soft_iron_scale: float = 0.15, soft_iron_coupling: float = 0.08
+) -> ErrorSizes:
+    """Error bounds for the magnetometer alone: every gyro and accel error 0, the given hard and soft iron.
+
+    Parameters
+    ----------
+    hard_iron : float
+        uT per axis.
+    soft_iron_scale, soft_iron_coupling : float
+        As in :class:`ErrorSizes`.
+
+    Returns
+    -------
+    ErrorSizes
+        The bounds (no mounting rotation).
+
+    """
+    return ErrorSizes(
+        gyro_offset=0.0,
+        gyro_scale=0.0,
+        gyro_misalignment=0.0,
+        accel_offset=0.0,
+        accel_scale=0.0,
+        accel_misalignment=0.0,
+        hard_iron=hard_iron,
+        soft_iron_scale=soft_iron_scale,
+        soft_iron_coupling=soft_iron_coupling,
+    )
+
+
 def _inertial(rng: np.random.Generator, offset: float, scale: float, mis: float) -> InertialModel:
     m = np.eye(3) + rng.uniform(-mis, mis, size=(3, 3)) * (1.0 - np.eye(3))
     s = 1.0 + rng.uniform(-scale, scale, size=3)
