@@ -117,7 +117,8 @@
  *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
  * during any motion that tilts, the vertical one from the heading in 9-axis use), and at rest (step 0,
- * before the prediction: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time) by the zero-rate
+ * before the prediction: |w - b|^2 < rest_gyro^2 + 9 tr(P_bb), the bias estimate's error up to 3 sigma
+ * per axis (rest_gyro 0: never), and ||a| - g| < rest_accel for rest_time) by the zero-rate
  * pseudo-measurement w = b + noise (r_rest = rest_noise^2 / dt per axis, three scalar updates; its
  * attitude correction through the correlations is applied as the accel update's; ATT_FLAG_AT_REST).
  * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt
@@ -195,7 +196,7 @@ typedef struct {
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
     float tau_acc_lp;      /**< earth-frame accel low-pass (Butterworth, lag 2 tau_acc_lp), s, [0, 1e4]; 0 = off */
     float rest_noise;      /**< zero-rate pseudo-measurement noise density at rest, rad/s/sqrt(Hz); [1e-7, 1] */
-    float rest_gyro;       /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range]; 0 = no rest updates ... */
+    float rest_gyro;       /**< at rest when |w - b| < rest_gyro (+ the bias's error), rad/s, [0, gyro_range]; 0 = none ... */
     float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;       /**< ... for at least rest_time, s, [0, 1e4] */
     float gyro_scale_sd;   /**< prior standard deviation of the gyro scale-factor error, estimated online

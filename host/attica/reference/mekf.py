@@ -40,6 +40,8 @@ _U0 = np.uint32(0)
 THREE = dm.c("0x1.8p+1")
 QUARTER = dm.c("0x1p-2")
 GATED_MAX = np.uint32(0xFFFFFFFF)
+REST_SIGMA2 = dm.c("0x1.2p+3")
+"""ATT_MEKF_REST_SIGMA2 = 9: the rest gate takes the bias estimate's error up to 3 sigma."""
 SQRT2 = dm.c("0x1.6a09e6p+0")
 BW_Q = dm.c("0x1.a8279ap-2")
 """sqrt(2) and sqrt(2) - 1: the Butterworth accel low-pass (ATT_MEKF_SQRT2, ATT_MEKF_BW_Q)."""
@@ -403,7 +405,9 @@ class Mekf:
         mag_ok = self.use_mag & (mag_flags == _U0)
         mnorm = w(self.use_mag, mnorm, dm.ZERO).astype(np.float32)
         d = dm.vec3_sub(g, self.bias)
-        rest = gyro_ok & accel_ok & (dm.vec3_dot(d, d) < self.rest_gyro2) & (n2 > self.acc2_lo)
+        pb = (self.p[cv.ix(3, 3)] + self.p[cv.ix(4, 4)]) + self.p[cv.ix(5, 5)]
+        gate = np.where(self.rest_gyro2 > dm.ZERO, self.rest_gyro2 + REST_SIGMA2 * pb, dm.ZERO)
+        rest = gyro_ok & accel_ok & (dm.vec3_dot(d, d) < gate) & (n2 > self.acc2_lo)
         rest = rest & (n2 < self.acc2_hi)
         return _Sample(flags, gyro_ok, accel_ok, rejected, mag_ok, rest, e2, mnorm)
 

@@ -20,6 +20,7 @@
 #define ATT_MEKF_PIVOT_MIN 0x1p-16f /* relative pivot margin of the positive definiteness test */
 #define ATT_MEKF_SHRINK 0x1.ff8p-1f /* 1 - 2^-10: correlation shrink factor of the repair */
 #define ATT_MEKF_GATED_MAX 0xFFFFFFFFu
+#define ATT_MEKF_REST_SIGMA2 0x1.2p+3f /* 9 = 3^2: the rest gate takes the bias estimate's error up to 3 sigma */
 #define ATT_MEKF_SQRT2 0x1.6a09e6p+0f /* sqrt(2): the Butterworth low-pass */
 #define ATT_MEKF_BW_Q 0x1.a8279ap-2f  /* sqrt(2) - 1: its damping feedback (2 zeta - 1, zeta = 1 / sqrt(2)) */
 
@@ -1179,7 +1180,9 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     }
     {
         const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);
-        rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < c->rest_gyro2 && n2 > c->acc2_lo && n2 < c->acc2_hi;
+        const float pb = (st->p[ATT_MEKF_IX(3u, 3u)] + st->p[ATT_MEKF_IX(4u, 4u)]) + st->p[ATT_MEKF_IX(5u, 5u)];
+        const float gate = (c->rest_gyro2 > 0.0f) ? c->rest_gyro2 + ATT_MEKF_REST_SIGMA2 * pb : 0.0f;
+        rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < gate && n2 > c->acc2_lo && n2 < c->acc2_hi;
     }
 
     if (!st->initialised) {
