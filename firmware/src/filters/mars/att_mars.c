@@ -496,7 +496,7 @@ static ATT_NOINLINE bool att_mars_mag_first(const att_mars_coeffs_t *c, att_mars
 }
 
 /*
- * The rest of the first step with a valid accel sample, after att_mars_update (which left the sample's
+ * The rest of the first step with a valid accel sample, the tail of att_mars_update (which left the sample's
  * flags in st->flags): roll and pitch from the sample (att_sensor_tilt, att_quat_from_euler: the same
  * operations inline), yaw from the mag sample when usable. Returns the step's flags.
  */
@@ -528,13 +528,6 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     st->flags = flags;
     return flags;
 }
-
-/*
- * att_mars_update's result when the filter waits for its first sample and this one has a valid accel:
- * the step goes on in att_mars_start (called after att_mars_update returned, so that their frames do
- * not nest). Not a flag (the flags are bits 0..15).
- */
-#define ATT_MARS_START_PENDING 0x80000000u
 
 /*
  * The recovery counter (att_i_recovery_step); the fast phase starts when a recovery ends. Returns ATT_FLAG_INITIALISED while a recovery runs.
@@ -717,7 +710,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     if (!st->initialised) {
         st->flags = flags;
         if (accel_ok) {
-            return ATT_MARS_START_PENDING; /* att_mars_step_in finishes the step with att_mars_start */
+            return att_mars_start(f, acc_in, mag_in); /* a tail call: its frame replaces this one */
         }
         st->steps = st->steps + 1u;
         st->flags = flags | ATT_FLAG_NOT_READY;
@@ -774,29 +767,25 @@ static ATT_NOINLINE uint32_t att_mars_step_hi(att_mars_t *f, const att_vec3_t *g
     const bool gyro_ok = att_i_hi_gyro_ok(att_i_sensor_check_gyro(*gyr, f->c.gyro_range), *gyr, f->c.clip);
     const bool mag_ok = att_i_sensor_check_mag(*mag, f->c.mag_range, &mnorm) == 0u;
     att_vec3_t m = *mag;
-    uint32_t flags;
     att_i_hi_step(&f->c.hi, &f->st.hi, f->c.dt, att_i_vec3_sub(*gyr, f->st.bias), gyro_ok, m, mag_ok);
     if (mag_ok) {
         m = att_i_hi_correct(&f->st.hi, m);
     }
-    flags = att_mars_update(f, gyr, acc, &m);
-    return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, &m) : flags;
+    return att_mars_update(f, gyr, acc, &m);
 }
 #endif
 
-/* One step: att_mars_update, then att_mars_start for the first usable sample (the hard-iron estimate's
-   step around them when it is on). */
+/* One step: att_mars_update (which ends in att_mars_start for the first usable sample), with the
+   hard-iron estimate's step around it when it is on. */
 static ATT_ALWAYS_INLINE uint32_t att_mars_step_in(att_mars_t *f, const att_vec3_t *gyr, const att_vec3_t *acc,
                                                    const att_vec3_t *mag)
 {
-    uint32_t flags;
 #if ATT_WITH_HARD_IRON
     if (f->c.hi.on) {
         return att_mars_step_hi(f, gyr, acc, mag);
     }
 #endif
-    flags = att_mars_update(f, gyr, acc, mag);
-    return (flags == ATT_MARS_START_PENDING) ? att_mars_start(f, acc, mag) : flags;
+    return att_mars_update(f, gyr, acc, mag);
 }
 
 uint32_t att_mars_step(att_mars_t *f, att_vec3_t gyr, att_vec3_t acc, att_vec3_t mag)
