@@ -85,7 +85,7 @@ typedef struct {
     att_bias_mode_t bias_mode;     /**< gyro bias estimation: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;           /**< cap on n in the running mean; [1, 2^24] */
     att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
-    float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_gyro;               /**< at rest when |w - w_m| < rest_gyro (+ att_bias.h's widening), rad/s, [0, gyro_range] ... */
     float rest_accel;              /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;               /**< ... for at least rest_time, s, [0, 1e4] */
     att_integration_t integration; /**< ROTVEC (0) or EULER (1) */
@@ -136,6 +136,8 @@ typedef struct {
     att_vec3_t lp2;        /**< second accel low-pass stage (used by the correction), m/s^2, earth */
     uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
+    float rest_gate2;      /**< the rest detector's gyro gate, (rad/s)^2: bias.rest_first2 until the first
+                                bias update, then bias.rest_gyro2 (att_bias.h) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */

@@ -4,7 +4,11 @@
  *
  * At rest when |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_n consecutive samples, tested
  * on squares (|w - b|^2 < rest_gyro^2 and (g - rest_accel)^2 < |a|^2 < (g + rest_accel)^2, no square
- * roots). Running mean b := (n b + w) / (n + 1), n capped at n_max, updated for every valid gyro sample
+ * roots). In ATT_BIAS_AT_REST mode, until the first sample at rest (n = 0) the bias is the gyro's unknown
+ * turn-on bias and the gyro test is |w - b|^2 < rest_gyro^2 + ATT_BIAS_UNKNOWN2: 3 standard deviations
+ * per axis of a turn-on bias of 0.01 rad/s per axis (as the mekf's p0_bias and its rest gate), so that a
+ * still gyro with a bias near or above rest_gyro (a consumer gyro's 2 deg/s per axis) is seen at rest.
+ * Running mean b := (n b + w) / (n + 1), n capped at n_max, updated for every valid gyro sample
  * (ATT_BIAS_RUNNING) or only at rest (ATT_BIAS_AT_REST). Units: rad/s, m/s^2; sensor frame.
  */
 #ifndef ATT_BIAS_H
@@ -16,6 +20,9 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/** The rest gate's widening before the first rest sample: 9 x 3 x (0.01 rad/s)^2 = 2.7e-3 (rad/s)^2. */
+#define ATT_BIAS_UNKNOWN2 0x1.61e4f8p-9f
 
 /* ATT_CDEF_BEGIN */
 /** How a gyro bias estimate is maintained. */
@@ -31,7 +38,9 @@ typedef struct {
     att_bias_mode_t mode; /**< estimation mode */
     uint32_t n_max;       /**< cap on n in the running mean, 1 .. 2^24 */
     uint32_t rest_n;      /**< consecutive samples at rest needed */
-    float rest_gyro2;     /**< rest_gyro^2, (rad/s)^2: at rest needs |w - b|^2 below it ... */
+    float rest_gyro2;     /**< rest_gyro^2, (rad/s)^2: at rest needs |w - b|^2 below it (n > 0) ... */
+    float rest_first2;    /**< ... or below this while n = 0: rest_gyro^2 + ATT_BIAS_UNKNOWN2 in AT_REST mode
+                               (rest_gyro > 0), else rest_gyro^2, (rad/s)^2 ... */
     float acc2_lo;        /**< ... and |a|^2 above (g - rest_accel)^2, (m/s^2)^2 ... */
     float acc2_hi;        /**< ... and below (g + rest_accel)^2, (m/s^2)^2 */
 } att_bias_params_t;

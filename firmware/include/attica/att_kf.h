@@ -78,7 +78,7 @@ typedef struct {
     att_bias_mode_t bias_mode; /**< gyro bias as att_ars.h: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;       /**< cap on n in the running mean of the bias; [1, 2^24] */
     att_vec3_t bias_init;      /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
-    float rest_gyro;           /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_gyro;           /**< at rest when |w - b| < rest_gyro (+ att_bias.h's widening), rad/s, [0, gyro_range] ... */
     float rest_accel;          /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;           /**< ... for at least rest_time, s, [0, 1e4] */
     float tau_acc_lp;          /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
@@ -126,6 +126,8 @@ typedef struct {
     att_vec3_t lp2;       /**< second accel low-pass stage (the measurement), m/s^2, earth frame */
     uint32_t bias_n;      /**< n of the running mean of the bias */
     uint32_t rest_count;  /**< consecutive samples at rest */
+    float rest_gate2;     /**< the rest detector's gyro gate, (rad/s)^2: bias.rest_first2 until the first
+                               bias update, then bias.rest_gyro2 (att_bias.h) */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */

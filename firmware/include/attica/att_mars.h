@@ -153,7 +153,7 @@ typedef struct {
     float tau_acc_lp;             /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     att_bias_mode_t bias_mode;    /**< gyro bias (default AT_REST; FROZEN: bias_init): OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;          /**< cap on n in the running mean of the bias; [1, 2^24] */
-    float rest_gyro;              /**< at rest when |w - b| < rest_gyro, rad/s, [0, gyro_range] ... */
+    float rest_gyro;              /**< at rest when |w - b| < rest_gyro (+ att_bias.h's widening), rad/s, [0, gyro_range] ... */
     float rest_accel;             /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;              /**< ... for at least rest_time, s, [0, 1e4] */
     float mag_ref_tau;            /**< time constant of the reference field's norm and dip, learnt from the
@@ -246,6 +246,8 @@ typedef struct {
     float dip_hi;          /**< largest accepted sin(dip) (dip rejection; 1 = none) */
     uint32_t bias_n;       /**< n of the running mean, <= bias_n_max */
     uint32_t rest_count;   /**< consecutive samples at rest (saturates at rest_n) */
+    float rest_gate2;      /**< the rest detector's gyro gate, (rad/s)^2: bias.rest_first2 until the first
+                                bias update, then bias.rest_gyro2 (att_bias.h) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */

@@ -21,8 +21,10 @@ uint32_t att_bias_step(const att_bias_params_t *p, att_vec3_t *bias, uint32_t *n
                        att_vec3_t gyr, bool gyro_ok, bool accel_ok, float acc_norm2)
 {
     att_vec3_t d;
+    float gate2;
     if (p == NULL || bias == NULL || n == NULL || rest_count == NULL) {
         return 0u;
     }
-    return att_i_bias_step(p, bias, n, rest_count, gyr, gyro_ok, accel_ok, acc_norm2, &d);
+    gate2 = att_i_bias_gate(p, *n);
+    return att_i_bias_step(p, bias, n, rest_count, &gate2, gyr, gyro_ok, accel_ok, acc_norm2, &d);
 }

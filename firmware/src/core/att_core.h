@@ -268,12 +268,18 @@ static inline void att_i_lowpass2(att_vec3_t v, float k, att_vec3_t *lp1, att_ve
     *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k));
 }
 
+/** The rest detector's gyro gate for a running mean of n samples: rest_first2 while n = 0, else rest_gyro2. */
+static inline float att_i_bias_gate(const att_bias_params_t *p, uint32_t n)
+{
+    return (n == 0u) ? p->rest_first2 : p->rest_gyro2;
+}
+
 /**
  * The bias state after new parameters (a retune): the fixed value for OFF / FROZEN (init: 0 or
- * bias_init), the counters limited to the new rest_n and n_max.
+ * bias_init), the counters limited to the new rest_n and n_max, the gate from the new parameters.
  */
 static inline void att_i_bias_retune(const att_bias_params_t *p, att_vec3_t init, att_vec3_t *bias, uint32_t *n,
-                                     uint32_t *rest_count)
+                                     uint32_t *rest_count, float *gate2)
 {
     if (p->mode == ATT_BIAS_OFF || p->mode == ATT_BIAS_FROZEN) {
         *bias = init;
@@ -283,6 +289,10 @@ static inline void att_i_bias_retune(const att_bias_params_t *p, att_vec3_t init
     }
     if (*n > p->n_max) {
         *n = p->n_max;
+    }
+    *gate2 = p->rest_gyro2;
+    if (*n == 0u) {
+        *gate2 = p->rest_first2;
     }
 }
 
@@ -296,24 +306,27 @@ static inline void att_i_bias_params(att_bias_params_t *p, att_bias_mode_t mode,
     p->n_max = n_max;
     p->rest_n = rest_n;
     p->rest_gyro2 = rest_gyro * rest_gyro;
+    p->rest_first2 = (mode == ATT_BIAS_AT_REST && rest_gyro > 0.0f) ? p->rest_gyro2 + ATT_BIAS_UNKNOWN2 : p->rest_gyro2;
     p->acc2_lo = lo * lo;
     p->acc2_hi = hi * hi;
 }
 
 /**
- * att_bias_step (see att_bias.h); the pointers are never NULL here. *d = gyr - b with the bias from
- * before the step (the caller reuses it when the bias did not change).
+ * att_bias_step (see att_bias.h); the pointers are never NULL here. *gate2 is the owner's copy of
+ * att_i_bias_gate(p, *n) (kept in its state, so that the step loads one float as before), narrowed to
+ * rest_gyro2 when the bias is updated. *d = gyr - b with the bias from before the step (the caller
+ * reuses it when the bias did not change).
  */
 static inline uint32_t att_i_bias_step(const att_bias_params_t *p, att_vec3_t *bias, uint32_t *n,
-                                       uint32_t *rest_count, att_vec3_t gyr, bool gyro_ok, bool accel_ok,
-                                       float acc_norm2, att_vec3_t *d)
+                                       uint32_t *rest_count, float *gate2, att_vec3_t gyr, bool gyro_ok,
+                                       bool accel_ok, float acc_norm2, att_vec3_t *d)
 {
     uint32_t flags = 0u;
     bool rest;
     float nf;
     float den;
     *d = att_i_vec3_sub(gyr, *bias);
-    rest = gyro_ok && accel_ok && att_i_vec3_dot(*d, *d) < p->rest_gyro2 && acc_norm2 > p->acc2_lo &&
+    rest = gyro_ok && accel_ok && att_i_vec3_dot(*d, *d) < *gate2 && acc_norm2 > p->acc2_lo &&
            acc_norm2 < p->acc2_hi;
     if (!rest) {
         *rest_count = 0u;
@@ -329,6 +342,9 @@ static inline uint32_t att_i_bias_step(const att_bias_params_t *p, att_vec3_t *b
         bias->x = (nf * bias->x + gyr.x) / den;
         bias->y = (nf * bias->y + gyr.y) / den;
         bias->z = (nf * bias->z + gyr.z) / den;
+        if (*n == 0u) {
+            *gate2 = p->rest_gyro2; /* the first sample of the mean: the bias is known from now on */
+        }
         if (*n < p->n_max) {
             *n = *n + 1u;
         }

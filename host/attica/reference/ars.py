@@ -64,6 +64,7 @@ class Ars:
         "st.lp2": "vec3",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
+        "st.rest_gate2": "f32",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
@@ -89,6 +90,7 @@ class Ars:
         "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
         "c.bias.rest_gyro2": "f32",
+        "c.bias.rest_first2": "f32",
         "c.bias.acc2_lo": "f32",
         "c.bias.acc2_hi": "f32",
         "c.q_init": "quat",
@@ -130,8 +132,8 @@ class Ars:
         )
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
-        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
-            self.rest_gyro, self.rest_accel, self.gravity
+        self.rest_gyro2, self.rest_first2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.bias_mode, self.rest_gyro, self.rest_accel, self.gravity
         )
         self.rest_time = setting(s.rest_time, n)
         self.integration = setting(int(s.integration), n, np.int32)
@@ -199,6 +201,7 @@ class Ars:
         self.bias = dm.vec3_where(off, dm.vec3(np.zeros(n), np.zeros(n), np.zeros(n)), self.bias_init)
         self.bias_n = np.zeros(n, np.uint32)
         self.rest_count = np.zeros(n, np.uint32)
+        self.rest_gate2 = self.rest_first2.copy()
         self.initialised = ~self.init_from_accel
         zero = np.zeros(n, np.float32)
         self.lp1: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
@@ -264,7 +267,7 @@ class Ars:
             rejected = accel_ok & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
 
-            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
+            self.bias, self.bias_n, self.rest_count, self.rest_gate2, bias_flags, _ = bias_step(
                 self.bias_mode,
                 self.bias_n_max,
                 self.rest_n,
@@ -274,6 +277,7 @@ class Ars:
                 self.bias,
                 self.bias_n,
                 self.rest_count,
+                self.rest_gate2,
                 g,
                 gyro_ok,
                 accel_ok,

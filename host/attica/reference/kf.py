@@ -52,6 +52,7 @@ class Kf:
         "st.lp2": "vec3",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
+        "st.rest_gate2": "f32",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
@@ -83,6 +84,7 @@ class Kf:
         "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
         "c.bias.rest_gyro2": "f32",
+        "c.bias.rest_first2": "f32",
         "c.bias.acc2_lo": "f32",
         "c.bias.acc2_hi": "f32",
         "c.q_init": "quat",
@@ -125,8 +127,8 @@ class Kf:
         self.rest_accel = setting(s.rest_accel, n)
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
-        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
-            self.rest_gyro, self.rest_accel, self.gravity
+        self.rest_gyro2, self.rest_first2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.bias_mode, self.rest_gyro, self.rest_accel, self.gravity
         )
         tau_lp = setting(s.tau_acc_lp, n)
         with np.errstate(all="ignore"):
@@ -160,6 +162,7 @@ class Kf:
         self.lp2: dm.Vec3 = (zero.copy(), zero.copy(), self.gravity.copy())
         self.bias_n = np.zeros(n, np.uint32)
         self.rest_count = np.zeros(n, np.uint32)
+        self.rest_gate2 = self.rest_first2.copy()
         self.initialised = ~self.init_from_accel
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
@@ -181,7 +184,7 @@ class Kf:
             e2 = np.where(use_e, e * e, dm.ZERO)
             rejected = use_e & (self.accel_reject > dm.ZERO) & (dm.absf(e) > self.accel_reject)
             flags = flags | np.where(rejected, _u(Flag.ACCEL_REJECTED), _U0)
-            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
+            self.bias, self.bias_n, self.rest_count, self.rest_gate2, bias_flags, _ = bias_step(
                 self.bias_mode,
                 self.bias_n_max,
                 self.rest_n,
@@ -191,6 +194,7 @@ class Kf:
                 self.bias,
                 self.bias_n,
                 self.rest_count,
+                self.rest_gate2,
                 g,
                 gyro_ok,
                 accel_ok,

@@ -109,6 +109,7 @@ class Mars:
         "st.mag_step": "u32",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
+        "st.rest_gate2": "f32",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.m0_ref_ok": "bool",
@@ -136,6 +137,7 @@ class Mars:
         "c.bias.n_max": "u32:bias_n_max",
         "c.bias.rest_n": "u32",
         "c.bias.rest_gyro2": "f32",
+        "c.bias.rest_first2": "f32",
         "c.bias.acc2_lo": "f32",
         "c.bias.acc2_hi": "f32",
         "c.q_init": "quat",
@@ -216,8 +218,8 @@ class Mars:
         self.bias_n_max = setting(s.bias_n_max, n, np.uint32)
         self.rest_gyro = setting(s.rest_gyro, n)
         self.rest_accel = setting(s.rest_accel, n)
-        self.rest_gyro2, self.acc2_lo, self.acc2_hi = bias_params(
-            self.rest_gyro, self.rest_accel, self.gravity
+        self.rest_gyro2, self.rest_first2, self.acc2_lo, self.acc2_hi = bias_params(
+            self.bias_mode, self.rest_gyro, self.rest_accel, self.gravity
         )
         self.rest_time = setting(s.rest_time, n)
         self.rest_n = sensor.samples(self.rest_time, self.dt)
@@ -343,6 +345,7 @@ class Mars:
         self.bias: dm.Vec3 = dm.vec3_where(off, (z.copy(), z.copy(), z.copy()), self.bias_init)
         self.bias_n = np.zeros(n, np.uint32)
         self.rest_count = np.zeros(n, np.uint32)
+        self.rest_gate2 = self.rest_first2.copy()
         self.lp1: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.lp2: dm.Vec3 = (z.copy(), z.copy(), self.gravity.copy())
         self.steps = np.zeros(n, np.uint32)
@@ -459,7 +462,7 @@ class Mars:
             flags = flags | mag_flags
 
             # rest detection and gyro bias (att_bias.c)
-            self.bias, self.bias_n, self.rest_count, bias_flags, _ = bias_step(
+            self.bias, self.bias_n, self.rest_count, self.rest_gate2, bias_flags, _ = bias_step(
                 self.bias_mode,
                 self.bias_n_max,
                 self.rest_n,
@@ -469,6 +472,7 @@ class Mars:
                 self.bias,
                 self.bias_n,
                 self.rest_count,
+                self.rest_gate2,
                 g,
                 gyro_ok,
                 accel_ok,

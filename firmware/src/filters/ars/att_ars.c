@@ -128,7 +128,8 @@ att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings)
         return st;
     }
     att_ars_coeffs(&f->c, settings);
-    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count,
+                      &f->st.rest_gate2);
     if (f->st.rec_left > f->c.rec_n) {
         f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
     }
@@ -146,6 +147,7 @@ void att_ars_reset(att_ars_t *f)
     f->st.lp2 = f->st.lp1;
     f->st.bias_n = 0u;
     f->st.rest_count = 0u;
+    f->st.rest_gate2 = f->c.bias.rest_first2;
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.rec_left = 0u;
@@ -252,7 +254,8 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     }
 
     /* rest detection and gyro bias */
-    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
+    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, &st->rest_gate2, gyr, gyro_ok,
+                             accel_ok, n2, &d);
 
     if (!st->initialised) {
         if (accel_ok) {

@@ -264,7 +264,8 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (f->c.hi.on != hi_was_on) {
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
     }
-    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count);
+    att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count,
+                      &f->st.rest_gate2);
     if (f->st.m0_valid) {
         att_mars_m0_limits(&f->c, &f->st);
     }
@@ -298,6 +299,7 @@ void att_mars_reset(att_mars_t *f)
     st->dip_hi = 0.0f;
     st->bias_n = 0u;
     st->rest_count = 0u;
+    st->rest_gate2 = f->c.bias.rest_first2;
     st->steps = 0u;
     st->flags = 0u;
     st->fast_left = 0u;
@@ -706,7 +708,8 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     mag_ok = (mag_flags == 0u);
     flags |= mag_flags;
     /* rest detection and gyro bias */
-    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, gyr, gyro_ok, accel_ok, n2, &d);
+    flags |= att_i_bias_step(&c->bias, &st->bias, &st->bias_n, &st->rest_count, &st->rest_gate2, gyr, gyro_ok,
+                             accel_ok, n2, &d);
     if (!st->initialised) {
         st->flags = flags;
         if (accel_ok) {
