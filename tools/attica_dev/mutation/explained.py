@@ -389,13 +389,13 @@ EXPLAINED: tuple[Explained, ...] = (
     ),
     Explained(
         "firmware/src/filters/mekf/att_mekf.c",
-        (
-            "rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < c->rest_gyro2 && n2 > c->acc2_lo && n2 "
-            "< c->acc2_hi;"
-        ),
+        ("rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < gate && n2 > c->acc2_lo && n2 < c->acc2_hi;"),
         "ROR",
         "< -> <=",
-        "boundary: differs only when |w - b|^2 equals rest_gyro^2 exactly; no input lands there",
+        (
+            "boundary: differs only when |w - b|^2 equals the gate (rest_gyro^2 + 9 tr(P_bb)) exactly; no "
+            "input lands there"
+        ),
     ),
     Explained(
         "firmware/src/node/att_node.c",
@@ -474,17 +474,6 @@ EXPLAINED: tuple[Explained, ...] = (
             "which calls att_mars_m0_limits, and that writes m0_perp on both of its paths (FULL: perp; "
             "HORIZONTAL: up); att_mars_yaw_to only rotates the stale value, which is overwritten before "
             "a read"
-        ),
-    ),
-    Explained(
-        "firmware/src/filters/mars/att_mars.c",
-        "#define ATT_MARS_START_PENDING 0x80000000u",
-        "CONST",
-        "0x80000000u -> 0x80000001u",
-        (
-            "equivalent: the marker is returned by att_mars_update and compared only with that return value "
-            "(att_mars_step_in); every other value att_mars_update returns is a flags word (ATT_FLAG_* bits "
-            "0..15), never 0x80000000u nor 0x80000001u, so both values select the same steps"
         ),
     ),
     Explained(
