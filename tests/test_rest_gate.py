@@ -17,6 +17,7 @@ import pytest
 from attica import native
 from attica.crosscheck import Stream, crosscheck
 from attica.native import ffi, lib
+from attica.reference.filter import Filter as RefFilter
 from attica.settings import BiasMode, FilterKind, Flag, make_settings
 
 RATE = 285.714
@@ -83,8 +84,8 @@ def test_gate_back_to_rest_gyro_once_the_bias_is_learnt(kind: FilterKind) -> Non
 @pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.label)
 def test_rest_gyro_zero_means_no_rest(kind: FilterKind) -> None:
     """rest_gyro 0: never at rest, although the widening alone would be above 0."""
-    out = _run(kind, _still_then_turn(3.0, 0.0, 0.0), rest_gyro=0.0)
-    assert not _at_rest(out).any()
+    out = _run(kind, _still_then_turn(3.0, 0.0, 0.0, bias=np.zeros(3)), rest_gyro=0.0)
+    assert not _at_rest(out).any()  # a bias-free still gyro: inside any widened gate
 
 
 @pytest.mark.parametrize("kind", [FilterKind.ARS, FilterKind.KF, FilterKind.MARS], ids=lambda k: k.label)
@@ -99,22 +100,47 @@ def test_frozen_bias_is_not_widened(kind: FilterKind) -> None:
 
 @pytest.mark.parametrize("kind", [FilterKind.ARS, FilterKind.KF, FilterKind.MARS], ids=lambda k: k.label)
 def test_retune_keeps_the_gate_of_the_bias_state(kind: FilterKind) -> None:
-    """A retune before the first rest keeps the wide gate, one after it the narrow one (rest_gate2)."""
+    """The gate follows the settings and the kept n through retunes (rest_gyro, bias_mode) and reset;
+    C and reference state bit for bit after each."""
     stream = _still_then_turn(3.0, 0.0, 0.0)
-    f = native.Filter(kind, dt=DT)
+    s0 = make_settings(kind, dt=DT)
+    f = native.Filter(kind, settings=s0)
+    ref = RefFilter(kind, s0)
     u = getattr(f.state.u, kind.label)
-    wide = float(u.c.bias.rest_first2)
-    narrow = float(u.c.bias.rest_gyro2)
-    assert wide == pytest.approx(narrow + 2.7e-3, rel=1e-6)
-    f.run(stream.gyr[:10], stream.acc[:10], stream.mag[:10], check_units=False)
-    f.retune(rest_time=0.4)
-    assert float(u.st.rest_gate2) == wide
-    f.run(stream.gyr[10:], stream.acc[10:], stream.mag[10:], check_units=False)
-    assert float(u.st.rest_gate2) == narrow
-    f.retune(rest_time=0.5)
-    assert float(u.st.rest_gate2) == narrow
+
+    def run(a: int, b: int) -> None:
+        f.run(stream.gyr[a:b], stream.acc[a:b], stream.mag[a:b], check_units=False)
+        ref.run(stream.gyr[a:b], stream.acc[a:b], stream.mag[a:b], check_units=False)
+
+    now = [s0]
+
+    def retune(**over: object) -> None:
+        now[0] = make_settings(kind, now[0], **over)  # cumulative
+        f.retune(now[0])
+        ref.retune(now[0])
+
+    def gate() -> float:
+        assert ref.state_matches(0, f.state.copy()[0]), ref.state_diff(0, f.state.copy()[0])
+        return float(u.st.rest_gate2)
+
+    r2 = np.float32(0.05) * np.float32(0.05)
+    assert gate() == np.float32(r2 + np.float32(2.7e-3))
+    run(0, 10)
+    retune(rest_gyro=0.04)  # n = 0: wide around the new rest_gyro
+    assert gate() == np.float32(np.float32(0.04) * np.float32(0.04) + np.float32(2.7e-3))
+    retune(bias_mode=BiasMode.FROZEN)  # a known bias: not widened
+    assert gate() == np.float32(np.float32(0.04) * np.float32(0.04))
+    retune(bias_mode=BiasMode.AT_REST, rest_gyro=0.05)  # back to learning, n still 0: wide
+    assert gate() == np.float32(r2 + np.float32(2.7e-3))
+    run(10, 600)  # the first rest: narrow
+    assert gate() == r2
+    retune(rest_gyro=0.0)  # no rest at all
+    assert gate() == 0.0
+    retune(rest_gyro=0.06)  # n > 0 kept: narrow around the new rest_gyro
+    assert gate() == np.float32(np.float32(0.06) * np.float32(0.06))
     f.reset()
-    assert float(u.st.rest_gate2) == wide
+    ref.reset()
+    assert gate() == np.float32(np.float32(0.06) * np.float32(0.06) + np.float32(2.7e-3))
 
 
 def test_public_bias_step_uses_the_gate_of_n() -> None:
@@ -141,11 +167,18 @@ def test_bit_exact_through_the_gate(kind: FilterKind) -> None:
         _still_then_turn(0.0, 4.0, 0.06, seed=2),
         _still_then_turn(1.5, 3.0, 0.055, seed=3),
     ]
-    for rest_gyro in (0.05, 0.0, 0.02):
-        s = make_settings(kind, dt=DT, rest_gyro=rest_gyro)
+    variants: list[dict[str, object]] = [{"rest_gyro": g} for g in (0.05, 0.0, 0.02, 1e-25)]
+    if kind != FilterKind.MEKF:
+        variants += [
+            {"bias_mode": BiasMode.RUNNING},
+            {"bias_mode": BiasMode.FROZEN, "bias_init": (0.03, -0.03, 0.03)},
+            {"bias_init": (0.03, -0.03, 0.03)},
+        ]
+    for v in variants:
+        s = make_settings(kind, dt=DT, **v)
         r = crosscheck(kind, streams, s, segment=400)
-        assert r.ok, (rest_gyro, r.first_mismatch)
+        assert r.ok, (v, r.first_mismatch)
         if kind == FilterKind.MEKF:
-            s6 = make_settings(kind, dt=DT, rest_gyro=rest_gyro, use_mag=False)
+            s6 = make_settings(kind, dt=DT, use_mag=False, **v)
             r6 = crosscheck(kind, streams, s6, segment=400)
-            assert r6.ok, (rest_gyro, r6.first_mismatch)
+            assert r6.ok, (v, r6.first_mismatch)

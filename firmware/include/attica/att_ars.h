@@ -169,7 +169,8 @@ att_status_t att_ars_init(att_ars_t *f, const att_ars_settings_t *settings);
 /**
  * New settings for a running instance: the coefficients are replaced and the state is kept (attitude,
  * bias, low-pass states, counters), except that the bias becomes 0 (mode OFF) or bias_init (mode
- * FROZEN) and the counters are limited to the new rest_n / bias_n_max; a recovery under way is limited
+ * FROZEN), the counters are limited to the new rest_n / bias_n_max and the rest gate follows the new
+ * settings and the kept n (wide while n = 0, att_bias.h); a recovery under way is limited
  * to the new recovery_time (0: ended). On error f is left unchanged.
  */
 att_status_t att_ars_retune(att_ars_t *f, const att_ars_settings_t *settings);

@@ -152,7 +152,8 @@ att_status_t att_kf_settings_validate(const att_kf_settings_t *settings);
 att_status_t att_kf_init(att_kf_t *f, const att_kf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, variance, bias, low-pass stages; the bias to bias_init for
- * OFF / FROZEN, counters limited); on error f is unchanged.
+ * OFF / FROZEN, counters limited, the rest gate from the new settings and the kept n as in att_bias.h);
+ * on error f is unchanged.
  */
 att_status_t att_kf_retune(att_kf_t *f, const att_kf_settings_t *settings);
 /** Back to the state right after att_kf_init, keeping the settings. */

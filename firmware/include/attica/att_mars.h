@@ -4,7 +4,8 @@
  *
  * Per step (after the attitude has been initialised):
  *  0. gyro bias b (bias_mode, as att_ars.h): running mean of the samples taken at rest (AT_REST,
- *     default: |w - b| < rest_gyro and ||a| - g| < rest_accel for rest_time), of every sample (RUNNING),
+ *     default: |w - b| < rest_gyro, wider until the first rest (att_bias.h), and ||a| - g| < rest_accel
+ *     for rest_time), of every sample (RUNNING),
  *     fixed at bias_init (FROZEN, the article) or zero (OFF);
  *  1. gyro integration of w - b: exponential map q := q * Q((w - b) dt) (ATT_INTEGRATE_ROTVEC,
  *     default, exact for a constant rate; small angles by its series, see att_ars.h) or the article's
@@ -288,7 +289,8 @@ att_status_t att_mars_init(att_mars_t *f, const att_mars_settings_t *settings);
 /**
  * New settings for a running instance: coefficients replaced, state kept (attitude, bias, low-pass
  * states, reference field and its statistics, counters), except that the bias becomes 0 (mode OFF) or bias_init
- * (FROZEN), the counters are limited to the new rest_n / bias_n_max, and the reference field's
+ * (FROZEN), the counters are limited to the new rest_n / bias_n_max (the rest gate follows the new
+ * settings and the kept n, att_bias.h), and the reference field's
  * derived limits (direction for the mag mode, norm and dip bounds) are recomputed and the fast phase
  * is limited to the new one's length after an alignment (fast_start_n); a recovery under way is
  * limited to the new recovery_time (0: ended); a change of hard_iron_tau between 0 and > 0 starts the

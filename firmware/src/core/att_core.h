@@ -306,7 +306,7 @@ static inline void att_i_bias_params(att_bias_params_t *p, att_bias_mode_t mode,
     p->n_max = n_max;
     p->rest_n = rest_n;
     p->rest_gyro2 = rest_gyro * rest_gyro;
-    p->rest_first2 = (mode == ATT_BIAS_AT_REST && rest_gyro > 0.0f) ? p->rest_gyro2 + ATT_BIAS_UNKNOWN2 : p->rest_gyro2;
+    p->rest_first2 = (mode == ATT_BIAS_AT_REST && p->rest_gyro2 > 0.0f) ? p->rest_gyro2 + ATT_BIAS_UNKNOWN2 : p->rest_gyro2;
     p->acc2_lo = lo * lo;
     p->acc2_hi = hi * hi;
 }

@@ -20,12 +20,12 @@ def bias_params(mode: Any, rest_gyro: Any, rest_accel: Any, gravity: Any) -> tup
     """att_i_bias_params: (rest_gyro^2, rest_first2, (g - rest_accel)^2, (g + rest_accel)^2).
 
     ``rest_first2`` is the gyro gate while no sample has been at rest (n = 0): rest_gyro^2 +
-    :data:`UNKNOWN2` in AT_REST mode with rest_gyro > 0, else rest_gyro^2.
+    :data:`UNKNOWN2` in AT_REST mode with rest_gyro^2 > 0, else rest_gyro^2.
     """
     lo = gravity - rest_accel
     hi = gravity + rest_accel
     r2 = rest_gyro * rest_gyro
-    widen = (mode == BiasMode.AT_REST) & (rest_gyro > dm.ZERO)
+    widen = (mode == BiasMode.AT_REST) & (r2 > dm.ZERO)
     first2 = np.where(widen, r2 + UNKNOWN2, r2).astype(np.float32)
     return r2, first2, lo * lo, hi * hi
 
