@@ -88,6 +88,17 @@ def test_rest_gyro_zero_means_no_rest(kind: FilterKind) -> None:
     assert not _at_rest(out).any()  # a bias-free still gyro: inside any widened gate
 
 
+def test_mekf_widening_is_capped() -> None:
+    """A broad p0_bias (0.1 rad/s per axis) widens the mekf's gate only up to ATT_BIAS_UNKNOWN2: a
+    bias-free turn at 0.08 rad/s from the start is not rest (uncapped, 9 tr(P_bb) would admit 0.52)."""
+    turn = _still_then_turn(0.0, 3.0, 0.08, bias=np.zeros(3))
+    assert not _at_rest(_run(FilterKind.MEKF, turn, p0_bias=0.01)).any()
+    # ... while at the defaults' widening a turn at 0.06 rad/s is (the documented trade-off)
+    assert _at_rest(
+        _run(FilterKind.MEKF, _still_then_turn(0.0, 3.0, 0.06, bias=np.zeros(3)), p0_bias=0.01)
+    ).any()
+
+
 @pytest.mark.parametrize("kind", [FilterKind.ARS, FilterKind.KF, FilterKind.MARS], ids=lambda k: k.label)
 def test_frozen_bias_is_not_widened(kind: FilterKind) -> None:
     """A FROZEN bias is known: the gate stays rest_gyro (this stream's 0.061 rad/s is not at rest)."""

@@ -117,8 +117,9 @@
  *
  * Gyro bias: estimated at all times through the correlations of P (the horizontal earth components
  * during any motion that tilts, the vertical one from the heading in 9-axis use), and at rest (step 0,
- * before the prediction: |w - b|^2 < rest_gyro^2 + 9 tr(P_bb), the bias estimate's error up to 3 sigma
- * per axis (rest_gyro 0: never), and ||a| - g| < rest_accel for rest_time) by the zero-rate
+ * before the prediction: |w - b|^2 < rest_gyro^2 + min(9 tr(P_bb), ATT_BIAS_UNKNOWN2), the bias
+ * estimate's error up to 3 sigma per axis and at most that of the running mean's first rest (att_bias.h;
+ * rest_gyro 0: never), and ||a| - g| < rest_accel for rest_time) by the zero-rate
  * pseudo-measurement w = b + noise (r_rest = rest_noise^2 / dt per axis, three scalar updates; its
  * attitude correction through the correlations is applied as the accel update's; ATT_FLAG_AT_REST).
  * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt

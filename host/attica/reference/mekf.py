@@ -34,6 +34,7 @@ from attica.reference._common import (
     stack,
 )
 from attica.reference.ars import align_up
+from attica.reference.bias import UNKNOWN2
 from attica.settings import Flag, MekfSettings
 
 _U0 = np.uint32(0)
@@ -406,7 +407,9 @@ class Mekf:
         mnorm = w(self.use_mag, mnorm, dm.ZERO).astype(np.float32)
         d = dm.vec3_sub(g, self.bias)
         pb = (self.p[cv.ix(3, 3)] + self.p[cv.ix(4, 4)]) + self.p[cv.ix(5, 5)]
-        gate = np.where(self.rest_gyro2 > dm.ZERO, self.rest_gyro2 + REST_SIGMA2 * pb, dm.ZERO)
+        wid = REST_SIGMA2 * pb
+        wid = np.where(wid > UNKNOWN2, UNKNOWN2, wid)  # at most ATT_BIAS_UNKNOWN2 (NaN stays NaN)
+        gate = np.where(self.rest_gyro2 > dm.ZERO, self.rest_gyro2 + wid, dm.ZERO)
         rest = gyro_ok & accel_ok & (dm.vec3_dot(d, d) < gate) & (n2 > self.acc2_lo)
         rest = rest & (n2 < self.acc2_hi)
         return _Sample(flags, gyro_ok, accel_ok, rejected, mag_ok, rest, e2, mnorm)

@@ -1181,7 +1181,8 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     {
         const att_vec3_t d = att_i_vec3_sub(gyr, st->bias);
         const float pb = (st->p[ATT_MEKF_IX(3u, 3u)] + st->p[ATT_MEKF_IX(4u, 4u)]) + st->p[ATT_MEKF_IX(5u, 5u)];
-        const float gate = (c->rest_gyro2 > 0.0f) ? c->rest_gyro2 + ATT_MEKF_REST_SIGMA2 * pb : 0.0f;
+        const float w = ATT_MEKF_REST_SIGMA2 * pb; /* at most ATT_BIAS_UNKNOWN2 (its value at the defaults) */
+        const float gate = (c->rest_gyro2 > 0.0f) ? c->rest_gyro2 + ((w > ATT_BIAS_UNKNOWN2) ? ATT_BIAS_UNKNOWN2 : w) : 0.0f;
         rest = gyro_ok && accel_ok && att_i_vec3_dot(d, d) < gate && n2 > c->acc2_lo && n2 < c->acc2_hi;
     }
 
