@@ -85,7 +85,9 @@
  *     k = dt / (recovery_time / 8 + dt), each prediction adds k^2 r / (1 - k) (at most p_max) to the attitude
  *     variances (r = r_acc for the two tilt axes, r_mag for the heading): the process noise whose steady-state
  *     Kalman gain is k, so the filter follows accel and mag with the time constant recovery_time / 8;
- *     the accel low-pass runs at the gain max(k_lp, k); an accel gate rejection is recovered at once
+ *     the accel low-pass runs at the gain max(k_lp, k) and each clipping sample restarts it (its stages
+ *     hold samples turned by a wrong rotation: the next applied accel sample starts them, as at the
+ *     start); an accel gate rejection is recovered at once
  *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
  *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
  *     alone (the innovations of a clipped turn or of the start are attitude errors of unknown origin,

@@ -365,6 +365,8 @@ class Mekf:
             flags = ck.flags | start.flags
             # 6. the recovery after a clipping gyro: its counter where initialised
             self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            clipping = run & (self.rec_n > _U0) & (self.rec_left == self.rec_n)
+            self.lp_valid = self.lp_valid & ~clipping  # the low-pass restarts after a clipping sample
             rec = run & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             # 0. rest: the zero-rate pseudo-measurement

@@ -1195,6 +1195,9 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
 
     /* 6. the recovery after a clipping gyro: its counter, then the phases below */
     (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
+    if (c->rec_n > 0u && st->rec_left == c->rec_n) {
+        st->lp_valid = false; /* a clipping sample: the low-pass holds samples turned by a wrong rotation */
+    }
     rec = st->rec_left > 0u;
     if (rec) {
         flags |= ATT_FLAG_INITIALISED;
