@@ -271,7 +271,11 @@ static inline void att_i_lowpass2(att_vec3_t v, float k, att_vec3_t *lp1, att_ve
 /** The rest detector's gyro gate for a running mean of n samples: rest_first2 while n = 0, else rest_gyro2. */
 static inline float att_i_bias_gate(const att_bias_params_t *p, uint32_t n)
 {
-    return (n == 0u) ? p->rest_first2 : p->rest_gyro2;
+    float gate = p->rest_gyro2;
+    if (n == 0u) {
+        gate = p->rest_first2;
+    }
+    return gate;
 }
 
 /**
@@ -290,10 +294,7 @@ static inline void att_i_bias_retune(const att_bias_params_t *p, att_vec3_t init
     if (*n > p->n_max) {
         *n = p->n_max;
     }
-    *gate2 = p->rest_gyro2;
-    if (*n == 0u) {
-        *gate2 = p->rest_first2;
-    }
+    *gate2 = att_i_bias_gate(p, *n);
 }
 
 /** att_bias_params_set with rest_n already in samples. */
