@@ -29,7 +29,9 @@
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
  *     recovery of recovery_time (counted only once initialised): the integration has lost rotation it
  *     cannot know, so the accel low-pass and the correction run with the time constant recovery_time / 8
- *     when that is faster than their own (k_lp_rec, k_rec instead of k_lp, k); every step of it reports
+ *     when that is faster than their own (k_lp_rec, k_rec instead of k_lp, k), and a clipping sample
+ *     restarts the low-pass stages (gain 1 on that sample: the history they hold was turned into the
+ *     earth frame by a rotation the gyro did not measure); every step of it reports
  *     ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors).
  *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
  *     (the attitude and low-pass states are then kept from before the step): no state can become

@@ -60,7 +60,8 @@
  *     flagged ATT_FLAG_INITIALISED: the integration has lost rotation it cannot know. With k = dt /
  *     (recovery_time / 8 + dt) each prediction adds k^2 r / (1 - k) (at most p_max; r = r_phi, r_theta
  *     per sample) to the roll and pitch variances, the process noise whose steady-state Kalman gain is
- *     k; the low-pass stages run with the gain max(k_lp, k) and the gate is off. So the filter follows
+ *     k; the low-pass stages run with the gain max(k_lp, k) (1 on a clipping sample: they restart from
+ *     it, as in att_ars.h) and the gate is off. So the filter follows
  *     the accelerometer with the time constant recovery_time / 8 until the recovery ends (the bias
  *     states keep their gain: holding them, as att_mekf.h does, changed nothing measurable here).
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude

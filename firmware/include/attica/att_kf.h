@@ -35,8 +35,9 @@
  *     (or beyond) starts a recovery of recovery_time (a later one restarts it), flagged
  *     ATT_FLAG_INITIALISED; with k = dt / (recovery_time / 8 + dt) each prediction adds
  *     k^2 r_step / (1 - k) to p (the process noise whose steady-state gain is k; at most ATT_KF_P_MAX),
- *     the low-pass stages run at the gain max(k_lp, k) and the gate and its soft limit are off: the
- *     filter follows the accelerometer with the time constant recovery_time / 8 (att_ars.h, att_mekf.h).
+ *     the low-pass stages run at the gain max(k_lp, k) (1 on a clipping sample: they restart from it, as
+ *     in att_ars.h) and the gate and its soft limit are off: the filter follows the accelerometer with
+ *     the time constant recovery_time / 8 (att_ars.h, att_mekf.h).
  * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.
  * Before a valid attitude exists (init_from_accel) the filter waits for the first usable accel
  * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED).

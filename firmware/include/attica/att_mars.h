@@ -56,7 +56,8 @@
  *  Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
  *     recovery of recovery_time: the integration has lost rotation it cannot know, so the accel low-pass
- *     runs with the time constant recovery_time / 8 (its two stages settle within the recovery) and the
+ *     runs with the time constant recovery_time / 8 (its two stages settle within the recovery; a
+ *     clipping sample restarts them, as in att_ars.h) and the
  *     heading correction with the same time constant (instead of tau_acc_lp and tau_mag); every step of it
  *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
  *     starts the fast heading phase of an alignment (the tilt is still settling).

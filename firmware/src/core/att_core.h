@@ -854,6 +854,16 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
     return false;
 }
 
+/**
+ * The accel low-pass stages' gain during a recovery (after att_i_recovery_step, left > 0; left and rec_n as
+ * there): 1 on a clipping sample (left == rec_n: the stages restart from that sample, since the history
+ * they hold was turned into the earth frame by a rotation the gyro did not measure), else k_rec.
+ */
+static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t left, uint32_t rec_n, float k_rec)
+{
+    return (left == rec_n) ? 1.0f : k_rec;
+}
+
 /** Index of P_ij (i <= j) in a symmetric 6x6 matrix stored as its upper triangle row by row (21 floats). */
 #define ATT_I_P6(i, j) ((uint32_t)(i) * (11u - (uint32_t)(i)) / 2u + (uint32_t)(j))
 

@@ -270,6 +270,11 @@ def recovery_step(
     return np.where(run, nxt, left).astype(np.uint32), ended
 
 
+def recovery_lp_gain(left: Any, rec_n: Any, k_rec: Any) -> NDArray[np.float32]:
+    """att_i_recovery_lp_gain: the low-pass gain during a recovery, 1 on a clipping sample (left == rec_n)."""
+    return np.where(left == rec_n, dm.ONE, k_rec).astype(np.float32)
+
+
 def p6(i: int, j: int) -> int:
     """ATT_I_P6: index of P_ij in a symmetric 6x6 matrix packed as its upper triangle, row by row."""
     lo, hi = min(i, j), max(i, j)

@@ -17,6 +17,7 @@ from attica.reference._common import (
     cov_grow,
     cov_tilt,
     cov_tilt_now,
+    recovery_lp_gain,
     recovery_params,
     recovery_step,
     run_steps,
@@ -301,7 +302,7 @@ class Ars:
             self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
             k = np.where(rec, self.k_rec, self.k)
 
             q = self.q

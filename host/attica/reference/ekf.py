@@ -16,6 +16,7 @@ from attica.reference._common import (
     StateSpec,
     carry_state,
     pd6,
+    recovery_lp_gain,
     recovery_params,
     recovery_q,
     recovery_step,
@@ -481,7 +482,9 @@ class Ekf:
             start = dm.vec3_where(agrees & ~self.converging, up, va)
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
-            k_lp = np.where(rec, self.k_lp_rec, self.k_lp).astype(np.float32)
+            k_lp = np.where(
+                rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp
+            ).astype(np.float32)
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
             lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)

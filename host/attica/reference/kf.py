@@ -15,6 +15,7 @@ from attica.reference import sensor
 from attica.reference._common import (
     StateSpec,
     carry_state,
+    recovery_lp_gain,
     recovery_params,
     recovery_q,
     recovery_step,
@@ -230,7 +231,7 @@ class Kf:
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), k_lp))
             lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             u = dm.vec3_where(lp_on, lp2, u)

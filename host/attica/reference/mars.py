@@ -20,6 +20,7 @@ from attica.reference._common import (
     cov_grow,
     cov_tilt,
     cov_tilt_now,
+    recovery_lp_gain,
     recovery_params,
     recovery_step,
     run_steps,
@@ -501,7 +502,7 @@ class Mars:
             self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, self.k_lp_rec, self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
             q = self.q
             w = dm.vec3_sub(g, self.bias)
             q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))

@@ -235,7 +235,8 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     float norm = 0.0f;
     bool gyro_ok;
     bool accel_ok;
-    bool rec;
+    float k_lp;
+    float k;
     att_quat_t q;
     att_quat_t qn;
     att_vec3_t d;
@@ -272,9 +273,12 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
 
     /* the recovery after a clipping gyro */
     (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
-    rec = st->rec_left > 0u;
-    if (rec) {
+    k_lp = c->k_lp;
+    k = c->k;
+    if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
+        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec);
+        k = c->k_rec;
     }
 
     q = st->q;
@@ -290,7 +294,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         att_vec3_t lp2 = st->lp2;
         att_vec3_t u = v;
         if (c->lp_on) {
-            att_i_lowpass2(v, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
+            att_i_lowpass2(v, k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (c->full) {
@@ -312,7 +316,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
             }
         } else {
             att_quat_t qc;
-            att_ars_tilt_rotation(c, rec ? c->k_rec : c->k, u.x, u.y, u.z, norm, &qc);
+            att_ars_tilt_rotation(c, k, u.x, u.y, u.z, norm, &qc);
             if (c->lp_on) {
                 lp1 = att_i_quat_rotate(qc, lp1);
                 lp2 = att_i_quat_rotate(qc, lp2);

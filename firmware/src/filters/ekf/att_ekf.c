@@ -802,7 +802,7 @@ static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *
             *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
             *lp2 = *lp1;
         }
-        att_i_lowpass2(vv, (st->rec_left > 0u) ? c->k_lp_rec : c->k_lp, lp1, lp2);
+        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec) : c->k_lp, lp1, lp2);
         vv = *lp2;
     }
     return vv;

@@ -165,6 +165,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     bool gyro_ok;
     bool accel_ok;
     bool rec;
+    float k_lp;
     att_quat_t x;
     att_quat_t xn;
     att_vec3_t d;
@@ -203,8 +204,10 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     /* the recovery after a clipping gyro (step 5) */
     (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
     rec = st->rec_left > 0u;
+    k_lp = c->k_lp;
     if (rec) {
         flags |= ATT_FLAG_INITIALISED;
+        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec);
     }
 
     /* prediction x := A x, p := p |A|^2 + q with A = I + dt/2 Omega(w - b) */
@@ -235,7 +238,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         float cy;
         float n;
         if (c->lp_on) {
-            att_i_lowpass2(u, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
+            att_i_lowpass2(u, k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (att_i_align_up(u, &cw, &cx, &cy, &n)) {

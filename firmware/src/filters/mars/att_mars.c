@@ -731,7 +731,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? c->k_lp_rec : c->k_lp, &q, &lp1, &lp2);
+        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec) : c->k_lp, &q, &lp1, &lp2);
         st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
     if (mag_ok) {
