@@ -28,11 +28,14 @@
  *     Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
  *     recovery of recovery_time (counted only once initialised): the integration has lost rotation it
- *     cannot know, so the accel low-pass and the correction run with the time constant recovery_time / 8
- *     when that is faster than their own (k_lp_rec, k_rec instead of k_lp, k), and a clipping sample
- *     restarts the low-pass stages (gain 1 on that sample: the history they hold was turned into the
- *     earth frame by a rotation the gyro did not measure); every step of it reports
- *     ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors).
+ *     cannot know. A clipping sample restarts the low-pass stages (the history they hold was turned
+ *     into the earth frame by a rotation the gyro did not measure), which then take the running mean of
+ *     the samples since, gain 1 / (n + 1) for the n-th, until their own k_lp is larger
+ *     (att_i_recovery_lp_gain: with the gyro right again every such sample is an equally good
+ *     measurement of gravity, and their mean is what an unknown attitude calls for); the correction runs
+ *     with the time constant recovery_time / 8 when that is faster than its own (k_rec instead of k).
+ *     Every step of it reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the
+ *     sensors).
  *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
  *     (the attitude and low-pass states are then kept from before the step): no state can become
  *     NaN or Inf, since samples are bounded by the (finite) ranges.
@@ -122,7 +125,6 @@ typedef struct {
     bool full;                /**< k == 1 and c == 0: full alignment with the low-passed gravity, no
                                    trigonometry (and no |a| unless accel_reject is set) */
     float clip;               /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;           /**< per-sample gain of the accel low-pass stages during a recovery */
     float k_rec;              /**< per-sample accel correction gain during a recovery */
     uint32_t rec_n;           /**< samples of a recovery (0 = none) */
     float var_step;           /**< covariance: gyro_noise^2 dt, the variance a step adds, rad^2 */

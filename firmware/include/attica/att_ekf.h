@@ -60,9 +60,10 @@
  *     flagged ATT_FLAG_INITIALISED: the integration has lost rotation it cannot know. With k = dt /
  *     (recovery_time / 8 + dt) each prediction adds k^2 r / (1 - k) (at most p_max; r = r_phi, r_theta
  *     per sample) to the roll and pitch variances, the process noise whose steady-state Kalman gain is
- *     k; the low-pass stages run with the gain max(k_lp, k) (1 on a clipping sample: they restart from
- *     it, as in att_ars.h) and the gate is off. So the filter follows
- *     the accelerometer with the time constant recovery_time / 8 until the recovery ends (the bias
+ *     k; a clipping sample restarts the low-pass stages, which then take the running mean of the
+ *     samples since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and
+ *     the gate is off. So the filter follows that mean with the time constant recovery_time / 8 until
+ *     the recovery ends (the bias
  *     states keep their gain: holding them, as att_mekf.h does, changed nothing measurable here).
  *  After each stage: theta is wrapped to (-pi, pi] and, beyond +-pi/2, mapped to the equivalent attitude
  *  (phi + pi, +-pi - theta, psi + pi) (P's theta row and column change sign); phi and psi are wrapped to
@@ -167,7 +168,6 @@ typedef struct {
     bool lp_on;             /**< k_lp > 0 */
     bool need_norm;         /**< |a| is needed (r_accel or accel_reject set) */
     float clip;             /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;         /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
     float q_rec[2];         /**< roll, pitch process noise per step of a recovery, min(k^2 r_step / (1 - k), p_max) */
     uint32_t rec_n;         /**< samples of a recovery (0 = none) */
 } att_ekf_coeffs_t;

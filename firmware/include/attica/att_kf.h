@@ -35,9 +35,10 @@
  *     (or beyond) starts a recovery of recovery_time (a later one restarts it), flagged
  *     ATT_FLAG_INITIALISED; with k = dt / (recovery_time / 8 + dt) each prediction adds
  *     k^2 r_step / (1 - k) to p (the process noise whose steady-state gain is k; at most ATT_KF_P_MAX),
- *     the low-pass stages run at the gain max(k_lp, k) (1 on a clipping sample: they restart from it, as
- *     in att_ars.h) and the gate and its soft limit are off: the filter follows the accelerometer with
- *     the time constant recovery_time / 8 (att_ars.h, att_mekf.h).
+ *     a clipping sample restarts the low-pass stages, which then take the running mean of the samples
+ *     since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and the gate
+ *     and its soft limit are off: the filter follows that mean with the time constant recovery_time / 8
+ *     (att_ars.h, att_mekf.h).
  * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.
  * Before a valid attitude exists (init_from_accel) the filter waits for the first usable accel
  * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED).
@@ -111,7 +112,6 @@ typedef struct {
     att_vec3_t bias_init;   /**< bias after reset, rad/s */
     bool init_from_accel;   /**< wait for the first usable accel sample */
     float clip;             /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;         /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
     float q_rec;            /**< process noise added per step of a recovery, min(k^2 r_step / (1 - k), P_MAX) */
     uint32_t rec_n;         /**< samples of a recovery (0 = none) */
     bool lp_on;             /**< k_lp > 0 */

@@ -55,10 +55,10 @@
  *     corrections come from the field more than from the bias (docs/filters.md).
  *  Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
- *     recovery of recovery_time: the integration has lost rotation it cannot know, so the accel low-pass
- *     runs with the time constant recovery_time / 8 (its two stages settle within the recovery; a
- *     clipping sample restarts them, as in att_ars.h) and the
- *     heading correction with the same time constant (instead of tau_acc_lp and tau_mag); every step of it
+ *     recovery of recovery_time: the integration has lost rotation it cannot know, so a clipping sample
+ *     restarts the accel low-pass, which then takes the running mean of the samples since until its own
+ *     gain is larger (att_i_recovery_lp_gain, as in att_ars.h), and the heading correction runs with the
+ *     time constant recovery_time / 8 (instead of tau_mag); every step of it
  *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
  *     starts the fast heading phase of an alignment (the tilt is still settling).
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
@@ -218,7 +218,6 @@ typedef struct {
     float k_bias_mag;        /**< 1 / max(tau_bias_mag, dt), 1/s (0: the bias is not learnt from the heading corrections) */
     bool bias_mag_on;        /**< k_bias_mag > 0 (tau_bias_mag > 0, bias mode AT_REST or RUNNING, HORIZONTAL) */
     float clip;              /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;          /**< per-sample gain of the accel low-pass stages during a recovery */
     float k_rec;             /**< per-sample mag gain during a recovery */
     float k_rec1;            /**< 1 - k_rec */
     uint32_t rec_n;          /**< samples of a recovery (0 = none) */

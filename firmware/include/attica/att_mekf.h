@@ -85,9 +85,11 @@
  *     k = dt / (recovery_time / 8 + dt), each prediction adds k^2 r / (1 - k) (at most p_max) to the attitude
  *     variances (r = r_acc for the two tilt axes, r_mag for the heading): the process noise whose steady-state
  *     Kalman gain is k, so the filter follows accel and mag with the time constant recovery_time / 8;
- *     the accel low-pass runs at the gain max(k_lp, k) and each clipping sample restarts it (its stages
- *     hold samples turned by a wrong rotation: the next applied accel sample starts them, as at the
- *     start); an accel gate rejection is recovered at once
+ *     each clipping sample restarts the accel low-pass (its stages hold samples turned by a wrong
+ *     rotation: the next applied accel sample starts them, as at the start), which then takes the
+ *     running mean of the samples since (att_i_recovery_lp_gain, att_ars.h) until its own gain k_lp is
+ *     larger (in the start's recovery, where the bias is not known yet, it runs at max(k_lp, k) instead:
+ *     a long mean would gather samples turned by that bias); an accel gate rejection is recovered at once
  *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
  *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
  *     alone (the innovations of a clipped turn or of the start are attitude errors of unknown origin,
@@ -260,7 +262,7 @@ typedef struct {
     float p0_scale;        /**< initial variance of the scale-factor error, gyro_scale_sd^2 (0 = off) */
     float scale_init;      /**< scale-factor error after reset */
     float clip;            /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;        /**< the low-pass gain during a recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float k_lp_rec;        /**< the low-pass gain in the start's recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
     float q_rec_tilt;      /**< tilt process noise per step of a recovery, min(k^2 r_acc / (1 - k), p_max), rad^2 */
     float q_rec_head;      /**< heading process noise per step of a recovery, min(k^2 r_mag / (1 - k), p_max), rad^2 */
     uint32_t rec_n;        /**< samples of a recovery (0 = none) */
@@ -305,6 +307,7 @@ typedef struct {
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
+    bool rec_clip;         /**< the recovery under way began at a clipping gyro sample (false: at the start) */
     bool initialised;      /**< q holds a valid attitude */
 } att_mekf_state_t;
 

@@ -856,12 +856,20 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
 
 /**
  * The accel low-pass stages' gain during a recovery (after att_i_recovery_step, left > 0; left and rec_n as
- * there): 1 on a clipping sample (left == rec_n: the stages restart from that sample, since the history
- * they hold was turned into the earth frame by a rotation the gyro did not measure), else k_rec.
+ * there): 1 / (n + 1) for the n-th sample after the last clipping sample (n = rec_n - left: 1 on the
+ * clipping sample itself, which restarts the stages), until that falls to the stages' own gain k_lp. The
+ * history the stages held was turned into the earth frame by a rotation the gyro did not measure; after
+ * it every sample is an equally good measurement of gravity in the frame the gyro now carries right, so
+ * their running mean is the estimate an unknown attitude calls for (a Kalman filter's gain without a
+ * prior), where a fast exponential window would keep forgetting the early samples.
  */
-static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t left, uint32_t rec_n, float k_rec)
+static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t left, uint32_t rec_n, float k_lp)
 {
-    return (left == rec_n) ? 1.0f : k_rec;
+    float m = 1.0f / (float)((rec_n - left) + 1u);
+    if (m < k_lp) {
+        m = k_lp;
+    }
+    return m;
 }
 
 /** Index of P_ij (i <= j) in a symmetric 6x6 matrix stored as its upper triangle row by row (21 floats). */

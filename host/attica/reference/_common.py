@@ -270,9 +270,14 @@ def recovery_step(
     return np.where(run, nxt, left).astype(np.uint32), ended
 
 
-def recovery_lp_gain(left: Any, rec_n: Any, k_rec: Any) -> NDArray[np.float32]:
-    """att_i_recovery_lp_gain: the low-pass gain during a recovery, 1 on a clipping sample (left == rec_n)."""
-    return np.where(left == rec_n, dm.ONE, k_rec).astype(np.float32)
+def recovery_lp_gain(left: Any, rec_n: Any, k_lp: Any) -> NDArray[np.float32]:
+    """att_i_recovery_lp_gain: the low-pass gain during a recovery, at least k_lp.
+
+    1 / (n + 1) for the n-th sample after the last clipping sample (n = rec_n - left).
+    """
+    n1 = (np.asarray(rec_n, np.uint32) - np.asarray(left, np.uint32)) + np.uint32(1)
+    m = (dm.ONE / n1.astype(np.float32)).astype(np.float32)
+    return np.where(m > k_lp, m, k_lp).astype(np.float32)
 
 
 def p6(i: int, j: int) -> int:

@@ -102,7 +102,6 @@ class Ars:
         "c.reject_on": "bool",
         "c.full": "bool",
         "c.clip": "f32",
-        "c.k_lp_rec": "f32",
         "c.k_rec": "f32",
         "c.rec_n": "u32",
         "c.var_step": "f32",
@@ -169,7 +168,7 @@ class Ars:
         # no accel correction (k = 0): the tilt is not observed
         self.var_tilt = np.where(self.k > dm.ZERO, cov_tilt(self.dt, self.k_lp, self.k, s2, a2), COV_TILT_MAX)
         self.var_tilt_rec = np.where(
-            self.k_rec > dm.ZERO, cov_tilt(self.dt, self.k_lp_rec, self.k_rec, s2, a2), COV_TILT_MAX
+            self.k_rec > dm.ZERO, cov_tilt(self.dt, self.k_lp, self.k_rec, s2, a2), COV_TILT_MAX
         ).astype(np.float32)
         self.var_tilt = self.var_tilt.astype(np.float32)
 
@@ -190,7 +189,6 @@ class Ars:
         """att_ars_rec_coeffs: the recovery after a clipping gyro."""
         rt = setting(s.recovery_time, self.n)
         self.rec_n, self.clip, k = recovery_params(rt, self.gyro_range, self.dt)
-        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         self.k_rec = np.where(k > self.k, k, self.k).astype(np.float32)
 
     def reset(self) -> None:
@@ -302,7 +300,7 @@ class Ars:
             self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
             k = np.where(rec, self.k_rec, self.k)
 
             q = self.q

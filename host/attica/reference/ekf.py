@@ -242,7 +242,6 @@ class Ekf:
         "c.lp_on": "bool",
         "c.need_norm": "bool",
         "c.clip": "f32",
-        "c.k_lp_rec": "f32",
         "c.q_rec": "f32x2",
         "c.rec_n": "u32",
     }
@@ -292,7 +291,6 @@ class Ekf:
     def _rec_coeffs(self, s: EkfSettings) -> None:
         """att_ekf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
         self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
-        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         on = self.rec_n > _U0
         self.q_rec = tuple(
             np.where(on, recovery_q(k, r, self.p_max), dm.ZERO).astype(np.float32) for r in self.r_step
@@ -482,9 +480,9 @@ class Ekf:
             start = dm.vec3_where(agrees & ~self.converging, up, va)
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
-            k_lp = np.where(
-                rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp
-            ).astype(np.float32)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp).astype(
+                np.float32
+            )
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
             lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)

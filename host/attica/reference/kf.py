@@ -78,7 +78,6 @@ class Kf:
         "c.gyro_range": "f32",
         "c.k_lp": "f32",
         "c.clip": "f32",
-        "c.k_lp_rec": "f32",
         "c.q_rec": "f32",
         "c.rec_n": "u32",
         "c.bias.mode": "u32:bias_mode",
@@ -146,7 +145,6 @@ class Kf:
     def _rec_coeffs(self, s: KfSettings) -> None:
         """att_kf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
         self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
-        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         q = recovery_q(k, self.r_step, P_MAX)
         self.q_rec = np.where(self.rec_n > _U0, q, dm.ZERO).astype(np.float32)
 
@@ -231,7 +229,7 @@ class Kf:
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), k_lp))
             lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             u = dm.vec3_where(lp_on, lp2, u)

@@ -159,7 +159,6 @@ class Mars:
         "c.k_bias_mag": "f32",
         "c.bias_mag_on": "bool",
         "c.clip": "f32",
-        "c.k_lp_rec": "f32",
         "c.k_rec": "f32",
         "c.k_rec1": "f32",
         "c.rec_n": "u32",
@@ -280,7 +279,6 @@ class Mars:
         """att_mars_rec_coeffs: the recovery after a clipping gyro."""
         rt = setting(s.recovery_time, self.n)
         self.rec_n, self.clip, k = recovery_params(rt, self.gyro_range, self.dt)
-        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
         self.k_rec = np.where(k > self.k_mag, k, self.k_mag).astype(np.float32)
         self.k_rec1 = (dm.ONE - self.k_rec).astype(np.float32)
 
@@ -299,7 +297,7 @@ class Mars:
             on, cov_tilt(self.dt, self.k_lp, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
         ).astype(np.float32)
         self.var_tilt_rec = np.where(
-            on, cov_tilt(self.dt, self.k_lp_rec, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
+            on, cov_tilt(self.dt, self.k_lp, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
         ).astype(np.float32)
 
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
@@ -502,7 +500,7 @@ class Mars:
             self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp_rec), self.k_lp)
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
             q = self.q
             w = dm.vec3_sub(g, self.bias)
             q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))

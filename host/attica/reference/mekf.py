@@ -25,6 +25,7 @@ from attica.reference import sensor
 from attica.reference._common import (
     StateSpec,
     carry_state,
+    recovery_lp_gain,
     recovery_params,
     recovery_q,
     recovery_step,
@@ -148,6 +149,7 @@ class Mekf:
         **hiron.state_spec("st.hi"),
         "st.m0_valid": "bool",
         "st.lp_valid": "bool",
+        "st.rec_clip": "bool",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -322,6 +324,7 @@ class Mekf:
         hiron.reset(self, n)
         self.m0_valid: Any = np.zeros(n, np.bool_)
         self.lp_valid: Any = np.zeros(n, np.bool_)
+        self.rec_clip: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
@@ -367,6 +370,7 @@ class Mekf:
             self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
             clipping = run & (self.rec_n > _U0) & (self.rec_left == self.rec_n)
             self.lp_valid = self.lp_valid & ~clipping  # the low-pass restarts after a clipping sample
+            self.rec_clip = self.rec_clip | clipping
             rec = run & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             # 0. rest: the zero-rate pseudo-measurement
@@ -506,15 +510,24 @@ class Mekf:
     def _accel(self, wk: Work, acc_try: Any, rec: Any) -> Any:
         """Mirror of att_mekf_accel where ``acc_try`` (a usable sample, initialised); returns its flags.
 
-        ``rec``: a recovery runs (the low-pass at k_lp_rec, a gate rejection recovered at once, the scale
-        estimate left alone).
+        ``rec``: a recovery runs (the low-pass: after a clipping sample the running mean of recovery_lp_gain,
+        in the start's recovery k_lp_rec; a gate rejection recovered at once, the scale estimate left alone).
         """
         w = np.where
         u = wk.v
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        l1, l2 = _lowpass(u, w(rec, self.k_lp_rec, self.k_lp), l1, l2)
+        l1, l2 = _lowpass(
+            u,
+            w(
+                rec,
+                w(self.rec_clip, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp_rec),
+                self.k_lp,
+            ),
+            l1,
+            l2,
+        )
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
         y0 = dm.TWO * cx
@@ -581,6 +594,7 @@ class Mekf:
         mg.commit_m0(self, init_mag, start.parts)
         # the start is a recovery too (att_mekf_start)
         self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
+        self.rec_clip = self.rec_clip & ~init_now
         self.initialised = self.initialised | init_now
 
     def retune(self, settings: MekfSettings) -> None:

@@ -54,11 +54,10 @@ att_status_t att_ars_settings_validate(const att_ars_settings_t *s)
     return ok ? ATT_OK : ATT_ERR_SETTINGS;
 }
 
-/* The coefficients of the recovery after a clipping gyro (att_ars.h); after k, k_lp and lp_on. */
+/* The coefficients of the recovery after a clipping gyro (att_ars.h); after k. */
 static void att_ars_rec_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
-    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->k_rec = (k > c->k) ? k : c->k;
 }
 
@@ -76,7 +75,7 @@ static void att_ars_cov_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
     const float a2 = an * an;
     c->var_step = s2 * s->dt;
     c->var_tilt = att_ars_cov_tilt(s->dt, c->k_lp, c->k, s2, a2);
-    c->var_tilt_rec = att_ars_cov_tilt(s->dt, c->k_lp_rec, c->k_rec, s2, a2);
+    c->var_tilt_rec = att_ars_cov_tilt(s->dt, c->k_lp, c->k_rec, s2, a2);
 }
 
 static void att_ars_coeffs(att_ars_coeffs_t *c, const att_ars_settings_t *s)
@@ -277,7 +276,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     k = c->k;
     if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
-        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec);
+        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp);
         k = c->k_rec;
     }
 

@@ -85,13 +85,12 @@ att_status_t att_ekf_settings_validate(const att_ekf_settings_t *s)
 }
 
 /*
- * The coefficients of the recovery after a clipping gyro (att_ekf.h, step 3); after r_step, k_lp, lp_on
- * and p_max. The process noise k^2 r / (1 - k) is the one whose steady-state Kalman gain is k.
+ * The coefficients of the recovery after a clipping gyro (att_ekf.h, step 3); after r_step and p_max.
+ * The process noise k^2 r / (1 - k) is the one whose steady-state Kalman gain is k.
  */
 static void att_ekf_rec_coeffs(att_ekf_coeffs_t *c, const att_ekf_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
-    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->q_rec[0] = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step[0], c->p_max) : 0.0f;
     c->q_rec[1] = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step[1], c->p_max) : 0.0f;
 }
@@ -802,7 +801,7 @@ static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *
             *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
             *lp2 = *lp1;
         }
-        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec) : c->k_lp, lp1, lp2);
+        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp, lp1, lp2);
         vv = *lp2;
     }
     return vv;

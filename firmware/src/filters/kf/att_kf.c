@@ -53,13 +53,12 @@ att_status_t att_kf_settings_validate(const att_kf_settings_t *s)
 }
 
 /*
- * The coefficients of the recovery after a clipping gyro (att_kf.h, step 5); after r_step, k_lp and lp_on.
+ * The coefficients of the recovery after a clipping gyro (att_kf.h, step 5); after r_step.
  * k^2 r / (1 - k) is the process noise whose steady-state Kalman gain is k (at most ATT_KF_P_MAX).
  */
 static void att_kf_rec_coeffs(att_kf_coeffs_t *c, const att_kf_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
-    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->q_rec = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_step, ATT_KF_P_MAX_F) : 0.0f;
 }
 
@@ -207,7 +206,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     k_lp = c->k_lp;
     if (rec) {
         flags |= ATT_FLAG_INITIALISED;
-        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec);
+        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp);
     }
 
     /* prediction x := A x, p := p |A|^2 + q with A = I + dt/2 Omega(w - b) */

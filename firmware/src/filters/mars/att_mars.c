@@ -103,7 +103,6 @@ static void att_mars_ref_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
 static void att_mars_rec_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
-    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
     c->k_rec = (k > c->k_mag) ? k : c->k_mag;
     c->k_rec1 = 1.0f - c->k_rec;
 }
@@ -123,7 +122,7 @@ static void att_mars_cov_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     c->mag_noise2 = s->mag_noise * s->mag_noise;
     c->var_step = c->gyro_noise2 * s->dt;
     c->var_tilt = att_mars_cov_tilt(s->dt, c->k_lp, c->k_acc, c->gyro_noise2, a2);
-    c->var_tilt_rec = att_mars_cov_tilt(s->dt, c->k_lp_rec, c->k_acc, c->gyro_noise2, a2);
+    c->var_tilt_rec = att_mars_cov_tilt(s->dt, c->k_lp, c->k_acc, c->gyro_noise2, a2);
 }
 
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
@@ -731,7 +730,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp_rec) : c->k_lp, &q, &lp1, &lp2);
+        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp, &q, &lp1, &lp2);
         st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
     if (mag_ok) {

@@ -324,6 +324,7 @@ void att_mekf_reset(att_mekf_t *f)
     att_i_hi_reset(&st->hi);
     st->m0_valid = false;
     st->lp_valid = false;
+    st->rec_clip = false;
     st->initialised = !f->c.init_from_sensors;
     if (!att_mekf_vec3_is_zero(f->c.m0_init)) {
         (void)att_mekf_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
@@ -432,6 +433,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     st->lp_valid = true;
     st->initialised = true;
     st->rec_left = c->rec_n; /* the start is a recovery too (att_mekf.h, step 6) */
+    st->rec_clip = false;
     return flags;
 }
 
@@ -985,8 +987,18 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t
 }
 
 /*
+ * The low-pass gain during a recovery (step 6): after a clipping gyro sample the running mean of
+ * att_i_recovery_lp_gain (att_core.h); in the recovery of the start k_lp_rec, the fast exponential window,
+ * since there the gyro bias is not known yet and the samples of a long mean would be turned by it.
+ */
+static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, const att_mekf_state_t *st)
+{
+    return st->rec_clip ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp_rec;
+}
+
+/*
  * Step 2: the accelerometer update with a usable sample (e2 = (|a|/g - 1)^2); returns its flags. During a
- * recovery (rec, step 6) the low-pass runs at k_lp_rec, a gate rejection is recovered at once, the bias is
+ * recovery (rec, step 6) the low-pass runs at att_mekf_rec_lp_gain, a gate rejection is recovered at once, the bias is
  * a consider state and the scale-factor estimate is left alone.
  */
 static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf_state_t *st, att_mekf_work_t *wk,
@@ -1009,7 +1021,7 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp1 = u; /* the first sample starts the low-pass */
             lp2 = u;
         }
-        att_mekf_lowpass(u, rec ? c->k_lp_rec : c->k_lp, &lp1, &lp2);
+        att_mekf_lowpass(u, rec ? att_mekf_rec_lp_gain(c, st) : c->k_lp, &lp1, &lp2);
         u = lp2;
     }
     if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {
@@ -1197,6 +1209,7 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
     if (c->rec_n > 0u && st->rec_left == c->rec_n) {
         st->lp_valid = false; /* a clipping sample: the low-pass holds samples turned by a wrong rotation */
+        st->rec_clip = true;
     }
     rec = st->rec_left > 0u;
     if (rec) {
