@@ -189,6 +189,7 @@ typedef struct {
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t rec_lp_n;    /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
     bool initialised;     /**< euler holds a valid attitude */
 } att_ekf_state_t;
 

@@ -63,7 +63,8 @@
  *     starts the fast heading phase of an alignment (the tilt is still settling).
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
  *  5. Covariance (att_filter_output's cov, on request; docs/filters.md): the model of att_ars.h (step 5)
- *     for the tilt (accel gain k_acc, its low-pass, the recovery's gains), cov[0] and cov[1]; for the
+ *     for the tilt (accel gain k_acc and its low-pass, which a recovery leaves as they are: only the
+ *     recovery's fading term is added), cov[0] and cov[1]; for the
  *     heading, cov[2], the first-order model of the mag correction's gain (k_mag; k_fast in the fast
  *     phase, k_rec in a recovery) with the heading noise density mag_noise / |m0_xy| (a weak horizontal
  *     field gives a noisy heading), plus gyro_noise^2 dt per step since the last accepted mag sample or
@@ -226,7 +227,6 @@ typedef struct {
     float decl_cos;          /**< cos D: its north part */
     float var_step;          /**< covariance: gyro_noise^2 dt, the variance a step adds, rad^2 */
     float var_tilt;          /**< covariance: steady-state tilt variance of the accel correction, rad^2 */
-    float var_tilt_rec;      /**< covariance: the same with the recovery's low-pass gain, rad^2 */
     float gyro_noise2;       /**< covariance: gyro_noise^2, (rad/s)^2/Hz */
     float mag_noise2;        /**< covariance: mag_noise^2, uT^2/Hz */
     att_hardiron_params_t hi; /**< the hard-iron estimate (att_hardiron.h) */
@@ -255,6 +255,7 @@ typedef struct {
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */
     uint32_t mag_step;     /**< steps before the step of the last accepted mag sample or alignment: covariance */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */

@@ -303,11 +303,12 @@ typedef struct {
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
-    bool rec_clip;         /**< the recovery under way began at a clipping gyro sample (false: at the start) */
+    bool rec_clip;         /**< the last recovery began at a clipping gyro sample (false: at the start); read in one */
     bool initialised;      /**< q holds a valid attitude */
 } att_mekf_state_t;
 

@@ -838,13 +838,16 @@ static inline att_vec3_t att_i_hi_correct(const att_hardiron_t *s, att_vec3_t m)
 
 /**
  * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
- * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), else counted down. Returns
- * true on the step that ends a recovery (the counter reaches 0 without a new clipping sample).
+ * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), which also sets *lp_n, the
+ * accel low-pass stages' count of samples since (att_i_recovery_lp_gain), to 0; else counted down.
+ * Returns true on the step that ends a recovery (the counter reaches 0 without a new clipping sample).
  */
-static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint32_t rec_n, uint32_t *left)
+static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint32_t rec_n, uint32_t *left,
+                                                  uint32_t *lp_n)
 {
     if (att_i_absf(g.x) >= clip || att_i_absf(g.y) >= clip || att_i_absf(g.z) >= clip) {
         *left = rec_n;
+        *lp_n = 0u;
         return false;
     }
     if (*left > 0u) {
@@ -855,17 +858,20 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
 }
 
 /**
- * The accel low-pass stages' gain during a recovery (after att_i_recovery_step, left > 0; left and rec_n as
- * there): 1 / (n + 1) for the n-th sample after the last clipping sample (n = rec_n - left: 1 on the
- * clipping sample itself, which restarts the stages), until that falls to the stages' own gain k_lp. The
- * history the stages held was turned into the earth frame by a rotation the gyro did not measure; after
- * it every sample is an equally good measurement of gravity in the frame the gyro now carries right, so
- * their running mean is the estimate an unknown attitude calls for (a Kalman filter's gain without a
- * prior), where a fast exponential window would keep forgetting the early samples.
+ * The accel low-pass stages' gain for an update during a recovery: 1 / (n + 1) for the update that is
+ * the n-th since the last clipping gyro sample (n = *n, the state's rec_lp_n: 0 after that sample,
+ * counted up here), until that falls to the stages' own gain k_lp. The first is 1: the stages restart
+ * from that sample, since the history they hold was turned into the earth frame by a rotation the gyro
+ * did not measure (a clipping sample whose accel is not applied leaves the restart to the next one).
+ * After it, with the gyro right again, every sample is an equally good measurement of gravity in the
+ * frame the gyro carries, so their running mean is the estimate an unknown attitude calls for (a Kalman
+ * filter's gain without a prior), where a fast exponential window would keep forgetting the early ones.
+ * *n stays below rec_n + 1 (<= 2^24): it counts only updates within one recovery.
  */
-static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t left, uint32_t rec_n, float k_lp)
+static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t *n, float k_lp)
 {
-    float m = 1.0f / (float)((rec_n - left) + 1u);
+    float m = 1.0f / (float)(*n + 1u);
+    *n = *n + 1u;
     if (m < k_lp) {
         m = k_lp;
     }

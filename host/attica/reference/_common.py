@@ -240,10 +240,10 @@ def cov_grow(v: Any, s2dt: Any, steps: Any, stamp: Any, cap: Any) -> NDArray[np.
     return out
 
 
-def cov_tilt_now(f: Any) -> NDArray[np.float32]:
+def cov_tilt_now(f: Any, var_tilt_rec: Any) -> NDArray[np.float32]:
     """att_i_cov_tilt_now for ars's and mars's reference ``f`` (its coefficients and state), rad^2."""
     with np.errstate(all="ignore"):
-        rec = f.var_tilt_rec + COV_CLIP * (f.rec_left.astype(np.float32) / f.rec_n.astype(np.float32))
+        rec = var_tilt_rec + COV_CLIP * (f.rec_left.astype(np.float32) / f.rec_n.astype(np.float32))
     tilt = np.where(f.rec_left > np.uint32(0), rec, f.var_tilt).astype(np.float32)
     tilt = cov_grow(tilt, f.var_step, f.steps, f.acc_step, COV_TILT_MAX)
     out: NDArray[np.float32] = np.where(f.initialised, tilt, COV_TILT_MAX).astype(np.float32)
@@ -251,14 +251,15 @@ def cov_tilt_now(f: Any) -> NDArray[np.float32]:
 
 
 def recovery_step(
-    g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any
-) -> tuple[NDArray[np.uint32], NDArray[np.bool_]]:
+    g: dm.Vec3, clip: Any, rec_n: Any, left: Any, run: Any, lp_n: Any
+) -> tuple[NDArray[np.uint32], NDArray[np.bool_], NDArray[np.uint32]]:
     """att_i_recovery_step where run: the counter restarted by a clipping gyro sample, else counted down.
 
     Returns
     -------
-    left, ended
-        The new counter (unchanged where not run) and where this step ended a recovery.
+    left, ended, lp_n
+        The new counter (unchanged where not run), where this step ended a recovery, and the low-pass
+        count (0 where a clipping sample was run, else unchanged).
 
     """
     ag = (dm.absf(g[0]), dm.absf(g[1]), dm.absf(g[2]))
@@ -267,17 +268,19 @@ def recovery_step(
     nxt = np.where(left > np.uint32(0), left - np.uint32(1), left)
     nxt = np.where(clipped, rec_n, nxt)
     ended = run & ~clipped & (left == np.uint32(1))
-    return np.where(run, nxt, left).astype(np.uint32), ended
+    lp_n_new = np.where(run & clipped, np.uint32(0), lp_n).astype(np.uint32)
+    return np.where(run, nxt, left).astype(np.uint32), ended, lp_n_new
 
 
-def recovery_lp_gain(left: Any, rec_n: Any, k_lp: Any) -> NDArray[np.float32]:
-    """att_i_recovery_lp_gain: the low-pass gain during a recovery, at least k_lp.
+def recovery_lp_gain(n: Any, k_lp: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
+    """att_i_recovery_lp_gain: the low-pass gain of a recovery's update and the count after it.
 
-    1 / (n + 1) for the n-th sample after the last clipping sample (n = rec_n - left).
+    1 / (n + 1) for the n-th update since the last clipping sample (n: rec_lp_n), at least k_lp; the
+    caller commits the count n + 1 where the C calls the helper.
     """
-    n1 = (np.asarray(rec_n, np.uint32) - np.asarray(left, np.uint32)) + np.uint32(1)
+    n1 = (np.asarray(n, np.uint32) + np.uint32(1)).astype(np.uint32)
     m = (dm.ONE / n1.astype(np.float32)).astype(np.float32)
-    return np.where(m > k_lp, m, k_lp).astype(np.float32)
+    return np.where(m < k_lp, k_lp, m).astype(np.float32), n1
 
 
 def p6(i: int, j: int) -> int:

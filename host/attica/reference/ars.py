@@ -69,6 +69,7 @@ class Ars:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        "st.rec_lp_n": "u32",
         "st.acc_step": "u32",
         "st.head_step": "u32",
         "st.initialised": "bool",
@@ -179,7 +180,7 @@ class Ars:
 
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
         """att_ars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
-        tilt = cov_tilt_now(self)
+        tilt = cov_tilt_now(self, self.var_tilt_rec)
         zero = np.zeros(self.n, np.float32)
         known = cov_grow(zero, self.var_step, self.steps + np.uint32(1), self.head_step, COV_UNKNOWN)
         yaw = np.where(self.head_known, known, COV_UNKNOWN).astype(np.float32)
@@ -208,6 +209,7 @@ class Ars:
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.rec_lp_n = np.zeros(n, np.uint32)
         self.acc_step = np.zeros(n, np.uint32)
         self.head_step = np.zeros(n, np.uint32)
         self.head_known = np.zeros(n, np.bool_)
@@ -297,10 +299,13 @@ class Ars:
 
             # the recovery after a clipping gyro (only once initialised)
             run = ~waiting
-            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            self.rec_left, _, self.rec_lp_n = recovery_step(
+                g, self.clip, self.rec_n, self.rec_left, run, self.rec_lp_n
+            )
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
+            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_lp = np.where(rec, k_rec_lp, self.k_lp)
             k = np.where(rec, self.k_rec, self.k)
 
             q = self.q
@@ -308,6 +313,7 @@ class Ars:
             correct = ~waiting & accel_ok & ~rejected
             v = dm.quat_rotate(q1, a)
             lp_on = self.k_lp > dm.ZERO
+            self.rec_lp_n = np.where(correct & lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))
             lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)

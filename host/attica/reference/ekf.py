@@ -214,6 +214,7 @@ class Ekf:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        "st.rec_lp_n": "u32",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -321,6 +322,7 @@ class Ekf:
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
         self.rec_left = np.zeros(self.n, np.uint32)
+        self.rec_lp_n = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
 
     def _guard(self, c: Any) -> tuple[Any, Any]:
@@ -480,9 +482,7 @@ class Ekf:
             start = dm.vec3_where(agrees & ~self.converging, up, va)
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp).astype(
-                np.float32
-            )
+            k_lp = np.where(rec, recovery_lp_gain(self.rec_lp_n, self.k_lp)[0], self.k_lp).astype(np.float32)
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
             lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
@@ -613,7 +613,9 @@ class Ekf:
             )
             run = ~waiting
             # the recovery after a clipping gyro (step 3)
-            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            self.rec_left, _, self.rec_lp_n = recovery_step(
+                g, self.clip, self.rec_n, self.rec_left, run, self.rec_lp_n
+            )
             rec = run & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
@@ -636,6 +638,10 @@ class Ekf:
             applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig, rec
             )
+            # the low-pass count of a recovery: up by one where the update ran the stages
+            lp_counted = measure & (self.k_lp > dm.ZERO) & rec
+            lp_n1 = (self.rec_lp_n + np.uint32(1)).astype(np.uint32)
+            self.rec_lp_n = np.where(lp_counted, lp_n1, self.rec_lp_n).astype(np.uint32)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             # updated in place, then not usable: P restarted; a step without an applied update tests

@@ -57,6 +57,7 @@ class Kf:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        "st.rec_lp_n": "u32",
         "st.initialised": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
@@ -166,6 +167,7 @@ class Kf:
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.rec_lp_n = np.zeros(n, np.uint32)
 
     def step(self, gyr: Any, acc: Any) -> NDArray[np.uint32]:
         """One update of every instance; gyr, acc of shape (n, 3) or (3,). Returns flags (n,)."""
@@ -211,7 +213,9 @@ class Kf:
             )
 
             # the recovery after a clipping gyro (step 5), where initialised
-            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, ~waiting)
+            self.rec_left, _, self.rec_lp_n = recovery_step(
+                g, self.clip, self.rec_n, self.rec_left, ~waiting, self.rec_lp_n
+            )
             rec = ~waiting & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
 
@@ -229,7 +233,10 @@ class Kf:
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
+            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_lp = np.where(rec, k_rec_lp, self.k_lp)
+            lp_counted = ~waiting & accel_ok & ~rejected & lp_on & rec
+            self.rec_lp_n = np.where(lp_counted, lp_n1, self.rec_lp_n).astype(np.uint32)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), k_lp))
             lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
             u = dm.vec3_where(lp_on, lp2, u)

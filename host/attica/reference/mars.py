@@ -106,6 +106,7 @@ class Mars:
         **hiron.state_spec("st.hi"),
         "st.fast_left": "u32",
         "st.rec_left": "u32",
+        "st.rec_lp_n": "u32",
         "st.acc_step": "u32",
         "st.mag_step": "u32",
         "st.bias_n": "u32",
@@ -167,7 +168,6 @@ class Mars:
         "c.decl_cos": "f32",
         "c.var_step": "f32",
         "c.var_tilt": "f32",
-        "c.var_tilt_rec": "f32",
         "c.gyro_noise2": "f32",
         "c.mag_noise2": "f32",
     }
@@ -296,14 +296,11 @@ class Mars:
         self.var_tilt = np.where(
             on, cov_tilt(self.dt, self.k_lp, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
         ).astype(np.float32)
-        self.var_tilt_rec = np.where(
-            on, cov_tilt(self.dt, self.k_lp, self.k_acc, self.gyro_noise2, a2), COV_TILT_MAX
-        ).astype(np.float32)
 
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
         """att_mars_cov: the output record's cov (tilt about earth x, y; heading about z; 0), rad^2."""
         rec = self.rec_left > _U0
-        tilt = cov_tilt_now(self)
+        tilt = cov_tilt_now(self, self.var_tilt)  # a recovery adds only its fading term
         with np.errstate(all="ignore"):
             mx, my, _ = self.m0
             h2 = mx * mx + my * my
@@ -331,6 +328,7 @@ class Mars:
         self.m0_valid: Any = np.zeros(n, np.bool_)
         self.fast_left = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.rec_lp_n = np.zeros(n, np.uint32)
         self.acc_step = np.zeros(n, np.uint32)
         self.mag_step = np.zeros(n, np.uint32)
         mr.reset(self, n)
@@ -496,11 +494,14 @@ class Mars:
 
             # running: the recovery counter (att_mars_recovery), then the step
             run = ~waiting
-            self.rec_left, ended = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            self.rec_left, ended, self.rec_lp_n = recovery_step(
+                g, self.clip, self.rec_n, self.rec_left, run, self.rec_lp_n
+            )
             self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp)
+            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_lp = np.where(rec, k_rec_lp, self.k_lp)
             q = self.q
             w = dm.vec3_sub(g, self.bias)
             q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))
@@ -510,6 +511,7 @@ class Mars:
             numeric = gyro_ok & ~rotvec & ~ok_fo
             lp_on = self.k_lp > dm.ZERO
             use_acc = run & accel_ok & ~rejected
+            self.rec_lp_n = np.where(use_acc & lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
             me = dm.quat_rotate(q1, m)  # the mag in the earth frame of the predicted attitude
             v = dm.quat_rotate(q1, a)
             lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))

@@ -145,6 +145,7 @@ class Mekf:
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
+        "st.rec_lp_n": "u32",
         **mr.state_spec("st.ref"),
         **hiron.state_spec("st.hi"),
         "st.m0_valid": "bool",
@@ -320,6 +321,7 @@ class Mekf:
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
+        self.rec_lp_n = np.zeros(n, np.uint32)
         mr.reset(self, n)
         hiron.reset(self, n)
         self.m0_valid: Any = np.zeros(n, np.bool_)
@@ -367,7 +369,9 @@ class Mekf:
             start = mg.start(self, a, m, ck.accel_ok, ck.mag_ok)
             flags = ck.flags | start.flags
             # 6. the recovery after a clipping gyro: its counter where initialised
-            self.rec_left, _ = recovery_step(g, self.clip, self.rec_n, self.rec_left, run)
+            self.rec_left, _, self.rec_lp_n = recovery_step(
+                g, self.clip, self.rec_n, self.rec_left, run, self.rec_lp_n
+            )
             clipping = run & (self.rec_n > _U0) & (self.rec_left == self.rec_n)
             self.lp_valid = self.lp_valid & ~clipping  # the low-pass restarts after a clipping sample
             self.rec_clip = self.rec_clip | clipping
@@ -518,16 +522,10 @@ class Mekf:
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        l1, l2 = _lowpass(
-            u,
-            w(
-                rec,
-                w(self.rec_clip, recovery_lp_gain(self.rec_left, self.rec_n, self.k_lp), self.k_lp_rec),
-                self.k_lp,
-            ),
-            l1,
-            l2,
-        )
+        k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+        mean = rec & self.rec_clip
+        l1, l2 = _lowpass(u, w(rec, w(self.rec_clip, k_mean, self.k_lp_rec), self.k_lp), l1, l2)
+        self.rec_lp_n = w(acc_try & self.lp_on & mean, lp_n1, self.rec_lp_n).astype(np.uint32)
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
         y0 = dm.TWO * cx

@@ -150,6 +150,7 @@ void att_ars_reset(att_ars_t *f)
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.rec_left = 0u;
+    f->st.rec_lp_n = 0u;
     f->st.acc_step = 0u;
     f->st.head_step = 0u;
     f->st.initialised = !f->c.init_from_accel;
@@ -234,7 +235,6 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     float norm = 0.0f;
     bool gyro_ok;
     bool accel_ok;
-    float k_lp;
     float k;
     att_quat_t q;
     att_quat_t qn;
@@ -271,12 +271,10 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     }
 
     /* the recovery after a clipping gyro */
-    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
-    k_lp = c->k_lp;
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n);
     k = c->k;
     if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
-        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp);
         k = c->k_rec;
     }
 
@@ -293,7 +291,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         att_vec3_t lp2 = st->lp2;
         att_vec3_t u = v;
         if (c->lp_on) {
-            att_i_lowpass2(v, k_lp, &lp1, &lp2);
+            att_i_lowpass2(v, (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (c->full) {

@@ -188,6 +188,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.rec_left = 0u;
+    f->st.rec_lp_n = 0u;
     f->st.initialised = !f->c.init_from_accel;
 }
 
@@ -774,7 +775,7 @@ static ATT_ALWAYS_INLINE void att_ekf_gain(att_ekf_state_t *st, const att_ekf_in
  * low-passed one when the stages are on (their copies turned and stepped in *lp1, *lp2; *ready: they
  * run), else va.
  */
-static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *c, const att_ekf_state_t *st,
+static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *c, att_ekf_state_t *st,
                                                         att_vec3_t acc, const att_ekf_trig_t *tr,
                                                         att_vec3_t *va, att_vec3_t *lp1, att_vec3_t *lp2,
                                                         bool *ready)
@@ -801,7 +802,7 @@ static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *
             *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
             *lp2 = *lp1;
         }
-        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp, lp1, lp2);
+        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, lp1, lp2);
         vv = *lp2;
     }
     return vv;
@@ -1042,7 +1043,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->flags = flags;
         return flags;
     }
-    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left); /* step 3 */
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n); /* step 3 */
     if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
     }

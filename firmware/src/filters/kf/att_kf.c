@@ -137,6 +137,7 @@ void att_kf_reset(att_kf_t *f)
     f->st.steps = 0u;
     f->st.flags = 0u;
     f->st.rec_left = 0u;
+    f->st.rec_lp_n = 0u;
     f->st.initialised = !f->c.init_from_accel;
 }
 
@@ -164,7 +165,6 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     bool gyro_ok;
     bool accel_ok;
     bool rec;
-    float k_lp;
     att_quat_t x;
     att_quat_t xn;
     att_vec3_t d;
@@ -201,12 +201,10 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
     }
 
     /* the recovery after a clipping gyro (step 5) */
-    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n);
     rec = st->rec_left > 0u;
-    k_lp = c->k_lp;
     if (rec) {
         flags |= ATT_FLAG_INITIALISED;
-        k_lp = att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp);
     }
 
     /* prediction x := A x, p := p |A|^2 + q with A = I + dt/2 Omega(w - b) */
@@ -237,7 +235,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         float cy;
         float n;
         if (c->lp_on) {
-            att_i_lowpass2(u, k_lp, &lp1, &lp2);
+            att_i_lowpass2(u, rec ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, &lp1, &lp2);
             u = lp2;
         }
         if (att_i_align_up(u, &cw, &cx, &cy, &n)) {

@@ -122,7 +122,6 @@ static void att_mars_cov_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t 
     c->mag_noise2 = s->mag_noise * s->mag_noise;
     c->var_step = c->gyro_noise2 * s->dt;
     c->var_tilt = att_mars_cov_tilt(s->dt, c->k_lp, c->k_acc, c->gyro_noise2, a2);
-    c->var_tilt_rec = att_mars_cov_tilt(s->dt, c->k_lp, c->k_acc, c->gyro_noise2, a2);
 }
 
 static void att_mars_coeffs(att_mars_coeffs_t *c, const att_mars_settings_t *s)
@@ -305,6 +304,7 @@ void att_mars_reset(att_mars_t *f)
     st->acc_step = 0u;
     st->mag_step = 0u;
     st->rec_left = 0u;
+    st->rec_lp_n = 0u;
     att_i_magref_reset(&st->ref);
     att_i_hi_reset(&st->hi);
     st->m0_ref_ok = false;
@@ -535,7 +535,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
  */
 static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g)
 {
-    if (att_i_recovery_step(g, c->clip, c->rec_n, &st->rec_left)) {
+    if (att_i_recovery_step(g, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n)) {
         st->fast_left = c->fast_start_n; /* the heading follows the settling tilt, as after the alignment */
     }
     return (st->rec_left > 0u) ? ATT_FLAG_INITIALISED : 0u;
@@ -730,7 +730,9 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_mars_accel_correct(c, acc, (st->rec_left > 0u) ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp, &q, &lp1, &lp2);
+        att_mars_accel_correct(c, acc,
+                               (st->rec_left > 0u && c->lp_on) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp,
+                               &q, &lp1, &lp2);
         st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
     if (mag_ok) {
@@ -845,7 +847,7 @@ static void att_mars_cov(const att_mars_t *f, float cov[4])
 {
     const att_mars_coeffs_t *c = &f->c;
     const att_mars_state_t *st = &f->st;
-    const float tilt = att_i_cov_tilt_now(c->var_tilt, c->var_tilt_rec, c->var_step, st->rec_left, c->rec_n,
+    const float tilt = att_i_cov_tilt_now(c->var_tilt, c->var_tilt, c->var_step, st->rec_left, c->rec_n,
                                           st->steps, st->acc_step, st->initialised);
     float yaw = ATT_COV_UNKNOWN;
     if (st->m0_valid && st->initialised) {

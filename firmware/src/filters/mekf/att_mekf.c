@@ -320,6 +320,7 @@ void att_mekf_reset(att_mekf_t *f)
     st->steps = 0u;
     st->flags = 0u;
     st->rec_left = 0u;
+    st->rec_lp_n = 0u;
     att_i_magref_reset(&st->ref);
     att_i_hi_reset(&st->hi);
     st->m0_valid = false;
@@ -991,9 +992,9 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t
  * att_i_recovery_lp_gain (att_core.h); in the recovery of the start k_lp_rec, the fast exponential window,
  * since there the gyro bias is not known yet and the samples of a long mean would be turned by it.
  */
-static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, const att_mekf_state_t *st)
+static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
 {
-    return st->rec_clip ? att_i_recovery_lp_gain(st->rec_left, c->rec_n, c->k_lp) : c->k_lp_rec;
+    return st->rec_clip ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp_rec;
 }
 
 /*
@@ -1206,7 +1207,7 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     }
 
     /* 6. the recovery after a clipping gyro: its counter, then the phases below */
-    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left);
+    (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n);
     if (c->rec_n > 0u && st->rec_left == c->rec_n) {
         st->lp_valid = false; /* a clipping sample: the low-pass holds samples turned by a wrong rotation */
         st->rec_clip = true;
