@@ -150,17 +150,27 @@ def test_the_restart_waits_for_the_first_applied_sample(kind: FilterKind) -> Non
 
 
 @pytest.mark.parametrize(
+    "over",
+    [{}, {"accel_reject": 0.05}, {"tau_acc_lp": 0.0}, {"recovery_time": 0.3}],
+    ids=["defaults", "accel-reject", "no-lowpass", "short-recovery"],
+)
+@pytest.mark.parametrize(
     "kind", [*KINDS, FilterKind.MEKF], ids=[k.name.lower() for k in [*KINDS, FilterKind.MEKF]]
 )
-def test_bit_exact_with_unusable_accel_on_the_clipping_samples(kind: FilterKind) -> None:
+def test_bit_exact_with_unusable_accel_on_the_clipping_samples(
+    kind: FilterKind, over: dict[str, Any]
+) -> None:
+    """Every stream step and state compared: NaN accel on the clipping samples, with accel rejection
+    (many samples of the turns rejected), without the low-pass, and a recovery shorter than tau_acc_lp
+    (it ends before the mean has handed over)."""
     from attica.crosscheck import Stream, crosscheck
 
     streams = []
-    for seed in (4, 6):
+    for seed in (4, 6) if not over else (4,):
         r = clipping(seed)
         acc, _ = _nan_on_clipping(r)
         streams.append(Stream(r.gyr, acc, r.mag, name=f"seed {seed}"))
     s = SETTINGS.get(kind, None)
-    settings = (s or MekfSettings)(dt=1.0 / RATE, gyro_range=CLIP)
+    settings = replace((s or MekfSettings)(dt=1.0 / RATE, gyro_range=CLIP), **over)
     res = crosscheck(kind, streams, settings=settings, segment=1500)
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
