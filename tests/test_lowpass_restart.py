@@ -2,10 +2,11 @@
 
 The low-pass stages hold specific force turned into the earth (the ekf: heading) frame by the gyro's
 rotation, and that rotation is wrong while the gyro clips. During a recovery their gain is ``1 / (n + 1)``
-for the n-th sample after the last clipping sample, until their own ``k_lp`` is larger
-(``att_i_recovery_lp_gain``, att_core.h; ``recovery_lp_gain`` in the reference): 1 on the clipping sample
-itself (a restart), then the running mean of the samples since, each an equally good measurement of
-gravity once the gyro is right again. ars, kf, ekf, mars and the mekf after a clipping sample (its
+after ``n`` earlier updates since the last clipping sample (the state's ``rec_lp_n``), until their own
+``k_lp`` is larger (``att_i_recovery_lp_gain``, att_core.h; ``recovery_lp_gain`` in the reference): 1 on
+the first applied sample (a restart: the clipping sample itself when its accel is usable), then the
+running mean of the samples since, each an equally good measurement of gravity once the gyro is right
+again. ars, kf, ekf, mars and the mekf after a clipping sample (its
 start's recovery keeps the fast window: the bias is not known there yet).
 
 - the schedule itself (the reference's function, which the C matches bit for bit on every clipping
@@ -135,14 +136,16 @@ def _nan_on_clipping(rec: Any) -> tuple[Any, np.ndarray]:
     return acc, clipped
 
 
-@pytest.mark.parametrize("kind", KINDS, ids=[k.name.lower() for k in KINDS])
+@pytest.mark.parametrize(
+    "kind", [*KINDS, FilterKind.MEKF], ids=[k.name.lower() for k in [*KINDS, FilterKind.MEKF]]
+)
 def test_the_restart_waits_for_the_first_applied_sample(kind: FilterKind) -> None:
     """A clipping sample whose accel sample is not usable does not keep the old stages: the first
     applied sample after it restarts them (the count of the running mean is of applied samples)."""
     rec = clipping(4, 12.0)
     acc, clipped = _nan_on_clipping(rec)
     last = int(np.flatnonzero(clipped)[np.flatnonzero(clipped) < np.flatnonzero(clipped)[0] + 200][-1])
-    f = native.Filter(kind, SETTINGS[kind](dt=1.0 / RATE, gyro_range=CLIP))
+    f = native.Filter(kind, SETTINGS.get(kind, MekfSettings)(dt=1.0 / RATE, gyro_range=CLIP))
     f.run(rec.gyr[: last + 2], acc[: last + 2], rec.mag[: last + 2], check_units=False)
     lp1, lp2 = _stages(f, kind)
     assert np.linalg.norm(lp1 - lp2) < 1e-5 * float(np.linalg.norm(lp2)), "restarted from one sample"

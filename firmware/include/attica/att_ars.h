@@ -28,9 +28,10 @@
  *     Recovery after a clipping gyro (recovery_time > 0): a gyro sample with any |w_i| >= 0.98 gyro_range
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
  *     recovery of recovery_time (counted only once initialised): the integration has lost rotation it
- *     cannot know. A clipping sample restarts the low-pass stages (the history they hold was turned
- *     into the earth frame by a rotation the gyro did not measure), which then take the running mean of
- *     the samples since, gain 1 / (n + 1) for the n-th, until their own k_lp is larger
+ *     cannot know. The first applied accel sample after a clipping sample (the clipping sample itself
+ *     when its accel is usable) restarts the low-pass stages (the history they hold was turned into the
+ *     earth frame by a rotation the gyro did not measure), which then take the running mean of the
+ *     samples since, gain 1 / (n + 1) after n earlier updates, until their own k_lp is larger
  *     (att_i_recovery_lp_gain: with the gyro right again every such sample is an equally good
  *     measurement of gravity, and their mean is what an unknown attitude calls for); the correction runs
  *     with the time constant recovery_time / 8 when that is faster than its own (k_rec instead of k).

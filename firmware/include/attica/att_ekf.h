@@ -60,8 +60,8 @@
  *     flagged ATT_FLAG_INITIALISED: the integration has lost rotation it cannot know. With k = dt /
  *     (recovery_time / 8 + dt) each prediction adds k^2 r / (1 - k) (at most p_max; r = r_phi, r_theta
  *     per sample) to the roll and pitch variances, the process noise whose steady-state Kalman gain is
- *     k; a clipping sample restarts the low-pass stages, which then take the running mean of the
- *     samples since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and
+ *     k; the first applied accel sample after a clipping sample restarts the low-pass stages, which
+ *     then take the running mean of the samples since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and
  *     the gate is off. So the filter follows that mean with the time constant recovery_time / 8 until
  *     the recovery ends (the bias
  *     states keep their gain: holding them, as att_mekf.h does, changed nothing measurable here).

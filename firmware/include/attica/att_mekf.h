@@ -308,7 +308,7 @@ typedef struct {
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
-    bool rec_clip;         /**< the last recovery began at a clipping gyro sample (false: at the start); read in one */
+    bool rec_clip;         /**< the last recovery began at a clipping gyro sample (false: the start's); read only during one */
     bool initialised;      /**< q holds a valid attitude */
 } att_mekf_state_t;
 

@@ -839,7 +839,7 @@ static inline att_vec3_t att_i_hi_correct(const att_hardiron_t *s, att_vec3_t m)
 /**
  * The recovery counter *left (steps, 0 = no recovery): restarted to rec_n by a clipping gyro sample g
  * (any |w_i| >= clip, rad/s; a sample beyond gyro_range is beyond clip too), which also sets *lp_n, the
- * accel low-pass stages' count of samples since (att_i_recovery_lp_gain), to 0; else counted down.
+ * accel low-pass stages' count of updates since (att_i_recovery_lp_gain), to 0; else counted down.
  * Returns true on the step that ends a recovery (the counter reaches 0 without a new clipping sample).
  */
 static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint32_t rec_n, uint32_t *left,
@@ -858,15 +858,16 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
 }
 
 /**
- * The accel low-pass stages' gain for an update during a recovery: 1 / (n + 1) for the update that is
- * the n-th since the last clipping gyro sample (n = *n, the state's rec_lp_n: 0 after that sample,
- * counted up here), until that falls to the stages' own gain k_lp. The first is 1: the stages restart
+ * The accel low-pass stages' gain for an update during a recovery: 1 / (n + 1) after n earlier updates
+ * since the last clipping gyro sample (n = *n, the state's rec_lp_n: 0 after that sample, counted up
+ * here), until that falls to the stages' own gain k_lp. The first is 1: the stages restart
  * from that sample, since the history they hold was turned into the earth frame by a rotation the gyro
  * did not measure (a clipping sample whose accel is not applied leaves the restart to the next one).
  * After it, with the gyro right again, every sample is an equally good measurement of gravity in the
  * frame the gyro carries, so their running mean is the estimate an unknown attitude calls for (a Kalman
  * filter's gain without a prior), where a fast exponential window would keep forgetting the early ones.
- * *n stays below rec_n + 1 (<= 2^24): it counts only updates within one recovery.
+ * *n counts only updates within one recovery, so it stays at most the rec_n of the settings it began
+ * with (<= 2^24: its float is exact).
  */
 static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t *n, float k_lp)
 {
