@@ -185,7 +185,9 @@ def test_suite_is_deterministic() -> None:
     a = suite.run_suite(("ars", "mars"), (), conds, (2,), 15.0, jobs=1)
     b = suite.run_suite(("ars", "mars"), (), conds, (2,), 15.0, jobs=2)
     assert json.dumps(a.as_dict()) == json.dumps(b.as_dict())
-    assert a.mean("ars", "clipped") > 1.0  # the clipping costs tilt
+    # the clipping still costs tilt: 0.86 deg since the recovery's low-pass restart (above 1 before), against
+    # 0.23 deg on the baseline with the same seed and length
+    assert a.mean("ars", "clipped") > 0.5
     rec, _ = simulate_with_truth(conds[0].config(2, 15.0))
     m = suite.suite_methods(["ars"], [], conds[0].gyro_range)[0]
     _, _, incl = error_angles(m.run(rec), rec.quat_true)
