@@ -446,7 +446,7 @@ class Ekf:
         return ok, ok_e, e, pn, flags, trig, big
 
     def _update(
-        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...], rec: Any
+        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...], rec: Any, k_lp: Any
     ) -> tuple[Any, Any, Any, Any, tuple[Any, ...]]:
         """att_ekf_update: (applied, discarded, flags, collapse, new state parts) of the update here.
 
@@ -454,7 +454,8 @@ class Ekf:
 
         ``discarded``: computed but not usable (C updates P in place: P restarts, att_ekf_p_restart).
 
-        ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction.
+        ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction;
+        ``k_lp`` the low-pass gain of this update (the recovery's, att_i_recovery_lp_gain, where ``rec``).
         """
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -482,7 +483,6 @@ class Ekf:
             start = dm.vec3_where(agrees & ~self.converging, up, va)
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
-            k_lp = np.where(rec, recovery_lp_gain(self.rec_lp_n, self.k_lp)[0], self.k_lp).astype(np.float32)
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
             lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
@@ -635,12 +635,13 @@ class Ekf:
             from_init = (b[0] == bi[0]) & (b[1] == bi[1]) & (b[2] == bi[2])
             self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
+            k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_lp = np.where(rec, k_mean, self.k_lp).astype(np.float32)
             applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
-                a, e2, self.lp_ready, trig, rec
+                a, e2, self.lp_ready, trig, rec, k_lp
             )
             # the low-pass count of a recovery: up by one where the update ran the stages
             lp_counted = measure & (self.k_lp > dm.ZERO) & rec
-            lp_n1 = (self.rec_lp_n + np.uint32(1)).astype(np.uint32)
             self.rec_lp_n = np.where(lp_counted, lp_n1, self.rec_lp_n).astype(np.uint32)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
