@@ -92,8 +92,13 @@ def test_bit_exact_seed_preset_and_no_accel_correction(kind: FilterKind) -> None
         res = crosscheck(kind, _streams(4), settings=s, segment=900)
         assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
     out = native.Filter(kind, off).run(*(_streams(4)[0].gyr, _streams(4)[0].acc), check_units=False)
-    # no accel correction: the tilt is not observed (before the recovery after the clipping sample at 2600)
-    assert (out["cov"][5:2600, 0] == np.float32(math.pi**2 / 12.0)).all(), "no accel correction: unknown"
+    # no accel correction: the tilt is not observed, before the recovery after the clipping sample at
+    # 2600; ars's recoveries correct with their own gain, the start's (recovery_time 2 s) too
+    unknown = np.float32(math.pi**2 / 12.0)
+    start = round(2.0 / DT) if kind == FilterKind.ARS else 5
+    assert (out["cov"][start:2600, 0] == unknown).all(), "no accel correction: unknown"
+    if kind == FilterKind.ARS:
+        assert (out["cov"][:start, 0] < unknown).all(), "the start's recovery corrects the tilt"
 
 
 def _still(seed: int, seconds: float, gyro_noise: float, accel_noise: float) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +213,10 @@ def test_mars_heading_variance() -> None:
         mag[2500:2700] = np.nan  # after the fast phase of the alignment (15 s)
         outs[h] = native.Filter(FilterKind.MARS, _settings(FilterKind.MARS)).run(r.gyr, r.acc, mag)
     yaw = outs[20.0]["cov"][:, 2].astype(np.float64)
-    assert (yaw[:100] == np.float32(UNKNOWN)).all() and yaw[101] < 1e-2
+    # the alignment at 100 is inside the start's recovery (2 s): its gain k_rec until step 200
+    rec = round(2.0 / DT)
+    assert (yaw[:100] == np.float32(UNKNOWN)).all() and (yaw[100:rec] < 0.1).all() and yaw[rec + 1] < 1e-2
+    assert yaw[rec + 1] < yaw[rec - 1] / 4.0  # the recovery's fast gain lets more noise through
     base = yaw[2490]
     assert (
         np.all(np.diff(yaw[2500:2700]) > 0) and yaw[2700] <= base * 1.01

@@ -36,7 +36,9 @@
  *     measurement of gravity, and their mean is what an unknown attitude calls for); the correction runs
  *     with the time constant recovery_time / 8 when that is faster than its own (k_rec instead of k).
  *     Every step of it reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the
- *     sensors).
+ *     sensors). The start from the first usable accel sample (init_from_accel) is a recovery too, for
+ *     the same reason (one sample with whatever linear acceleration it holds gives the tilt): the stages
+ *     start from that sample, the running mean's first update, and the recovery's correction follows.
  *  4. q is normalised. ATT_FLAG_NUMERIC when that fails or the low-passed vector cannot be normalised
  *     (the attitude and low-pass states are then kept from before the step): no state can become
  *     NaN or Inf, since samples are bounded by the (finite) ranges.

@@ -41,7 +41,8 @@
  *     (att_ars.h, att_mekf.h).
  * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.
  * Before a valid attitude exists (init_from_accel) the filter waits for the first usable accel
- * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED).
+ * sample (ATT_FLAG_NOT_READY), takes roll/pitch from it with yaw 0 (ATT_FLAG_INITIALISED) and starts
+ * the recovery of step 5 from it: the stages start from that sample, the running mean's first update.
  *
  * Units: rad/s, m/s^2, s; variances in (unit quaternion)^2. Frames: gyro/accel in the sensor frame;
  * q sensor-to-earth (ENU, z up). Mirrored bit for bit by host/attica/reference/kf.py.

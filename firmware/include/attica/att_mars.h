@@ -61,7 +61,10 @@
  *     gain is larger (att_i_recovery_lp_gain, as in att_ars.h), and the heading correction runs with the
  *     time constant recovery_time / 8 (instead of tau_mag); every step of it
  *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
- *     starts the fast heading phase of an alignment (the tilt is still settling).
+ *     starts the fast heading phase of an alignment (the tilt is still settling). The start from the
+ *     first usable accel sample is a recovery too (one sample gives the tilt, whatever linear
+ *     acceleration it holds): the stages start from that sample, the running mean's first update; its
+ *     end does not start the fast phase again (the alignment's is running: rec_clip).
  *  4. q is normalised; ATT_FLAG_NUMERIC keeps the attitude and the low-pass states from before the step.
  *  5. Covariance (att_filter_output's cov, on request; docs/filters.md): the model of att_ars.h (step 5)
  *     for the tilt (accel gain k_acc and its low-pass, which a recovery leaves as they are: only the
@@ -262,6 +265,8 @@ typedef struct {
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
     bool initialised;      /**< q holds a valid attitude */
+    bool rec_clip;         /**< a clipping gyro sample started a recovery since the start (the start's own
+                                recovery does not start the fast phase at its end) */
 } att_mars_state_t;
 
 /** One 9-axis complementary filter instance (no heap; copy freely): coefficients and state. */

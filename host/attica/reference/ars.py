@@ -335,6 +335,9 @@ class Ars:
             lp2_c = dm.vec3_where(full, lp2_f, lp2_p)
             self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp1, lp1_c))
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp2, lp2_c))
+        # the start is a recovery: the stages' running mean from its sample on, the strong correction
+        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
+        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         # the covariance's last accepted correction: the start, or a correction that was applied

@@ -278,6 +278,9 @@ class Kf:
             lp_init = dm.quat_rotate(q_tilt, a)
             self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp1n, self.lp1))
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp2n, self.lp2))
+        # the start is a recovery: the stages' running mean from its sample on, the recovery noise
+        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
+        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)

@@ -117,6 +117,7 @@ class Mars:
         "st.m0_ref_ok": "bool",
         "st.m0_valid": "bool",
         "st.initialised": "bool",
+        "st.rec_clip": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
     EARTH: tuple[str, ...] = ("lp1", "lp2", "m0", "m0_ref", "m0_perp")
@@ -329,6 +330,7 @@ class Mars:
         self.fast_left = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
         self.rec_lp_n = np.zeros(n, np.uint32)
+        self.rec_clip: Any = np.zeros(n, np.bool_)
         self.acc_step = np.zeros(n, np.uint32)
         self.mag_step = np.zeros(n, np.uint32)
         mr.reset(self, n)
@@ -497,8 +499,12 @@ class Mars:
             self.rec_left, ended, self.rec_lp_n = recovery_step(
                 g, self.clip, self.rec_n, self.rec_left, run, self.rec_lp_n
             )
-            self.fast_left = np.where(ended, self.fast_start_n, self.fast_left).astype(np.uint32)
+            # the fast phase after a clip's recovery (the start's runs inside the alignment's)
+            self.fast_left = np.where(ended & self.rec_clip, self.fast_start_n, self.fast_left).astype(
+                np.uint32
+            )
             rec = self.rec_left > _U0
+            self.rec_clip = self.rec_clip | (run & rec & (self.rec_left == self.rec_n))
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
             k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
@@ -567,6 +573,10 @@ class Mars:
         self._bias_mag(learn, theta)
         flags = flags | np.where(learn, _u(Flag.BIAS_UPDATED), _U0)
         self._ref_count(count, use_corr & ~gated, use_corr & gated, mnorm, me[2])
+        # the start is a recovery: the stages' running mean from its sample on, the strong correction
+        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
+        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
+        self.rec_clip = self.rec_clip & ~init_now
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         # the covariance's last accepted corrections (the start, an alignment, a sample used)

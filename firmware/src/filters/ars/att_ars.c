@@ -205,9 +205,10 @@ static ATT_NOINLINE void att_ars_tilt_rotation(const att_ars_coeffs_t *c, float 
 
 /*
  * First valid accel sample: roll and pitch from it (att_sensor_tilt: the same operations inline), yaw 0;
- * the low-pass stages start from it.
+ * the low-pass stages start from it, and a recovery starts: the stages' running mean (the sample is its
+ * first update) and the strong correction, as after a clipping gyro.
  */
-static ATT_NOINLINE void att_ars_start(att_ars_state_t *st, const att_vec3_t *acc)
+static ATT_NOINLINE void att_ars_start(const att_ars_coeffs_t *c, att_ars_state_t *st, const att_vec3_t *acc)
 {
     const float roll = att_atan2f(acc->y, acc->z);
     const float pitch = att_atan2f(-acc->x, att_i_sqrtf(acc->y * acc->y + acc->z * acc->z));
@@ -216,6 +217,8 @@ static ATT_NOINLINE void att_ars_start(att_ars_state_t *st, const att_vec3_t *ac
     (void)att_i_quat_normalize_bounded(q, &st->q);
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
+    st->rec_left = c->rec_n;
+    st->rec_lp_n = 1u;
     st->initialised = true;
 }
 
@@ -259,7 +262,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
 
     if (!st->initialised) {
         if (accel_ok) {
-            att_ars_start(st, acc_in);
+            att_ars_start(c, st, acc_in);
             st->acc_step = st->steps;
             flags |= ATT_FLAG_INITIALISED;
         } else {

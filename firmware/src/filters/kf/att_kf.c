@@ -141,13 +141,18 @@ void att_kf_reset(att_kf_t *f)
     f->st.initialised = !f->c.init_from_accel;
 }
 
-/* First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it. */
-static ATT_NOINLINE void att_kf_start(att_kf_state_t *st, const att_vec3_t *acc)
+/*
+ * First valid accel sample: roll and pitch from it, yaw 0; the low-pass stages start from it, and a
+ * recovery starts: the stages' running mean (the sample is its first update) and the recovery noise.
+ */
+static ATT_NOINLINE void att_kf_start(const att_kf_coeffs_t *c, att_kf_state_t *st, const att_vec3_t *acc)
 {
     const att_vec3_t t = att_sensor_tilt(*acc);
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &st->q);
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
+    st->rec_left = c->rec_n;
+    st->rec_lp_n = 1u;
     st->initialised = true;
 }
 
@@ -190,7 +195,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
 
     if (!st->initialised) {
         if (accel_ok) {
-            att_kf_start(st, acc_in);
+            att_kf_start(c, st, acc_in);
             flags |= ATT_FLAG_INITIALISED;
         } else {
             flags |= ATT_FLAG_NOT_READY;

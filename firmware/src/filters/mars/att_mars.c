@@ -305,6 +305,7 @@ void att_mars_reset(att_mars_t *f)
     st->mag_step = 0u;
     st->rec_left = 0u;
     st->rec_lp_n = 0u;
+    st->rec_clip = false;
     att_i_magref_reset(&st->ref);
     att_i_hi_reset(&st->hi);
     st->m0_ref_ok = false;
@@ -523,6 +524,9 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     }
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
+    st->rec_left = f->c.rec_n; /* a recovery: the stages' running mean (the sample its first update) */
+    st->rec_lp_n = 1u;
+    st->rec_clip = false;
     st->initialised = true;
     st->acc_step = st->steps;
     st->steps = st->steps + 1u;
@@ -531,14 +535,21 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
 }
 
 /*
- * The recovery counter (att_i_recovery_step); the fast phase starts when a recovery ends. Returns ATT_FLAG_INITIALISED while a recovery runs.
+ * The recovery counter (att_i_recovery_step); the fast phase starts when a clip's recovery ends (the
+ * start's runs inside the alignment's fast phase). Returns ATT_FLAG_INITIALISED while a recovery runs.
  */
 static ATT_ALWAYS_INLINE uint32_t att_mars_recovery(const att_mars_coeffs_t *c, att_mars_state_t *st, att_vec3_t g)
 {
-    if (att_i_recovery_step(g, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n)) {
+    if (att_i_recovery_step(g, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n) && st->rec_clip) {
         st->fast_left = c->fast_start_n; /* the heading follows the settling tilt, as after the alignment */
     }
-    return (st->rec_left > 0u) ? ATT_FLAG_INITIALISED : 0u;
+    if (st->rec_left == 0u) {
+        return 0u;
+    }
+    if (st->rec_left == c->rec_n) {
+        st->rec_clip = true; /* a clipping sample (the start's recovery is counted down from the next step) */
+    }
+    return ATT_FLAG_INITIALISED;
 }
 
 /* The prediction: q turned by the bias-corrected rate d over dt; NUMERIC when the first-order step overflowed. */
