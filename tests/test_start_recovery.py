@@ -10,8 +10,8 @@ worse there).
 - the flags and the count of the stages' updates from the start, with the recovery and without it;
 - mars's fast phase: not restarted at the end of the start's recovery, restarted at a clip's;
 - under the suite's 40 Hz vibration of 0.3 g the first seconds (seeds 1-3, inclination RMSE, deg): in
-  the first second before / now ars 15.2 / 2.5, kf 15.4 / 3.3, mars 15.3 / 3.0 on the mean of 10 seeds
-  (``python -m attica_dev.start_check``), bounded here per seed;
+  the first second before / now ars 15.2 / 2.5, kf 15.4 / 3.3, mars 15.0 / 2.5 on the mean of 10 seeds
+  (``python -m attica_dev.start_check`` gives the 9-axis total for mars), bounded here per seed;
 - C and reference bit for bit from vibrating starts, with a clip inside the start's recovery, a short
   recovery, without the low-pass and without the recovery.
 """
