@@ -7,7 +7,7 @@ after ``n`` earlier updates since the last clipping sample (the state's ``rec_lp
 the first applied sample (a restart: the clipping sample itself when its accel is usable), then the
 running mean of the samples since, each an equally good measurement of gravity once the gyro is right
 again. ars, kf, ekf, mars and the mekf after a clipping sample (its
-start's recovery keeps the fast window: the bias is not known there yet).
+start's recovery takes the mean only down to the fast window: the bias is not known there yet).
 
 - the schedule itself (the reference's function, which the C matches bit for bit on every clipping
   stream of tests/test_{ars,kf,ekf,mekf}_recovery.py and tests/test_recovery.py);

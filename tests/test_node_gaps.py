@@ -91,14 +91,16 @@ def test_dropped_samples_are_integrated_bit_for_bit(kind: str, fd: bool) -> None
 
 @pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
 def test_flags_are_the_or_over_the_held_periods(fd: bool) -> None:
-    """The set after a gap carries the OR of its n steps' flags (att_filter_output keeps them)."""
+    """The set after a gap carries the OR of its n steps' flags (att_filter_output keeps them). The ekf:
+    its start is flagged INITIALISED on its own step only (the start of ars, kf, mars and mekf is a
+    recovery, flagged on every step of it), so the OR must reach back to the first held period."""
     fr, (g, a, m) = _frames(20, 2, fd)
-    node = _node("ars", fd)
+    node = _node("ekf", fd)
     node.run(np.concatenate(list(fr[:10])))
     node.run(c.encode_cmd(c.Cmd.RESET, counter=1))  # the next step initialises the filter again
     out, _ = node.run(fr[13])  # 10..12 lost: 4 periods, the first of them the initialisation
     sets = c.decode_outputs(out).sets
-    f = native.Filter("ars", dt=node_dt(RATE))
+    f = native.Filter("ekf", dt=node_dt(RATE))
     f.run(g[:10], a[:10], m[:10])
     f.reset()
     single = f.run(g[[13] * 4], a[[13] * 4], m[[13] * 4])

@@ -88,8 +88,9 @@
  *     each clipping sample restarts the accel low-pass (its stages hold samples turned by a wrong
  *     rotation: the next applied accel sample starts them, as at the start), which then takes the
  *     running mean of the samples since (att_i_recovery_lp_gain, att_ars.h) until its own gain k_lp is
- *     larger (in the start's recovery, where the bias is not known yet, it runs at max(k_lp, k) instead:
- *     a long mean would gather samples turned by that bias); an accel gate rejection is recovered at once
+ *     larger (in the start's recovery, where the bias is not known yet, the mean of the samples since the
+ *     start only until max(k_lp, k) is larger, k_lp_rec: a long mean would gather samples turned by that
+ *     bias); an accel gate rejection is recovered at once
  *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
  *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
  *     alone (the innovations of a clipped turn or of the start are attitude errors of unknown origin,
@@ -262,7 +263,7 @@ typedef struct {
     float p0_scale;        /**< initial variance of the scale-factor error, gyro_scale_sd^2 (0 = off) */
     float scale_init;      /**< scale-factor error after reset */
     float clip;            /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;        /**< the low-pass gain in the start's recovery: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float k_lp_rec;        /**< the low-pass gain in the start's recovery once its mean is below it: max(k_lp, dt / (recovery_time / 8 + dt)) */
     float q_rec_tilt;      /**< tilt process noise per step of a recovery, min(k^2 r_acc / (1 - k), p_max), rad^2 */
     float q_rec_head;      /**< heading process noise per step of a recovery, min(k^2 r_mag / (1 - k), p_max), rad^2 */
     uint32_t rec_n;        /**< samples of a recovery (0 = none) */
@@ -303,7 +304,7 @@ typedef struct {
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
-    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
+    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     bool m0_valid;         /**< m0 holds the reference field (m0_ref .. dip_hi derived from it) */

@@ -515,17 +515,17 @@ class Mekf:
         """Mirror of att_mekf_accel where ``acc_try`` (a usable sample, initialised); returns its flags.
 
         ``rec``: a recovery runs (the low-pass: after a clipping sample the running mean of recovery_lp_gain,
-        in the start's recovery k_lp_rec; a gate rejection recovered at once, the scale estimate left alone).
+        in the start's recovery the mean down to k_lp_rec; a gate rejection recovered at once, the scale
+        estimate left alone).
         """
         w = np.where
         u = wk.v
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
-        mean = rec & self.rec_clip
-        l1, l2 = _lowpass(u, w(rec, w(self.rec_clip, k_mean, self.k_lp_rec), self.k_lp), l1, l2)
-        self.rec_lp_n = w(acc_try & self.lp_on & mean, lp_n1, self.rec_lp_n).astype(np.uint32)
+        k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, w(self.rec_clip, self.k_lp, self.k_lp_rec))
+        l1, l2 = _lowpass(u, w(rec, k_mean, self.k_lp), l1, l2)
+        self.rec_lp_n = w(acc_try & self.lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
         y0 = dm.TWO * cx
@@ -592,6 +592,7 @@ class Mekf:
         mg.commit_m0(self, init_mag, start.parts)
         # the start is a recovery too (att_mekf_start)
         self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
+        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
         self.rec_clip = self.rec_clip & ~init_now
         self.initialised = self.initialised | init_now
 

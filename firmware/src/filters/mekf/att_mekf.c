@@ -434,6 +434,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     st->lp_valid = true;
     st->initialised = true;
     st->rec_left = c->rec_n; /* the start is a recovery too (att_mekf.h, step 6) */
+    st->rec_lp_n = 1u;      /* the stages' running mean starts from the sample */
     st->rec_clip = false;
     return flags;
 }
@@ -988,13 +989,14 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t
 }
 
 /*
- * The low-pass gain during a recovery (step 6): after a clipping gyro sample the running mean of
- * att_i_recovery_lp_gain (att_core.h); in the recovery of the start k_lp_rec, the fast exponential window,
- * since there the gyro bias is not known yet and the samples of a long mean would be turned by it.
+ * The low-pass gain during a recovery (step 6): the running mean of att_i_recovery_lp_gain (att_core.h)
+ * until the stages' own gain, after a clipping gyro sample k_lp; in the recovery of the start until
+ * k_lp_rec, the fast exponential window, since there the gyro bias is not known yet and the samples of
+ * a long mean would be turned by it.
  */
 static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
 {
-    return st->rec_clip ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp_rec;
+    return att_i_recovery_lp_gain(&st->rec_lp_n, st->rec_clip ? c->k_lp : c->k_lp_rec);
 }
 
 /*
