@@ -30,8 +30,11 @@ from clip_support import CLIP, INITIALISED, RATE
 from attica import metrics, native
 from attica.crosscheck import Stream, crosscheck
 from attica.evaluate.suite import condition
+from attica.reference.filter import Filter as RefFilter
 from attica.settings import ArsSettings, FilterKind, KfSettings, MarsSettings, MekfSettings
 from attica.sim import SimConfig, simulate, simulate_with_truth
+
+from helpers import assert_same_bits
 
 SETTINGS: dict[FilterKind, Any] = {
     FilterKind.ARS: ArsSettings,
@@ -146,3 +149,36 @@ def _streams() -> list[Stream]:
 def test_bit_exact_from_the_start(kind: FilterKind, over: dict[str, Any]) -> None:
     res = crosscheck(kind, _streams(), settings=_settings(kind, **over), segment=400)
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
+
+
+@pytest.mark.parametrize("kind", KINDS, ids=IDS)
+@pytest.mark.parametrize("rec_time", [0.5, 4.0], ids=["shorter", "longer"])
+def test_a_retune_inside_the_starts_recovery_stays_bit_exact(kind: FilterKind, rec_time: float) -> None:
+    """A retune 1 s after the start: the recovery limited to the new recovery_time, the mean going on."""
+    r = _vibrating(5)
+    s = _settings(kind)
+    half = int(1.0 * RATE)
+    c = native.Filter(kind, s)
+    c.run(r.gyr[:half], r.acc[:half], r.mag[:half], check_units=False)
+    assert _st(c, kind).rec_left > 0, "the retune is made during the start's recovery"
+    ref = RefFilter(kind, s)
+    ref.load_c_states([c.state.copy()[0]])
+    s2 = replace(s, recovery_time=rec_time)
+    c.retune(s2)
+    ref.retune(s2)
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+    out = c.run(r.gyr[half:], r.acc[half:], r.mag[half:], check_units=False)
+    q_ref = np.array([ref.step(r.gyr[i], r.acc[i], r.mag[i])["q"][0] for i in range(half, len(r.gyr))])
+    assert_same_bits(out["q"], q_ref, "after the retune")
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+
+
+def test_mars_a_clip_inside_the_starts_recovery_ends_in_the_fast_phase() -> None:
+    """A clip at 0.8 s: its recovery (from its last clipping sample) ends with the fast phase started."""
+    r = _vibrating(4, gyro_clip=CLIP, spins=((0.8, 0.6, 14.0, (0.3, 0.4, 0.866)),))
+    rec_n = round(2.0 / (1.0 / RATE))
+    fast, fast_start_n = _fast_left(r)
+    clipped = np.flatnonzero((np.abs(r.gyr) >= 0.98 * np.float32(CLIP)).any(axis=1))
+    assert clipped.size and clipped[0] < rec_n, "the clip is inside the start's recovery"
+    end = int(clipped[-1]) + rec_n
+    assert fast[end] >= fast_start_n - 1 and fast[end] > fast[end - 1], "restarted at the recovery's end"

@@ -1,7 +1,8 @@
 """Whether the rotation a clipping gyro loses can be put back from the rate around the clip (issue 23).
 
 ``python -m attica_dev.clip_recon`` runs the suite's ``clipped`` condition (10 seeds, its scoring)
-with the gyro as recorded and repaired three ways, each filter on its defaults:
+with the gyro as recorded, the same recording without the clip, and the gyro repaired two ways, each
+filter on its defaults:
 
 - ``shipped``: the clipped gyro, the filters told the range (their recovery after a clipping gyro);
 - ``unclipped``: the same recording simulated without the clip (same seed, same noise): the bound;

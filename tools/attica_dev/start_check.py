@@ -5,8 +5,8 @@
 per method the RMSE over the first second and over 1-5 s after the first sample (inclination for the
 6-axis methods, total for the 9-axis ones, deg). The suite scores from 5 s
 (:data:`attica.evaluate.suite.CONVERGENCE`); a user sees the start too, and under the suite's 40 Hz
-vibration the first accel sample alone is up to 18 deg off. docs/accuracy.md quotes its output. It
-takes a few seconds.
+vibration the first accel sample alone is up to 18 deg off. docs/filters.md ("The start is a
+recovery") quotes its output. It takes a few seconds.
 """
 
 from __future__ import annotations

@@ -147,8 +147,8 @@ typedef struct {
                                 bias update, then bias.rest_gyro2 (att_bias.h) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
-    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
-    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro or the start (0 = none) */
+    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel correction (or the start): covariance */
     uint32_t head_step;    /**< steps at the last att_filter_set_heading: covariance */
     bool initialised;      /**< q holds a valid attitude */

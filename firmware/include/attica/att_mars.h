@@ -258,8 +258,8 @@ typedef struct {
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */
     uint32_t fast_left;    /**< blocks left of the fast phase (k_fast instead of k_mag) */
-    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
-    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro or the start (0 = none) */
+    uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */
     uint32_t mag_step;     /**< steps before the step of the last accepted mag sample or alignment: covariance */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */

@@ -303,7 +303,7 @@ typedef struct {
     uint32_t rest_count;   /**< consecutive samples that pass the rest test (saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
-    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro (0 = none) */
+    uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro or the start (0 = none) */
     uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     att_magref_t ref;      /**< statistics of the learnt reference field (att_magref.h) */
     att_hardiron_t hi;     /**< the hard-iron estimate and the offset applied (att_hardiron.h) */

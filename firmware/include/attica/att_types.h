@@ -82,7 +82,8 @@ enum {
     ATT_FLAG_AT_REST = 0x0100,         /**< the rest detector says the sensor is still */
     ATT_FLAG_BIAS_UPDATED = 0x0200,    /**< the gyro bias estimate changed this step */
     ATT_FLAG_INITIALISED = 0x0400,     /**< the attitude was (re)initialised from the sensors this step, or
-                                            is being (ars, mars, mekf: a recovery after a clipping gyro) */
+                                            is being (a recovery: ars, mars, kf, ekf, mekf after a clipping
+                                            gyro; ars, mars, kf, mekf after the start) */
     ATT_FLAG_GIMBAL = 0x0800,          /**< |cos(theta)| below the guard: value clamped */
     ATT_FLAG_CLAMPED = 0x1000,         /**< an argument was clamped into its domain (e.g. asin) */
     ATT_FLAG_NUMERIC = 0x2000,         /**< numeric failure; state kept from before the step */

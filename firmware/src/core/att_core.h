@@ -859,10 +859,12 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
 
 /**
  * The accel low-pass stages' gain for an update during a recovery: 1 / (n + 1) after n earlier updates
- * since the last clipping gyro sample (n = *n, the state's rec_lp_n: 0 after that sample, counted up
- * here), until that falls to the stages' own gain k_lp. The first is 1: the stages restart
- * from that sample, since the history they hold was turned into the earth frame by a rotation the gyro
- * did not measure (a clipping sample whose accel is not applied leaves the restart to the next one).
+ * since the last clipping gyro sample or the start (n = *n, the state's rec_lp_n: 0 after a clipping
+ * sample, 1 after the start, whose sample the stages start from; counted up here), until that falls to
+ * the floor k_lp (the stages' own gain; in the mekf's start its fast window). After a clipping sample
+ * the first is 1: the stages restart from that sample, since the history they hold was turned into the
+ * earth frame by a rotation the gyro did not measure (a clipping sample whose accel is not applied
+ * leaves the restart to the next one).
  * After it, with the gyro right again, every sample is an equally good measurement of gravity in the
  * frame the gyro carries, so their running mean is the estimate an unknown attitude calls for (a Kalman
  * filter's gain without a prior), where a fast exponential window would keep forgetting the early ones.

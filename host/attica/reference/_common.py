@@ -275,8 +275,9 @@ def recovery_step(
 def recovery_lp_gain(n: Any, k_lp: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
     """att_i_recovery_lp_gain: the low-pass gain of a recovery's update and the count after it.
 
-    1 / (n + 1) for the n-th update since the last clipping sample (n: rec_lp_n), at least k_lp; the
-    caller commits the count n + 1 where the C calls the helper.
+    1 / (n + 1) after n earlier updates since the last clipping sample or the start (n: rec_lp_n; 1
+    after the start, whose sample the stages start from), at least k_lp (the floor: the stages' own gain,
+    or the mekf start's fast window); the caller commits the count n + 1 where the C calls the helper.
     """
     n1 = (np.asarray(n, np.uint32) + np.uint32(1)).astype(np.uint32)
     m = (dm.ONE / n1.astype(np.float32)).astype(np.float32)

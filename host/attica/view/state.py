@@ -62,7 +62,12 @@ FLAGS: tuple[tuple[str, str, str, str], ...] = (
         "the field's norm or dip is off: the mag correction was skipped",
         "warn",
     ),
-    ("INITIALISED", "recovering", "the attitude was (re)initialised from the sensors", "warn"),
+    (
+        "INITIALISED",
+        "recovering",
+        "the attitude is being (re)initialised from the sensors (a start or a recovery)",
+        "warn",
+    ),
     ("NUMERIC", "numeric", "a numeric failure: the state was kept from before the step", "bad"),
     ("NOT_READY", "not ready", "no valid attitude yet (waiting for a first valid sample)", "bad"),
     ("BIAS_UPDATED", "bias updated", "the gyro bias estimate changed", "good"),
