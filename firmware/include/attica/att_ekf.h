@@ -55,6 +55,11 @@
  *     the heading frame of yaw lp_psi: each update first turns them about z into the predicted one
  *     (by psi - lp_psi: the yaw's change since, flips to the equivalent attitude included); an applied
  *     update rotates them by its correction (to first order) and sets lp_psi to the predicted yaw.
+ *     From the start (or a re-initialisation) from a sample, the stages take the running mean of the
+ *     samples since (att_i_recovery_lp_gain, the sample its first update; state lp_mean) until it falls
+ *     to k_lp or they restart: one sample gives the tilt, whatever linear acceleration it held. (The
+ *     start is not a recovery here, unlike in ars, kf, mars and mekf: the recovery's process noise let
+ *     the bias states take the start's innovations.)
  *  3. recovery after a clipping gyro (recovery_time > 0, as att_kf.h step 5): a gyro sample with any
  *     |w_i| >= 0.98 gyro_range (or beyond) starts a recovery of recovery_time (a later one restarts it),
  *     flagged ATT_FLAG_INITIALISED: the integration has lost rotation it cannot know. With k = dt /
@@ -184,12 +189,14 @@ typedef struct {
                                each update) */
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
+    bool lp_mean;         /**< the stages take the running mean of the samples since the start
+                               (att_i_recovery_lp_gain), until it falls to k_lp or they restart */
     bool recover;         /**< a step flagged NUMERIC set initialised false: the next usable accel sample
                                re-initialises roll and pitch, the yaw kept, P restarted */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */
-    uint32_t rec_lp_n;    /**< accel low-pass updates since the last clipping gyro sample (att_i_recovery_lp_gain) */
+    uint32_t rec_lp_n;    /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     bool initialised;     /**< euler holds a valid attitude */
 } att_ekf_state_t;
 

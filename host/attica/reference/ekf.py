@@ -210,6 +210,7 @@ class Ekf:
         "st.lp_psi": "f32",
         "st.lp_ready": "bool",
         "st.converging": "bool",
+        "st.lp_mean": "bool",
         "st.recover": "bool",
         "st.steps": "u32",
         "st.flags": "u32",
@@ -318,6 +319,7 @@ class Ekf:
         self.lp_psi = np.copy(self.euler[2])
         self.lp_ready = np.zeros(self.n, np.bool_)
         self.converging = np.zeros(self.n, np.bool_)
+        self.lp_mean = np.zeros(self.n, np.bool_)
         self.recover = np.zeros(self.n, np.bool_)
         self.steps = np.zeros(self.n, np.uint32)
         self.flags = np.zeros(self.n, np.uint32)
@@ -635,14 +637,19 @@ class Ekf:
             from_init = (b[0] == bi[0]) & (b[1] == bi[1]) & (b[2] == bi[2])
             self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
+            # the stages' running mean (att_ekf_lowpass): in a recovery, and after the start until it falls
+            # to k_lp or the stages restart (not ready: they start from a sample or the estimate)
+            mean = rec | (self.lp_mean & self.lp_ready)
             k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
-            k_lp = np.where(rec, k_mean, self.k_lp).astype(np.float32)
+            k_lp = np.where(mean, k_mean, self.k_lp).astype(np.float32)
             applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
                 a, e2, self.lp_ready, trig, rec, k_lp
             )
-            # the low-pass count of a recovery: up by one where the update ran the stages
-            lp_counted = measure & (self.k_lp > dm.ZERO) & rec
-            self.rec_lp_n = np.where(lp_counted, lp_n1, self.rec_lp_n).astype(np.uint32)
+            # the low-pass count of the mean: up by one where the update ran the stages
+            lp_ran = measure & (self.k_lp > dm.ZERO)
+            self.rec_lp_n = np.where(lp_ran & mean, lp_n1, self.rec_lp_n).astype(np.uint32)
+            keep_mean = self.lp_mean & self.lp_ready & (k_mean > self.k_lp)
+            self.lp_mean = np.where(lp_ran, keep_mean, self.lp_mean)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied
             # updated in place, then not usable: P restarted; a step without an applied update tests
@@ -695,6 +702,9 @@ class Ekf:
             self.lp_psi = np.where(init_now, start[2], self.lp_psi).astype(np.float32)
             self.lp_ready = self.lp_ready | init_now
             self.converging = self.converging & ~init_now
+            # the stages take the running mean of the samples since the start (att_ekf_start)
+            self.lp_mean = np.where(init_now, self.k_lp > dm.ZERO, self.lp_mean)
+            self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
         self.recover = (self.recover & ~init_now) | numeric
         self.initialised = (self.initialised | init_now) & ~numeric
         self.steps = self.steps + np.uint32(1)

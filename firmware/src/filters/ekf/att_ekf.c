@@ -184,6 +184,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.lp_psi = f->st.euler.z;
     f->st.lp_ready = false;
     f->st.converging = false;
+    f->st.lp_mean = false;
     f->st.recover = false;
     f->st.steps = 0u;
     f->st.flags = 0u;
@@ -770,6 +771,21 @@ static ATT_ALWAYS_INLINE void att_ekf_gain(att_ekf_state_t *st, const att_ekf_in
 }
 
 /*
+ * The low-pass stages' step with sample vv: during a recovery and after the start (lp_mean) at the gain
+ * of the running mean (att_i_recovery_lp_gain, down to k_lp, where the start's mean ends), else k_lp.
+ */
+static ATT_ALWAYS_INLINE void att_ekf_lowpass(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t vv,
+                                              att_vec3_t *lp1, att_vec3_t *lp2)
+{
+    float k = c->k_lp;
+    if (st->rec_left > 0u || st->lp_mean) {
+        k = att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp);
+        st->lp_mean = st->lp_mean && k > c->k_lp;
+    }
+    att_i_lowpass2(vv, k, lp1, lp2);
+}
+
+/*
  * The measurement of an update: the specific force in the heading frame of the prediction (the earth
  * frame turned by its yaw: R_y(theta) R_x(phi) a) into *va, and the direction the update measures: the
  * low-passed one when the stages are on (their copies turned and stepped in *lp1, *lp2; *ready: they
@@ -801,8 +817,9 @@ static ATT_ALWAYS_INLINE att_vec3_t att_ekf_measurement(const att_ekf_coeffs_t *
             *ready = va->z > 0.0f && h2 < ATT_EKF_SETTLED * (h2 + va->z * va->z);
             *lp1 = (*ready && !st->converging) ? att_i_vec3(0.0f, 0.0f, c->gravity) : *va;
             *lp2 = *lp1;
+            st->lp_mean = false; /* restarted from a sample or the estimate: the start's mean is over */
         }
-        att_i_lowpass2(vv, (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, lp1, lp2);
+        att_ekf_lowpass(c, st, vv, lp1, lp2);
         vv = *lp2;
     }
     return vv;
@@ -1003,6 +1020,8 @@ static ATT_NOINLINE void att_ekf_start(const att_ekf_coeffs_t *c, att_ekf_state_
     st->lp_psi = yaw;
     st->lp_ready = true;
     st->converging = false;
+    st->lp_mean = c->lp_on; /* the stages take the running mean of the samples since this one */
+    st->rec_lp_n = 1u;
     st->initialised = true;
 }
 
