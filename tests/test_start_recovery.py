@@ -180,7 +180,7 @@ def test_bit_exact_from_the_start(kind: FilterKind, over: dict[str, Any]) -> Non
     assert res.ok, res.first_mismatch or f"{res.state_mismatches} state mismatches"
 
 
-@pytest.mark.parametrize("kind", KINDS, ids=IDS)
+@pytest.mark.parametrize("kind", MEAN_KINDS, ids=MEAN_IDS)
 @pytest.mark.parametrize("rec_time", [0.5, 4.0], ids=["shorter", "longer"])
 def test_a_retune_inside_the_starts_recovery_stays_bit_exact(kind: FilterKind, rec_time: float) -> None:
     """A retune 1 s after the start: the recovery limited to the new recovery_time, the mean going on."""
@@ -189,7 +189,8 @@ def test_a_retune_inside_the_starts_recovery_stays_bit_exact(kind: FilterKind, r
     half = int(1.0 * RATE)
     c = native.Filter(kind, s)
     c.run(r.gyr[:half], r.acc[:half], r.mag[:half], check_units=False)
-    assert _st(c, kind).rec_left > 0, "the retune is made during the start's recovery"
+    st = _st(c, kind)
+    assert st.rec_left > 0 if kind != FilterKind.EKF else st.lp_mean, "made during the start's mean"
     ref = RefFilter(kind, s)
     ref.load_c_states([c.state.copy()[0]])
     s2 = replace(s, recovery_time=rec_time)
@@ -211,3 +212,26 @@ def test_mars_a_clip_inside_the_starts_recovery_ends_in_the_fast_phase() -> None
     assert clipped.size and clipped[0] < rec_n, "the clip is inside the start's recovery"
     end = int(clipped[-1]) + rec_n
     assert fast[end] >= fast_start_n - 1 and fast[end] > fast[end - 1], "restarted at the recovery's end"
+
+
+def test_the_ekf_mean_ends_at_2_to_the_24_updates() -> None:
+    """A k_lp below 2^-24 (tau_acc_lp 1e4 s at 10 kHz): the mean ends at the count 2^24 (its float exact,
+    never wrapping), C and reference alike; the state is set near the end rather than run there."""
+    kind = FilterKind.EKF
+    s = replace(EkfSettings(dt=1e-4, gyro_range=CLIP), tau_acc_lp=1e4)
+    r = _vibrating(6)
+    c = native.Filter(kind, s)
+    c.run(r.gyr[:10], r.acc[:10], r.mag[:10], check_units=False)
+    assert _st(c, kind).lp_mean
+    _st(c, kind).rec_lp_n = (1 << 24) - 3
+    ref = RefFilter(kind, s)
+    ref.load_c_states([c.state.copy()[0]])
+    counts, means = [], []
+    for i in range(10, 16):
+        c.run(r.gyr[i : i + 1], r.acc[i : i + 1], r.mag[i : i + 1], check_units=False)
+        ref.step(r.gyr[i], r.acc[i], r.mag[i])
+        assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+        counts.append(int(_st(c, kind).rec_lp_n))
+        means.append(bool(_st(c, kind).lp_mean))
+    assert counts == [(1 << 24) - 2, (1 << 24) - 1, 1 << 24, 1 << 24, 1 << 24, 1 << 24], counts
+    assert means == [True, True, False, False, False, False], means

@@ -190,13 +190,16 @@ typedef struct {
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
     bool lp_mean;         /**< the stages take the running mean of the samples since the start
-                               (att_i_recovery_lp_gain), until it falls to k_lp or they restart */
+                               (att_i_recovery_lp_gain), until it falls to k_lp, they restart or the
+                               count reaches 2^24 */
     bool recover;         /**< a step flagged NUMERIC set initialised false: the next usable accel sample
                                re-initialises roll and pitch, the yaw kept, P restarted */
     uint32_t steps;       /**< steps taken since init/reset (wraps) */
     uint32_t flags;       /**< flags of the last step */
     uint32_t rec_left;    /**< steps left of the recovery after a clipping gyro (0 = none) */
-    uint32_t rec_lp_n;    /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
+    uint32_t rec_lp_n;    /**< accel low-pass updates computed since the last clipping gyro sample or the
+                               start or re-initialisation, counted in a recovery and while lp_mean
+                               (att_i_recovery_lp_gain) */
     bool initialised;     /**< euler holds a valid attitude */
 } att_ekf_state_t;
 

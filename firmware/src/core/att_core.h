@@ -869,7 +869,7 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
  * frame the gyro carries, so their running mean is the estimate an unknown attitude calls for (a Kalman
  * filter's gain without a prior), where a fast exponential window would keep forgetting the early ones.
  * *n counts only updates within one recovery, so it stays at most the rec_n of the settings it began
- * with (<= 2^24: its float is exact).
+ * with (<= 2^24: its float is exact), or within the ekf's mean after its start, which ends at 2^24.
  */
 static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t *n, float k_lp)
 {

@@ -273,7 +273,7 @@ def recovery_step(
 
 
 def recovery_lp_gain(n: Any, k_lp: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
-    """att_i_recovery_lp_gain: the low-pass gain of a recovery's update and the count after it.
+    """att_i_recovery_lp_gain: the low-pass gain of a running mean's update and the count after it.
 
     1 / (n + 1) after n earlier updates since the last clipping sample or the start (n: rec_lp_n; 1
     after the start, whose sample the stages start from), at least k_lp (the floor: the stages' own gain,

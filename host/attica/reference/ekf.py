@@ -195,6 +195,10 @@ def _condition(p: list[Any], p_max: Any, pb_max: Any) -> tuple[list[Any], Any]:
         return out, capped | ~ok
 
 
+MEAN_N_MAX = np.uint32(0x1000000)
+"""ATT_EKF_MEAN_N_MAX: the start's running mean ends at this count at the latest."""
+
+
 class Ekf:
     """Euler EKF reference: ``n`` independent instances sharing one settings object.
 
@@ -457,7 +461,8 @@ class Ekf:
         ``discarded``: computed but not usable (C updates P in place: P restarts, att_ekf_p_restart).
 
         ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction;
-        ``k_lp`` the low-pass gain of this update (the recovery's, att_i_recovery_lp_gain, where ``rec``).
+        ``k_lp`` the low-pass gain of this update (the running mean's, att_i_recovery_lp_gain, in a
+        recovery and after the start).
         """
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -648,7 +653,7 @@ class Ekf:
             # the low-pass count of the mean: up by one where the update ran the stages
             lp_ran = measure & (self.k_lp > dm.ZERO)
             self.rec_lp_n = np.where(lp_ran & mean, lp_n1, self.rec_lp_n).astype(np.uint32)
-            keep_mean = self.lp_mean & self.lp_ready & (k_mean > self.k_lp)
+            keep_mean = self.lp_mean & self.lp_ready & (k_mean > self.k_lp) & (lp_n1 < MEAN_N_MAX)
             self.lp_mean = np.where(lp_ran, keep_mean, self.lp_mean)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied

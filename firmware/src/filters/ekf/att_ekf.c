@@ -770,9 +770,14 @@ static ATT_ALWAYS_INLINE void att_ekf_gain(att_ekf_state_t *st, const att_ekf_in
     db3[2] = (kb0[2] * v->yb0 + kb1[2] * v->yb1) * v->fb;
 }
 
+/* The start's running mean ends at this count at the latest (its float exact; a k_lp below 2^-24). */
+#define ATT_EKF_MEAN_N_MAX 0x1000000u
+
 /*
  * The low-pass stages' step with sample vv: during a recovery and after the start (lp_mean) at the gain
- * of the running mean (att_i_recovery_lp_gain, down to k_lp, where the start's mean ends), else k_lp.
+ * of the running mean (att_i_recovery_lp_gain, down to k_lp, where the start's mean ends, or at
+ * ATT_EKF_MEAN_N_MAX updates), else k_lp. The count is of the updates computed: a sample the gate then
+ * rejects (on outside a recovery) counts without entering the stages.
  */
 static ATT_ALWAYS_INLINE void att_ekf_lowpass(const att_ekf_coeffs_t *c, att_ekf_state_t *st, att_vec3_t vv,
                                               att_vec3_t *lp1, att_vec3_t *lp2)
@@ -780,7 +785,7 @@ static ATT_ALWAYS_INLINE void att_ekf_lowpass(const att_ekf_coeffs_t *c, att_ekf
     float k = c->k_lp;
     if (st->rec_left > 0u || st->lp_mean) {
         k = att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp);
-        st->lp_mean = st->lp_mean && k > c->k_lp;
+        st->lp_mean = st->lp_mean && k > c->k_lp && st->rec_lp_n < ATT_EKF_MEAN_N_MAX;
     }
     att_i_lowpass2(vv, k, lp1, lp2);
 }
