@@ -33,31 +33,21 @@ from attica import metrics, native
 from attica.crosscheck import Stream, crosscheck
 from attica.evaluate.suite import condition
 from attica.reference.filter import Filter as RefFilter
-from attica.settings import ArsSettings, EkfSettings, FilterKind, KfSettings, MarsSettings, MekfSettings
+from attica.settings import SETTINGS_CLASS, FilterKind, make_settings
 from attica.sim import SimConfig, simulate, simulate_with_truth
 
 from helpers import assert_same_bits
 
-SETTINGS: dict[FilterKind, Any] = {
-    FilterKind.ARS: ArsSettings,
-    FilterKind.KF: KfSettings,
-    FilterKind.MARS: MarsSettings,
-    FilterKind.MEKF: MekfSettings,
-}
-KINDS = list(SETTINGS)
+KINDS = [FilterKind.ARS, FilterKind.KF, FilterKind.MARS, FilterKind.MEKF]
+"""The kinds whose start is a recovery."""
 IDS = [k.name.lower() for k in KINDS]
 MEAN_KINDS = [*KINDS, FilterKind.EKF]
 """The kinds whose stages take the running mean from the start (the ekf's start is not a recovery)."""
 MEAN_IDS = [k.name.lower() for k in MEAN_KINDS]
 
 
-def _settings_any(kind: FilterKind, **over: Any) -> Any:
-    cls = SETTINGS.get(kind, EkfSettings)
-    return replace(cls(dt=1.0 / RATE, gyro_range=CLIP), **over)
-
-
 def _settings(kind: FilterKind, **over: Any) -> Any:
-    return _settings_any(kind, **over)
+    return make_settings(kind, dt=1.0 / RATE, gyro_range=CLIP, **over)
 
 
 def _st(f: native.Filter, kind: FilterKind) -> Any:
@@ -148,7 +138,7 @@ def test_a_vibrating_start_settles_in_the_first_second(kind: FilterKind) -> None
     for seed in (1, 2, 3):
         rec, _ = simulate_with_truth(cond.config(seed, 12.0))
         assert rec.quat_true is not None
-        s = SETTINGS.get(kind, EkfSettings)(dt=1.0 / rec.rate)
+        s = SETTINGS_CLASS[kind](dt=1.0 / rec.rate)
         out = native.Filter(kind, s).run(rec.gyr, rec.acc, rec.mag, check_units=False)
         _, _, incl = metrics.error_angles(np.asarray(out["q"], np.float64), rec.quat_true)
         err = np.degrees(incl)
@@ -218,7 +208,7 @@ def test_the_ekf_mean_ends_at_2_to_the_24_updates() -> None:
     """A k_lp below 2^-24 (tau_acc_lp 1e4 s at 10 kHz): the mean ends at the count 2^24 (its float exact,
     never wrapping), C and reference alike; the state is set near the end rather than run there."""
     kind = FilterKind.EKF
-    s = replace(EkfSettings(dt=1e-4, gyro_range=CLIP), tau_acc_lp=1e4)
+    s = make_settings(kind, dt=1e-4, gyro_range=CLIP, tau_acc_lp=1e4)
     r = _vibrating(6)
     c = native.Filter(kind, s)
     c.run(r.gyr[:10], r.acc[:10], r.mag[:10], check_units=False)
