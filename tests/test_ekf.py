@@ -234,8 +234,8 @@ def test_noise_rates_extremes_are_safe() -> None:
     5 % of the accel samples scaled by 0.01 .. 1e4: the state stays finite with positive variances. NUMERIC
     (det S overflowing for an outlier with r_accel 1e6, or 1 / det S for noises near 1e-20, as with the
     per-step noises) comes in the clean stream only with q = r = 1e-20 and at one corner (below), as
-    single steps, each followed by the re-initialisation from the next accel sample. (An earlier form, "never in the last 100 steps",
-    held by chance: at dt 1 s, q = r = 1e-20, p0 = p0_bias = 1e6 such steps came every 4-8 steps in bursts
+    single steps, each followed by the re-initialisation from the next accel sample. (An earlier form,
+    "never in the last 100 steps", held by chance: at dt 1 s, q = r = 1e-20, p0 = p0_bias = 1e6 such steps came every 4-8 steps in bursts
     (868-934, 1302-1333 of 2000) before the F15 fix and 1958-1995 after it. Until session 5 of issue 23
     only q = r = 1e-20 gave them here; since the start's low-pass takes the running mean (its first update
     at the gain 1/2 instead of 0.4 at dt 1 s), one also comes at step 161 with q = 1e6, q_bias = 1e-20,
