@@ -227,21 +227,20 @@ def test_noise_rates_scale_the_coefficients() -> None:
 
 def test_noise_rates_extremes_are_safe() -> None:
     """Issue 26 R3: with noise_rates the per-step noises q_* dt and r_* / dt are no longer range-checked
-    (att_ekf.h states the ranges of the q_*, r_* and dt only: q_phi 1e-20 at dt 0.01 was refused). Over
-    those ranges they lie in [1e-26, 1e6] and [1e-20, 1e12], normal floats, and the steady state of P,
-    about sqrt(q r) for the rates as for the per-step values, does not depend on dt. Every corner of dt,
-    the process and measurement noises and p0, p0_bias, r_accel and the gate, on 2000 steps of motion with
-    5 % of the accel samples scaled by 0.01 .. 1e4: the state stays finite with positive variances. NUMERIC
-    (det S overflowing for an outlier with r_accel 1e6, or 1 / det S for noises near 1e-20, as with the
-    per-step noises) comes in the clean stream only with q = r = 1e-20 and at one corner (below), as
-    single steps, each followed by the re-initialisation from the next accel sample. (An earlier form,
-    "never in the last 100 steps", held by chance: at dt 1 s, q = r = 1e-20, p0 = p0_bias = 1e6 such steps came every 4-8 steps in bursts
-    (868-934, 1302-1333 of 2000) before the F15 fix and 1958-1995 after it. Until session 5 of issue 23
-    only q = r = 1e-20 gave them here; since the start's low-pass takes the running mean (its first update
-    at the gain 1/2 instead of 0.4 at dt 1 s), one also comes at step 161 with q = 1e6, q_bias = 1e-20,
-    r = 1e-20, dt 1 s, p0 = p0_bias = 1e6, r_accel 1e6, the gate 8, tau_acc_lp 1.5 s: the roll and pitch
-    variances at 1e-20-1e-18 against a heading variance of 1e6, a spread of 26 orders that float32 cannot
-    carry.)"""
+    (att_ekf.h states the ranges of the q_*, r_* and dt only: q_phi 1e-20 at dt 0.01 was refused). Over those
+    ranges they lie in [1e-26, 1e6] and [1e-20, 1e12], normal floats, and the steady state of P, about sqrt(q
+    r) for the rates as for the per-step values, does not depend on dt. Every corner of dt, the process and
+    measurement noises and p0, p0_bias, r_accel and the gate, on 2000 steps of motion with 5 % of the accel
+    samples scaled by 0.01 .. 1e4: the state stays finite with positive variances. NUMERIC (det S overflowing
+    for an outlier with r_accel 1e6, or 1 / det S for noises near 1e-20, as with the per-step noises) comes in
+    the clean stream only with q = r = 1e-20 and at one corner (below), as single steps, each followed by the
+    re-initialisation from the next accel sample. (An earlier form, "never in the last 100 steps", held by
+    chance: at dt 1 s, q = r = 1e-20, p0 = p0_bias = 1e6 such steps came every 4-8 steps in bursts (868-934,
+    1302-1333 of 2000) before the F15 fix and 1958-1995 after it. Until session 5 of issue 23 only q = r =
+    1e-20 gave them here; since the start's low-pass takes the running mean (its first update at the gain 1/2
+    instead of 0.4 at dt 1 s), one also comes at step 161 with q = 1e6, q_bias = 1e-20, r = 1e-20, dt 1 s, p0
+    = p0_bias = 1e6, r_accel 1e6, the gate 8, tau_acc_lp 1.5 s: the roll and pitch variances at 1e-20-1e-18
+    against a heading variance of 1e6, a spread of 26 orders that float32 cannot carry.)"""
     keys = ("dt", "q", "q_bias", "r", "p0", "p0_bias", "r_accel", "gate", "tau_acc_lp")
     vals = ((1e-6, 1.0), (1e-20, 1e6), (1e-20, 1e6), (1e-20, 1e6), (1e-6, 1e6), (1e-20, 1e6), (0.0, 1e6),
             (0.0, 8.0), (0.0, 1.5))  # fmt: skip
