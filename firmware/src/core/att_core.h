@@ -858,6 +858,17 @@ static ATT_ALWAYS_INLINE bool att_i_recovery_step(att_vec3_t g, float clip, uint
 }
 
 /**
+ * The start from the sensors as a recovery (ars, kf, mars, mekf): rec_n steps of it, counted down from
+ * the next step, and the stages' running mean with the start's sample, from which they start, as its
+ * first update (*lp_n = 1, att_i_recovery_lp_gain).
+ */
+static ATT_ALWAYS_INLINE void att_i_recovery_start(uint32_t rec_n, uint32_t *left, uint32_t *lp_n)
+{
+    *left = rec_n;
+    *lp_n = 1u;
+}
+
+/**
  * The accel low-pass stages' gain for an update during a recovery: 1 / (n + 1) after n earlier updates
  * since the last clipping gyro sample or the start (n = *n, the state's rec_lp_n: 0 after a clipping
  * sample, 1 after the start, whose sample the stages start from; counted up here), until that falls to

@@ -272,6 +272,16 @@ def recovery_step(
     return np.where(run, nxt, left).astype(np.uint32), ended, lp_n_new
 
 
+def recovery_start(
+    start: Any, rec_n: Any, left: Any, lp_n: Any
+) -> tuple[NDArray[np.uint32], NDArray[np.uint32]]:
+    """att_i_recovery_start where ``start``: the recovery counter at rec_n, the stages' count at 1."""
+    return (
+        np.where(start, rec_n, left).astype(np.uint32),
+        np.where(start, np.uint32(1), lp_n).astype(np.uint32),
+    )
+
+
 def recovery_lp_gain(n: Any, k_lp: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
     """att_i_recovery_lp_gain: the low-pass gain of a running mean's update and the count after it.
 

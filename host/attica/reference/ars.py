@@ -19,6 +19,7 @@ from attica.reference._common import (
     cov_tilt_now,
     recovery_lp_gain,
     recovery_params,
+    recovery_start,
     recovery_step,
     run_steps,
     setting,
@@ -336,8 +337,7 @@ class Ars:
             self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp1, lp1_c))
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(keep, self.lp2, lp2_c))
         # the start is a recovery: the stages' running mean from its sample on, the strong correction
-        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
-        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
+        self.rec_left, self.rec_lp_n = recovery_start(init_now, self.rec_n, self.rec_left, self.rec_lp_n)
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         # the covariance's last accepted correction: the start, or a correction that was applied

@@ -18,6 +18,7 @@ from attica.reference._common import (
     recovery_lp_gain,
     recovery_params,
     recovery_q,
+    recovery_start,
     recovery_step,
     run_steps,
     setting,
@@ -279,8 +280,7 @@ class Kf:
             self.lp1 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp1n, self.lp1))
             self.lp2 = dm.vec3_where(init_now, lp_init, dm.vec3_where(lp_upd, lp2n, self.lp2))
         # the start is a recovery: the stages' running mean from its sample on, the recovery noise
-        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
-        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
+        self.rec_left, self.rec_lp_n = recovery_start(init_now, self.rec_n, self.rec_left, self.rec_lp_n)
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)

@@ -22,6 +22,7 @@ from attica.reference._common import (
     cov_tilt_now,
     recovery_lp_gain,
     recovery_params,
+    recovery_start,
     recovery_step,
     run_steps,
     setting,
@@ -574,8 +575,7 @@ class Mars:
         flags = flags | np.where(learn, _u(Flag.BIAS_UPDATED), _U0)
         self._ref_count(count, use_corr & ~gated, use_corr & gated, mnorm, me[2])
         # the start is a recovery: the stages' running mean from its sample on, the strong correction
-        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
-        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
+        self.rec_left, self.rec_lp_n = recovery_start(init_now, self.rec_n, self.rec_left, self.rec_lp_n)
         self.rec_clip = self.rec_clip & ~init_now
         self.initialised = self.initialised | init_now
         self.steps = self.steps + np.uint32(1)

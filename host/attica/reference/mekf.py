@@ -28,6 +28,7 @@ from attica.reference._common import (
     recovery_lp_gain,
     recovery_params,
     recovery_q,
+    recovery_start,
     recovery_step,
     run_steps,
     setting,
@@ -591,8 +592,7 @@ class Mekf:
         self.lp_valid = self.lp_valid | init_now | (run & wk.lp_valid)
         mg.commit_m0(self, init_mag, start.parts)
         # the start is a recovery too (att_mekf_start)
-        self.rec_left = np.where(init_now, self.rec_n, self.rec_left).astype(np.uint32)
-        self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
+        self.rec_left, self.rec_lp_n = recovery_start(init_now, self.rec_n, self.rec_left, self.rec_lp_n)
         self.rec_clip = self.rec_clip & ~init_now
         self.initialised = self.initialised | init_now
 

@@ -217,8 +217,7 @@ static ATT_NOINLINE void att_ars_start(const att_ars_coeffs_t *c, att_ars_state_
     (void)att_i_quat_normalize_bounded(q, &st->q);
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
-    st->rec_left = c->rec_n;
-    st->rec_lp_n = 1u;
+    att_i_recovery_start(c->rec_n, &st->rec_left, &st->rec_lp_n);
     st->initialised = true;
 }
 

@@ -151,8 +151,7 @@ static ATT_NOINLINE void att_kf_start(const att_kf_coeffs_t *c, att_kf_state_t *
     (void)att_i_quat_normalize_bounded(att_quat_from_euler(t.x, t.y, 0.0f), &st->q);
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
-    st->rec_left = c->rec_n;
-    st->rec_lp_n = 1u;
+    att_i_recovery_start(c->rec_n, &st->rec_left, &st->rec_lp_n);
     st->initialised = true;
 }
 

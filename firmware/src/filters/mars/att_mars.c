@@ -524,8 +524,7 @@ static ATT_NOINLINE uint32_t att_mars_start(att_mars_t *f, const att_vec3_t *acc
     }
     st->lp1 = att_i_quat_rotate(st->q, *acc);
     st->lp2 = st->lp1;
-    st->rec_left = f->c.rec_n; /* a recovery: the stages' running mean (the sample its first update) */
-    st->rec_lp_n = 1u;
+    att_i_recovery_start(f->c.rec_n, &st->rec_left, &st->rec_lp_n);
     st->rec_clip = false;
     st->initialised = true;
     st->acc_step = st->steps;

@@ -433,8 +433,7 @@ static ATT_NOINLINE uint32_t att_mekf_start(const att_mekf_coeffs_t *c, att_mekf
     st->lp2 = st->lp1;
     st->lp_valid = true;
     st->initialised = true;
-    st->rec_left = c->rec_n; /* the start is a recovery too (att_mekf.h, step 6) */
-    st->rec_lp_n = 1u;      /* the stages' running mean starts from the sample */
+    att_i_recovery_start(c->rec_n, &st->rec_left, &st->rec_lp_n); /* att_mekf.h, step 6 */
     st->rec_clip = false;
     return flags;
 }
