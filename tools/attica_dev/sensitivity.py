@@ -1,0 +1,283 @@
+"""How one setting moves a method: on the suite's conditions and on BROAD, in sample and left out (issue 23).
+
+``python -m attica_dev.sensitivity mekf6 tau_acc_lp 1.25,1.45,1.6`` runs the method (a kind or a variant
+of ``attica eval``) once per value of the setting, every other setting on its default, and prints
+
+- per value its score on each suite condition chosen (``--conditions``; every condition by default):
+  the mean over ``--seeds`` seeds of the RMSE after the condition's ``score_from``, inclination for a
+  6-axis method and total for a 9-axis one, exactly as ``attica eval --suite`` scores it, with VQF's
+  figure of the same axes beside it (``--no-peer`` leaves VQF out);
+- with ``--data`` (a directory of BROAD trials) its mean score on them (in sample), and the
+  leave-one-trial-out figure of choosing the value on the data: for each trial the value with the lowest
+  mean on the other trials, scored on that trial (:func:`leave_one_out`), with how often each value
+  was chosen.
+
+docs/accuracy.md ("What the defaults trade") quotes its output: the settings that would close the suite's
+last gaps to VQF cost elsewhere, in the suite or on BROAD. A table takes a few seconds per value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from attica.evaluate import load_trials
+from attica.evaluate.core import VARIANTS, Method, attica_method, run_methods
+from attica.evaluate.estimate import as_estimate
+from attica.evaluate.suite import CONDITIONS, Condition, condition, suite_methods
+from attica.metrics import evaluate
+from attica.settings import SETTINGS_CLASS, FilterKind
+from attica.sim import simulate_with_truth
+
+PEER = {False: "vqf6", True: "vqf9"}
+"""The peer printed beside a method, by its axes (False: 6-axis)."""
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    """The scores of one method over the values of one setting.
+
+    Attributes
+    ----------
+    method : str
+        The kind or variant.
+    setting : str
+        The setting varied.
+    values : tuple
+        Its values, in the order given.
+    suite : dict of str to list of float
+        Per condition the score of each value (deg), and under ``"<peer>"`` keys the peer's score.
+    broad : ndarray or None
+        Per value (rows) and trial (columns) the BROAD score (deg), when trials were given.
+    trials : tuple of str
+        The trials' names (columns of ``broad``).
+
+    """
+
+    method: str
+    setting: str
+    values: tuple[Any, ...]
+    suite: dict[str, list[float]]
+    broad: NDArray[np.float64] | None = None
+    trials: tuple[str, ...] = ()
+
+
+def _kind_of(method: str) -> FilterKind:
+    """The kind of a kind or variant name; ValueError listing the variants otherwise."""
+    if method in VARIANTS:
+        return VARIANTS[method][0]
+    try:
+        return FilterKind.parse(method)
+    except ValueError as exc:
+        raise ValueError(f"{exc} (or a variant: {', '.join(VARIANTS)})") from None
+
+
+def parse_values(method: str, setting: str, text: str) -> tuple[Any, ...]:
+    """The values of ``setting`` of ``method``'s settings from ``a,b,c``, typed as its default.
+
+    Raises
+    ------
+    ValueError
+        For a setting the kind does not have, one that is not a number or a flag, or an unreadable value.
+
+    """
+    cls = SETTINGS_CLASS[_kind_of(method)]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    if setting not in fields:
+        raise ValueError(f"{method} has no setting {setting!r}; its settings: {', '.join(fields)}")
+    default = getattr(cls(), setting)
+    out: list[Any] = []
+    for word in (w.strip() for w in text.split(",")):
+        try:
+            if isinstance(default, bool):
+                if word.lower() not in ("true", "false", "1", "0"):
+                    raise ValueError(word)
+                out.append(word.lower() in ("true", "1"))
+            elif isinstance(default, int) and not hasattr(default, "name"):
+                out.append(int(word))
+            elif isinstance(default, float):
+                out.append(float(word))
+            else:
+                raise ValueError(f"{setting} is not a number or a flag (its default: {default!r})")
+        except ValueError as exc:
+            raise ValueError(
+                f"{setting}: cannot read {word!r} as its type ({type(default).__name__}): {exc}"
+            ) from None
+    if not out or len(set(out)) != len(out):
+        raise ValueError(f"{setting}: give distinct values, got {text!r}")
+    return tuple(out)
+
+
+def _method(method: str, setting: str, value: Any, extra: dict[str, Any] | None = None) -> Method:
+    over = {setting: value, **(extra or {})}
+    if method in VARIANTS:
+        return attica_method(VARIANTS[method][0], overrides=over, variant=method)
+    return attica_method(FilterKind.parse(method), overrides=over)
+
+
+def suite_scores(
+    method: str,
+    setting: str,
+    values: Sequence[Any],
+    conditions: Sequence[Condition],
+    seeds: Sequence[int],
+    peer: bool,
+) -> dict[str, list[float]]:
+    """Per condition the suite's score of each value (and the peer's under ``"<peer>" + condition``)."""
+    nine = _method(method, setting, values[0]).nine_axis
+    metric = "total" if nine else "inclination"
+    out: dict[str, list[float]] = {}
+    for cond in conditions:
+        over = {"gyro_range": cond.gyro_range} if cond.gyro_range > 0 else None
+        methods = [_method(method, setting, v, over) for v in values]
+        if peer:
+            methods += suite_methods([], [PEER[nine]], cond.gyro_range)
+        acc = np.zeros((len(methods), len(seeds)))
+        for j, seed in enumerate(seeds):
+            rec, _ = simulate_with_truth(cond.config(seed, None))
+            assert rec.quat_true is not None
+            scored = rec.t >= cond.score_from
+            for i, m in enumerate(methods):
+                est = as_estimate(m.outcome(rec), len(rec), m.name)
+                mask = scored if est.scored is None else scored & np.asarray(est.scored, np.bool_)
+                acc[i, j] = getattr(evaluate(est.q, rec.quat_true, mask), metric)
+        means = acc.mean(axis=1).tolist()
+        out[cond.name] = means[: len(values)]
+        if peer:
+            out["<peer>" + cond.name] = means[len(values) :]
+    return out
+
+
+def leave_one_out(scores: NDArray[np.float64]) -> tuple[float, list[int]]:
+    """Leave-one-trial-out of choosing a value: per trial the row best on the others, scored on it.
+
+    Parameters
+    ----------
+    scores : ndarray, shape (values, trials)
+        Per value and trial the score (lower is better).
+
+    Returns
+    -------
+    mean : float
+        The mean over trials of the held-out scores.
+    picks : list of int
+        Per trial the row chosen without it (the first of equal means).
+
+    Raises
+    ------
+    ValueError
+        With fewer than two trials.
+
+    """
+    s = np.asarray(scores, np.float64)
+    if s.ndim != 2 or s.shape[1] < 2:
+        raise ValueError(f"leave-one-out needs a (values, trials) array with 2+ trials, got shape {s.shape}")
+    total = s.sum(axis=1)
+    picks = [int(np.argmin(total - s[:, j])) for j in range(s.shape[1])]
+    return float(np.mean([s[p, j] for j, p in enumerate(picks)])), picks
+
+
+def broad_scores(
+    method: str, setting: str, values: Sequence[Any], data: Path, jobs: int
+) -> tuple[NDArray[np.float64], tuple[str, ...]]:
+    """Per value and trial the BROAD score of the method (its score metric) on the trials in ``data``."""
+    recs = load_trials(data)
+    methods = [
+        dataclasses.replace(_method(method, setting, v), name=f"{method}#{i}") for i, v in enumerate(values)
+    ]
+    report = run_methods(methods, recs, progress=False, jobs=jobs)
+    rows = [r.values(r.method.score_metric) for r in report.results]
+    return np.asarray(rows, np.float64), tuple(r.name for r in recs)
+
+
+def measure(
+    method: str,
+    setting: str,
+    values: Sequence[Any],
+    conditions: Sequence[Condition] = CONDITIONS,
+    seeds: Sequence[int] = range(1, 11),
+    data: Path | None = None,
+    jobs: int = 1,
+    peer: bool = True,
+) -> Sensitivity:
+    """The scores of ``method`` for each value of ``setting`` (suite conditions; BROAD with ``data``)."""
+    suite = suite_scores(method, setting, values, conditions, seeds, peer)
+    broad, trials = (None, ()) if data is None else broad_scores(method, setting, values, data, jobs)
+    return Sensitivity(method, setting, tuple(values), suite, broad, trials)
+
+
+def format_table(s: Sensitivity) -> str:
+    """The printed table: a row per value, a column per condition (and BROAD), the peer's row last."""
+    conds = [c for c in s.suite if not c.startswith("<peer>")]
+    head = f"{s.setting:>16s}" + "".join(f"{c[:13]:>14s}" for c in conds)
+    if s.broad is not None:
+        head += f"{'BROAD':>10s}"
+    lines = [head]
+    for i, v in enumerate(s.values):
+        row = f"{v!s:>16s}" + "".join(f"{s.suite[c][i]:14.3f}" for c in conds)
+        if s.broad is not None:
+            row += f"{s.broad[i].mean():10.4f}"
+        lines.append(row)
+    if any(c.startswith("<peer>") for c in s.suite):
+        lines.append(f"{'VQF':>16s}" + "".join(f"{s.suite['<peer>' + c][0]:14.3f}" for c in conds))
+    if s.broad is not None and s.broad.shape[1] >= 2:
+        mean, picks = leave_one_out(s.broad)
+        counts = ", ".join(f"{s.values[i]} x{picks.count(i)}" for i in sorted(set(picks)))
+        lines.append(f"BROAD leave-one-trial-out of choosing {s.setting}: {mean:.4f} (chosen: {counts})")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    ap.add_argument("method", help="a kind or variant (ars, mekf6, mars ...)")
+    ap.add_argument("setting", help="the setting to vary (a field of the kind's settings)")
+    ap.add_argument("values", help="comma-separated values")
+    ap.add_argument("--conditions", default="", help="comma-separated suite conditions (default: all)")
+    ap.add_argument("--seeds", type=int, default=10, help="seeds 1 .. N (default 10, as the suite)")
+    ap.add_argument("--data", type=Path, default=None, help="a directory of BROAD trials")
+    ap.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for the BROAD trials")
+    ap.add_argument("--no-peer", action="store_true", help="leave VQF out")
+    args = ap.parse_args(argv)
+    try:
+        values = parse_values(args.method, args.setting, args.values)
+        conds = (
+            [condition(c.strip()) for c in args.conditions.split(",")]
+            if args.conditions
+            else list(CONDITIONS)
+        )
+    except (ValueError, KeyError) as exc:
+        ap.error(str(exc).strip("'\""))
+    if args.seeds < 1:
+        ap.error(f"--seeds must be at least 1, got {args.seeds}")
+    if args.data is not None and not args.data.exists():
+        ap.error(f"--data {args.data}: no such file or directory")
+    t0 = time.perf_counter()
+    s = measure(
+        args.method,
+        args.setting,
+        values,
+        conds,
+        range(1, args.seeds + 1),
+        args.data,
+        args.jobs,
+        not args.no_peer,
+    )
+    print(
+        f"{s.method}: mean of {args.seeds} seeds per condition (6-axis: inclination, 9-axis: total RMSE, deg)"
+    )
+    print(format_table(s))
+    print(f"({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
