@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from attica.evaluate import load_trials
 from attica.evaluate.suite import condition, run_case
 from attica_dev import sensitivity
 
@@ -17,38 +18,54 @@ DOC = Path(__file__).resolve().parent.parent / "docs" / "accuracy.md"
 
 
 def test_leave_one_out_by_hand() -> None:
-    # rows: values, columns: trials. Without trial 0 the row means are (2, 3, 1.5) -> row 2 (scores 9);
-    # without trial 1: (1, 2, 5) -> row 0 (scores 3); without trial 2: (2, 2.5, 5) -> row 0 (scores 1).
+    # rows: values, columns: trials. Without trial 0 the row means are (2, 2.5, 1.5): row 2, which scores
+    # 9 on trial 0; without trial 1 (0.5, 2, 5.5): row 0, scoring 3; without trial 2 (1.5, 1.5, 5): a tie
+    # of rows 0 and 1, the first taken, scoring 1.
     s = np.array([[0.0, 3.0, 1.0], [1.0, 2.0, 3.0], [9.0, 1.0, 2.0]])
     mean, picks = sensitivity.leave_one_out(s)
     assert picks == [2, 0, 0]
     assert mean == pytest.approx((9.0 + 3.0 + 1.0) / 3)
     with pytest.raises(ValueError, match="2\\+ trials"):
         sensitivity.leave_one_out(np.ones((3, 1)))
+    s[1, 2] = np.nan
+    with pytest.raises(ValueError, match="non-finite scores for value rows \\[1\\]"):
+        sensitivity.leave_one_out(s)
 
 
 def test_parse_values() -> None:
-    assert sensitivity.parse_values("mekf6", "tau_acc_lp", "1.25, 1.45") == (1.25, 1.45)
-    assert sensitivity.parse_values("ars", "bias_n_max", "10,20") == (10, 20)
-    assert sensitivity.parse_values("mekf", "use_mag", "true,0") == (True, False)
-    with pytest.raises(ValueError, match="has no setting 'tau_mag'"):
-        sensitivity.parse_values("mekf", "tau_mag", "1")
-    with pytest.raises(ValueError, match="cannot read 'x'"):
-        sensitivity.parse_values("mars", "tau_mag", "10,x")
-    with pytest.raises(ValueError, match="distinct"):
-        sensitivity.parse_values("mars", "tau_mag", "10,10")
-    with pytest.raises(ValueError, match="not a number or a flag"):
-        sensitivity.parse_values("mars", "q_init", "1")
-    with pytest.raises(ValueError, match="unknown filter"):
-        sensitivity.parse_values("nope", "tau_mag", "1")
+    for method, field, text, want in (
+        ("mekf6", "tau_acc_lp", "1.25, 1.45", (1.25, 1.45)),
+        ("ars", "bias_n_max", "10,20", (10, 20)),
+        ("ars", "init_from_accel", "true,0", (True, False)),
+    ):
+        got = sensitivity.parse_values(method, field, text)
+        assert got == want
+        assert [type(v) for v in got] == [type(v) for v in want], f"{field}: typed as its default"
+    for method, field, text, msg in (
+        ("mekf", "tau_mag", "1", "has no setting 'tau_mag'"),
+        ("mars", "tau_mag", "10,x", "cannot read 'x' as a float"),
+        ("ars", "bias_n_max", "1.5", "cannot read '1.5' as a int"),
+        ("ars", "init_from_accel", "yes", "cannot read 'yes' as a bool"),
+        ("mars", "tau_mag", "10,10", "distinct"),
+        ("mars", "q_init", "1", "not a number or a flag"),
+        ("mars", "integration", "1", "not a number or a flag"),
+        ("mekf", "use_mag", "true,false", "switches the magnetometer"),
+        ("ars", "gyro_range", "5,10", "gyro_range is the sensor's"),
+        ("nope", "tau_mag", "1", "unknown filter"),
+    ):
+        with pytest.raises(ValueError, match=msg):
+            sensitivity.parse_values(method, field, text)
 
 
-def test_cli_errors(capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     for argv, msg in (
         (["mars", "gain", "1"], "has no setting 'gain'"),
-        (["mars", "tau_mag", "10", "--conditions", "nowhere"], "unknown condition 'nowhere'"),
+        (["mars", "tau_mag", "10,10"], "give distinct values, got '10,10'"),
+        (["mars", "tau_mag", "10", "--conditions", "nowhere"], "unknown condition 'nowhere'; conditions: "),
         (["mars", "tau_mag", "10", "--seeds", "0"], "--seeds must be at least 1"),
+        (["mars", "tau_mag", "10", "-j", "0"], "--jobs must be at least 1"),
         (["mars", "tau_mag", "10", "--data", "/no/such/dir"], "no such file or directory"),
+        (["mars", "tau_mag", "10", "--data", str(tmp_path)], "no recordings"),
     ):
         with pytest.raises(SystemExit) as exc:
             sensitivity.main(argv)
@@ -56,17 +73,25 @@ def test_cli_errors(capsys: pytest.CaptureFixture[str]) -> None:
         assert msg in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(("method", "peer"), [("ars", "vqf6"), ("mars", "vqf9")])
-def test_scores_are_the_suites(method: str, peer: str) -> None:
-    """The default's row and the peer's are ``attica eval --suite``'s figures of that case."""
-    cond = condition("consumer")
-    field, values = ("gain", (1.0, 0.5)) if method == "ars" else ("tau_mag", (20.0, 10.0))
-    s = sensitivity.measure(method, field, values, [cond], [3])
-    case = run_case(cond, 3, [method], [peer])
-    metric = "inclination" if method == "ars" else "total"
-    assert s.suite["consumer"][0] == getattr(case.errors[method], metric)
-    assert s.suite["<peer>consumer"][0] == getattr(case.errors[peer], metric)
-    assert s.suite["consumer"][1] != s.suite["consumer"][0], "the setting must reach the filter"
+@pytest.mark.parametrize(
+    ("method", "field", "values", "cond"),
+    [
+        ("ars", "gain", (1.0, 0.5), "consumer"),
+        ("mars", "tau_mag", (20.0, 10.0), "consumer"),
+        ("ars", "tau_acc_lp", (1.5, 1.0), "clipped"),
+    ],
+)
+def test_scores_are_the_suites(method: str, field: str, values: tuple[float, float], cond: str) -> None:
+    """The default's row and the peer's are ``attica eval --suite``'s figures of that case (on the
+    clipped condition with the sensor's gyro range given to both, as the suite does)."""
+    c = condition(cond)
+    peer = "vqf9" if method == "mars" else "vqf6"
+    s = sensitivity.measure(method, field, values, [c], [3])
+    case = run_case(c, 3, [method], [peer])
+    metric = "total" if method == "mars" else "inclination"
+    assert s.suite[cond][0] == getattr(case.errors[method], metric)
+    assert s.suite["<peer>" + cond][0] == getattr(case.errors[peer], metric)
+    assert s.suite[cond][1] != s.suite[cond][0], "the setting must reach the filter"
 
 
 def _doc_table(title: str) -> list[list[str]]:
@@ -93,7 +118,8 @@ def test_doc_table(title: str) -> None:
     conds = header[1:-2]
     assert header[-2:] == ["BROAD", "BROAD, left out"]
     values = sensitivity.parse_values(method, field, text)
-    s = sensitivity.measure(method, field, values, [condition(c) for c in conds], range(1, 11), BROAD, jobs=2)
+    recs = load_trials(BROAD)
+    s = sensitivity.measure(method, field, values, [condition(c) for c in conds], range(1, 11), recs, jobs=2)
     assert s.broad is not None
     loo, picks = sensitivity.leave_one_out(s.broad)
     assert len(set(picks)) == 1, "the page says every fold chose the same value"

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import enum
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -29,10 +30,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from attica.data import Recording
 from attica.evaluate import load_trials
 from attica.evaluate.core import VARIANTS, Method, attica_method, run_methods
 from attica.evaluate.estimate import as_estimate
 from attica.evaluate.suite import CONDITIONS, Condition, condition, suite_methods
+from attica.kinds import info
 from attica.metrics import evaluate
 from attica.settings import SETTINGS_CLASS, FilterKind
 from attica.sim import simulate_with_truth
@@ -81,37 +84,58 @@ def _kind_of(method: str) -> FilterKind:
 
 
 def parse_values(method: str, setting: str, text: str) -> tuple[Any, ...]:
-    """The values of ``setting`` of ``method``'s settings from ``a,b,c``, typed as its default.
+    """The values of one setting of a method, typed as the setting's default.
+
+    Parameters
+    ----------
+    method : str
+        A kind or variant (``ars``, ``mekf6`` ...).
+    setting : str
+        A field of the kind's settings that is a number or a flag, and neither the magnetometer switch
+        (it changes the method's axes, so its score) nor ``gyro_range`` (the clipping conditions set it).
+    text : str
+        Distinct comma-separated values (``true``/``false``/``1``/``0`` for a flag).
+
+    Returns
+    -------
+    tuple
+        The values, as float, int or bool like the default.
 
     Raises
     ------
     ValueError
-        For a setting the kind does not have, one that is not a number or a flag, or an unreadable value.
+        For an unknown method or setting, one that cannot be varied here, or an unreadable or repeated
+        value.
 
     """
-    cls = SETTINGS_CLASS[_kind_of(method)]
+    kind = _kind_of(method)
+    cls = SETTINGS_CLASS[kind]
     fields = {f.name: f for f in dataclasses.fields(cls)}
     if setting not in fields:
         raise ValueError(f"{method} has no setting {setting!r}; its settings: {', '.join(fields)}")
+    if setting == info(kind).mag_switch:
+        raise ValueError(f"{setting} switches the magnetometer: compare the 6- and 9-axis methods instead")
+    if setting == "gyro_range":
+        raise ValueError("gyro_range is the sensor's, set by the clipping conditions: it is not varied here")
     default = getattr(cls(), setting)
+    if isinstance(default, enum.Enum) or not isinstance(default, (bool, int, float)):
+        raise ValueError(f"{setting} is not a number or a flag (its default: {default!r})")
     out: list[Any] = []
     for word in (w.strip() for w in text.split(",")):
         try:
             if isinstance(default, bool):
                 if word.lower() not in ("true", "false", "1", "0"):
-                    raise ValueError(word)
+                    raise ValueError("not true, false, 1 or 0")
                 out.append(word.lower() in ("true", "1"))
-            elif isinstance(default, int) and not hasattr(default, "name"):
+            elif isinstance(default, int):
                 out.append(int(word))
-            elif isinstance(default, float):
-                out.append(float(word))
             else:
-                raise ValueError(f"{setting} is not a number or a flag (its default: {default!r})")
+                out.append(float(word))
         except ValueError as exc:
             raise ValueError(
-                f"{setting}: cannot read {word!r} as its type ({type(default).__name__}): {exc}"
+                f"{setting}: cannot read {word!r} as a {type(default).__name__} ({exc})"
             ) from None
-    if not out or len(set(out)) != len(out):
+    if len(set(out)) != len(out):
         raise ValueError(f"{setting}: give distinct values, got {text!r}")
     return tuple(out)
 
@@ -174,28 +198,29 @@ def leave_one_out(scores: NDArray[np.float64]) -> tuple[float, list[int]]:
     Raises
     ------
     ValueError
-        With fewer than two trials.
+        With fewer than two trials, or a score that is NaN or infinite.
 
     """
     s = np.asarray(scores, np.float64)
     if s.ndim != 2 or s.shape[1] < 2:
         raise ValueError(f"leave-one-out needs a (values, trials) array with 2+ trials, got shape {s.shape}")
+    if not np.isfinite(s).all():
+        bad = sorted({int(i) for i in np.argwhere(~np.isfinite(s))[:, 0]})
+        raise ValueError(f"leave-one-out: non-finite scores for value rows {bad}: a method failed on a trial")
     total = s.sum(axis=1)
     picks = [int(np.argmin(total - s[:, j])) for j in range(s.shape[1])]
     return float(np.mean([s[p, j] for j, p in enumerate(picks)])), picks
 
 
 def broad_scores(
-    method: str, setting: str, values: Sequence[Any], data: Path, jobs: int
-) -> tuple[NDArray[np.float64], tuple[str, ...]]:
-    """Per value and trial the BROAD score of the method (its score metric) on the trials in ``data``."""
-    recs = load_trials(data)
+    method: str, setting: str, values: Sequence[Any], recs: Sequence[Recording], jobs: int
+) -> NDArray[np.float64]:
+    """Per value (rows) and trial (columns) the method's BROAD score (its score metric) on ``recs``."""
     methods = [
         dataclasses.replace(_method(method, setting, v), name=f"{method}#{i}") for i, v in enumerate(values)
     ]
     report = run_methods(methods, recs, progress=False, jobs=jobs)
-    rows = [r.values(r.method.score_metric) for r in report.results]
-    return np.asarray(rows, np.float64), tuple(r.name for r in recs)
+    return np.asarray([r.values(r.method.score_metric) for r in report.results], np.float64)
 
 
 def measure(
@@ -204,14 +229,40 @@ def measure(
     values: Sequence[Any],
     conditions: Sequence[Condition] = CONDITIONS,
     seeds: Sequence[int] = range(1, 11),
-    data: Path | None = None,
+    recs: Sequence[Recording] | None = None,
     jobs: int = 1,
     peer: bool = True,
 ) -> Sensitivity:
-    """The scores of ``method`` for each value of ``setting`` (suite conditions; BROAD with ``data``)."""
+    """The scores of ``method`` for each value of ``setting``.
+
+    Parameters
+    ----------
+    method, setting : str
+        The kind or variant and the setting varied (:func:`parse_values`).
+    values : sequence
+        The setting's values.
+    conditions : sequence of Condition
+        The suite's conditions to score on.
+    seeds : sequence of int
+        The seeds of each condition.
+    recs : sequence of Recording, optional
+        BROAD trials (with ground truth) to score on as well.
+    jobs : int
+        Worker processes for the trials.
+    peer : bool
+        Score VQF of the method's axes beside it.
+
+    Returns
+    -------
+    Sensitivity
+        The scores.
+
+    """
     suite = suite_scores(method, setting, values, conditions, seeds, peer)
-    broad, trials = (None, ()) if data is None else broad_scores(method, setting, values, data, jobs)
-    return Sensitivity(method, setting, tuple(values), suite, broad, trials)
+    if not recs:
+        return Sensitivity(method, setting, tuple(values), suite)
+    broad = broad_scores(method, setting, values, recs, jobs)
+    return Sensitivity(method, setting, tuple(values), suite, broad, tuple(r.name for r in recs))
 
 
 def format_table(s: Sensitivity) -> str:
@@ -254,12 +305,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.conditions
             else list(CONDITIONS)
         )
-    except (ValueError, KeyError) as exc:
-        ap.error(str(exc).strip("'\""))
+    except KeyError as exc:
+        ap.error(str(exc.args[0]))
+    except ValueError as exc:
+        ap.error(str(exc))
     if args.seeds < 1:
         ap.error(f"--seeds must be at least 1, got {args.seeds}")
-    if args.data is not None and not args.data.exists():
-        ap.error(f"--data {args.data}: no such file or directory")
+    if args.jobs < 1:
+        ap.error(f"--jobs must be at least 1, got {args.jobs}")
+    recs: list[Recording] = []
+    if args.data is not None:
+        if not args.data.exists():
+            ap.error(f"--data {args.data}: no such file or directory")
+        try:
+            recs = load_trials(args.data)
+        except (ValueError, OSError) as exc:
+            ap.error(f"--data {args.data}: {exc}")
+        if len(recs) < 2:
+            ap.error(f"--data {args.data}: {len(recs)} trial(s); leave-one-trial-out needs at least 2")
     t0 = time.perf_counter()
     s = measure(
         args.method,
@@ -267,7 +330,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         values,
         conds,
         range(1, args.seeds + 1),
-        args.data,
+        recs,
         args.jobs,
         not args.no_peer,
     )
