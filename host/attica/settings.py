@@ -242,7 +242,7 @@ class MekfSettings:
     mag_norm_reject: float = 0.2
     mag_dip_reject: float = 0.5
     tau_acc_lp: float = 1.25
-    rest_noise: float = 1e-3
+    rest_noise: float = 1e-4
     rest_gyro: float = 0.05
     rest_accel: float = 0.5
     rest_time: float = 0.5

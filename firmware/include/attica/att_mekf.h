@@ -125,8 +125,14 @@
  * before the prediction: |w - b|^2 < rest_gyro^2 + min(9 tr(P_bb), ATT_BIAS_UNKNOWN2), the bias
  * estimate's error up to 3 sigma per axis and at most that of the running mean's first rest (att_bias.h;
  * rest_gyro 0: never), and ||a| - g| < rest_accel for rest_time) by the zero-rate
- * pseudo-measurement w = b + noise (r_rest = rest_noise^2 / dt per axis, three scalar updates; its
- * attitude correction through the correlations is applied as the accel update's; ATT_FLAG_AT_REST).
+ * pseudo-measurement w = b + noise (three scalar updates; its attitude correction through the
+ * correlations is applied as the accel update's; ATT_FLAG_AT_REST). Its noise per sample and axis is
+ * measured: the mean square of w - b over the rest (the bias before the step's update, the mean of the
+ * three axes; a running mean from the rest's first update until its gain is 1 / (rest_n + 1), then a
+ * first-order low-pass of that gain (rest_time 0: the sample's own); restarted at each rest and by a
+ * retune), at least r_rest = rest_noise^2 / dt. A true rest
+ * shows the gyro's own noise and pins the bias; a slow turn the detector takes for rest shows its rate
+ * in w - b and is believed no more than its size allows.
  * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt
  * (scale factor and misalignment errors, and the sampling of a rate that changes within a sample).
  * ATT_FLAG_BIAS_UPDATED when an update changed b.
@@ -201,7 +207,8 @@ typedef struct {
     float mag_norm_reject; /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
     float tau_acc_lp;      /**< earth-frame accel low-pass (Butterworth, lag 2 tau_acc_lp), s, [0, 1e4]; 0 = off */
-    float rest_noise;      /**< zero-rate pseudo-measurement noise density at rest, rad/s/sqrt(Hz); [1e-7, 1] */
+    float rest_noise;      /**< least noise density of the zero-rate pseudo-measurement at rest (the measured
+                                one is used when larger), rad/s/sqrt(Hz); [1e-7, 1] */
     float rest_gyro;       /**< at rest when |w - b| < rest_gyro (+ the bias's error), rad/s, [0, gyro_range]; 0 = none ... */
     float rest_accel;      /**< ... and ||a| - g| < rest_accel, m/s^2, [0, gravity] ... */
     float rest_time;       /**< ... for at least rest_time, s, [0, 1e4] */
@@ -255,7 +262,7 @@ typedef struct {
     float mag_dip_reject;  /**< dip deviation limit, rad (0 = never) */
     float k_lp;            /**< per-sample gain of the accel low-pass, dt / (sqrt(2) tau_acc_lp + dt) (0 = off) */
     uint32_t n_recover;    /**< consecutive gate rejections before the recovery (0 = never) */
-    float r_rest;          /**< zero-rate noise per sample and axis, rest_noise^2 / dt, (rad/s)^2 */
+    float r_rest;          /**< least zero-rate noise per sample and axis, rest_noise^2 / dt, (rad/s)^2 */
     float rest_gyro2;      /**< rest_gyro^2, (rad/s)^2 */
     float acc2_lo;         /**< (g - rest_accel)^2, (m/s^2)^2 */
     float acc2_hi;         /**< (g + rest_accel)^2, (m/s^2)^2 */
@@ -301,6 +308,9 @@ typedef struct {
     float dip_hi;          /**< largest accepted sin(dip) (2 = none) */
     uint32_t gated;        /**< consecutive accel gate rejections */
     uint32_t rest_count;   /**< consecutive samples that pass the rest test (saturates at rest_n) */
+    float rest_e2;         /**< measured noise of the zero-rate update: mean square of w - b per axis over
+                                the rest, (rad/s)^2, sensor frame; valid when rest_e2_n > 0 */
+    uint32_t rest_e2_n;    /**< zero-rate updates in rest_e2 (0: none since the rest began; saturates at rest_n) */
     uint32_t steps;        /**< steps taken since init/reset (wraps) */
     uint32_t flags;        /**< flags of the last step */
     uint32_t rec_left;     /**< steps left of the recovery after a clipping gyro or the start (0 = none) */
@@ -332,7 +342,8 @@ att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
  * derived limits recomputed, counters); the new caps apply from the next step; turning the hard-iron
- * estimate on or off (hard_iron_tau, use_mag) starts it again (off: no offset applied). A new declination applies
+ * estimate on or off (hard_iron_tau, use_mag) starts it again (off: no offset applied), and so does the
+ * zero-rate noise's mean (rest_e2: per sample, it depends on dt). A new declination applies
  * from the next yaw alignment (reset): to apply it at once, set the heading to the current one turned by
  * the change: ENU yaw (counter-clockwise) minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is unchanged.
  */

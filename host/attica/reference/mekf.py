@@ -143,6 +143,8 @@ class Mekf:
         "st.dip_hi": "f32",
         "st.gated": "u32",
         "st.rest_count": "u32",
+        "st.rest_e2": "f32",
+        "st.rest_e2_n": "u32",
         "st.steps": "u32",
         "st.flags": "u32",
         "st.rec_left": "u32",
@@ -319,6 +321,8 @@ class Mekf:
         self.dip_hi: Any = z.copy()
         self.gated = np.zeros(n, np.uint32)
         self.rest_count = np.zeros(n, np.uint32)
+        self.rest_e2: Any = z.copy()
+        self.rest_e2_n = np.zeros(n, np.uint32)
         self.steps = np.zeros(n, np.uint32)
         self.flags = np.zeros(n, np.uint32)
         self.rec_left = np.zeros(n, np.uint32)
@@ -452,7 +456,22 @@ class Mekf:
         inc = w(self.rest_count < self.rest_n, self.rest_count + np.uint32(1), self.rest_count)
         count = w(~rest, _U0, inc)
         self.rest_count = w(run, count, self.rest_count).astype(np.uint32)
+        ended = run & ~rest  # the next rest measures its own noise
+        self.rest_e2 = w(ended, dm.ZERO, self.rest_e2).astype(np.float32)
+        self.rest_e2_n = w(ended, _U0, self.rest_e2_n).astype(np.uint32)
         return run & rest & (self.rest_count >= self.rest_n)
+
+    def _rest_noise(self, at_rest: Any, g: dm.Vec3, bias: dm.Vec3) -> Any:
+        """Mirror of att_mekf_rest_noise where ``at_rest``: the zero-rate noise per sample and axis."""
+        w = np.where
+        e = dm.vec3_sub(g, bias)
+        e2 = dm.vec3_dot(e, e) / THREE
+        k = dm.ONE / (self.rest_e2_n.astype(np.float32) + dm.ONE)
+        mean = self.rest_e2 + (e2 - self.rest_e2) * k
+        self.rest_e2 = w(at_rest, mean, self.rest_e2).astype(np.float32)
+        inc = at_rest & (self.rest_e2_n < self.rest_n)
+        self.rest_e2_n = w(inc, self.rest_e2_n + np.uint32(1), self.rest_e2_n).astype(np.uint32)
+        return w(self.rest_e2 > self.r_rest, self.rest_e2, self.r_rest).astype(np.float32)
 
     def _rest_update(self, wk: Work, at_rest: Any, g: dm.Vec3, rec: Any) -> Any:
         """Mirror of att_mekf_rest_update (with att_mekf_rest_axis) where ``at_rest``; returns the flags.
@@ -461,10 +480,9 @@ class Mekf:
         """
         w = np.where
         flags = w(at_rest, _u(Flag.AT_REST) | _u(Flag.BIAS_UPDATED), _U0)
+        r = self._rest_noise(at_rest, g, wk.bias)
         ps_in = w(rec, dm.ZERO, wk.ps).astype(np.float32)
-        p_r, dth_r, b_r, sv_r, ps_r, sc_r = cv.rest_apply(
-            wk.p, self.r_rest, g, wk.bias, wk.sv, ps_in, wk.scale
-        )
+        p_r, dth_r, b_r, sv_r, ps_r, sc_r = cv.rest_apply(wk.p, r, g, wk.bias, wk.sv, ps_in, wk.scale)
         wk.p = cv.where(at_rest, p_r, wk.p)
         wk.sv = msc.where(at_rest, sv_r, wk.sv)
         wk.ps = w(at_rest & ~rec, ps_r, wk.ps).astype(np.float32)
@@ -604,6 +622,8 @@ class Mekf:
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)
+        new.rest_e2 = np.zeros(new.n, np.float32)  # the zero-rate noise mean restarts (it depends on dt)
+        new.rest_e2_n = np.zeros(new.n, np.uint32)
         new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         off = ~(new.p0_scale > dm.ZERO)
         restart = ~off & ~(new.p_scale > dm.ZERO)

@@ -63,7 +63,7 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->mag_norm_reject = 0.2f;
     settings->mag_dip_reject = 0.5f; /* about 29 deg */
     settings->tau_acc_lp = 1.25f;     /* s: Butterworth low-pass, a lag of 2.5 s (docs/accuracy.md) */
-    settings->rest_noise = 1e-3f; /* rad/s/sqrt(Hz): gyro noise and tremor at rest */
+    settings->rest_noise = 1e-4f; /* rad/s/sqrt(Hz): the floor of the measured noise at rest (gyro_noise's) */
     settings->rest_gyro = 0.05f;
     settings->rest_accel = 0.5f;
     settings->rest_time = 0.5f;
@@ -285,6 +285,8 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     if (f->st.rest_count > f->c.rest_n) {
         f->st.rest_count = f->c.rest_n;
     }
+    f->st.rest_e2 = 0.0f; /* the zero-rate noise's mean starts again: per sample, it depends on dt */
+    f->st.rest_e2_n = 0u;
     if (f->st.rec_left > f->c.rec_n) {
         f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
     }
@@ -317,6 +319,8 @@ void att_mekf_reset(att_mekf_t *f)
     st->dip_hi = 0.0f;
     st->gated = 0u;
     st->rest_count = 0u;
+    st->rest_e2 = 0.0f;
+    st->rest_e2_n = 0u;
     st->steps = 0u;
     st->flags = 0u;
     st->rec_left = 0u;
@@ -853,9 +857,28 @@ static ATT_NOINLINE void att_mekf_rest_apply(const att_mekf_coeffs_t *c, att_mek
     }
 }
 
-/* One of the three scalar updates of att_mekf_rest_update (axis k, rate w_k): b, dth, P and the scale. */
-static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf_state_t *st, uint32_t k, float w_k,
-                                            float *dth)
+/*
+ * The zero-rate update's noise per sample and axis, (rad/s)^2: the mean square of w - b over the rest
+ * (e2 = |w - b|^2 / 3 with the bias before this step's update; st->rest_e2 its running mean, gain
+ * 1 / (n + 1) after n earlier updates, n counted up to rest_n: then a low-pass of gain 1 / (rest_n + 1);
+ * rest_e2 and n are 0 at a rest's first update, so it takes e2 exactly; rest_n 0: e2 alone), at least
+ * r_rest.
+ */
+static ATT_ALWAYS_INLINE float att_mekf_rest_noise(const att_mekf_coeffs_t *c, att_mekf_state_t *st,
+                                                   const att_vec3_t *gyr)
+{
+    const att_vec3_t e = att_i_vec3_sub(*gyr, st->bias);
+    const float e2 = att_i_vec3_dot(e, e) / 3.0f;
+    const float k = 1.0f / ((float)st->rest_e2_n + 1.0f); /* n <= rest_n <= 2^24: exact but at 2^24 + 1 */
+    st->rest_e2 = st->rest_e2 + (e2 - st->rest_e2) * k;
+    if (st->rest_e2_n < c->rest_n) {
+        st->rest_e2_n = st->rest_e2_n + 1u;
+    }
+    return (st->rest_e2 > c->r_rest) ? st->rest_e2 : c->r_rest;
+}
+
+/* One of the three scalar updates of att_mekf_rest_update (axis k, rate w_k, noise r): b, dth, P and the scale. */
+static ATT_NOINLINE void att_mekf_rest_axis(att_mekf_state_t *st, float r, uint32_t k, float w_k, float *dth)
 {
     float *p = st->p;
     float *sv = st->scale_v;
@@ -875,7 +898,7 @@ static ATT_NOINLINE void att_mekf_rest_axis(const att_mekf_coeffs_t *c, att_mekf
     for (i = 0u; i < 6u; i++) {
         g[i] = p[ATT_MEKF_S(i, 3u + k)];
     }
-    sk = g[3u + k] + c->r_rest;
+    sk = g[3u + k] + r;
     ks = 1.0f / sk;
     y = w_k - b[k];
     ds = att_mekf_scale_gain1(&st->p_scale, sa, sk, y);
@@ -911,12 +934,13 @@ static ATT_NOINLINE void att_mekf_rest_update(const att_mekf_coeffs_t *c, att_me
 {
     float dth[3] = {0.0f, 0.0f, 0.0f};
     const float ps = st->p_scale;
+    const float r = att_mekf_rest_noise(c, st, gyr);
     if (rec) {
         st->p_scale = 0.0f;
     }
-    att_mekf_rest_axis(c, st, 0u, gyr->x, dth);
-    att_mekf_rest_axis(c, st, 1u, gyr->y, dth);
-    att_mekf_rest_axis(c, st, 2u, gyr->z, dth);
+    att_mekf_rest_axis(st, r, 0u, gyr->x, dth);
+    att_mekf_rest_axis(st, r, 1u, gyr->y, dth);
+    att_mekf_rest_axis(st, r, 2u, gyr->z, dth);
     if (rec) {
         st->p_scale = ps;
     }
@@ -1223,6 +1247,8 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     {
         if (!rest) {
             st->rest_count = 0u;
+            st->rest_e2 = 0.0f; /* the next rest measures its own noise */
+            st->rest_e2_n = 0u;
         } else if (st->rest_count < c->rest_n) {
             st->rest_count = st->rest_count + 1u;
         }
