@@ -174,24 +174,32 @@ def test_c_and_reference_agree(use_mag: bool, over: dict[str, Any]) -> None:
     _bit_exact(stream, _settings(use_mag=use_mag, **over))
 
 
-@pytest.mark.parametrize("rest_time", [0.05, 2.0])
-def test_a_retune_inside_a_rest_stays_bit_exact(rest_time: float) -> None:
-    """A retune 2 s into a rest (rest_time 0.05 s: 5 samples, or 2 s) starts the mean again: per sample,
-    the noise depends on dt; the rest goes on, C and reference alike."""
+@pytest.mark.parametrize(
+    "over", [{"rest_time": 0.05}, {"rest_time": 2.0}, {"dt": 1.0 / 200.0}], ids=["rest-5", "rest-200", "dt"]
+)
+def test_a_retune_inside_a_rest_stays_bit_exact(over: dict[str, float]) -> None:
+    """A retune 2 s into a rest: the same dt keeps the mean, its count limited to the new rest_n (0.05 s:
+    5 samples); a new dt starts it again (per sample, the noise depends on dt); the rest goes on, C and
+    reference alike. The same settings change no byte (tests/test_core.py checks every kind)."""
     stream = _still(5.0, 0.004, 21)
     assert stream.mag is not None
     s = _settings()
     half = int(2.0 * RATE)
     c = native.Filter(FilterKind.MEKF, s)
     c.run(stream.gyr[:half], stream.acc[:half], stream.mag[:half], check_units=False)
-    assert _st(c).rest_e2_n > 5, "made inside a rest, the mean past the new rest_n"
+    n0, e0 = int(_st(c).rest_e2_n), float(_st(c).rest_e2)
+    assert n0 > 5, "made inside a rest, the mean past the new rest_n"
     ref = RefFilter(FilterKind.MEKF, s)
     ref.load_c_states([c.state.copy()[0]])
-    s2 = replace(s, rest_time=rest_time)
+    s2 = replace(s, **over)
     c.retune(s2)
     ref.retune(s2)
     assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
-    assert (_st(c).rest_e2_n, _st(c).rest_e2) == (0, 0.0), "a retune starts the mean again"
+    if "dt" in over:
+        assert (_st(c).rest_e2_n, _st(c).rest_e2) == (0, 0.0), "a new dt starts the mean again"
+    else:
+        assert _st(c).rest_e2 == e0, "the mean is kept"
+        assert _st(c).rest_e2_n == min(n0, int(c.state.u.mekf.c.rest_n))
     out = c.run(stream.gyr[half:], stream.acc[half:], stream.mag[half:], check_units=False)
     q_ref = np.array(
         [ref.step(stream.gyr[i], stream.acc[i], stream.mag[i])["q"][0] for i in range(half, len(stream.gyr))]

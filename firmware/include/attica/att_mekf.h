@@ -130,7 +130,7 @@
  * measured: the mean square of w - b over the rest (the bias before the step's update, the mean of the
  * three axes; a running mean from the rest's first update until its gain is 1 / (rest_n + 1), then a
  * first-order low-pass of that gain (rest_time 0: the sample's own); restarted at each rest and by a
- * retune), at least r_rest = rest_noise^2 / dt. A true rest
+ * retune to another dt), at least r_rest = rest_noise^2 / dt. A true rest
  * shows the gyro's own noise and pins the bias; a slow turn the detector takes for rest shows its rate
  * in w - b and is believed no more than its size allows.
  * The attitude process noise grows with the rate: qa = (gyro_noise^2 + gyro_rate_noise^2 |w - b|^2) dt
@@ -342,8 +342,8 @@ att_status_t att_mekf_init(att_mekf_t *f, const att_mekf_settings_t *settings);
 /**
  * New settings, the state kept (attitude, bias, covariance, low-pass stages, reference field and its
  * derived limits recomputed, counters); the new caps apply from the next step; turning the hard-iron
- * estimate on or off (hard_iron_tau, use_mag) starts it again (off: no offset applied), and so does the
- * zero-rate noise's mean (rest_e2: per sample, it depends on dt). A new declination applies
+ * estimate on or off (hard_iron_tau, use_mag) starts it again (off: no offset applied), and a new dt
+ * the zero-rate noise's mean (rest_e2: per sample, it depends on dt). A new declination applies
  * from the next yaw alignment (reset): to apply it at once, set the heading to the current one turned by
  * the change: ENU yaw (counter-clockwise) minus (D_new - D_old), NED yaw plus it (att_filter_set_heading). On error f is unchanged.
  */

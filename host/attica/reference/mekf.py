@@ -622,8 +622,9 @@ class Mekf:
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)
-        new.rest_e2 = np.zeros(new.n, np.float32)  # the zero-rate noise mean restarts (it depends on dt)
-        new.rest_e2_n = np.zeros(new.n, np.uint32)
+        new_dt = np.broadcast_to(~(new.dt == self.dt), (new.n,))  # the zero-rate noise is per sample
+        new.rest_e2 = np.where(new_dt, dm.ZERO, new.rest_e2).astype(np.float32)
+        new.rest_e2_n = np.where(new_dt, _U0, np.minimum(new.rest_e2_n, new.rest_n)).astype(np.uint32)
         new.rec_left = np.minimum(new.rec_left, new.rec_n).astype(np.uint32)
         off = ~(new.p0_scale > dm.ZERO)
         restart = ~off & ~(new.p_scale > dm.ZERO)

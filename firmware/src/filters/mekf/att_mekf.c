@@ -260,6 +260,7 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
 {
     att_status_t st;
     bool hi_was_on;
+    float dt_was;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
     }
@@ -268,6 +269,7 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
         return st;
     }
     hi_was_on = f->c.hi.on;
+    dt_was = f->c.dt;
     att_mekf_coeffs(&f->c, settings);
     if (f->c.hi.on != hi_was_on) {
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
@@ -285,8 +287,12 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     if (f->st.rest_count > f->c.rest_n) {
         f->st.rest_count = f->c.rest_n;
     }
-    f->st.rest_e2 = 0.0f; /* the zero-rate noise's mean starts again: per sample, it depends on dt */
-    f->st.rest_e2_n = 0u;
+    if (!(f->c.dt == dt_was)) {
+        f->st.rest_e2 = 0.0f; /* the zero-rate noise is per sample: with a new dt its mean starts again */
+        f->st.rest_e2_n = 0u;
+    } else if (f->st.rest_e2_n > f->c.rest_n) {
+        f->st.rest_e2_n = f->c.rest_n; /* the mean's gain at least the new floor 1 / (rest_n + 1) */
+    }
     if (f->st.rec_left > f->c.rec_n) {
         f->st.rec_left = f->c.rec_n; /* a recovery no longer than the new recovery_time (0: ended) */
     }
