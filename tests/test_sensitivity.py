@@ -10,6 +10,7 @@ import pytest
 
 from attica.evaluate import load_trials
 from attica.evaluate.suite import condition, run_case
+from attica.tuning import GridResult, leave_one_out
 from attica_dev import sensitivity
 
 from helpers import BROAD, broad_trials
@@ -17,19 +18,21 @@ from helpers import BROAD, broad_trials
 DOC = Path(__file__).resolve().parent.parent / "docs" / "accuracy.md"
 
 
-def test_leave_one_out_by_hand() -> None:
-    # rows: values, columns: trials. Without trial 0 the row means are (2, 2.5, 1.5): row 2, which scores
-    # 9 on trial 0; without trial 1 (0.5, 2, 5.5): row 0, scoring 3; without trial 2 (1.5, 1.5, 5): a tie
-    # of rows 0 and 1, the first taken, scoring 1.
+def test_the_grids_leave_one_out_by_hand() -> None:
+    """attica.tuning.leave_one_out, which the tool's BROAD figure is: rows values, columns trials.
+    Without trial 0 the row means are (2, 2.5, 1.5): row 2, which scores 9 on trial 0; without trial 1
+    (0.5, 2, 5.5): row 0, scoring 3; without trial 2 (1.5, 1.5, 5): a tie of rows 0 and 1, the first
+    taken, scoring 1. A row with a NaN trial is never chosen; one trial is refused."""
     s = np.array([[0.0, 3.0, 1.0], [1.0, 2.0, 3.0], [9.0, 1.0, 2.0]])
-    mean, picks = sensitivity.leave_one_out(s)
-    assert picks == [2, 0, 0]
-    assert mean == pytest.approx((9.0 + 3.0 + 1.0) / 3)
-    with pytest.raises(ValueError, match="2\\+ trials"):
-        sensitivity.leave_one_out(np.ones((3, 1)))
-    s[1, 2] = np.nan
-    with pytest.raises(ValueError, match="non-finite scores for value rows \\[1\\]"):
-        sensitivity.leave_one_out(s)
+    errors = np.repeat(s[:, :, None], 3, axis=2)
+    grid = GridResult([{"x": i} for i in range(3)], ["a", "b", "c"], errors, "inclination")
+    loo = leave_one_out(grid)
+    assert loo.chosen == [2, 0, 0]
+    assert loo.mean == pytest.approx((9.0 + 3.0 + 1.0) / 3)
+    errors[2, 1] = np.nan
+    assert 2 not in leave_one_out(grid).chosen
+    with pytest.raises(ValueError, match="at least two trials"):
+        leave_one_out(GridResult([{"x": 0}], ["a"], errors[:1, :1], "inclination"))
 
 
 def test_parse_values() -> None:
@@ -121,12 +124,14 @@ def test_doc_table(title: str) -> None:
     recs = load_trials(BROAD)
     s = sensitivity.measure(method, field, values, [condition(c) for c in conds], range(1, 11), recs, jobs=2)
     assert s.broad is not None
-    loo, picks = sensitivity.leave_one_out(s.broad)
+    assert s.broad.points == [{field: v} for v in values], "the value's grid, in the values' order"
+    result = leave_one_out(s.broad)
+    loo, picks = result.mean, result.chosen
     assert len(set(picks)) == 1, "the page says every fold chose the same value"
     for i, v in enumerate(values):
         cells = rows[i]
         assert float(cells[0]) == v
-        want = [f"{s.suite[c][i]:.3f}" for c in conds] + [f"{s.broad[i].mean():.4f}"]
+        want = [f"{s.suite[c][i]:.3f}" for c in conds] + [f"{s.broad.scores()[i].mean():.4f}"]
         want.append(f"{loo:.4f}" if picks[0] == i else "")
         assert cells[1:] == want, f"{title}, {v}: the page says {cells[1:]}, the tool computes {want}"
     vqf = rows[len(values)]

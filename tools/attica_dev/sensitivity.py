@@ -9,8 +9,8 @@ of ``attica eval``) once per value of the setting, every other setting on its de
   figure of the same axes beside it (``--no-peer`` leaves VQF out);
 - with ``--data`` (a directory of BROAD trials) its mean score on them (in sample), and the
   leave-one-trial-out figure of choosing the value on the data: for each trial the value with the lowest
-  mean on the other trials, scored on that trial (:func:`leave_one_out`), with how often each value
-  was chosen.
+  mean on the other trials, scored on that trial, with how often each value was chosen (the value's
+  one-setting grid through :func:`attica.tuning.grid_scores` and :func:`attica.tuning.leave_one_out`).
 
 docs/accuracy.md ("What the defaults trade") quotes its output: the settings that would close the suite's
 last gaps to VQF cost elsewhere, in the suite or on BROAD. A table takes a few seconds per value.
@@ -28,17 +28,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from attica.data import Recording
 from attica.evaluate import load_trials
-from attica.evaluate.core import VARIANTS, Method, attica_method, run_methods
-from attica.evaluate.estimate import as_estimate
-from attica.evaluate.suite import CONDITIONS, Condition, condition, suite_methods
+from attica.evaluate.core import VARIANTS, Method, attica_method
+from attica.evaluate.parallel import TrialPool
+from attica.evaluate.suite import CONDITIONS, Condition, condition, score_method, suite_methods
 from attica.kinds import info
-from attica.metrics import evaluate
 from attica.settings import SETTINGS_CLASS, FilterKind
 from attica.sim import simulate_with_truth
+from attica.tuning import GridResult, grid_scores, leave_one_out
 
 PEER = {False: "vqf6", True: "vqf9"}
 """The peer printed beside a method, by its axes (False: 6-axis)."""
@@ -58,10 +57,9 @@ class Sensitivity:
         Its values, in the order given.
     suite : dict of str to list of float
         Per condition the score of each value (deg), and under ``"<peer>"`` keys the peer's score.
-    broad : ndarray or None
-        Per value (rows) and trial (columns) the BROAD score (deg), when trials were given.
-    trials : tuple of str
-        The trials' names (columns of ``broad``).
+    broad : GridResult or None
+        The BROAD errors per value (the grid's points, in the values' order) and trial, when trials
+        were given; :func:`attica.tuning.leave_one_out` of it is the figure of choosing the value.
 
     """
 
@@ -69,8 +67,7 @@ class Sensitivity:
     setting: str
     values: tuple[Any, ...]
     suite: dict[str, list[float]]
-    broad: NDArray[np.float64] | None = None
-    trials: tuple[str, ...] = ()
+    broad: GridResult | None = None
 
 
 def _kind_of(method: str) -> FilterKind:
@@ -167,12 +164,8 @@ def suite_scores(
         acc = np.zeros((len(methods), len(seeds)))
         for j, seed in enumerate(seeds):
             rec, _ = simulate_with_truth(cond.config(seed, None))
-            assert rec.quat_true is not None
-            scored = rec.t >= cond.score_from
             for i, m in enumerate(methods):
-                est = as_estimate(m.outcome(rec), len(rec), m.name)
-                mask = scored if est.scored is None else scored & np.asarray(est.scored, np.bool_)
-                acc[i, j] = getattr(evaluate(est.q, rec.quat_true, mask), metric)
+                acc[i, j] = getattr(score_method(m, rec, cond.score_from)[0], metric)
         means = acc.mean(axis=1).tolist()
         out[cond.name] = means[: len(values)]
         if peer:
@@ -180,47 +173,15 @@ def suite_scores(
     return out
 
 
-def leave_one_out(scores: NDArray[np.float64]) -> tuple[float, list[int]]:
-    """Leave-one-trial-out of choosing a value: per trial the row best on the others, scored on it.
-
-    Parameters
-    ----------
-    scores : ndarray, shape (values, trials)
-        Per value and trial the score (lower is better).
-
-    Returns
-    -------
-    mean : float
-        The mean over trials of the held-out scores.
-    picks : list of int
-        Per trial the row chosen without it (the first of equal means).
-
-    Raises
-    ------
-    ValueError
-        With fewer than two trials, or a score that is NaN or infinite.
-
-    """
-    s = np.asarray(scores, np.float64)
-    if s.ndim != 2 or s.shape[1] < 2:
-        raise ValueError(f"leave-one-out needs a (values, trials) array with 2+ trials, got shape {s.shape}")
-    if not np.isfinite(s).all():
-        bad = sorted({int(i) for i in np.argwhere(~np.isfinite(s))[:, 0]})
-        raise ValueError(f"leave-one-out: non-finite scores for value rows {bad}: a method failed on a trial")
-    total = s.sum(axis=1)
-    picks = [int(np.argmin(total - s[:, j])) for j in range(s.shape[1])]
-    return float(np.mean([s[p, j] for j, p in enumerate(picks)])), picks
-
-
 def broad_scores(
     method: str, setting: str, values: Sequence[Any], recs: Sequence[Recording], jobs: int
-) -> NDArray[np.float64]:
-    """Per value (rows) and trial (columns) the method's BROAD score (its score metric) on ``recs``."""
-    methods = [
-        dataclasses.replace(_method(method, setting, v), name=f"{method}#{i}") for i, v in enumerate(values)
-    ]
-    report = run_methods(methods, recs, progress=False, jobs=jobs)
-    return np.asarray([r.values(r.method.score_metric) for r in report.results], np.float64)
+) -> GridResult:
+    """The method on ``recs`` for each value: the one-setting grid of :func:`attica.tuning.grid_scores`."""
+    variant = method if method in VARIANTS else ""
+    with TrialPool(jobs) as pool:
+        return grid_scores(
+            _kind_of(method), recs, {setting: list(values)}, variant, progress=False, pool=pool
+        )
 
 
 def measure(
@@ -261,8 +222,9 @@ def measure(
     suite = suite_scores(method, setting, values, conditions, seeds, peer)
     if not recs:
         return Sensitivity(method, setting, tuple(values), suite)
-    broad = broad_scores(method, setting, values, recs, jobs)
-    return Sensitivity(method, setting, tuple(values), suite, broad, tuple(r.name for r in recs))
+    return Sensitivity(
+        method, setting, tuple(values), suite, broad_scores(method, setting, values, recs, jobs)
+    )
 
 
 def format_table(s: Sensitivity) -> str:
@@ -272,17 +234,18 @@ def format_table(s: Sensitivity) -> str:
     if s.broad is not None:
         head += f"{'BROAD':>10s}"
     lines = [head]
+    means = s.broad.scores().mean(axis=1) if s.broad is not None else None
     for i, v in enumerate(s.values):
         row = f"{v!s:>16s}" + "".join(f"{s.suite[c][i]:14.3f}" for c in conds)
-        if s.broad is not None:
-            row += f"{s.broad[i].mean():10.4f}"
+        if means is not None:
+            row += f"{means[i]:10.4f}"
         lines.append(row)
     if any(c.startswith("<peer>") for c in s.suite):
         lines.append(f"{'VQF':>16s}" + "".join(f"{s.suite['<peer>' + c][0]:14.3f}" for c in conds))
-    if s.broad is not None and s.broad.shape[1] >= 2:
-        mean, picks = leave_one_out(s.broad)
-        counts = ", ".join(f"{s.values[i]} x{picks.count(i)}" for i in sorted(set(picks)))
-        lines.append(f"BROAD leave-one-trial-out of choosing {s.setting}: {mean:.4f} (chosen: {counts})")
+    if s.broad is not None:
+        loo = leave_one_out(s.broad)
+        counts = ", ".join(f"{s.values[i]} x{loo.chosen.count(i)}" for i in sorted(set(loo.chosen)))
+        lines.append(f"BROAD leave-one-trial-out of choosing {s.setting}: {loo.mean:.4f} (chosen: {counts})")
     return "\n".join(lines)
 
 

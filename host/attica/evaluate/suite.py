@@ -62,6 +62,7 @@ __all__ = [
     "recovery_times",
     "run_case",
     "run_suite",
+    "score_method",
     "suite_methods",
 ]
 
@@ -316,6 +317,32 @@ def recovery_times(
     return tuple(out)
 
 
+def score_method(m: Method, rec: Recording, score_from: float) -> tuple[Errors, Estimate]:
+    """One method on one simulated recording, scored as the suite scores it.
+
+    Parameters
+    ----------
+    m : Method
+        The method (:func:`suite_methods`, or :func:`~attica.evaluate.core.attica_method` with overrides).
+    rec : Recording
+        The simulation (with ``quat_true``).
+    score_from : float
+        Scored from this time in s (the condition's ``score_from``), and only the rows the method scores.
+
+    Returns
+    -------
+    tuple of Errors and Estimate
+        The BROAD RMSEs and the method's estimate.
+
+    """
+    assert rec.quat_true is not None
+    est = as_estimate(m.outcome(rec), len(rec), f"{m.name} on {rec.name}")
+    mask = rec.t >= score_from
+    if est.scored is not None:
+        mask = mask & np.asarray(est.scored, np.bool_)
+    return evaluate(est.q, rec.quat_true, mask), est
+
+
 def run_case(
     cond: Condition, seed: int, kinds: Sequence[str], peers: Sequence[str], duration: float | None = None
 ) -> CaseScore:
@@ -340,15 +367,12 @@ def run_case(
     """
     rec, truth = simulate_with_truth(cond.config(seed, duration))
     assert rec.quat_true is not None
-    scored = rec.t >= cond.score_from
     clipped = np.asarray(truth.gyr_clipped.any(axis=1), np.bool_)
     episodes = _episodes(clipped, rec.rate)
     errors: dict[str, Errors] = {}
     recovery: dict[str, tuple[float, ...]] = {}
     for m in suite_methods(kinds, peers, cond.gyro_range):
-        est = as_estimate(m.outcome(rec), len(rec), f"{m.name} on {rec.name}")
-        mask = scored if est.scored is None else scored & np.asarray(est.scored, np.bool_)
-        errors[m.name] = evaluate(est.q, rec.quat_true, mask)
+        errors[m.name], est = score_method(m, rec, cond.score_from)
         rec_times: tuple[float, ...] = ()
         if episodes:
             total, _, incl = error_angles(est.q, rec.quat_true)
