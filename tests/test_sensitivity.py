@@ -137,3 +137,90 @@ def test_doc_table(title: str) -> None:
     vqf = rows[len(values)]
     assert vqf[0].startswith("VQF")
     assert vqf[1 : 1 + len(conds)] == [f"{s.suite['<peer>' + c][0]:.3f}" for c in conds]
+
+
+def test_parse_fixed() -> None:
+    got = sensitivity.parse_fixed("ars", "gain", " tau_acc_lp=1 , bias_n_max=20,init_from_accel=false")
+    assert got == {"tau_acc_lp": 1.0, "bias_n_max": 20, "init_from_accel": False}
+    assert [type(v) for v in got.values()] == [float, int, bool], "typed as the defaults"
+    assert sensitivity.parse_fixed("mekf6", "tau_acc_lp", "gyro_noise=7e-5,bias_noise=5e-5") == {
+        "gyro_noise": 7e-5,
+        "bias_noise": 5e-5,
+    }
+    for text, msg in (
+        ("gyro_noise", "is not name=value"),
+        ("gyro_noise=", "is not name=value"),
+        ("=1", "is not name=value"),
+        ("tau_acc_lp=1", "is the setting varied"),
+        ("gyro_noise=1e-4,gyro_noise=2e-4", "given twice"),
+        ("gyro_noise=x", "cannot read 'x' as a float"),
+        ("tau_mag=1", "has no setting 'tau_mag'"),
+        ("use_mag=true", "switches the magnetometer"),
+        ("gyro_range=5", "gyro_range is the sensor's"),
+    ):
+        with pytest.raises(ValueError, match=msg):
+            sensitivity.parse_fixed("mekf6", "tau_acc_lp", text)
+
+
+def test_cli_with(capsys: pytest.CaptureFixture[str]) -> None:
+    """--with reaches the filter (the row differs from the defaults') and is named in the heading."""
+    argv = ["mekf6", "gyro_rate_noise", "0.01", "--conditions", "industrial", "--seeds", "1", "--no-peer"]
+    assert sensitivity.main(argv) == 0
+    plain = capsys.readouterr().out
+    assert sensitivity.main([*argv, "--with", "gyro_noise=7e-5,bias_noise=5e-5"]) == 0
+    held = capsys.readouterr().out
+    assert "mekf6, with gyro_noise=7e-05, bias_noise=5e-05: mean of 1 seeds" in held
+    assert plain.splitlines()[2] != held.splitlines()[2], "the held settings must reach the filter"
+    with pytest.raises(SystemExit) as exc:
+        sensitivity.main([*argv, "--with", "gyro_rate_noise=0.1"])
+    assert exc.value.code == 2
+    assert "is the setting varied" in capsys.readouterr().err
+
+
+HELD = "gyro_noise=7e-5,bias_noise=5e-5,gyro_scale_sd=0.002"
+"""The suite's industrial gyro (attica.sim.GRADES) as mekf settings, docs/accuracy.md."""
+
+TABLES_HELD = {
+    f"{m}, the industrial gyro's figures, `gyro_rate_noise`": (m, "gyro_rate_noise", "0.01,0.002", HELD)
+    for m in ("mekf6", "mekf")
+}
+
+
+def test_held_settings_on_broad() -> None:
+    """With trials, the held settings are in every grid point (each value's own, in the values' order)."""
+    broad_trials()
+    recs = load_trials(BROAD)[:2]
+    fixed = {"gyro_noise": 7e-5}
+    s = sensitivity.measure("mekf6", "tau_acc_lp", (1.25, 1.45), [], [1], recs, peer=False, fixed=fixed)
+    assert s.broad is not None
+    assert s.broad.points == [{"tau_acc_lp": v, "gyro_noise": 7e-5} for v in (1.25, 1.45)]
+    plain = sensitivity.measure("mekf6", "tau_acc_lp", (1.25,), [], [1], recs, peer=False)
+    assert plain.broad is not None
+    assert s.broad.scores()[0].tolist() != plain.broad.scores()[0].tolist(), "held settings reach the filter"
+
+
+@pytest.mark.parametrize("title", list(TABLES_HELD))
+def test_doc_table_held(title: str) -> None:
+    """docs/accuracy.md, "A gyro's own figures as settings": the tables are the tool's, and the held
+    figures are the simulator's industrial grade."""
+    from attica.sim import GRADES
+
+    g = GRADES["industrial"]
+    method, field, text, held = TABLES_HELD[title]
+    fixed = sensitivity.parse_fixed(method, field, held)
+    assert fixed == {
+        "gyro_noise": g.gyro_noise_density,
+        "bias_noise": g.gyro_bias_drift,
+        "gyro_scale_sd": g.errors.gyro_scale,
+    }
+    values = sensitivity.parse_values(method, field, text)
+    assert values[1] == g.errors.gyro_scale
+    header, _, *rows = _doc_table(title)
+    conds = header[1:]
+    s = sensitivity.measure(method, field, values, [condition(c) for c in conds], range(1, 11), fixed=fixed)
+    assert s.fixed == fixed
+    for i, v in enumerate(values):
+        assert float(rows[i][0]) == v
+        assert rows[i][1:] == [f"{s.suite[c][i]:.3f}" for c in conds], f"{title}, {v}"
+    assert rows[len(values)][0].startswith("VQF")
+    assert rows[len(values)][1:] == [f"{s.suite['<peer>' + c][0]:.3f}" for c in conds]

@@ -12,8 +12,12 @@ of ``attica eval``) once per value of the setting, every other setting on its de
   mean on the other trials, scored on that trial, with how often each value was chosen (the value's
   one-setting grid through :func:`attica.tuning.grid_scores` and :func:`attica.tuning.leave_one_out`).
 
+``--with gyro_noise=7e-5,bias_noise=5e-5`` sets other settings for every value (a sensor's own figures,
+say): the table is then of the varied setting over those, not over the defaults.
+
 docs/accuracy.md ("What the defaults trade") quotes its output: the settings that would close the suite's
-last gaps to VQF cost elsewhere, in the suite or on BROAD. A table takes a few seconds per value.
+last gaps to VQF cost elsewhere, in the suite or on BROAD; and what a gyro's datasheet figures, entered
+as settings, give. A table takes a few seconds per value.
 """
 
 from __future__ import annotations
@@ -60,6 +64,8 @@ class Sensitivity:
     broad : GridResult or None
         The BROAD errors per value (the grid's points, in the values' order) and trial, when trials
         were given; :func:`attica.tuning.leave_one_out` of it is the figure of choosing the value.
+    fixed : dict
+        The other settings given for every value (``--with``; empty: the defaults).
 
     """
 
@@ -68,6 +74,7 @@ class Sensitivity:
     values: tuple[Any, ...]
     suite: dict[str, list[float]]
     broad: GridResult | None = None
+    fixed: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def _kind_of(method: str) -> FilterKind:
@@ -137,6 +144,45 @@ def parse_values(method: str, setting: str, text: str) -> tuple[Any, ...]:
     return tuple(out)
 
 
+def parse_fixed(method: str, setting: str, text: str) -> dict[str, Any]:
+    """The settings of ``--with``: ``name=value`` pairs, comma-separated, held for every value.
+
+    Parameters
+    ----------
+    method : str
+        A kind or variant.
+    setting : str
+        The setting varied: it cannot be held too.
+    text : str
+        ``name=value[,name=value ...]``; each name a setting :func:`parse_values` accepts, each value
+        read as it reads one.
+
+    Returns
+    -------
+    dict
+        The settings, in the order given.
+
+    Raises
+    ------
+    ValueError
+        For a pair without ``=``, a name given twice or the varied one, and whatever
+        :func:`parse_values` refuses.
+
+    """
+    out: dict[str, Any] = {}
+    for pair in (p.strip() for p in text.split(",")):
+        name, eq, value = pair.partition("=")
+        name = name.strip()
+        if not eq or not name or not value.strip():
+            raise ValueError(f"--with: {pair!r} is not name=value")
+        if name == setting:
+            raise ValueError(f"--with: {name} is the setting varied")
+        if name in out:
+            raise ValueError(f"--with: {name} given twice")
+        out[name] = parse_values(method, name, value)[0]
+    return out
+
+
 def _method(method: str, setting: str, value: Any, extra: dict[str, Any] | None = None) -> Method:
     over = {setting: value, **(extra or {})}
     if method in VARIANTS:
@@ -151,13 +197,17 @@ def suite_scores(
     conditions: Sequence[Condition],
     seeds: Sequence[int],
     peer: bool,
+    fixed: dict[str, Any] | None = None,
 ) -> dict[str, list[float]]:
-    """Per condition the suite's score of each value (and the peer's under ``"<peer>" + condition``)."""
+    """Per condition the suite's score of each value (and the peer's under ``"<peer>" + condition``).
+
+    The settings of ``fixed`` are held for every value (the peer's runs have none).
+    """
     nine = _method(method, setting, values[0]).nine_axis
     metric = "total" if nine else "inclination"
     out: dict[str, list[float]] = {}
     for cond in conditions:
-        over = {"gyro_range": cond.gyro_range} if cond.gyro_range > 0 else None
+        over = {**(fixed or {}), **({"gyro_range": cond.gyro_range} if cond.gyro_range > 0 else {})}
         methods = [_method(method, setting, v, over) for v in values]
         if peer:
             methods += suite_methods([], [PEER[nine]], cond.gyro_range)
@@ -174,14 +224,21 @@ def suite_scores(
 
 
 def broad_scores(
-    method: str, setting: str, values: Sequence[Any], recs: Sequence[Recording], jobs: int
+    method: str,
+    setting: str,
+    values: Sequence[Any],
+    recs: Sequence[Recording],
+    jobs: int,
+    fixed: dict[str, Any] | None = None,
 ) -> GridResult:
-    """The method on ``recs`` for each value: the one-setting grid of :func:`attica.tuning.grid_scores`."""
+    """The method on ``recs`` for each value: the one-setting grid of :func:`attica.tuning.grid_scores`.
+
+    The settings of ``fixed`` are axes of one value each, so the points stay in the values' order.
+    """
     variant = method if method in VARIANTS else ""
+    grid: dict[str, list[Any]] = {setting: list(values), **{k: [v] for k, v in (fixed or {}).items()}}
     with TrialPool(jobs) as pool:
-        return grid_scores(
-            _kind_of(method), recs, {setting: list(values)}, variant, progress=False, pool=pool
-        )
+        return grid_scores(_kind_of(method), recs, grid, variant, progress=False, pool=pool)
 
 
 def measure(
@@ -193,6 +250,7 @@ def measure(
     recs: Sequence[Recording] | None = None,
     jobs: int = 1,
     peer: bool = True,
+    fixed: dict[str, Any] | None = None,
 ) -> Sensitivity:
     """The scores of ``method`` for each value of ``setting``.
 
@@ -212,6 +270,8 @@ def measure(
         Worker processes for the trials.
     peer : bool
         Score VQF of the method's axes beside it.
+    fixed : dict, optional
+        Other settings held for every value (:func:`parse_fixed`); the defaults otherwise.
 
     Returns
     -------
@@ -219,12 +279,10 @@ def measure(
         The scores.
 
     """
-    suite = suite_scores(method, setting, values, conditions, seeds, peer)
-    if not recs:
-        return Sensitivity(method, setting, tuple(values), suite)
-    return Sensitivity(
-        method, setting, tuple(values), suite, broad_scores(method, setting, values, recs, jobs)
-    )
+    held = dict(fixed or {})
+    suite = suite_scores(method, setting, values, conditions, seeds, peer, held)
+    broad = broad_scores(method, setting, values, recs, jobs, held) if recs else None
+    return Sensitivity(method, setting, tuple(values), suite, broad, held)
 
 
 def format_table(s: Sensitivity) -> str:
@@ -260,9 +318,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, default=None, help="a directory of BROAD trials")
     ap.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for the BROAD trials")
     ap.add_argument("--no-peer", action="store_true", help="leave VQF out")
+    ap.add_argument(
+        "--with",
+        dest="fixed",
+        default="",
+        metavar="NAME=VALUE,...",
+        help="other settings held for every value (default: the defaults)",
+    )
     args = ap.parse_args(argv)
     try:
         values = parse_values(args.method, args.setting, args.values)
+        fixed = parse_fixed(args.method, args.setting, args.fixed) if args.fixed else {}
         conds = (
             [condition(c.strip()) for c in args.conditions.split(",")]
             if args.conditions
@@ -296,9 +362,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         recs,
         args.jobs,
         not args.no_peer,
+        fixed,
     )
+    held = ", with " + ", ".join(f"{k}={v}" for k, v in fixed.items()) if fixed else ""
     print(
-        f"{s.method}: mean of {args.seeds} seeds per condition (6-axis: inclination, 9-axis: total RMSE, deg)"
+        f"{s.method}{held}: mean of {args.seeds} seeds per condition "
+        "(6-axis: inclination, 9-axis: total RMSE, deg)"
     )
     print(format_table(s))
     print(f"({time.perf_counter() - t0:.1f} s)")
