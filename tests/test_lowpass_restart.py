@@ -2,8 +2,9 @@
 
 The low-pass stages hold specific force turned into the earth (the ekf: heading) frame by the gyro's
 rotation, and that rotation is wrong while the gyro clips. During a recovery their gain is ``1 / (n + 1)``
-after ``n`` earlier updates since the last clipping sample (the state's ``rec_lp_n``), until their own
-``k_lp`` is larger (``att_i_recovery_lp_gain``, att_core.h; ``recovery_lp_gain`` in the reference): 1 on
+after ``n`` earlier updates since the last clipping sample (the state's ``rec_lp_n``), until the mean is
+as good as their own window (``1 / (n + 1)`` below ``k_lp / 4``, ``att_i_recovery_lp_gain``, att_core.h;
+``recovery_lp_gain`` in the reference; until session 7, until ``k_lp`` was larger): 1 on
 the first applied sample (a restart: the clipping sample itself when its accel is usable), then the
 running mean of the samples since, each an equally good measurement of gravity once the gyro is right
 again. ars, kf, ekf, mars and the mekf after a clipping sample (its
@@ -18,19 +19,25 @@ start's recovery takes the mean only down to the fast window: the bias is not kn
   bit on such streams (every kind, the mekf too);
 - what it buys on the suite's clipped condition (14 rad/s against 500 deg/s): the inclination error in
   the first second after the clipping ends (seeds 1-4), and the episodes back within 2 deg in 2 s (seeds
-  1-10, ``attica eval --suite``'s scoring), measured at the commits that added them:
+  1-10, ``attica eval --suite``'s scoring), measured at the commits that added them. The last column
+  (session 7, tests/test_recovery_mean.py): the second stage held at the first during the mean (its gain
+  1, ``att_i_recovery_lp_gain``'s ``k2``), so that the stages are the plain mean of the samples since
+  the clip, where the cascade made the second the mean of the first's means, weighted toward the first
+  samples; and the mean run until it is as good as the stages' window (``k_lp / 4``, the mekf's
+  ``k_lp / (2 sqrt(2))``), not only until its gain is theirs (34, 33, 32, 24, 35, 24 with the first
+  change alone):
 
-  =====  ===============  ============  ================  ======================  ========
-  kind   first second     stages kept   within 2 s:       restart only (7e79d46)  running
-         (deg, with it)   (before)      before (of 40)                            mean
-  =====  ===============  ============  ================  ======================  ========
-  ars    0.44-2.07        7.9-11.4      21                23                      29
-  kf     0.90-2.05        9.5-13.8      18                21                      27
-  ekf    3.28-4.92        10.8-16.5     20                21                      23
-  mars   0.44-2.07        7.9-11.5      13                12                      17
-  mekf6                                 18 (restart)                              23
-  mekf                                  11 (restart)                              16
-  =====  ===============  ============  ================  ======================  ========
+  =====  ===============  ============  ================  ======================  ========  ==========
+  kind   first second     stages kept   within 2 s:       restart only (7e79d46)  running   plain mean
+         (deg, with it)   (before)      before (of 40)                            mean      (session 7)
+  =====  ===============  ============  ================  ======================  ========  ==========
+  ars    0.44-2.07        7.9-11.4      21                23                      29        37
+  kf     0.90-2.05        9.5-13.8      18                21                      27        36
+  ekf    3.28-4.92        10.8-16.5     20                21                      23        36
+  mars   0.44-2.07        7.9-11.5      13                12                      17        24
+  mekf6                                 18 (restart)                              23        36
+  mekf                                  11 (restart)                              16        23
+  =====  ===============  ============  ================  ======================  ========  ==========
 """
 
 from __future__ import annotations
@@ -43,7 +50,7 @@ import pytest
 from clip_support import CLIP, RATE, clipped_rows, clipping
 
 from attica import metrics, native
-from attica.reference._common import recovery_lp_gain
+from attica.reference._common import REC_MEAN_END, recovery_lp_gain
 from attica.settings import ArsSettings, EkfSettings, FilterKind, KfSettings, MarsSettings, MekfSettings
 
 SETTINGS: dict[FilterKind, Any] = {
@@ -57,18 +64,24 @@ FIRST_SECOND_MAX = {FilterKind.ARS: 3.0, FilterKind.KF: 3.0, FilterKind.EKF: 6.0
 """Inclination RMSE bound (deg) in the first second after the clipped turn, per kind (table above)."""
 
 
-WITHIN_2S_MIN = {"ars": 27, "kf": 25, "ekf": 22, "mars": 15, "mekf6": 21, "mekf": 14}
-"""Episodes (of 40) back within 2 deg in 2 s that the running mean must keep (table above; margin 1-2)."""
+WITHIN_2S_MIN = {"ars": 35, "kf": 34, "ekf": 34, "mars": 22, "mekf6": 34, "mekf": 21}
+"""Episodes (of 40) back within 2 deg in 2 s that the plain mean must keep (table above; margin 2)."""
 
 
-def test_the_gain_schedule_is_a_running_mean_down_to_the_stages_own() -> None:
+def test_the_gain_schedule_is_a_running_mean_until_it_is_as_good_as_the_stages() -> None:
     k_lp = np.float32(0.02)
-    n = np.arange(100, dtype=np.uint32)  # the update is the n-th since the clipping sample
-    g, n1 = recovery_lp_gain(n, k_lp)
+    k_end = np.float32(0.005)  # ATT_I_REC_MEAN_END k_lp: n = 4 / k_lp = 200 updates
+    assert REC_MEAN_END * k_lp == k_end
+    n = np.arange(300, dtype=np.uint32)  # the update is the n-th since the clipping sample
+    g, n1, k2 = recovery_lp_gain(n, k_lp, k_end)
     assert np.array_equal(n1, n + 1), "the count goes up by one"
     assert g[0] == 1.0, "the first update restarts the stages"
-    assert np.array_equal(g[:49], [np.float32(1) / np.float32(i + 1) for i in range(49)]), "1 / (n + 1)"
-    assert np.all(g[49:] == k_lp), "then the stages' own gain"
+    # 1 / 200 is the end itself (float32 0.005): not below it, so still the mean's last update
+    means = [np.float32(1) / np.float32(i + 1) for i in range(200)]
+    assert np.array_equal(g[:200], means), "1 / (n + 1), below the stages' own gain from n = 50"
+    assert np.all(g[200:] == k_lp), "then the stages' own gain"
+    assert np.all(k2[:200] == 1.0), "the second stage is the first while the mean runs"
+    assert np.all(k2[200:] == k_lp), "then the cascade's own gain"
 
 
 def _stages(f: native.Filter, kind: FilterKind) -> tuple[np.ndarray, np.ndarray]:

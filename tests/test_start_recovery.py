@@ -96,10 +96,13 @@ def test_the_ekf_takes_the_mean_from_the_start_without_a_recovery() -> None:
     init = (np.asarray(out["flags"]) & INITIALISED) != 0
     assert init[0] and not init[1:].any(), "only the start's step is flagged"
     k_lp = float(f.state.u.ekf.c.k_lp)
-    f.run(r.gyr[50:400], r.acc[50:400], r.mag[50:400], check_units=False)
+    end = int(4.0 / k_lp) + 100  # the mean ends near n = 4 / k_lp (ATT_I_REC_MEAN_END, session 7)
+    assert len(r.gyr) > end
+    f.run(r.gyr[50:end], r.acc[50:end], r.mag[50:end], check_units=False)
     st = _st(f, kind)
-    last = next(n for n in range(1, 1000) if np.float32(1.0) / np.float32(n + 1) <= np.float32(k_lp))
-    assert not st.lp_mean and st.rec_lp_n == last + 1, "over at the update whose 1 / (n + 1) is k_lp's"
+    k_end = np.float32(0.25) * np.float32(k_lp)
+    last = next(n for n in range(1, 100000) if np.float32(1.0) / np.float32(n + 1) < k_end)
+    assert not st.lp_mean and st.rec_lp_n == last + 1, "over where 1 / (n + 1) < k_lp / 4"
     off = native.Filter(kind, _settings(kind, tau_acc_lp=0.0))
     off.run(r.gyr[:50], r.acc[:50], r.mag[:50], check_units=False)
     assert not _st(off, kind).lp_mean, "no stages, no mean"

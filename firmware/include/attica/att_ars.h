@@ -31,9 +31,13 @@
  *     cannot know. The first applied accel sample after a clipping sample (the clipping sample itself
  *     when its accel is usable) restarts the low-pass stages (the history they hold was turned into the
  *     earth frame by a rotation the gyro did not measure), which then take the running mean of the
- *     samples since, gain 1 / (n + 1) after n earlier updates, until their own k_lp is larger
- *     (att_i_recovery_lp_gain: with the gyro right again every such sample is an equally good
- *     measurement of gravity, and their mean is what an unknown attitude calls for); the correction runs
+ *     samples since, gain 1 / (n + 1) after n earlier updates, until the mean is as good as their own
+ *     window, 1 / (n + 1) below k_lp / 4 (att_i_recovery_lp_gain, ATT_I_REC_MEAN_END: with the gyro
+ *     right again every such sample is an equally good measurement of gravity, and their mean is what an
+ *     unknown attitude calls for; the second stage is held at the first meanwhile, its gain 1, so that
+ *     the correction follows the plain mean, not the mean of the first stage's means, which would weight
+ *     the first samples after the clip most; then the cascade runs again at k_lp from that mean; every
+ *     kind's recovery does the same); the correction runs
  *     with the time constant recovery_time / 8 when that is faster than its own (k_rec instead of k).
  *     Every step of it reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the
  *     sensors). The start from the first usable accel sample (init_from_accel) is a recovery too, for

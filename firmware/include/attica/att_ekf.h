@@ -56,8 +56,8 @@
  *     (by psi - lp_psi: the yaw's change since, flips to the equivalent attitude included); an applied
  *     update rotates them by its correction (to first order) and sets lp_psi to the predicted yaw.
  *     From the start (or a re-initialisation) from a sample, the stages take the running mean of the
- *     samples since (att_i_recovery_lp_gain, the sample its first update; state lp_mean) until it falls
- *     to k_lp or they restart: one sample gives the tilt, whatever linear acceleration it held. (The
+ *     samples since (att_i_recovery_lp_gain, the sample its first update; state lp_mean) until it is as
+ *     good as their own window (1 / (n + 1) below k_lp / 4, ATT_I_REC_MEAN_END) or they restart: one sample gives the tilt, whatever linear acceleration it held. (The
  *     start is not a recovery here, unlike in ars, kf, mars and mekf: the recovery's process noise let
  *     the bias states take the start's innovations.)
  *  3. recovery after a clipping gyro (recovery_time > 0, as att_kf.h step 5): a gyro sample with any
@@ -66,7 +66,7 @@
  *     (recovery_time / 8 + dt) each prediction adds k^2 r / (1 - k) (at most p_max; r = r_phi, r_theta
  *     per sample) to the roll and pitch variances, the process noise whose steady-state Kalman gain is
  *     k; the first applied accel sample after a clipping sample restarts the low-pass stages, which
- *     then take the running mean of the samples since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and
+ *     then take the running mean of the samples since (att_i_recovery_lp_gain, as in att_ars.h), and
  *     the gate is off. So the filter follows that mean with the time constant recovery_time / 8 until
  *     the recovery ends (the bias
  *     states keep their gain: holding them, as att_mekf.h does, changed nothing measurable here).
@@ -190,7 +190,7 @@ typedef struct {
     bool lp_ready;        /**< the stages hold a sample (else the next usable one starts them) */
     bool converging;      /**< the convergence phase: the raw sample was the measurement of the last update */
     bool lp_mean;         /**< the stages take the running mean of the samples since the start
-                               (att_i_recovery_lp_gain), until it falls to k_lp, they restart or the
+                               (att_i_recovery_lp_gain), until it falls below k_lp / 4, they restart or the
                                count reaches 2^24 */
     bool recover;         /**< a step flagged NUMERIC set initialised false: the next usable accel sample
                                re-initialises roll and pitch, the yaw kept, P restarted */

@@ -36,7 +36,7 @@
  *     ATT_FLAG_INITIALISED; with k = dt / (recovery_time / 8 + dt) each prediction adds
  *     k^2 r_step / (1 - k) to p (the process noise whose steady-state gain is k; at most ATT_KF_P_MAX),
  *     the first applied accel sample after a clipping sample restarts the low-pass stages, which then
- *     take the running mean of the samples since until their own gain k_lp is larger (att_i_recovery_lp_gain, as in att_ars.h), and the gate
+ *     take the running mean of the samples since (att_i_recovery_lp_gain, as in att_ars.h), and the gate
  *     and its soft limit are off: the filter follows that mean with the time constant recovery_time / 8
  *     (att_ars.h, att_mekf.h).
  * With ATT_FLAG_NUMERIC (x cannot be normalised) the state is kept from before the step.

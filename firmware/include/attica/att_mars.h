@@ -57,8 +57,7 @@
  *     (a sensor at its full scale reads a clipped value, not an overrange) or beyond gyro_range starts a
  *     recovery of recovery_time: the integration has lost rotation it cannot know, so the first applied
  *     accel sample after a clipping sample restarts the accel low-pass, which then takes the running mean
- *     of the samples since until its own
- *     gain is larger (att_i_recovery_lp_gain, as in att_ars.h), and the heading correction runs with the
+ *     of the samples since (att_i_recovery_lp_gain, as in att_ars.h), and the heading correction runs with the
  *     time constant recovery_time / 8 (instead of tau_mag); every step of it
  *     reports ATT_FLAG_INITIALISED (the attitude is being re-initialised from the sensors), and its end
  *     starts the fast heading phase of an alignment (the tilt is still settling). The start from the

@@ -87,10 +87,11 @@
  *     Kalman gain is k, so the filter follows accel and mag with the time constant recovery_time / 8;
  *     each clipping sample restarts the accel low-pass (its stages hold samples turned by a wrong
  *     rotation: the next applied accel sample starts them, as at the start), which then takes the
- *     running mean of the samples since (att_i_recovery_lp_gain, att_ars.h) until its own gain k_lp is
- *     larger (in the start's recovery, where the bias is not known yet, the mean of the samples since the
- *     start only until max(k_lp, k) is larger, k_lp_rec: a long mean would gather samples turned by that
- *     bias); an accel gate rejection is recovered at once
+ *     running mean of the samples since (att_i_recovery_lp_gain, att_ars.h; both states hold it) until
+ *     its age is the section's lag, 1 / (n + 1) below k_lp / (2 sqrt(2)) (ATT_MEKF_REC_MEAN_END; in
+ *     the start's recovery, where the bias is not known yet, only until it is below k_lp_rec / (2
+ *     sqrt(2)), k_lp_rec = max(k_lp, k): a long mean would gather samples turned by that bias); an accel
+ *     gate rejection is recovered at once
  *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
  *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
  *     alone (the innovations of a clipped turn or of the start are attitude errors of unknown origin,

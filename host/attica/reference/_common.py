@@ -282,16 +282,26 @@ def recovery_start(
     )
 
 
-def recovery_lp_gain(n: Any, k_lp: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
-    """att_i_recovery_lp_gain: the low-pass gain of a running mean's update and the count after it.
+REC_MEAN_END = np.float32(0.25)
+"""ATT_I_REC_MEAN_END: a recovery's running mean ends at this fraction of the cascade's gain (n = 4 / k)."""
+
+
+def recovery_lp_gain(
+    n: Any, k_lp: Any, k_end: Any
+) -> tuple[NDArray[np.float32], NDArray[np.uint32], NDArray[np.float32]]:
+    """att_i_recovery_lp_gain: the low-pass gains of a running mean's update and the count after it.
 
     1 / (n + 1) after n earlier updates since the last clipping sample or the start (n: rec_lp_n; 1
-    after the start, whose sample the stages start from), at least k_lp (the floor: the stages' own gain,
-    or the mekf start's fast window); the caller commits the count n + 1 where the C calls the helper.
+    after the start, whose sample the stages start from) while that is at least ``k_end`` (the mean's
+    end, REC_MEAN_END k_lp for the cascades), then k_lp (the stages' own gain, or the mekf start's fast
+    window); the caller commits the count n + 1 where the C calls the helper. The third value is the
+    second stage's gain (the C's *k2): 1 while the mean runs, k_lp after it.
     """
     n1 = (np.asarray(n, np.uint32) + np.uint32(1)).astype(np.uint32)
     m = (dm.ONE / n1.astype(np.float32)).astype(np.float32)
-    return np.where(m < k_lp, k_lp, m).astype(np.float32), n1
+    below = m < k_end
+    k2 = np.where(below, k_lp, dm.ONE).astype(np.float32)
+    return np.where(below, k_lp, m).astype(np.float32), n1, k2
 
 
 def p6(i: int, j: int) -> int:

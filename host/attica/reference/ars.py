@@ -12,6 +12,7 @@ from attica.reference import sensor
 from attica.reference._common import (
     COV_TILT_MAX,
     COV_UNKNOWN,
+    REC_MEAN_END,
     StateSpec,
     carry_state,
     cov_grow,
@@ -305,8 +306,11 @@ class Ars:
             )
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain(
+                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
+            )
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
+            k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)
             k = np.where(rec, self.k_rec, self.k)
 
             q = self.q
@@ -316,7 +320,7 @@ class Ars:
             lp_on = self.k_lp > dm.ZERO
             self.rec_lp_n = np.where(correct & lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp2))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
             v = dm.vec3_where(lp_on, lp2, v)

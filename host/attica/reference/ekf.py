@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
+    REC_MEAN_END,
     StateSpec,
     carry_state,
     pd6,
@@ -452,7 +453,14 @@ class Ekf:
         return ok, ok_e, e, pn, flags, trig, big
 
     def _update(
-        self, a: dm.Vec3, e2: Any, lp_ready: Any, trig: tuple[Any, ...], rec: Any, k_lp: Any
+        self,
+        a: dm.Vec3,
+        e2: Any,
+        lp_ready: Any,
+        trig: tuple[Any, ...],
+        rec: Any,
+        k_lp: Any,
+        k_lp2: Any,
     ) -> tuple[Any, Any, Any, Any, tuple[Any, ...]]:
         """att_ekf_update: (applied, discarded, flags, collapse, new state parts) of the update here.
 
@@ -462,7 +470,7 @@ class Ekf:
 
         ``trig`` holds sin/cos of its roll and pitch (sphi, cphi, sth, cth), from the prediction;
         ``k_lp`` the low-pass gain of this update (the running mean's, att_i_recovery_lp_gain, in a
-        recovery and after the start).
+        recovery and after the start), ``k_lp2`` the second stage's (1 while that mean runs).
         """
         p = self.p
         ex0, ey0, ez0 = self.euler
@@ -491,7 +499,7 @@ class Ekf:
             b1 = dm.vec3_where(lp_ready, lp1t, start)
             b2 = dm.vec3_where(lp_ready, lp2t, start)
             lp1 = dm.vec3_add(b1, dm.vec3_scale(dm.vec3_sub(va, b1), k_lp))
-            lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp))
+            lp2 = dm.vec3_add(b2, dm.vec3_scale(dm.vec3_sub(lp1, b2), k_lp2))
             lp1 = dm.vec3_where(lp_on, lp1, self.lp1)
             lp2 = dm.vec3_where(lp_on, lp2, self.lp2)
             vv = dm.vec3_where(lp_on, lp2, va)
@@ -645,15 +653,18 @@ class Ekf:
             # the stages' running mean (att_ekf_lowpass): in a recovery, and after the start until it falls
             # to k_lp or the stages restart (not ready: they start from a sample or the estimate)
             mean = rec | (self.lp_mean & self.lp_ready)
-            k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_mean, lp_n1, k_mean2 = recovery_lp_gain(
+                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
+            )
             k_lp = np.where(mean, k_mean, self.k_lp).astype(np.float32)
+            k_lp2 = np.where(mean, k_mean2, self.k_lp).astype(np.float32)
             applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(
-                a, e2, self.lp_ready, trig, rec, k_lp
+                a, e2, self.lp_ready, trig, rec, k_lp, k_lp2
             )
             # the low-pass count of the mean: up by one where the update ran the stages
             lp_ran = measure & (self.k_lp > dm.ZERO)
             self.rec_lp_n = np.where(lp_ran & mean, lp_n1, self.rec_lp_n).astype(np.uint32)
-            keep_mean = self.lp_mean & self.lp_ready & (k_mean > self.k_lp) & (lp_n1 < MEAN_N_MAX)
+            keep_mean = self.lp_mean & self.lp_ready & (k_mean2 > self.k_lp) & (lp_n1 < MEAN_N_MAX)
             self.lp_mean = np.where(lp_ran, keep_mean, self.lp_mean)
             flags = flags | np.where(measure, fl_u, _U0)
             take_u = measure & applied

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
+    REC_MEAN_END,
     StateSpec,
     carry_state,
     recovery_lp_gain,
@@ -234,12 +235,15 @@ class Kf:
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain(
+                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
+            )
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
+            k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)
             lp_counted = ~waiting & accel_ok & ~rejected & lp_on & rec
             self.rec_lp_n = np.where(lp_counted, lp_n1, self.rec_lp_n).astype(np.uint32)
             lp1 = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(u, self.lp1), k_lp))
-            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp))
+            lp2 = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1, self.lp2), k_lp2))
             u = dm.vec3_where(lp_on, lp2, u)
             ok_a, (cw, cx, cy), _ = align_up(u)
             x2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]

@@ -14,6 +14,7 @@ from attica.reference import sensor
 from attica.reference._common import (
     COV_TILT_MAX,
     COV_UNKNOWN,
+    REC_MEAN_END,
     StateSpec,
     carry_state,
     cov_first,
@@ -507,8 +508,11 @@ class Mars:
             rec = self.rec_left > _U0
             self.rec_clip = self.rec_clip | (run & rec & (self.rec_left == self.rec_n))
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_rec_lp, lp_n1 = recovery_lp_gain(self.rec_lp_n, self.k_lp)
+            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain(
+                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
+            )
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
+            k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)
             q = self.q
             w = dm.vec3_sub(g, self.bias)
             q_rv = dm.quat_mul(q, dm.quat_from_rotvec_fast(dm.vec3_scale(w, self.dt)))
@@ -522,7 +526,7 @@ class Mars:
             me = dm.quat_rotate(q1, m)  # the mag in the earth frame of the predicted attitude
             v = dm.quat_rotate(q1, a)
             lp1n = dm.vec3_add(self.lp1, dm.vec3_scale(dm.vec3_sub(v, self.lp1), k_lp))
-            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), k_lp))
+            lp2n = dm.vec3_add(self.lp2, dm.vec3_scale(dm.vec3_sub(lp1n, self.lp2), k_lp2))
             v = dm.vec3_where(lp_on, lp2n, v)
             # full alignment (k_acc == 1)
             ok_f, (fw, fx, fy), n_f = align_up(v)

@@ -48,6 +48,8 @@ REST_SIGMA2 = dm.c("0x1.2p+3")
 SQRT2 = dm.c("0x1.6a09e6p+0")
 BW_Q = dm.c("0x1.a8279ap-2")
 """sqrt(2) and sqrt(2) - 1: the Butterworth accel low-pass (ATT_MEKF_SQRT2, ATT_MEKF_BW_Q)."""
+REC_MEAN_END = dm.c("0x1.6a09e6p-2")
+"""ATT_MEKF_REC_MEAN_END: 1 / (2 sqrt(2)), where a recovery's mean hands over to the Butterworth section."""
 
 
 def _u(flag: Flag) -> np.uint32:
@@ -542,8 +544,10 @@ class Mekf:
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        k_mean, lp_n1 = recovery_lp_gain(self.rec_lp_n, w(self.rec_clip, self.k_lp, self.k_lp_rec))
-        l1, l2 = _lowpass(u, w(rec, k_mean, self.k_lp), l1, l2)
+        floor = w(self.rec_clip, self.k_lp, self.k_lp_rec).astype(np.float32)
+        k_end = (REC_MEAN_END * floor).astype(np.float32)
+        k_mean, lp_n1, k_mean2 = recovery_lp_gain(self.rec_lp_n, floor, k_end)
+        l1, l2 = _lowpass(u, w(rec, k_mean, self.k_lp), w(rec, k_mean2, self.k_lp), l1, l2)
         self.rec_lp_n = w(acc_try & self.lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
@@ -681,11 +685,14 @@ class Mekf:
         return run_steps(self, gyr, acc, mag)
 
 
-def _lowpass(u: dm.Vec3, k: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, dm.Vec3]:
-    """Mirror of att_mekf_lowpass: the second-order Butterworth section, (lp1, lp2) after the sample u."""
+def _lowpass(u: dm.Vec3, k: Any, k2: Any, lp1: dm.Vec3, lp2: dm.Vec3) -> tuple[dm.Vec3, dm.Vec3]:
+    """Mirror of att_mekf_lowpass: the second-order Butterworth section, (lp1, lp2) after the sample u.
+
+    ``k2`` is the second stage's gain: 1 during a recovery's running mean, else ``k``.
+    """
     kq = BW_Q * k
     d = dm.vec3_sub(lp1, lp2)
     e = dm.vec3_sub(u, lp2)
     lp1 = dm.vec3_add(lp1, dm.vec3_sub(dm.vec3_scale(e, k), dm.vec3_scale(d, kq)))
-    lp2 = dm.vec3_add(lp2, dm.vec3_scale(dm.vec3_sub(lp1, lp2), k))
+    lp2 = dm.vec3_add(lp2, dm.vec3_scale(dm.vec3_sub(lp1, lp2), k2))
     return lp1, lp2

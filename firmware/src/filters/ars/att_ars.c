@@ -2,6 +2,8 @@
  * @file att_ars.c
  * @brief Quaternion complementary ARS (see att_ars.h). Mirrored by host/attica/reference/ars.py.
  */
+#include <string.h>
+
 #include "../../math/att_fp.h"
 
 #include "../../core/att_core.h"
@@ -140,21 +142,13 @@ void att_ars_reset(att_ars_t *f)
     if (f == NULL) {
         return;
     }
+    memset(&f->st, 0, sizeof f->st); /* the counts, steps, flags and stamps; head_known false */
     f->st.q = f->c.q_init;
     f->st.bias = f->c.bias_init;
     f->st.lp1 = att_i_vec3(0.0f, 0.0f, f->c.gravity);
     f->st.lp2 = f->st.lp1;
-    f->st.bias_n = 0u;
-    f->st.rest_count = 0u;
     f->st.rest_gate2 = f->c.bias.rest_first2;
-    f->st.steps = 0u;
-    f->st.flags = 0u;
-    f->st.rec_left = 0u;
-    f->st.rec_lp_n = 0u;
-    f->st.acc_step = 0u;
-    f->st.head_step = 0u;
     f->st.initialised = !f->c.init_from_accel;
-    f->st.head_known = false;
 }
 
 /*
@@ -293,7 +287,9 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         att_vec3_t lp2 = st->lp2;
         att_vec3_t u = v;
         if (c->lp_on) {
-            att_i_lowpass2(v, (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, &lp1, &lp2);
+            float k2 = c->k_lp;
+            const float k1 = (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, k2, ATT_I_REC_MEAN_END * k2, &k2) : k2;
+            att_i_lowpass2(v, k1, k2, &lp1, &lp2);
             u = lp2;
         }
         if (c->full) {

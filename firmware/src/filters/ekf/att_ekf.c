@@ -775,7 +775,7 @@ static ATT_ALWAYS_INLINE void att_ekf_gain(att_ekf_state_t *st, const att_ekf_in
 
 /*
  * The low-pass stages' step with sample vv: during a recovery and after the start (lp_mean) at the gain
- * of the running mean (att_i_recovery_lp_gain, down to k_lp, where the start's mean ends, or at
+ * of the running mean (att_i_recovery_lp_gain, down to k_lp / 4, where the start's mean ends, or at
  * ATT_EKF_MEAN_N_MAX updates), else k_lp. The count is of the updates computed: a sample the gate then
  * rejects (on outside a recovery) counts without entering the stages.
  */
@@ -783,11 +783,12 @@ static ATT_ALWAYS_INLINE void att_ekf_lowpass(const att_ekf_coeffs_t *c, att_ekf
                                               att_vec3_t *lp1, att_vec3_t *lp2)
 {
     float k = c->k_lp;
+    float k2 = k;
     if (st->rec_left > 0u || st->lp_mean) {
-        k = att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp);
-        st->lp_mean = st->lp_mean && k > c->k_lp && st->rec_lp_n < ATT_EKF_MEAN_N_MAX;
+        k = att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2);
+        st->lp_mean = st->lp_mean && k2 > c->k_lp && st->rec_lp_n < ATT_EKF_MEAN_N_MAX;
     }
-    att_i_lowpass2(vv, k, lp1, lp2);
+    att_i_lowpass2(vv, k, k2, lp1, lp2);
 }
 
 /*

@@ -239,7 +239,9 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         float cy;
         float n;
         if (c->lp_on) {
-            att_i_lowpass2(u, rec ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp, &lp1, &lp2);
+            float k2 = c->k_lp;
+            const float k1 = rec ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2) : c->k_lp;
+            att_i_lowpass2(u, k1, k2, &lp1, &lp2);
             u = lp2;
         }
         if (att_i_align_up(u, &cw, &cx, &cy, &n)) {

@@ -568,12 +568,12 @@ static ATT_ALWAYS_INLINE uint32_t att_mars_predict(const att_mars_coeffs_t *c, a
 
 /* The accel correction of q toward the earth-frame specific force (low-passed when on), the stages with it. */
 static ATT_ALWAYS_INLINE void att_mars_accel_correct(const att_mars_coeffs_t *c, att_vec3_t acc, float k_lp,
-                                                     att_quat_t *q, att_vec3_t *lp1, att_vec3_t *lp2)
+                                                     float k_lp2, att_quat_t *q, att_vec3_t *lp1, att_vec3_t *lp2)
 {
     const att_vec3_t v = att_i_quat_rotate(*q, acc);
     att_vec3_t u = v;
     if (c->lp_on) {
-        att_i_lowpass2(v, k_lp, lp1, lp2);
+        att_i_lowpass2(v, k_lp, k_lp2, lp1, lp2);
         u = *lp2;
     }
     if (c->full) {
@@ -740,9 +740,11 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     me = att_i_quat_rotate(q, mag); /* the mag in the earth frame of the predicted attitude */
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
-        att_mars_accel_correct(c, acc,
-                               (st->rec_left > 0u && c->lp_on) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp) : c->k_lp,
-                               &q, &lp1, &lp2);
+        float k2 = c->k_lp;
+        const float k1 =
+            (st->rec_left > 0u && c->lp_on) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2)
+                                            : c->k_lp;
+        att_mars_accel_correct(c, acc, k1, k2, &q, &lp1, &lp2);
         st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
     if (mag_ok) {

@@ -23,6 +23,10 @@
 #define ATT_MEKF_REST_SIGMA2 0x1.2p+3f /* 9 = 3^2: the rest gate takes the bias estimate's error up to 3 sigma */
 #define ATT_MEKF_SQRT2 0x1.6a09e6p+0f /* sqrt(2): the Butterworth low-pass */
 #define ATT_MEKF_BW_Q 0x1.a8279ap-2f  /* sqrt(2) - 1: its damping feedback (2 zeta - 1, zeta = 1 / sqrt(2)) */
+/* Where a recovery's running mean hands over to the Butterworth section of gain k (att_i_recovery_lp_gain):
+ * at k / (2 sqrt(2)), after n = 2 sqrt(2) / k updates, where the mean's age n / 2 is the section's lag,
+ * 2 tau_acc_lp = sqrt(2) / k samples (ATT_I_REC_MEAN_END is the first-order cascade's, 1 / 4). */
+#define ATT_MEKF_REC_MEAN_END 0x1.6a09e6p-2f
 
 /* Full unrolling of the small fixed loops of the covariance algebra (the indices become constants), not
  * when optimising for size (-Os); no effect on results. */
@@ -1004,28 +1008,32 @@ static ATT_NOINLINE void att_mekf_propagate(const att_mekf_coeffs_t *c, att_mekf
 /*
  * The accel low-pass (see att_mekf.h): a second-order Butterworth section on the earth-frame specific
  * force u, natural frequency 1 / (sqrt(2) tau_acc_lp) and damping 1 / sqrt(2), in two states with lp2 the
- * output: lp1 := lp1 + (k (u - lp2) - kq (lp1 - lp2)), lp2 := lp2 + k (lp1 - lp2), kq = (sqrt(2) - 1) k.
+ * output: lp1 := lp1 + (k (u - lp2) - kq (lp1 - lp2)), lp2 := lp2 + k2 (lp1 - lp2), kq = (sqrt(2) - 1) k,
+ * k2 = k except during a recovery's running mean, where it is 1 (att_i_recovery_lp_gain: with lp1 = lp2
+ * the section's next update is the running mean's).
  * Its lag at low frequencies (2 tau_acc_lp) is that of two cascaded first-order stages of time constant
  * tau_acc_lp, its attenuation of faster linear accelerations twice theirs. Stable for every k in (0, 1].
  */
-static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, att_vec3_t *lp1, att_vec3_t *lp2)
+static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, float k2, att_vec3_t *lp1, att_vec3_t *lp2)
 {
     const float kq = ATT_MEKF_BW_Q * k;
     const att_vec3_t d = att_i_vec3_sub(*lp1, *lp2);
     const att_vec3_t e = att_i_vec3_sub(u, *lp2);
     *lp1 = att_i_vec3_add(*lp1, att_i_vec3_sub(att_i_vec3_scale(e, k), att_i_vec3_scale(d, kq)));
-    *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k));
+    *lp2 = att_i_vec3_add(*lp2, att_i_vec3_scale(att_i_vec3_sub(*lp1, *lp2), k2));
 }
 
 /*
  * The low-pass gain during a recovery (step 6): the running mean of att_i_recovery_lp_gain (att_core.h)
  * until the stages' own gain, after a clipping gyro sample k_lp; in the recovery of the start until
  * k_lp_rec, the fast exponential window, since there the gyro bias is not known yet and the samples of
- * a long mean would be turned by it.
+ * a long mean would be turned by it. *k2: the second stage's gain (1 while the mean runs, then the floor).
  */
-static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st)
+static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float *k2)
 {
-    return att_i_recovery_lp_gain(&st->rec_lp_n, st->rec_clip ? c->k_lp : c->k_lp_rec);
+    const float floor = st->rec_clip ? c->k_lp : c->k_lp_rec;
+    *k2 = floor;
+    return att_i_recovery_lp_gain(&st->rec_lp_n, floor, ATT_MEKF_REC_MEAN_END * floor, k2);
 }
 
 /*
@@ -1053,7 +1061,9 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp1 = u; /* the first sample starts the low-pass */
             lp2 = u;
         }
-        att_mekf_lowpass(u, rec ? att_mekf_rec_lp_gain(c, st) : c->k_lp, &lp1, &lp2);
+        float k2 = c->k_lp;
+        const float k1 = rec ? att_mekf_rec_lp_gain(c, st, &k2) : c->k_lp;
+        att_mekf_lowpass(u, k1, k2, &lp1, &lp2);
         u = lp2;
     }
     if (!att_i_align_up(u, &cw, &cx, &cy, &n)) {
