@@ -1,18 +1,22 @@
 """During a recovery the accel low-pass holds the plain mean of the samples since the clip.
 
-att_i_recovery_mean (att_core.h) and its mirror recovery_mean (attica.reference._common).
+att_i_recovery_lp_gain (att_core.h: its second gain k2, and the mean's end k_end) and its mirror
+recovery_lp_gain (attica.reference._common), session 7.
 
-After a clipping gyro sample the stages restart, and while the running mean's gain is above the stages'
-own, the second stage is the first: both are the mean of the samples since the clip (in the estimate's
-earth frame, which every correction turns together with the stages). Before, the second stage was the
-mean of the first's running means, weighting the samples right after the clip most (about ln(n / j)
-for the j-th of n). Checked on every kind that has the recovery, through the state the C holds:
+After a clipping gyro sample the stages restart, and while the running mean runs (1 / (n + 1) not below
+k_lp / 4, the mekf's k_lp / (2 sqrt 2)) the second stage is held at the first: both are the mean of the
+samples since the clip (in the estimate's earth frame, which every correction turns together with the
+stages). Before, the second stage was the mean of the first's running means, weighting the samples right
+after the clip most (about ln(n / j) for the j-th of n), and the mean ended where its gain was the
+stages' own. Checked on every kind that has the recovery, through the state the C holds:
 
 - with the gyro still after the clip, R(q)^T lp2 is the mean of the accel samples since the clip (to
-  float rounding), not the early-weighted mean, which is 2.5 deg away on this stream (the check fails
-  on the code before);
-- the two stages are one during the mean (to the rounding of the corrections that turn both), and part
-  again once the gain is the floor;
+  float rounding), not the early-weighted mean, which is about 10 deg away on this stream (fails on the
+  code before);
+- the mean runs past the update where its gain is the stages' own, to its end (fails on the code
+  before), and the stages part after it;
+- the cascade runs again after the mean (a check that k2 does not stay 1; it cannot fail on the code
+  before, where the stages were never one);
 - what it buys on the simulator: ``attica eval --suite``'s clipped condition (docs/accuracy.md).
 """
 
@@ -29,7 +33,7 @@ from attica.settings import FilterKind
 DT = 0.01
 RANGE = 10.0  # rad/s: a sample of 10 on an axis clips (>= 0.98 of the range)
 SETTLE = 400  # steps before the clip: the start's recovery (2 s) is over
-N_MEAN = 60  # steps after the clip, inside the mean (k_lp of tau_acc_lp >= 1 s at 100 Hz is below 1/61)
+N_MEAN = 60  # steps after the clip, inside the mean (it runs to 4 / k_lp > 200 steps or the recovery's end)
 FIELD = np.array([0.0, 20.0, -40.0], np.float32)  # uT, sensor frame, level: north and down
 KINDS = [
     ("ars", FilterKind.ARS, {}),
@@ -137,9 +141,9 @@ def test_the_mean_runs_until_it_is_as_good_as_the_stages(
 
 
 @pytest.mark.parametrize(("name", "kind", "over"), KINDS, ids=[k[0] for k in KINDS])
-def test_the_cascade_resumes_at_the_floor(name: str, kind: FilterKind, over: dict[str, Any]) -> None:
-    """tau_acc_lp 0.2 s: the stages' own gain (about 1/29 at 100 Hz) is reached within the stream, and
-    from there the cascade runs again: the stages part."""
+def test_the_cascade_resumes_after_the_mean(name: str, kind: FilterKind, over: dict[str, Any]) -> None:
+    """tau_acc_lp 0.2 s: the mean's end (1 / (n + 1) below k_lp / 4, about n = 84 at 100 Hz; the mekf's
+    about 83) comes within the stream, and from there the cascade runs again: the stages part."""
     _, states, _ = _run(kind, {**over, "tau_acc_lp": 0.2})
     _, lp1, lp2, _ = states[-1]
     assert np.abs(lp1 - lp2).max() > 1e-3, f"{name}: past the floor the cascade runs again"

@@ -6,9 +6,10 @@ start from that sample, the first update of their running mean (``rec_lp_n`` 1),
 the recovery's gain, every step of it is flagged INITIALISED; in mars its end does not start the fast
 heading phase again (``rec_clip``: only a clip's recovery does). The mekf's start, a recovery since
 session 2 with its stages at the fast window ``k_lp_rec`` from the first sample, now takes the same
-running mean until that window is larger. The ekf's start is not a recovery (measured worse there:
-its bias states took the start's innovations at the recovery's gain), but its stages take the same
-running mean from the start's sample until it falls to k_lp (``lp_mean``).
+running mean until it falls below that window over 2 sqrt(2) (session 7; before, until the window was
+larger). The ekf's start is not a recovery (measured worse there: its bias states took the start's
+innovations at the recovery's gain), but its stages take the same running mean from the start's sample
+until it falls below k_lp / 4 (``lp_mean``; k_lp before session 7).
 
 - the flags and the count of the stages' updates from the start, with the recovery and without it;
 - mars's fast phase: not restarted at the end of the start's recovery, restarted at a clip's;

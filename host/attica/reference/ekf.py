@@ -651,7 +651,7 @@ class Ekf:
             self.bias = dm.vec3_where(run & ~taken_p, dm.vec3_where(from_init, (z, z, z), bi), self.bias)
             measure = run & accel_ok & ~rejected & taken_p  # no update after a prediction not taken
             # the stages' running mean (att_ekf_lowpass): in a recovery, and after the start until it falls
-            # to k_lp or the stages restart (not ready: they start from a sample or the estimate)
+            # below k_lp / 4 or the stages restart (not ready: they start from a sample or the estimate)
             mean = rec | (self.lp_mean & self.lp_ready)
             k_mean, lp_n1, k_mean2 = recovery_lp_gain(
                 self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)

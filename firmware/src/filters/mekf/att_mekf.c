@@ -1025,9 +1025,10 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, float k2, 
 
 /*
  * The low-pass gain during a recovery (step 6): the running mean of att_i_recovery_lp_gain (att_core.h)
- * until the stages' own gain, after a clipping gyro sample k_lp; in the recovery of the start until
- * k_lp_rec, the fast exponential window, since there the gyro bias is not known yet and the samples of
- * a long mean would be turned by it. *k2: the second stage's gain (1 while the mean runs, then the floor).
+ * until it is below the floor over 2 sqrt(2) (ATT_MEKF_REC_MEAN_END), then the floor: after a clipping
+ * gyro sample k_lp; in the recovery of the start k_lp_rec, the fast exponential window, since there the
+ * gyro bias is not known yet and the samples of a long mean would be turned by it. *k2: the second
+ * stage's gain (1 while the mean runs, then the floor).
  */
 static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float *k2)
 {
