@@ -914,6 +914,13 @@ static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain(uint32_t *n, float k_lp, f
     return m;
 }
 
+/** att_i_recovery_lp_gain for two cascaded first-order stages of gain k_lp (ars, kf, ekf, mars): the mean
+ * ends at ATT_I_REC_MEAN_END k_lp. */
+static ATT_ALWAYS_INLINE float att_i_recovery_lp_gain2(uint32_t *n, float k_lp, float *k2)
+{
+    return att_i_recovery_lp_gain(n, k_lp, ATT_I_REC_MEAN_END * k_lp, k2);
+}
+
 /** Index of P_ij (i <= j) in a symmetric 6x6 matrix stored as its upper triangle row by row (21 floats). */
 #define ATT_I_P6(i, j) ((uint32_t)(i) * (11u - (uint32_t)(i)) / 2u + (uint32_t)(j))
 

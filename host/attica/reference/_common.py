@@ -304,6 +304,16 @@ def recovery_lp_gain(
     return np.where(below, k_lp, m).astype(np.float32), n1, k2
 
 
+def recovery_lp_gain2(
+    n: Any, k_lp: Any
+) -> tuple[NDArray[np.float32], NDArray[np.uint32], NDArray[np.float32]]:
+    """att_i_recovery_lp_gain2: :func:`recovery_lp_gain` for two cascaded first-order stages.
+
+    The mean's end is REC_MEAN_END k_lp.
+    """
+    return recovery_lp_gain(n, k_lp, (REC_MEAN_END * np.asarray(k_lp, np.float32)).astype(np.float32))
+
+
 def p6(i: int, j: int) -> int:
     """ATT_I_P6: index of P_ij in a symmetric 6x6 matrix packed as its upper triangle, row by row."""
     lo, hi = min(i, j), max(i, j)

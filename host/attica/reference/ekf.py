@@ -13,11 +13,10 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
-    REC_MEAN_END,
     StateSpec,
     carry_state,
     pd6,
-    recovery_lp_gain,
+    recovery_lp_gain2,
     recovery_params,
     recovery_q,
     recovery_step,
@@ -653,9 +652,7 @@ class Ekf:
             # the stages' running mean (att_ekf_lowpass): in a recovery, and after the start until it falls
             # below k_lp / 4 or the stages restart (not ready: they start from a sample or the estimate)
             mean = rec | (self.lp_mean & self.lp_ready)
-            k_mean, lp_n1, k_mean2 = recovery_lp_gain(
-                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
-            )
+            k_mean, lp_n1, k_mean2 = recovery_lp_gain2(self.rec_lp_n, self.k_lp)
             k_lp = np.where(mean, k_mean, self.k_lp).astype(np.float32)
             k_lp2 = np.where(mean, k_mean2, self.k_lp).astype(np.float32)
             applied, discarded, fl_u, collapse_u, (e_u, b_u, p_u, lp1_u, lp2_u, rdy_u, cv_u) = self._update(

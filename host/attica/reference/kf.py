@@ -13,10 +13,9 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
-    REC_MEAN_END,
     StateSpec,
     carry_state,
-    recovery_lp_gain,
+    recovery_lp_gain2,
     recovery_params,
     recovery_q,
     recovery_start,
@@ -235,9 +234,7 @@ class Kf:
             # measurement and update
             u = dm.quat_rotate(x, a)
             lp_on = self.k_lp > dm.ZERO
-            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain(
-                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
-            )
+            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain2(self.rec_lp_n, self.k_lp)
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
             k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)
             lp_counted = ~waiting & accel_ok & ~rejected & lp_on & rec

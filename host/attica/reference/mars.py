@@ -14,14 +14,13 @@ from attica.reference import sensor
 from attica.reference._common import (
     COV_TILT_MAX,
     COV_UNKNOWN,
-    REC_MEAN_END,
     StateSpec,
     carry_state,
     cov_first,
     cov_grow,
     cov_tilt,
     cov_tilt_now,
-    recovery_lp_gain,
+    recovery_lp_gain2,
     recovery_params,
     recovery_start,
     recovery_step,
@@ -508,9 +507,7 @@ class Mars:
             rec = self.rec_left > _U0
             self.rec_clip = self.rec_clip | (run & rec & (self.rec_left == self.rec_n))
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
-            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain(
-                self.rec_lp_n, self.k_lp, (REC_MEAN_END * self.k_lp).astype(np.float32)
-            )
+            k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain2(self.rec_lp_n, self.k_lp)
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
             k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)
             q = self.q

@@ -288,7 +288,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
         att_vec3_t u = v;
         if (c->lp_on) {
             float k2 = c->k_lp;
-            const float k1 = (st->rec_left > 0u) ? att_i_recovery_lp_gain(&st->rec_lp_n, k2, ATT_I_REC_MEAN_END * k2, &k2) : k2;
+            const float k1 = (st->rec_left > 0u) ? att_i_recovery_lp_gain2(&st->rec_lp_n, k2, &k2) : k2;
             att_i_lowpass2(v, k1, k2, &lp1, &lp2);
             u = lp2;
         }

@@ -785,7 +785,7 @@ static ATT_ALWAYS_INLINE void att_ekf_lowpass(const att_ekf_coeffs_t *c, att_ekf
     float k = c->k_lp;
     float k2 = k;
     if (st->rec_left > 0u || st->lp_mean) {
-        k = att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2);
+        k = att_i_recovery_lp_gain2(&st->rec_lp_n, c->k_lp, &k2);
         st->lp_mean = st->lp_mean && k2 > c->k_lp && st->rec_lp_n < ATT_EKF_MEAN_N_MAX;
     }
     att_i_lowpass2(vv, k, k2, lp1, lp2);

@@ -240,7 +240,7 @@ static ATT_NOINLINE uint32_t att_kf_update(att_kf_t *f, const att_vec3_t *gyr_in
         float n;
         if (c->lp_on) {
             float k2 = c->k_lp;
-            const float k1 = rec ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2) : c->k_lp;
+            const float k1 = rec ? att_i_recovery_lp_gain2(&st->rec_lp_n, c->k_lp, &k2) : c->k_lp;
             att_i_lowpass2(u, k1, k2, &lp1, &lp2);
             u = lp2;
         }

@@ -742,8 +742,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     if (accel_ok && (flags & ATT_FLAG_ACCEL_REJECTED) == 0u) {
         float k2 = c->k_lp;
         const float k1 =
-            (st->rec_left > 0u && c->lp_on) ? att_i_recovery_lp_gain(&st->rec_lp_n, c->k_lp, ATT_I_REC_MEAN_END * c->k_lp, &k2)
-                                            : c->k_lp;
+            (st->rec_left > 0u && c->lp_on) ? att_i_recovery_lp_gain2(&st->rec_lp_n, c->k_lp, &k2) : c->k_lp;
         att_mars_accel_correct(c, acc, k1, k2, &q, &lp1, &lp2);
         st->acc_step = st->steps; /* the covariance's last accepted accel sample */
     }
