@@ -322,10 +322,14 @@ FUSION_DEFAULT = {
     "gyroscope_range": 2000.0,
     "acceleration_rejection": 10.0,
     "magnetic_rejection": 10.0,
-    "rejection_timeout": 5 * 285,
+    "rejection_timeout": 5.0,
 }
 """Fusion's settings as in its README example (the library's zero-initialised struct turns the
-rejection features off, which is not how its authors run it). ``rejection_timeout`` is in samples."""
+rejection features off, which is not how its authors run it). ``rejection_timeout`` is in seconds:
+imufusion 1.3's ``AhrsSettings`` takes the ``sample_rate`` and counts the samples itself (the C
+library's ``5 * SAMPLE_RATE`` samples of its README before 1.3), so 5 s at every rate. Until
+2026-12-06 this held 1425, the samples of 5 s at BROAD's rate, read by Fusion as 1425 s: its
+acceleration and magnetic recovery never ran (tests/test_peers_fusion.py)."""
 
 
 def _make() -> list[Peer]:

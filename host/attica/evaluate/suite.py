@@ -11,8 +11,7 @@ seeds of its RMSE: 6-axis methods by the inclination, 9-axis methods by the tota
 The sensor's gyro range is part of a condition (:attr:`Condition.gyro_range`): where it is not the
 default 2000 deg/s it is given to every method that takes one (attica's ``gyro_range``, Fusion's
 ``gyroscope_range``; VQF has none), as a user would configure the sensor. Fusion's rejection timeout
-is 5 s at every rate (its README's ``5 * sample rate``; :data:`attica.peers.FUSION_DEFAULT` holds the
-samples of 5 s at BROAD's rate).
+is 5 s at every rate (its README's; :data:`attica.peers.FUSION_DEFAULT`, in seconds).
 
 Clip recovery (conditions whose gyro clips): for each clipping episode (clipped samples less than
 :data:`EPISODE_GAP` apart are one), the time from the first unclipped sample until the method's judged
@@ -219,16 +218,6 @@ def condition(name: str) -> Condition:
 # --- methods -----------------------------------------------------------------------------------------
 
 
-def _fusion(rec: Recording, nine: bool, params: dict[str, Any], range_dps: float) -> Estimate:
-    """Fusion with its rejection timeout at 5 s of this recording's rate and the sensor's gyro range."""
-    from attica.peers import _run_fusion
-
-    over: dict[str, Any] = {"rejection_timeout": int(round(5.0 * rec.rate))}
-    if range_dps > 0:
-        over["gyroscope_range"] = range_dps
-    return _run_fusion(rec, nine, {**params, **over})
-
-
 def suite_methods(kinds: Sequence[str], peers: Sequence[str], gyro_range: float = 0.0) -> list[Method]:
     """The methods of a suite run: attica's kinds and variants, then the peers (exact names).
 
@@ -248,7 +237,7 @@ def suite_methods(kinds: Sequence[str], peers: Sequence[str], gyro_range: float 
         Named as in ``attica eval`` (the range is not part of the name).
 
     """
-    from attica.peers import FUSION_DEFAULT, TUNED, peer_by_name
+    from attica.peers import FUSION_DEFAULT, TUNED, _run_fusion, peer_by_name
 
     over = {"gyro_range": gyro_range} if gyro_range > 0 else None
     out: list[Method] = []
@@ -260,12 +249,11 @@ def suite_methods(kinds: Sequence[str], peers: Sequence[str], gyro_range: float 
         out.append(dataclasses.replace(m, name=name))
     for name in peers:
         p = peer_by_name(name)
-        if p.library == "imufusion":
+        if p.library == "imufusion" and gyro_range > 0:
             params = FUSION_DEFAULT if p.setting == "default" else {**FUSION_DEFAULT, **TUNED["fusion"][0]}
-            run = partial(_fusion, nine=p.nine_axis, params=params, range_dps=math.degrees(gyro_range))
-            out.append(Method(p.name, p.library, p.nine_axis, p.setting, run, p.note, run))
-        else:
-            out.append(Method(p.name, p.library, p.nine_axis, p.setting, p.run, p.note, p.estimate))
+            params = {**params, "gyroscope_range": math.degrees(gyro_range)}
+            p = dataclasses.replace(p, runner=partial(_run_fusion, nine=p.nine_axis, params=params))
+        out.append(Method(p.name, p.library, p.nine_axis, p.setting, p.run, p.note, p.estimate))
     return out
 
 
