@@ -64,8 +64,9 @@ def _hi_state(f: native.Filter, kind: FilterKind) -> Any:
             "hard_iron_rate": 1000.0,
         },  # memory shorter than a pair: the decay clamped at 0
         {"hard_iron_tau": 60.0, "mag_norm_reject": 0.0},  # no pair gate
+        {"hard_iron_tau": 60.0, "recovery_time": 0.0},  # no recovery: the clip level all the same
     ],
-    ids=["defaults-ish", "short-memory", "no-gate"],
+    ids=["defaults-ish", "short-memory", "no-gate", "no-recovery"],
 )
 def test_bit_exact_with_the_reference(kind: FilterKind, over: dict[str, Any]) -> None:
     gyr_range = float(_settings(kind).gyro_range)
@@ -113,6 +114,28 @@ def test_the_offset_is_found_and_the_heading_follows(kind: FilterKind, seed: int
     assert errs[0.0] > errs[60.0] + 1.0, (
         f"without the estimate {errs[0.0]:.2f} deg: the test would not see it"
     )
+
+
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+@pytest.mark.parametrize("gyro_range", [1.0, 0.6])
+def test_a_clipping_gyro_is_left_out_with_or_without_a_recovery(kind: FilterKind, gyro_range: float) -> None:
+    """Pairs over a clipping gyro sample are dropped also with recovery_time 0 (the clip level is 0.98
+    gyro_range either way): before, without a recovery the clipped rotation went into the information."""
+    rec, h_true = _sim(0)
+    gyr = np.clip(rec.gyr, -gyro_range, gyro_range).astype(np.float32)
+    assert np.mean(np.any(np.abs(gyr) >= gyro_range, axis=1)) > 0.1
+    found = {}
+    for rt in (2.0, 0.0):
+        f = native.Filter(kind, _settings(kind, hard_iron_tau=60.0, gyro_range=gyro_range, recovery_time=rt))
+        f.run_q(gyr, rec.acc, rec.mag)
+        found[rt] = f.mag_offset()
+    for rt, (h, on, est) in found.items():
+        if gyro_range < 0.7:  # half the rows clip: too little rotation left to see the offset
+            assert on and not est and not h.any(), f"recovery_time {rt}: {h} from a clipping gyro"
+        else:
+            assert est and np.max(np.abs(h - h_true)) < 0.5, f"recovery_time {rt}: {h}, truth {h_true}"
+    if kind == FilterKind.MARS:  # its estimate does not depend on the attitude: the same bits
+        np.testing.assert_array_equal(found[2.0].offset, found[0.0].offset)
 
 
 @pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)

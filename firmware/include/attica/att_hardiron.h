@@ -13,7 +13,8 @@
  * lag (about 3.5 samples on BROAD's sensor) does not bias h when the rate changes within a pair.
  * A pair closes at the first mag sample after a rotation of 0.5 rad or after key_n steps (1 s, at most
  * 1024); a keyframe is dropped by a gyro sample that is not usable (invalid, or any |w_i| at the recovery's
- * clip level: a clipping gyro) and after 2 key_n steps without a mag sample. Each pair adds its rows
+ * clip level 0.98 gyro_range, also with recovery_time 0: a clipping gyro) and after 2 key_n steps without
+ * a mag sample. Each pair adds its rows
  * [A b] (A = I - D^T) to the 4x4 information [A b]^T [A b] and [A b]^T y (y = m - D^T m_k) to the
  * information vector; both first decay by 1 - n dt / hard_iron_tau for the n steps of the pair (the
  * estimate's memory). h is solved with L eliminated (the Schur complement of the lag's entry; without
