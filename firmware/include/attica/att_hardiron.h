@@ -26,8 +26,9 @@
  * differ by more than the owner's mag_norm_reject are skipped once the target is known (a field that
  * changed between the samples: a magnet passing). The filter subtracts the applied offset from every
  * valid mag sample (mars: before its sample checks, which then see the corrected sample; mekf: after
- * them, before its norm and dip tests). A retune that turns the estimate on or off, and a new
- * calibration (att_filter_calibrate: another frame), start it again from nothing. Mirrored by
+ * them, before its norm and dip tests). A retune that turns the estimate on or off, and a calibration
+ * that changes the magnetometer's stage (att_filter_calibrate: its mag model or mounting, another frame
+ * or scale), start it again from nothing; another convention, gyro or accel model keeps it. Mirrored by
  * host/attica/reference/hardiron.py. Units: uT, rad/s, s; sensor frame.
  */
 #ifndef ATT_HARDIRON_H

@@ -4,6 +4,8 @@
  * the input/output stages and the heading. Reads no field of any filter: each kind's hooks do.
  * Mirrored by reference/filter.py.
  */
+#include <string.h>
+
 #include "../math/att_fp.h"
 
 #include "../calib/att_calib_i.h"
@@ -431,8 +433,12 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
     }
     st = att_calib_init(&c, s);
     if (st == ATT_OK) {
+        /* every field of a stage is set by att_calib_init (no padding): the same bits, the same stage */
+        const bool mag_same = memcmp(&f->cal.mag, &c.mag, sizeof c.mag) == 0;
         f->cal = c;
-        att_filter_hard_iron_restart(f); /* its samples are in another frame now */
+        if (!mag_same) {
+            att_filter_hard_iron_restart(f); /* its samples are in another frame or scale now */
+        }
     }
     return st;
 #else

@@ -136,6 +136,11 @@ def remap_axes(r: int) -> tuple[list[int], list[bool]]:
     return [ord(name[2 * k + 1]) - ord("x") for k in range(3)], [name[2 * k] == "-" for k in range(3)]
 
 
+def _bits(v: Any) -> list[int]:
+    """The float32 bit patterns of a sequence of values."""
+    return [int(x) for x in np.asarray(v, np.float32).view(np.uint32)]
+
+
 @dataclass
 class Stage:
     """``att_calib_stage_t``: mode 0 identity, 1 signed permutation, 2 affine ``a (raw - o)``."""
@@ -145,6 +150,16 @@ class Stage:
     o: list[np.float32]
     axis: list[int]
     neg: list[bool]
+
+    def same(self, other: Stage) -> bool:
+        """The same stage bit for bit (att_filter_calibrate's memcmp of the mag stage)."""
+        return (
+            self.mode == other.mode
+            and _bits(self.a) == _bits(other.a)
+            and _bits(self.o) == _bits(other.o)
+            and list(self.axis) == list(other.axis)
+            and list(self.neg) == list(other.neg)
+        )
 
     def apply(self, v: dm.Vec3) -> dm.Vec3:
         """att_calib_stage on a Vec3 of (n,) float32 arrays."""

@@ -86,10 +86,13 @@ class Filter:
     def calibrate(self, calibration: Any, gravity: float = 9.80665, accel_outputs: bool = False) -> None:
         """att_filter_calibrate: new input/output stages, the state kept (ValueError when refused).
 
-        A mars or mekf hard-iron estimate starts again: its samples are in another frame now.
+        A mars or mekf hard-iron estimate starts again when the magnetometer's stage changed (its samples
+        are in another frame or scale now); a new convention, gyro or accel model keeps it.
         """
-        self.stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
-        if hasattr(self.impl, "hi_on"):
+        stages = rc.Stages(rc.as_stage_settings(calibration, gravity, accel_outputs))
+        mag_same = stages.mag.same(self.stages.mag)
+        self.stages = stages
+        if hasattr(self.impl, "hi_on") and not mag_same:
             hiron.reset_where(self.impl, np.ones(self.impl.n, np.bool_))
 
     def accel(self) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
