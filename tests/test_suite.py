@@ -212,7 +212,15 @@ def test_cli_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert list(data["conditions"]) == list(suite.QUICK)
     assert set(data["methods"]) == set(suite.KINDS) | set(suite.PEERS)
     s = data["summary"]
-    assert s["of"] == 7 and 0 <= s["ahead"] <= 7  # 3 conditions with 6-axis figures, 4 with 9-axis ones
+    ratios = [
+        v[k]["ratio_to_vqf"]
+        for v in data["conditions"].values()
+        for k in ("best_6axis", "best_9axis")
+        if k in v
+    ]
+    assert len(ratios) == 7  # 3 conditions with 6-axis figures, 4 with 9-axis ones
+    assert s["of"] == 7 and s["ahead"] == sum(r < 1.0 for r in ratios)
+    assert s["worst_ratio"]["ratio"] == pytest.approx(max(ratios), abs=1e-4)
     best = data["conditions"]["baseline"]["best_9axis"]
     vqf = data["conditions"]["baseline"]["methods"]["vqf9"]["rmse"]
     assert best["ratio_to_vqf"] == pytest.approx(best["rmse"] / vqf, rel=1e-3)
@@ -241,3 +249,41 @@ def test_tables_fit_and_say_when_vqf_is_missing() -> None:
     res = suite.run_suite(("ars",), (), [suite.condition("baseline")], (1,), duration=10.0)
     text = format_suite(res)
     assert "no comparison with VQF" in text and max(len(x) for x in text.splitlines()) <= 110
+
+
+def test_a_nan_figure_is_a_failed_comparison_not_a_smaller_count() -> None:
+    """VQF NaN on one condition, attica's only 6-axis kind NaN on another: both count, as behind, and are
+    named; the worst ratio is the worst finite one (before, the summary said 1 of 1)."""
+    from attica.evaluate.suite_result import CaseScore, MethodInfo, SuiteResult
+    from attica.metrics import Errors
+
+    conds = [suite.condition(n) for n in ("baseline", "rate-50", "rate-100")]
+    nan = math.nan
+    figures = {"baseline": (0.5, 1.0), "rate-50": (0.5, nan), "rate-100": (nan, 1.0)}  # mekf6, vqf6
+    cases = [
+        CaseScore(
+            c.name,
+            seed,
+            {m: Errors(nan, nan, v, 100) for m, v in zip(("mekf6", "vqf6"), figures[c.name])},
+            {"mekf6": (), "vqf6": ()},
+            0,
+        )
+        for c in conds
+        for seed in (1, 2)
+    ]
+    methods = [MethodInfo("mekf6", "attica", False), MethodInfo("vqf6", "vqf", False)]
+    res = SuiteResult(conds, (1, 2), methods, cases)
+    s = res.summary()
+    assert s["6-axis"] == {"ahead": 1, "of": 3, "failed": ["rate-50", "rate-100"]}
+    assert s["ahead"] == 1 and s["of"] == 3 and s["failed"] == ["6-axis rate-50", "6-axis rate-100"]
+    assert s["worst_ratio"]["ratio"] == 0.5
+    assert s["per_method"]["mekf6"] == {
+        "ahead": 1,
+        "of": 3,
+        "worst_ratio": 0.5,
+        "failed": ["rate-50", "rate-100"],
+    }
+    text = " ".join(format_suite(res).split())
+    assert (
+        "1 of 3 comparisons" in text and "no ratio (a NaN figure: counted as behind): 6-axis rate-50" in text
+    )

@@ -117,30 +117,53 @@ class SuiteResult:
         return out
 
     def summary(self) -> dict[str, Any]:
-        """Share of comparisons where attica's best is ahead of VQF, the worst ratio, clip recovery."""
+        """Share of comparisons where attica's best is ahead of VQF, the worst ratio, clip recovery.
+
+        A comparison whose ratio is not finite (VQF's figure or every attica method's NaN: a method that
+        failed on every seed) counts in ``of``, never as ahead, and is listed under ``failed``; the worst
+        ratio is the worst finite one (absent when none is).
+        """
         out: dict[str, Any] = {}
         both: list[tuple[str, str, float]] = []
+        failed: list[str] = []
+        total = 0
         for nine, label in ((False, "6-axis"), (True, "9-axis")):
-            comp = [(c, r) for c, r in self.comparisons(nine) if np.isfinite(r)]
-            both += [(label, c, r) for c, r in comp]
+            vqf = "vqf9" if nine else "vqf6"
+            ran = {m.name for m in self.methods if m.nine_axis == nine and m.family == "attica"}
+            if not ran or not any(m.name == vqf for m in self.methods):
+                continue  # nothing to compare on these axes
+            comp = self.comparisons(nine)
+            ok = [(c, r) for c, r in comp if np.isfinite(r)]
+            bad = [c for c, r in comp if not np.isfinite(r)]
+            both += [(label, c, r) for c, r in ok]
+            failed += [f"{label} {c}" for c in bad]
+            total += len(comp)
             if comp:
-                out[label] = {"ahead": sum(r < 1.0 for _, r in comp), "of": len(comp)}
-        if both:
-            worst = max(both, key=lambda x: x[2])
+                out[label] = {"ahead": sum(r < 1.0 for _, r in ok), "of": len(comp)}
+                if bad:
+                    out[label]["failed"] = bad
+        if total:
             out["ahead"] = sum(r < 1.0 for _, _, r in both)
-            out["of"] = len(both)
-            out["worst_ratio"] = {"ratio": round(worst[2], 4), "axes": worst[0], "condition": worst[1]}
+            out["of"] = total
+            if both:
+                worst = max(both, key=lambda x: x[2])
+                out["worst_ratio"] = {"ratio": round(worst[2], 4), "axes": worst[0], "condition": worst[1]}
+            if failed:
+                out["failed"] = failed
         per_kind: dict[str, Any] = {}
         for m in self.methods:
             vqf = "vqf9" if m.nine_axis else "vqf6"
             if m.family != "attica" or not any(x.name == vqf for x in self.methods):
                 continue
             comp = self.comparisons(m.nine_axis, m.name)
+            finite = [r for _, r in comp if np.isfinite(r)]
             per_kind[m.name] = {
-                "ahead": sum(r < 1.0 for _, r in comp),
+                "ahead": sum(r < 1.0 for r in finite),
                 "of": len(comp),
-                "worst_ratio": round(max(r for _, r in comp), 4),
+                "worst_ratio": round(max(finite), 4) if finite else math.nan,
             }
+            if len(finite) < len(comp):
+                per_kind[m.name]["failed"] = [c for c, r in comp if not np.isfinite(r)]
         out["per_method"] = per_kind
         clip = [c.name for c in self.conditions if self.clipped(c.name)]
         if clip:

@@ -113,13 +113,22 @@ def format_summary(res: SuiteResult, width: int = TABLE_WIDTH) -> str:
             f"attica's best ahead of VQF: {s['ahead']} of {s['of']} comparisons ({100 * share:.0f} %; "
             f"{parts}); target >= {100 * TARGET_AHEAD:.0f} %"
         )
-        w = s["worst_ratio"]
-        lines.append(
-            f"worst ratio attica's best / VQF: {w['ratio']:.2f} ({w['axes']}, {w['condition']}); "
-            f"target <= {TARGET_RATIO:.2f}"
-        )
+        if "worst_ratio" in s:
+            w = s["worst_ratio"]
+            lines.append(
+                f"worst ratio attica's best / VQF: {w['ratio']:.2f} ({w['axes']}, {w['condition']}); "
+                f"target <= {TARGET_RATIO:.2f}"
+            )
+        if "failed" in s:
+            lines += textwrap.wrap(
+                "no ratio (a NaN figure: counted as behind): " + ", ".join(s["failed"]),
+                width,
+                subsequent_indent="  ",
+            )
         per = "; ".join(
-            f"{k} {v['ahead']}/{v['of']} (worst {v['worst_ratio']:.2f})" for k, v in s["per_method"].items()
+            f"{k} {v['ahead']}/{v['of']} (worst {v['worst_ratio']:.2f}"
+            + (f"; no ratio on {', '.join(v['failed'])})" if "failed" in v else ")")
+            for k, v in s["per_method"].items()
         )
         lines += textwrap.wrap(
             f"each attica method against VQF of its axes: {per}", width, subsequent_indent="  "
