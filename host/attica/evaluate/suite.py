@@ -158,13 +158,17 @@ class Condition:
 
 CONDITIONS: tuple[Condition, ...] = (
     Condition("baseline", "the simulator's defaults: 285.714 Hz, random rotation and translation, 2 breaks"),
-    Condition("rate-50", "the baseline at 50 Hz (same noise densities)", {"rate": 50.0}),
+    Condition("rate-50", "the baseline at 50 Hz (same gyro and accel noise densities)", {"rate": 50.0}),
     Condition("rate-100", "the baseline at 100 Hz", {"rate": 100.0}),
     Condition("rate-1000", "the baseline at 1000 Hz", {"rate": 1000.0}),
     Condition(
         "consumer", "consumer-grade IMU: noise, 2 deg/s bias, 2 % gyro scale, errors", grade="consumer"
     ),
-    Condition("industrial", "industrial-grade IMU: a tenth of the consumer errors", grade="industrial"),
+    Condition(
+        "industrial",
+        "industrial-grade IMU: a tenth of the consumer bias and scale, a quarter of the noise",
+        grade="industrial",
+    ),
     Condition(
         "mag-start",
         "field disturbed by 16 uT (40 deg of heading) for the first 15 s; scored from 15 s",
@@ -174,7 +178,7 @@ CONDITIONS: tuple[Condition, ...] = (
     ),
     Condition(
         "moving-magnet",
-        "two magnets (3 A m^2) pass 25-30 cm away in 20 s each: up to 30 uT, turning",
+        "two magnets (3 A m^2) pass 25-32 cm away in 20 s each: up to 30 uT, turning",
         {
             "mag_dipoles": (
                 (8.0, 28.0, (-1.5, 0.25, 0.1), (1.5, 0.25, 0.1), (0.0, 2.0, 2.2)),

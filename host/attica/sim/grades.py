@@ -10,7 +10,8 @@ drawn from the seed and applied by the simulator: :attr:`~attica.sim.SimConfig.s
 
 - ``consumer``: a phone or hobby MEMS IMU with its factory trim, the magnetometer calibrated once by the
   user (a few uT of hard iron left);
-- ``industrial``: a calibrated industrial MEMS IMU (an order of magnitude smaller on every count).
+- ``industrial``: a calibrated industrial MEMS IMU (bias, scale and offsets an order of magnitude smaller,
+  noise and iron about a quarter).
 """
 
 from __future__ import annotations
