@@ -257,6 +257,33 @@ def test_retune_and_calibrate_restart_the_estimate(kind: FilterKind) -> None:
         assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
 
 
+@pytest.mark.parametrize("kind", list(KINDS), ids=lambda k: k.label)
+def test_a_smaller_mag_range_bounds_the_offset_at_once(kind: FilterKind) -> None:
+    """A retune to a mag_range below the estimated offset clamps the target and the applied offset to it
+    (before, both stayed outside the documented bound until the next solve). C and reference alike."""
+    from attica.reference.filter import Filter as RefFilter
+
+    rec, _ = _sim(0, duration=60.0)
+    on = _settings(kind, hard_iron_tau=60.0, hard_iron_rate=100.0)
+    c = native.Filter(kind, on)
+    ref = RefFilter(kind, on)
+    n = rec.n
+    c.run(rec.gyr, rec.acc, rec.mag)
+    for i in range(n):
+        ref.step(rec.gyr[i], rec.acc[i], rec.mag[i])
+    h = c.mag_offset().offset
+    limit = float(np.ceil(np.max(np.abs(h)))) - 4.0
+    assert c.mag_offset().estimated and limit > 4.0, h
+    small = replace(on, mag_range=limit)
+    c.retune(small)
+    ref.retune(small)
+    st = _hi_state(c, kind)
+    for v in (st.offset, st.target):
+        assert max(abs(v.x), abs(v.y), abs(v.z)) <= limit
+    assert np.max(np.abs(c.mag_offset().offset)) == limit
+    assert ref.state_matches(0, c.state.copy()[0]), ref.state_diff(0, c.state.copy()[0])
+
+
 def test_mekf_without_the_magnetometer_has_no_estimate() -> None:
     f = native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF, use_mag=False, hard_iron_tau=60.0))
     assert not f.mag_offset().on

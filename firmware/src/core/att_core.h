@@ -668,6 +668,17 @@ static inline void att_i_hi_params(att_hardiron_params_t *p, float dt, float tau
     p->key_n = (n < 1u) ? 1u : ((n > ATT_HI_KEY_N_MAX) ? ATT_HI_KEY_N_MAX : n);
 }
 
+/* A retune's bound (p->limit, mag_range): the target and the applied offset kept within it per axis, as
+   the solve keeps the target (a smaller mag_range would otherwise leave them outside). */
+static inline void att_i_hi_retune(const att_hardiron_params_t *p, att_hardiron_t *s)
+{
+    const float l = p->limit;
+    s->target = att_i_vec3(att_i_clampf(s->target.x, -l, l), att_i_clampf(s->target.y, -l, l),
+                           att_i_clampf(s->target.z, -l, l));
+    s->offset = att_i_vec3(att_i_clampf(s->offset.x, -l, l), att_i_clampf(s->offset.y, -l, l),
+                           att_i_clampf(s->offset.z, -l, l));
+}
+
 /* Nothing estimated: offset 0, no information, no keyframe. */
 static inline void att_i_hi_reset(att_hardiron_t *s)
 {

@@ -83,6 +83,13 @@ def reset(f: Any, n: int) -> None:
     f.hi_observable = np.zeros(n, np.bool_)
 
 
+def retune(f: Any) -> None:
+    """att_i_hi_retune: the target and the applied offset within the new bound (mag_range) per axis."""
+    lim = f.hi_limit
+    f.hi_target = tuple(dm.clampf(v, -lim, lim) for v in f.hi_target)
+    f.hi_offset = tuple(dm.clampf(v, -lim, lim) for v in f.hi_offset)
+
+
 def reset_where(f: Any, cond: Any) -> None:
     """att_i_hi_reset where ``cond`` (a retune that turns the estimate on or off, a new calibration)."""
     fresh = type("Fresh", (), {})()

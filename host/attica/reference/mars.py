@@ -626,6 +626,7 @@ class Mars:
         new = Mars(settings, self.n)
         carry_state(self, new)
         hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
+        hiron.retune(new)
         bias_retune(new)
         ok, parts = new._derive_m0(new.m0)
         new._commit_m0(new.m0_valid & ok, parts, new_block=False)  # the limits only: the block is kept

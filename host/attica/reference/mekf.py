@@ -624,6 +624,7 @@ class Mekf:
         new = Mekf(settings, self.n)
         carry_state(self, new)
         hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
+        hiron.retune(new)
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)

@@ -262,6 +262,7 @@ att_status_t att_mars_retune(att_mars_t *f, const att_mars_settings_t *settings)
     if (f->c.hi.on != hi_was_on) {
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
     }
+    att_i_hi_retune(&f->c.hi, &f->st.hi);
     att_i_bias_retune(&f->c.bias, f->c.bias_init, &f->st.bias, &f->st.bias_n, &f->st.rest_count,
                       &f->st.rest_gate2);
     if (f->st.m0_valid) {

@@ -278,6 +278,7 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     if (f->c.hi.on != hi_was_on) {
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
     }
+    att_i_hi_retune(&f->c.hi, &f->st.hi);
     if (!(f->c.p0_scale > 0.0f)) {
         f->st.p_scale = 0.0f; /* no longer estimated: the estimate is kept, fixed */
         att_mekf_scale_v_zero(&f->st);
