@@ -184,9 +184,11 @@ typedef struct {
     float mag_noise;              /**< covariance model: density of the field's disturbance, uT/sqrt(Hz),
                                        [0, 1e3] */
     float hard_iron_tau;          /**< hard-iron offset estimated on the device from rotation (att_hardiron.h):
-                                       the memory of its estimate, s, [0, 1e4]; 0 = off (default) */
+                                       the memory of its estimate, s, [0, 1e4]; 0 = off (default); below
+                                       a few pairs (about 5 s) it keeps too little to become observable */
     float hard_iron_rate;         /**< the applied hard-iron offset moves by at most this per axis, uT/s,
-                                       [1e-3, 1e3] */
+                                       [1e-3, 1e3]; a step (rate dt) below the float resolution of the
+                                       offset (2^-23 |h|) rounds: it needs rate dt >= 2^-22 mag_range */
 } att_mars_settings_t;
 
 /** Coefficients derived from the settings by att_mars_init: what a step needs, and the reset values. */

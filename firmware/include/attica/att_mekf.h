@@ -227,8 +227,11 @@ typedef struct {
     float mag_new_time;    /**< a rejected field that stays steady this long becomes the reference (its
                                 heading variance reset, as at the alignment), s, [0, 1e4]; 0 = never */
     float hard_iron_tau;   /**< hard-iron offset estimated on the device from rotation (att_hardiron.h): the
-                                memory of its estimate, s, [0, 1e4]; 0 = off (default) */
-    float hard_iron_rate;  /**< the applied hard-iron offset moves by at most this per axis, uT/s, [1e-3, 1e3] */
+                                memory of its estimate, s, [0, 1e4]; 0 = off (default); below a few pairs
+                                (about 5 s) it keeps too little to become observable */
+    float hard_iron_rate;  /**< the applied hard-iron offset moves by at most this per axis, uT/s, [1e-3, 1e3];
+                                a step (rate dt) below the float resolution of the offset (2^-23 |h|)
+                                rounds: it needs rate dt >= 2^-22 mag_range */
     bool use_mag;          /**< 9-axis: use the magnetometer (false: 6-axis, mag ignored, no mag flags) */
     bool init_from_sensors; /**< roll/pitch from the first usable accel sample, yaw from the first mag */
     att_quat_t q_init;     /**< initial attitude when init_from_sensors is false; finite, |q|^2 in [2^-20, 2^20] */
