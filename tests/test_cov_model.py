@@ -201,6 +201,30 @@ def test_ars_heading_unknown_until_set(how: str) -> None:
     assert out["cov"][:, 2].tobytes() == expected.astype(np.float32).tobytes()
 
 
+def test_ars_heading_unknown_again_after_a_clip() -> None:
+    """A clipping gyro sample (one that starts a recovery) makes a set heading unknown again: the rotation
+    it lost turns the heading too (before, the variance went on growing from the set heading's, 0.4 deg
+    against a 70 deg error). C and reference bit for bit."""
+    from attica.reference.filter import Filter as RefFilter
+
+    r = simulate(SimConfig(duration=10.0, rate=RATE, seed=6))
+    s = _settings(FilterKind.ARS)
+    f = native.Filter(FilterKind.ARS, s)
+    ref = RefFilter(FilterKind.ARS, s)
+    for obj in (f, ref):
+        obj.run(r.gyr[:300], r.acc[:300], check_units=False)
+        obj.set_heading(0.5)
+        obj.run(r.gyr[300:400], r.acc[300:400], check_units=False)
+    assert f.output()["cov"][2] < 1e-5
+    gyr = r.gyr[400:600].copy()
+    gyr[50:60, 2] = 0.985 * float(s.gyro_range)  # ten clipping samples
+    out = f.run(gyr, r.acc[400:600], check_units=False)
+    ref.run(gyr, r.acc[400:600], check_units=False)
+    assert (out["cov"][:50, 2] < 1e-5).all()
+    assert (out["cov"][50:, 2] == np.float32(UNKNOWN)).all()
+    assert f.output()["cov"].tobytes() == ref.output()["cov"][0].tobytes(), "C vs reference"
+
+
 def test_mars_heading_variance() -> None:
     """Unknown before the alignment, the model's steady state after it (larger in a weaker horizontal
     field: up to the ratio of the fields' squares, the gyro term being the same), growing while the mag

@@ -54,7 +54,8 @@
  *     raise it); during a recovery the gains of the recovery plus pi^2/48 (a +-45 deg error) fading
  *     over it; at most pi^2/12. cov[2]: the heading variance about the earth's z, pi^2/3 (unknown: the
  *     yaw starts at 0) until att_filter_set_heading (or a heading update of gain 1), then gyro_noise^2
- *     dt per step since, at most pi^2/3 (a heading update of gain < 1 leaves it). Before the first
+ *     dt per step since, at most pi^2/3 (a heading update of gain < 1 leaves it), and pi^2/3 again from
+ *     a clipping gyro sample (one that starts a recovery: recovery_time > 0). Before the first
  *     usable sample pi^2/12 and pi^2/3. cov[3] = 0. Units rad^2.
  *
  * Units: rad/s, m/s^2, s. Frames: gyro/accel in the sensor frame; q sensor-to-earth (ENU, z up).

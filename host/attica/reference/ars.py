@@ -305,6 +305,8 @@ class Ars:
             )
             rec = self.rec_left > _U0
             flags = flags | np.where(run & rec, _u(Flag.INITIALISED), _U0)
+            # a clipping sample: the heading lost rotation too, the covariance's heading is unknown again
+            self.head_known = self.head_known & ~(run & rec & (self.rec_left == self.rec_n))
             k_rec_lp, lp_n1, k_rec_lp2 = recovery_lp_gain2(self.rec_lp_n, self.k_lp)
             k_lp = np.where(rec, k_rec_lp, self.k_lp)
             k_lp2 = np.where(rec, k_rec_lp2, self.k_lp)

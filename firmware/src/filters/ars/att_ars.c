@@ -272,6 +272,9 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
         k = c->k_rec;
+        if (st->rec_left == c->rec_n) {
+            st->head_known = false; /* a clipping sample: the heading lost rotation too (covariance, step 5) */
+        }
     }
 
     q = st->q;
