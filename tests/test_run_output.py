@@ -158,17 +158,26 @@ def test_mcap_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind:
     np.testing.assert_array_equal(cov[no_estimate], np.tile([-1.0] + [0.0] * 8, (waits, 1)))
     est = cov[~no_estimate].reshape(-1, 3, 3)
     off = ~np.eye(3, dtype=bool)
-    assert (est[:, off] == 0.0).all()
+    np.testing.assert_array_equal(est, np.transpose(est, (0, 2, 1)))  # symmetric
+    if kind != "ekf":
+        assert (est[:, off] == 0.0).all()
     c = ref["cov"][~no_estimate].astype(np.float64)
     diag = np.diagonal(est, axis1=1, axis2=2)
+    unknown = np.full(len(c), export.UNKNOWN_YAW)
+    if kind == "ekf":  # the Euler angles' variances turned onto the earth's axes; the yaw unknown
+        e = ref["euler"][~no_estimate].astype(np.float64)
+        s_th, c_th = np.sin(e[:, 1]), np.cos(e[:, 1])
+        s_ps, c_ps = np.sin(e[:, 2]), np.cos(e[:, 2])
+        ekf_x = c[:, 0] * (c_ps * c_th) ** 2 + c[:, 1] * s_ps**2
+        ekf_z = c[:, 0] * s_th**2 + export.UNKNOWN_YAW
     expected = {
         "ars": c[:, :3],  # the model's tilt, tilt, heading
         "gyro": np.zeros((len(c), 3)),  # no covariance: all zeros, "unknown"
-        "kf": np.repeat(4.0 * c.mean(axis=1)[:, None], 3, axis=1),  # P = p I on q: 4 p rad^2
-        "ekf": c[:, :3],  # roll, pitch, yaw
+        "kf": np.stack([4.0 * c.mean(axis=1)] * 2 + [unknown], axis=1),  # P = p I on q: 4 p rad^2; yaw
+        "ekf": np.stack([ekf_x, diag[:, 1], ekf_z], axis=1) if kind == "ekf" else None,
         "mekf": c[:, :3],  # earth-frame rotation vector
     }[kind]
-    np.testing.assert_array_equal(diag, expected)
+    np.testing.assert_allclose(diag, expected, rtol=1e-12)
     if kind != "gyro":
         assert (diag > 0.0).all()
     gyr_cov = np.array([m.angular_velocity_covariance for m in imu])
@@ -298,15 +307,32 @@ def test_orientation_covariance_marks_no_estimate() -> None:
     out = np.zeros(2, OUTPUT_DTYPE)
     out["cov"] = [[1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 4.0]]
     out["flags"] = [int(Flag.NOT_READY), 0]
+    u = export.UNKNOWN_YAW
     for kind, diag in (
         ("mekf", [1.0, 2.0, 3.0]),
-        ("ekf", [1.0, 2.0, 3.0]),
-        ("kf", [10.0] * 3),
+        ("ekf", [1.0, 2.0, u]),  # level, yaw 0: roll about east, pitch about north; the yaw unknown
+        ("kf", [10.0, 10.0, u]),
         ("tilt", [0.0] * 3),
     ):
         c = export.orientation_covariance(kind, out)
         assert list(c[0]) == [-1.0] + [0.0] * 8
         np.testing.assert_array_equal(c[1], np.diag(diag).ravel())
+
+
+def test_ekf_covariance_turns_with_the_yaw() -> None:
+    """The EKF's roll and pitch variances are about axes that turn with the yaw: at a yaw of 90 deg the
+    roll's is about the earth's north (y), the pitch's about west-east (x); at a pitch of 90 deg the
+    roll's is about the vertical."""
+    out = np.zeros(3, OUTPUT_DTYPE)
+    out["cov"] = [[1.0, 2.0, 3.0, 0.0]] * 3
+    out["euler"] = [[0.0, 0.0, np.pi / 2], [0.0, np.pi / 2, 0.0], [0.3, 0.2, 0.1]]
+    c = export.orientation_covariance("ekf", out).reshape(3, 3, 3)
+    u = export.UNKNOWN_YAW
+    np.testing.assert_allclose(c[0], np.diag([2.0, 1.0, u]), atol=1e-7)  # float32 angles
+    np.testing.assert_allclose(c[1], np.diag([0.0, 2.0, 1.0 + u]), atol=1e-7)
+    # the general case: unit axes, so the trace is the sum of the variances; positive definite
+    assert np.trace(c[2]) == pytest.approx(1.0 + 2.0 + u)
+    assert np.linalg.eigvalsh(c[2]).min() > 0.0
 
 
 def _writers_section() -> str:
