@@ -245,6 +245,34 @@ def test_csv_of_a_simulation_counts_from_zero(tmp_path: Path) -> None:
     np.testing.assert_allclose(table[:, 0], np.arange(len(table)) / rate, atol=5e-10, rtol=0)
 
 
+def test_outputs_in_another_convention_say_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A calibration with the NED convention: the CSV's header names NED for q (and says the covariance
+    stays ENU); an .mcap, whose sensor_msgs/Imu is ENU (REP-145), is refused before the filters run."""
+    from attica.calibration import Calibration
+
+    cal = tmp_path / "ned.json"
+    Calibration(convention="ned").save(cal)
+    path = tmp_path / "ned.csv"
+    args = ["run", "--filter", "mekf", "--duration", "2", "-q", "--calibration", str(cal)]
+    assert main([*args, "-o", str(path)]) == 0
+    comments, _, _ = _read_csv(path)
+    text = " ".join(comments)
+    assert "sensor-to-earth (NED: x north, y east, z down)" in text and "ENU: x east" not in text
+    assert "about the ENU axes whatever the output convention" in text
+    capsys.readouterr()
+    assert main([*args, "-o", str(tmp_path / "ned.mcap")]) == 2
+    err = capsys.readouterr()
+    assert "REP-145" in err.err and "ned" in err.err and "RMSE" not in err.out
+    with pytest.raises(ValueError, match="REP-145"):
+        export.write_outputs(
+            tmp_path / "x.mcap",
+            np.zeros(0, OUTPUT_DTYPE),
+            simulate(SimConfig(duration=0.1)),
+            "ars",
+            convention="ned",
+        )
+
+
 @pytest.mark.parametrize(
     "name,message",
     [

@@ -9,7 +9,7 @@ OUTPUT_DTYPE = np.dtype(
         ("q", "<f4", (4,)),  # w, x, y, z, sensor-to-earth (ENU)
         ("euler", "<f4", (3,)),  # ZYX roll, pitch, yaw, rad
         ("gyro_bias", "<f4", (3,)),  # rad/s, sensor frame
-        ("cov", "<f4", (4,)),  # covariance diagonal (KF: q; EKF: phi, theta, psi)
+        ("cov", "<f4", (4,)),  # covariance diagonal (KF: q; EKF: phi, theta, psi, mean bias variance)
         ("flags", "<u4"),
         ("steps", "<u4"),
         ("valid", "<u4"),  # ATT_OUT_* bits of the fields written

@@ -94,10 +94,11 @@ typedef struct {
     att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU) */
     att_vec3_t euler;     /**< ZYX (roll phi, pitch theta, yaw psi), rad */
     att_vec3_t gyro_bias; /**< gyro bias estimate, rad/s, sensor frame (0 if not estimated) */
-    float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi, 0) rad^2; MEKF
-                               (dtheta x, y, z (earth frame), rad^2; mean bias variance, (rad/s)^2); ARS,
-                               MARS: the covariance model's (tilt about earth x, y, heading about z, 0)
-                               rad^2 (att_ars.h, step 5); gyro, tilt: 0 */
+    float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi rad^2; mean bias
+                               variance, (rad/s)^2); MEKF (dtheta x, y, z (earth frame), rad^2; mean bias
+                               variance, (rad/s)^2); ARS, MARS: the covariance model's (tilt about earth
+                               x, y, heading about z, 0) rad^2 (att_ars.h, step 5); gyro, tilt: 0. About
+                               the ENU axes whatever the calibration's convention (q, euler converted) */
     uint32_t flags;       /**< ATT_FLAG_* of the step */
     uint32_t steps;       /**< steps since init/reset (wraps) */
     uint32_t valid;       /**< ATT_OUT_* bits of the fields written by the call that filled the record */

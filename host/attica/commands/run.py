@@ -172,12 +172,14 @@ def check_outputs(outputs: dict[FilterKind, Path], rec: Any) -> None:
             raise CliError(str(exc)) from None
 
 
-def write_output(path: Path, kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any) -> None:
+def write_output(
+    path: Path, kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any, convention: str = "enu"
+) -> None:
     """Write one filter's outputs in the format of the suffix (:func:`attica.data.export.write_outputs`)."""
     from attica.data.export import write_outputs
 
     try:
-        write_outputs(path, out, rec, kind, settings)
+        write_outputs(path, out, rec, kind, settings, convention)
     except OSError as exc:
         raise CliError(f"cannot write {path}: {exc.strerror or exc}") from None
 
@@ -189,6 +191,11 @@ def run(args: argparse.Namespace) -> int:
     outputs = output_paths(Path(args.output), kinds) if args.output else {}
     overrides = plan_overrides(kinds, args.set or [])
     cal = load_calibration(args)
+    convention = str(cal.convention) if cal is not None else "enu"
+    if convention != "enu" and any(p.suffix.lower() == ".mcap" for p in outputs.values()):
+        from attica.data.export import MCAP_ENU_ONLY
+
+        raise CliError(MCAP_ENU_ONLY.format(convention=convention))
     rec = load_data(args)
     check_outputs(outputs, rec)
     settings = {k: filter_settings(k, rec.rate, overrides[k]) for k in kinds}  # all checked before running
@@ -212,6 +219,6 @@ def run(args: argparse.Namespace) -> int:
             print("\n".join(lines))
             status = status or (0 if ok else 1)
         if kind in outputs:
-            write_output(outputs[kind], kind, rec, out, settings[kind])
+            write_output(outputs[kind], kind, rec, out, settings[kind], convention)
             print(f"        wrote {outputs[kind]}")
     return status

@@ -227,7 +227,22 @@ def csv_columns(kind: FilterKind | str) -> list[str]:
     ]
 
 
-def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any) -> list[str]:
+CONVENTION_AXES = {
+    "enu": "ENU: x east, y north, z up",
+    "ned": "NED: x north, y east, z down",
+    "nwu": "NWU: x north, y west, z up",
+}
+"""The earth frames of the output conventions (att_calib.h), as the CSV header names them."""
+
+
+MCAP_ENU_ONLY = (
+    "an .mcap output holds sensor_msgs/Imu in the ENU world frame (REP-145), but the calibration's output "
+    "convention is {convention}: leave it at enu for .mcap (or write .csv / .npz)"
+)
+"""The error of an .mcap output with a non-ENU output convention."""
+
+
+def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any, convention: str) -> list[str]:
     k = info(kind)
     clock = (
         "s on the recording's own clock (its time as recorded, any origin, e.g. Unix time)"
@@ -238,13 +253,15 @@ def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any) -> li
         f"attica run outputs: {_kind_text(k.kind, settings)} over {rec.name or 'a recording'}, "
         f"{len(rec.gyr)} samples at {rec.rate:g} Hz",
         f"time: {clock}",
-        "q_w, q_x, q_y, q_z: attitude, unit quaternion sensor-to-earth (ENU: x east, y north, z up)",
+        f"q_w, q_x, q_y, q_z: attitude, unit quaternion sensor-to-earth ({CONVENTION_AXES[convention]})",
         "roll, pitch, yaw: ZYX Euler angles of the attitude, rad",
         "gyro_bias_x, gyro_bias_y, gyro_bias_z: gyro bias estimate, rad/s, sensor frame"
         + ("" if k.gyro_bias else f" (0: {k.label} does not estimate one)"),
     ]
     if k.kind in COVARIANCE:
         lines.append(f"{', '.join(COVARIANCE[k.kind].columns)}: {COVARIANCE[k.kind].meaning}")
+        if convention != "enu":
+            lines.append("the covariance columns are about the ENU axes whatever the output convention")
     else:
         lines.append(f"no covariance columns: {k.label} does not estimate a covariance")
     bits = ", ".join(f"0x{f.value:04X} {f.name}" for f in Flag)
@@ -257,7 +274,12 @@ def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any) -> li
 
 
 def write_csv(
-    path: PathLike, out: NDArray[np.void], rec: Any, kind: FilterKind | str, settings: Any = None
+    path: PathLike,
+    out: NDArray[np.void],
+    rec: Any,
+    kind: FilterKind | str,
+    settings: Any = None,
+    convention: str = "enu",
 ) -> None:
     """Write one filter's outputs as CSV: comment lines, a header row, one row per sample.
 
@@ -278,9 +300,14 @@ def write_csv(
         The filter kind (its covariance columns).
     settings : optional
         The kind's settings of the run (None: its defaults), for the header's axes.
+    convention : str
+        The earth frame of ``q`` and the Euler angles (the calibration's output convention: ``enu``,
+        ``ned`` or ``nwu``), for the header; the covariance stays about the ENU axes.
 
     """
     k = info(kind)
+    if convention not in CONVENTION_AXES:
+        raise ValueError(f"unknown output convention {convention!r} (enu, ned, nwu)")
     times, absolute = sample_times(rec)
     if len(times) != len(out):
         raise ValueError(f"{len(out)} outputs for a recording of {len(times)} samples")
@@ -297,7 +324,7 @@ def write_csv(
     table = np.hstack([np.asarray(c, np.float64) for c in cols])
     fmt = ["%.9f"] + ["%.9g"] * (10 + ncov) + ["%d", "%d"]
     with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write("\n".join(_csv_header(k.kind, rec, absolute, settings)) + "\n")
+        f.write("\n".join(_csv_header(k.kind, rec, absolute, settings, convention)) + "\n")
         f.write(",".join(csv_columns(k.kind)) + "\n")
         np.savetxt(f, table, fmt=fmt, delimiter=",")
 
@@ -536,14 +563,23 @@ def _version() -> str:
 
 
 def write_outputs(
-    path: PathLike, out: NDArray[np.void], rec: Any, kind: FilterKind | str, settings: Any = None
+    path: PathLike,
+    out: NDArray[np.void],
+    rec: Any,
+    kind: FilterKind | str,
+    settings: Any = None,
+    convention: str = "enu",
 ) -> None:
     """Write one filter's outputs in the format of ``path``'s suffix (:data:`OUTPUT_SUFFIXES`).
+
+    ``convention`` is the earth frame of the outputs' ``q`` (the calibration's output convention): the
+    CSV's header says it; ``.mcap`` takes ENU only (REP-145's world frame of ``sensor_msgs/Imu``).
 
     Raises
     ------
     ValueError
-        For an unknown suffix (:func:`output_format`), or outputs that do not match the recording.
+        For an unknown suffix (:func:`output_format`), outputs that do not match the recording, or
+        ``.mcap`` with a convention other than ENU.
     ImportError
         For ``.mcap`` without its packages (``pip install 'attica[recordings]'``).
     OSError
@@ -551,9 +587,11 @@ def write_outputs(
 
     """
     fmt = output_format(path)
+    if fmt == ".mcap" and convention != "enu":
+        raise ValueError(MCAP_ENU_ONLY.format(convention=convention))
     if fmt == ".npz":
         write_npz(path, out)
     elif fmt == ".csv":
-        write_csv(path, out, rec, kind, settings)
+        write_csv(path, out, rec, kind, settings, convention)
     else:
         write_mcap(path, out, rec, kind)

@@ -1086,6 +1086,8 @@ struct att_can_db_att_out_fd_t {
     float cov_0;
 
     /**
+     * Covariance diagonal element 1 (KF: x, EKF: theta, MEKF: earth-frame attitude error y, rad^2; ARS, MARS: the covariance model's tilt about earth y, rad^2), float32.
+     *
      * Range: -
      * Scale: 1
      * Offset: 0
@@ -1093,6 +1095,8 @@ struct att_can_db_att_out_fd_t {
     float cov_1;
 
     /**
+     * Covariance diagonal element 2 (KF: y, EKF: psi, MEKF: earth-frame attitude error z, rad^2; ARS, MARS: the heading variance about earth z, pi^2/3 when unknown, rad^2), float32. Every element is about the ENU axes whatever the output convention.
+     *
      * Range: -
      * Scale: 1
      * Offset: 0
@@ -1100,7 +1104,7 @@ struct att_can_db_att_out_fd_t {
     float cov_2;
 
     /**
-     * Covariance diagonal element 3 (KF: z, EKF: 0, MEKF: mean gyro bias variance, (rad/s)^2; ARS, MARS: 0), float32.
+     * Covariance diagonal element 3 (KF: z; EKF, MEKF: mean gyro bias variance, (rad/s)^2; ARS, MARS: 0), float32.
      *
      * Range: -
      * Scale: 1
