@@ -114,7 +114,11 @@ def _run_vqf(rec: Recording, nine: bool, params: dict[str, Any], basic: bool) ->
 
     g, a, m, present = _inputs(rec)
     cls = vqf.BasicVQF if basic else vqf.VQF
-    est = cls(1.0 / rec.rate, **params)
+    ts = 1.0 / rec.rate
+    n_mag = int(np.count_nonzero(present))
+    # a slower magnetometer: its mean sample period, so that tauMag and the rejection times stay seconds
+    mag_ts = ts * len(present) / n_mag if nine and 0 < n_mag < len(present) else -1.0
+    est = cls(ts, -1.0, mag_ts, **params)
     out = est.updateBatch(g, a, m) if nine else est.updateBatch(g, a)
     q = np.asarray(out["quat9D" if nine else "quat6D"], dtype=np.float64)
     bias = None if basic else np.asarray(out["bias"], dtype=np.float64)
@@ -214,7 +218,9 @@ def _run_ahrs(rec: Recording, nine: bool, name: str, params: dict[str, Any]) -> 
 MISSING_MAG = """Rows without a magnetometer sample (NaN or zero, e.g. a phone's slower magnetometer):
 
 - VQF, BasicVQF, Fusion (9-axis): the row is given as a zero field, which these libraries take as "no
-  sample" (no mag update on that row);
+  sample" (no mag update on that row); VQF is told the magnetometer's mean sample period (``magTs``),
+  so that its mag time constants stay in seconds; Fusion has no such setting, so its rejection timeout
+  counts mag updates: 5 s of them at a magnetometer k times slower are 5 k s;
 - ahrs Madgwick, Mahony, EKF (9-axis): their batch mode starts from the first row's field, so they run
   from the first row with a sample on; the rows before have no estimate and are not scored (the table's
   notes say how many). Later rows without a sample: Madgwick and Mahony get a zero field, on which they
@@ -308,7 +314,7 @@ TUNED: dict[str, tuple[dict[str, Any], str]] = {
         {"gain": 0.1, "bias": True},
         "gain 0.1 (default 0.5) and Fusion's gyro offset (Bias) correction",
     ),
-    "madgwick": ({"gain": 0.1}, "beta 0.1 (ahrs' default 0.033 for 9D)"),
+    "madgwick": ({"gain": 0.1}, "beta 0.1 (ahrs' default 0.041 for 9D)"),
     "mahony": ({"k_P": 0.2, "k_I": 0.001}, "k_P 0.2, k_I 0.001 (defaults 1.0, 0.3)"),
     "ekf": (
         {"noises": [0.3**2, 1.0**2, 2.0**2]},
