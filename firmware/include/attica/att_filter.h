@@ -272,7 +272,7 @@ void att_filter_output(const att_filter_t *f, att_output_t *out);
  * euler) in the convention's earth frame; att_filter_output likewise. The filter state is kept (it is
  * the attitude of the body frame in ENU), except that a mars or mekf hard-iron estimate starts again
  * when the magnetometer's stage changed (mag model or mounting: att_hardiron.h, its samples are in
- * another frame or scale; the same stage bit for bit keeps it). ATT_ERR_KIND when f is not initialised;
+ * another frame or scale; the same stage keeps it). ATT_ERR_KIND when f is not initialised;
  * ATT_ERR_SETTINGS (att_calib_settings_check says why) / ATT_ERR_NULL leave f unchanged. Survives reset
  * and retune.
  */

@@ -4,8 +4,6 @@
  * the input/output stages and the heading. Reads no field of any filter: each kind's hooks do.
  * Mirrored by reference/filter.py.
  */
-#include <string.h>
-
 #include "../math/att_fp.h"
 
 #include "../calib/att_calib_i.h"
@@ -420,6 +418,23 @@ static void att_filter_hard_iron_restart(att_filter_t *f)
 }
 #endif
 
+#if ATT_WITH_CALIB
+/* The same folded stage (every field att_calib_init sets; the floats by value: they are finite). */
+static bool att_filter_stage_same(const att_calib_stage_t *a, const att_calib_stage_t *b)
+{
+    uint32_t i;
+    bool same = a->mode == b->mode && a->perm == b->perm && a->o.x == b->o.x && a->o.y == b->o.y &&
+                a->o.z == b->o.z;
+    for (i = 0u; i < 9u; i++) {
+        same = same && a->a[i] == b->a[i];
+    }
+    for (i = 0u; i < 3u; i++) {
+        same = same && a->axis[i] == b->axis[i] && a->sign[i] == b->sign[i];
+    }
+    return same;
+}
+#endif
+
 att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s)
 {
 #if ATT_WITH_CALIB
@@ -433,8 +448,7 @@ att_status_t att_filter_calibrate(att_filter_t *f, const att_calib_settings_t *s
     }
     st = att_calib_init(&c, s);
     if (st == ATT_OK) {
-        /* every field of a stage is set by att_calib_init (no padding): the same bits, the same stage */
-        const bool mag_same = memcmp(&f->cal.mag, &c.mag, sizeof c.mag) == 0;
+        const bool mag_same = att_filter_stage_same(&f->cal.mag, &c.mag);
         f->cal = c;
         if (!mag_same) {
             att_filter_hard_iron_restart(f); /* its samples are in another frame or scale now */

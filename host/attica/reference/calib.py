@@ -136,9 +136,9 @@ def remap_axes(r: int) -> tuple[list[int], list[bool]]:
     return [ord(name[2 * k + 1]) - ord("x") for k in range(3)], [name[2 * k] == "-" for k in range(3)]
 
 
-def _bits(v: Any) -> list[int]:
-    """The float32 bit patterns of a sequence of values."""
-    return [int(x) for x in np.asarray(v, np.float32).view(np.uint32)]
+def _floats(v: Any) -> list[float]:
+    """A sequence of values as float32, compared by value (-0 == 0)."""
+    return [float(x) for x in np.asarray(v, np.float32)]
 
 
 @dataclass
@@ -152,11 +152,11 @@ class Stage:
     neg: list[bool]
 
     def same(self, other: Stage) -> bool:
-        """The same stage bit for bit (att_filter_calibrate's memcmp of the mag stage)."""
+        """The same stage (att_filter_stage_same: every field, the floats by value; they are finite)."""
         return (
             self.mode == other.mode
-            and _bits(self.a) == _bits(other.a)
-            and _bits(self.o) == _bits(other.o)
+            and _floats(self.a) == _floats(other.a)
+            and _floats(self.o) == _floats(other.o)
             and list(self.axis) == list(other.axis)
             and list(self.neg) == list(other.neg)
         )

@@ -295,22 +295,18 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
             att_i_lowpass2(v, k1, k2, &lp1, &lp2);
             u = lp2;
         }
+        bool ok;
         if (c->full) {
             float qw;
             float qx;
             float qy;
             float n;
             /* full alignment of u with z; lp2 becomes (0, 0, |lp2|), lp1 is rotated with q */
-            if (att_i_align_up(u, &qw, &qx, &qy, &n) &&
-                att_i_quat_normalize_bounded(att_i_quat_mul_hz(qw, qx, qy, q), &qn)) {
-                st->q = qn;
-                st->acc_step = st->steps;
-                if (c->lp_on) {
-                    st->lp1 = att_i_quat_rotate_hz(qw, qx, qy, lp1);
-                    st->lp2 = att_i_vec3(0.0f, 0.0f, n);
-                }
-            } else {
-                flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before */
+            ok = att_i_align_up(u, &qw, &qx, &qy, &n) &&
+                 att_i_quat_normalize_bounded(att_i_quat_mul_hz(qw, qx, qy, q), &qn);
+            if (ok && c->lp_on) {
+                lp1 = att_i_quat_rotate_hz(qw, qx, qy, lp1);
+                lp2 = att_i_vec3(0.0f, 0.0f, n);
             }
         } else {
             att_quat_t qc;
@@ -319,14 +315,15 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
                 lp1 = att_i_quat_rotate(qc, lp1);
                 lp2 = att_i_quat_rotate(qc, lp2);
             }
-            if (att_i_quat_normalize_bounded(att_i_quat_mul(qc, q), &qn)) {
-                st->q = qn;
-                st->acc_step = st->steps;
-                st->lp1 = lp1;
-                st->lp2 = lp2;
-            } else {
-                flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before */
-            }
+            ok = att_i_quat_normalize_bounded(att_i_quat_mul(qc, q), &qn);
+        }
+        if (ok) {
+            st->q = qn;
+            st->acc_step = st->steps;
+            st->lp1 = lp1;
+            st->lp2 = lp2;
+        } else {
+            flags |= ATT_FLAG_NUMERIC; /* keep the attitude and the low-pass states from before */
         }
     } else if (att_i_quat_normalize_bounded(q, &qn)) {
         st->q = qn;
