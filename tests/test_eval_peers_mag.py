@@ -107,3 +107,30 @@ def test_vqf_is_told_a_slower_magnetometers_period(seed: int) -> None:
     h_full = evaluate(vqf9.estimate(full).q, full.quat_true, scored).heading
     h_slow = evaluate(vqf9.estimate(slow).q, slow.quat_true, scored).heading
     assert abs(h_slow - h_full) < 0.02, (h_full, h_slow)
+
+
+def test_vqf_magts_is_the_typical_spacing_not_the_mean(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full-rate magnetometer that starts 20 s late is not a slower one: magTs = the gyro's period.
+    Every 4th row: 4 periods. (A mean over all rows would give 1.5 and 4.5 periods.)"""
+    need(importlib.util.find_spec("vqf") is not None, "peer library vqf missing (pip install '.[peers]')")
+    import vqf
+
+    from attica.peers import peer_by_name
+
+    seen: list[tuple[float, ...]] = []
+    real = vqf.VQF
+
+    def spy(*args: float, **kw: object) -> object:
+        seen.append(args)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(vqf, "VQF", spy)
+    rec = simulate(SimConfig(duration=60.0, rate=100.0, seed=1))
+    late = rec.mag.copy()
+    late[:2000] = np.nan
+    every4 = rec.mag.copy()
+    every4[np.arange(len(every4)) % 4 != 0] = np.nan
+    for mag, periods in ((late, 1.0), (every4, 4.0)):
+        rec.mag = mag
+        peer_by_name("vqf9").estimate(rec)
+        assert seen[-1][2] == pytest.approx(periods / 100.0), seen[-1]

@@ -169,12 +169,13 @@ def test_mcap_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind:
         s_th, c_th = np.sin(e[:, 1]), np.cos(e[:, 1])
         s_ps, c_ps = np.sin(e[:, 2]), np.cos(e[:, 2])
         ekf_x = c[:, 0] * (c_ps * c_th) ** 2 + c[:, 1] * s_ps**2
+        ekf_y = c[:, 0] * (s_ps * c_th) ** 2 + c[:, 1] * c_ps**2
         ekf_z = c[:, 0] * s_th**2 + export.UNKNOWN_YAW
     expected = {
         "ars": c[:, :3],  # the model's tilt, tilt, heading
         "gyro": np.zeros((len(c), 3)),  # no covariance: all zeros, "unknown"
         "kf": np.stack([4.0 * c.mean(axis=1)] * 2 + [unknown], axis=1),  # P = p I on q: 4 p rad^2; yaw
-        "ekf": np.stack([ekf_x, diag[:, 1], ekf_z], axis=1) if kind == "ekf" else None,
+        "ekf": np.stack([ekf_x, ekf_y, ekf_z], axis=1) if kind == "ekf" else None,
         "mekf": c[:, :3],  # earth-frame rotation vector
     }[kind]
     np.testing.assert_allclose(diag, expected, rtol=1e-12)
@@ -345,6 +346,18 @@ def test_orientation_covariance_marks_no_estimate() -> None:
         c = export.orientation_covariance(kind, out)
         assert list(c[0]) == [-1.0] + [0.0] * 8
         np.testing.assert_array_equal(c[1], np.diag(diag).ravel())
+
+
+def test_the_6_axis_mekf_writes_its_yaw_as_unknown() -> None:
+    """With use_mag off (the run's settings) the mekf's yaw is not observed: pi^2/3, as kf and ekf."""
+    from attica.settings import MekfSettings
+
+    out = np.zeros(1, OUTPUT_DTYPE)
+    out["cov"] = [[1.0, 2.0, 0.5, 4.0]]
+    nine = export.orientation_covariance("mekf", out, MekfSettings(dt=0.01))
+    six = export.orientation_covariance("mekf", out, MekfSettings(dt=0.01, use_mag=False))
+    np.testing.assert_array_equal(nine[0], np.diag([1.0, 2.0, 0.5]).ravel())
+    np.testing.assert_array_equal(six[0], np.diag([1.0, 2.0, export.UNKNOWN_YAW]).ravel())
 
 
 def test_ekf_covariance_turns_with_the_yaw() -> None:

@@ -6,7 +6,7 @@ import numpy as np
 
 OUTPUT_DTYPE = np.dtype(
     [
-        ("q", "<f4", (4,)),  # w, x, y, z, sensor-to-earth (ENU)
+        ("q", "<f4", (4,)),  # w, x, y, z, sensor-to-earth (ENU, or the calibration's convention)
         ("euler", "<f4", (3,)),  # ZYX roll, pitch, yaw, rad
         ("gyro_bias", "<f4", (3,)),  # rad/s, sensor frame
         ("cov", "<f4", (4,)),  # covariance diagonal (KF: q; EKF: phi, theta, psi, mean bias variance)

@@ -115,9 +115,10 @@ def _run_vqf(rec: Recording, nine: bool, params: dict[str, Any], basic: bool) ->
     g, a, m, present = _inputs(rec)
     cls = vqf.BasicVQF if basic else vqf.VQF
     ts = 1.0 / rec.rate
-    n_mag = int(np.count_nonzero(present))
-    # a slower magnetometer: its mean sample period, so that tauMag and the rejection times stay seconds
-    mag_ts = ts * len(present) / n_mag if nine and 0 < n_mag < len(present) else -1.0
+    rows = np.flatnonzero(present)
+    # a slower magnetometer: its typical sample period (the median spacing of the rows with a sample, so
+    # that a stretch without one does not count), so that tauMag and the rejection times stay seconds
+    mag_ts = ts * float(np.median(np.diff(rows))) if nine and rows.size > 1 else -1.0
     est = cls(ts, -1.0, mag_ts, **params)
     out = est.updateBatch(g, a, m) if nine else est.updateBatch(g, a)
     q = np.asarray(out["quat9D" if nine else "quat6D"], dtype=np.float64)
@@ -218,7 +219,8 @@ def _run_ahrs(rec: Recording, nine: bool, name: str, params: dict[str, Any]) -> 
 MISSING_MAG = """Rows without a magnetometer sample (NaN or zero, e.g. a phone's slower magnetometer):
 
 - VQF, BasicVQF, Fusion (9-axis): the row is given as a zero field, which these libraries take as "no
-  sample" (no mag update on that row); VQF is told the magnetometer's mean sample period (``magTs``),
+  sample" (no mag update on that row); VQF is told the magnetometer's sample period (``magTs``, the
+  median spacing of the rows with a sample),
   so that its mag time constants stay in seconds; Fusion has no such setting, so its rejection timeout
   counts mag updates: 5 s of them at a magnetometer k times slower are 5 k s;
 - ahrs Madgwick, Mahony, EKF (9-axis): their batch mode starts from the first row's field, so they run

@@ -91,7 +91,7 @@ enum { ATT_FLAGS_OUTPUT_INVALID = 0xC000 /**< ATT_FLAG_NOT_READY | ATT_FLAG_BAD_
  * kinds and the covariance diagonal are computed there, on request, not in every step.
  */
 typedef struct {
-    att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU) */
+    att_quat_t q;         /**< attitude, unit, sensor-to-earth (ENU, or the calibration's convention) */
     att_vec3_t euler;     /**< ZYX (roll phi, pitch theta, yaw psi), rad */
     att_vec3_t gyro_bias; /**< gyro bias estimate, rad/s, sensor frame (0 if not estimated) */
     float cov[4];         /**< covariance diagonal: KF (w, x, y, z); EKF (phi, theta, psi rad^2; mean bias

@@ -336,8 +336,11 @@ def write_npz(path: PathLike, out: NDArray[np.void]) -> None:
         np.savez_compressed(f, **arrays)
 
 
-def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void]) -> F64:
+def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void], settings: Any = None) -> F64:
     """The (N, 9) row-major orientation covariance of ``sensor_msgs/msg/Imu`` for each output, rad^2.
+
+    ``settings``: the kind's settings of the run (None: its defaults); a mekf with ``use_mag`` off is a
+    6-axis filter, whose yaw is written as unknown (pi^2/3) like the kf's and the ekf's.
 
     As the message definition asks: the kind's variances about the earth's axes (:data:`COVARIANCE`:
     on the diagonal, 0 off it where only the diagonal is reported); all zeros, "covariance unknown",
@@ -349,6 +352,8 @@ def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void]) -> F64
     c = np.zeros((n, 9), np.float64)
     if k.kind in COVARIANCE:
         c[:] = COVARIANCE[k.kind].matrix(out)
+        if k.kind == FilterKind.MEKF and settings is not None and not getattr(settings, "use_mag", True):
+            c[:, 8] = UNKNOWN_YAW  # the 6-axis mekf: its yaw is not observed
     invalid = (np.asarray(out["flags"]) & OUTPUT_INVALID) != 0
     c[invalid] = 0.0
     c[invalid, 0] = -1.0
@@ -434,6 +439,7 @@ def write_mcap(
     *,
     frame_id: str = "imu",
     world_frame: str = "enu",
+    settings: Any = None,
 ) -> None:
     """Write one filter's outputs as an MCAP file of ROS 2 messages (CDR, ``ros2msg`` schemas).
 
@@ -457,7 +463,9 @@ def write_mcap(
 
     The MCAP metadata record ``attica`` names the kind, the clock of the stamps and the covariance's
     meaning. The stamps need 0 <= time < 2^31 s (``builtin_interfaces/msg/Time`` and MCAP log times);
-    a recording's own clock outside that is refused (a ValueError).
+    a recording's own clock outside that is refused (a ValueError). ``settings``: the kind's settings of
+    the run (None: its defaults), for the covariance of a mekf with ``use_mag`` off
+    (:func:`orientation_covariance`).
 
     Raises
     ------
@@ -478,7 +486,7 @@ def write_mcap(
     sec, nsec = ros_stamps(times)
     log_ns = sec * 1_000_000_000 + nsec
     q = np.asarray(out["q"], np.float64)
-    ocov = orientation_covariance(k.kind, out)
+    ocov = orientation_covariance(k.kind, out, settings)
     gyr = np.asarray(rec.gyr, np.float64)
     acc = np.asarray(rec.acc, np.float64)
     mag = np.asarray(rec.mag, np.float64)
@@ -594,4 +602,4 @@ def write_outputs(
     elif fmt == ".csv":
         write_csv(path, out, rec, kind, settings, convention)
     else:
-        write_mcap(path, out, rec, kind)
+        write_mcap(path, out, rec, kind, settings=settings)
