@@ -233,7 +233,7 @@ static ATT_NOINLINE uint32_t att_ars_update(att_ars_t *f, const att_vec3_t *gyr_
     bool accel_ok;
     float k;
     att_quat_t q;
-    att_quat_t qn;
+    att_quat_t qn = att_i_quat_identity(); /* set by every arm that commits it (clang cannot see it) */
     att_vec3_t d;
     c = &f->c;
     st = &f->st;
