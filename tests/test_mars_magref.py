@@ -170,3 +170,21 @@ def test_a_clipping_gyro_is_recovered_from() -> None:
         else:
             assert not flagged[late].any()
     assert err[2.0] < 0.5 * err[0.0], f"total RMSE {err[2.0]:.2f} with the recovery vs {err[0.0]:.2f} without"
+
+
+def test_an_adoption_does_not_cut_the_alignments_longer_fast_phase_short() -> None:
+    """With tau_acc_lp 5 s the fast phase after the alignment is 3 tau_mag_fast + 6 tau_acc_lp = 36 s (the
+    tilt settles first); a field disturbed for the first 3 s is adopted as new at about 8 s, whose own
+    phase (3 tau_mag_fast, 6 s) must not replace the longer one under way (it ended at 14 s before).
+    C and reference bit for bit."""
+    dist = ((0.0, 3.0, (-12.0, 8.0, -10.0)),)
+    r = simulate(SimConfig(duration=20.0, rate=RATE, seed=3, mag_disturbances=dist))
+    s = replace(MarsSettings(dt=1.0 / RATE), tau_acc_lp=5.0, mag_new_time=5.0)
+    f = native.Filter(FilterKind.MARS, s)
+    ref = RefFilter(FilterKind.MARS, s)
+    n = int(16.0 * RATE)
+    f.run(r.gyr[:n], r.acc[:n], r.mag[:n], check_units=False)
+    ref.run(r.gyr[:n], r.acc[:n], r.mag[:n], check_units=False)
+    st = f.state.u.mars.st
+    assert st.fast_left > 15, st.fast_left  # about 36 - 16 blocks of 1 s left
+    assert ref.state_matches(0, f.state.copy()[0]), ref.state_diff(0, f.state.copy()[0])

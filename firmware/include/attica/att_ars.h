@@ -107,7 +107,8 @@ typedef struct {
                                         finite, |q|^2 in [2^-20, 2^20] (normalised by init) */
     float tau_acc_lp;              /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     float recovery_time;           /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
-                                        the accel is trusted strongly for this long, s, [0, 1e4]; 0 = off */
+                                        the accel is trusted strongly for this long, s, [0, 1e4]; 0 = off;
+                                        at most 2^24 samples */
     float gyro_noise;              /**< covariance model: gyro white noise density, rad/s/sqrt(Hz), [0, 1] */
     float accel_noise;             /**< covariance model: density of the specific force's disturbance (noise
                                         and linear acceleration), m/s^2/sqrt(Hz), [0, 1e3] */

@@ -147,7 +147,7 @@ typedef struct {
     att_vec3_t bias_init;  /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */
     bool noise_rates;      /**< true: q_* rates (Q = q dt), r_* densities (R = r / dt); false: per step */
     float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
-                                this long the recovery of step 3, s; [0, 1e4]; 0 = none */
+                                this long the recovery of step 3, s; [0, 1e4]; 0 = none; at most 2^24 samples */
 } att_ekf_settings_t;
 
 /** Coefficients derived from the settings by att_ekf_init: what a step needs, and the reset values. */

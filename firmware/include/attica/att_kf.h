@@ -86,7 +86,7 @@ typedef struct {
     float rest_time;           /**< ... for at least rest_time, s, [0, 1e4] */
     float tau_acc_lp;          /**< low-pass time constant of the earth-frame accel, s, [0, 1e4]; 0 = off */
     float recovery_time;       /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
-                                    this long the recovery of step 5, s; [0, 1e4]; 0 = none */
+                                    this long the recovery of step 5, s; [0, 1e4]; 0 = none; at most 2^24 samples */
     bool init_from_accel;      /**< take roll/pitch from the first usable accel sample (yaw 0) */
     att_quat_t q_init;         /**< initial attitude when init_from_accel is false; finite, |q|^2 in [2^-20, 2^20] */
     bool noise_rates;          /**< true: Q = q_noise dt, R = r_noise / dt (rate-independent; these per-step values

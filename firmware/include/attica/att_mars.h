@@ -172,12 +172,14 @@ typedef struct {
                                        corrections (bias modes AT_REST and RUNNING, HORIZONTAL mag mode), s,
                                        [0, 1e4]; 0 = off */
     float recovery_time;          /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
-                                       accel and mag are trusted strongly for this long, s, [0, 1e4]; 0 = off */
+                                       accel and mag are trusted strongly for this long, s, [0, 1e4]; 0 = off;
+                                       at most 2^24 samples */
     float declination;            /**< magnetic declination, rad, [-pi, pi], east of true north positive: the
                                        heading alignment from the sensors (init_from_sensors) puts the field
                                        at this azimuth, so yaw is relative to true north; 0 = magnetic north
-                                       (default). Unused without init_from_sensors (q_init and m0_init are
-                                       the caller's frame) */
+                                       (default). Without init_from_sensors (q_init and m0_init are the
+                                       caller's frame) only where a new reference has no horizontal part of
+                                       its own to keep: it then points at this azimuth */
     float gyro_noise;             /**< covariance model: gyro white noise density, rad/s/sqrt(Hz), [0, 1] */
     float accel_noise;            /**< covariance model: density of the specific force's disturbance (noise
                                        and linear acceleration), m/s^2/sqrt(Hz), [0, 1e3] */

@@ -217,11 +217,13 @@ typedef struct {
                                 (1 = 100 %); [0, 0.1] (ATT_MEKF_SCALE_MAX); 0 = not estimated */
     float gyro_scale_init; /**< initial gyro scale-factor error (rate = (1 + s)(w - b)); [-0.1, 0.1] */
     float recovery_time;   /**< after a gyro sample at 98 % of gyro_range or beyond (a clipping gyro),
-                                this long the recovery of step 6, s; [0, 1e4]; 0 = none */
+                                this long the recovery of step 6, s; [0, 1e4]; 0 = none; at most 2^24 samples */
     float declination;     /**< magnetic declination, rad, [-pi, pi], east of true north positive: the yaw
                                 alignment from the sensors (init_from_sensors, use_mag) puts the field at
                                 this azimuth, so yaw is relative to true north; 0 = magnetic north
-                                (default). Unused without init_from_sensors or use_mag */
+                                (default). Unused without use_mag; without init_from_sensors only where
+                                a new reference has no horizontal part of its own to keep (it then
+                                points at this azimuth) */
     float mag_ref_tau;     /**< time constant of the reference field's norm and dip, learnt from the
                                 accepted samples (att_magref.h), s, [0, 1e4]; 0 = kept as first set */
     float mag_new_time;    /**< a rejected field that stays steady this long becomes the reference (its

@@ -619,7 +619,8 @@ class Mars:
         follow, adopt, n, s = mr.block(self, end, self.m0)
         ok, parts = self._derive_m0(mr.m0_from(self.m0, n, s, self.decl_sin, self.decl_cos))
         self._commit_m0((follow | adopt) & ok, parts)
-        self.fast_left = np.where(adopt, self.fast_n, self.fast_left).astype(np.uint32)
+        longer = adopt & (self.fast_left < self.fast_n)  # a longer phase under way runs on
+        self.fast_left = np.where(longer, self.fast_n, self.fast_left).astype(np.uint32)
 
     def retune(self, settings: MarsSettings) -> None:
         """att_mars_retune: new settings, the state kept (bias_init for OFF/FROZEN, counters limited)."""

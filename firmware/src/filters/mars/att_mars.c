@@ -622,8 +622,8 @@ static ATT_NOINLINE void att_mars_ref_block(const att_mars_coeffs_t *c, att_mars
     if (out != ATT_MAGREF_KEEP) {
         const att_vec3_t m0 = att_i_magref_m0(st->m0, n, s, c->decl_sin, c->decl_cos);
         (void)att_mars_set_m0(c, st, &m0); /* n > 0: the mean of valid norms */
-        if (out == ATT_MAGREF_ADOPT) {
-            st->fast_left = c->fast_n;
+        if (out == ATT_MAGREF_ADOPT && st->fast_left < c->fast_n) {
+            st->fast_left = c->fast_n; /* a longer phase under way (after the alignment) runs on */
         }
     }
 }
