@@ -128,8 +128,9 @@ def test_declination_bounds_accepted(kind: FilterKind) -> None:
 
 def test_a_reference_without_horizontal_part_takes_the_declination() -> None:
     """A new reference of mars (att_i_magref_m0, at a block's end) when the old one has no horizontal
-    part: the new one points at the declination's azimuth. FULL mode from a vertical m0_init (no alignment), the real field
-    rejected by dip and then adopted as the new reference; C and reference bit for bit."""
+    part: the new one points at the declination's azimuth. FULL mode from a vertical m0_init (no
+    alignment), the real field rejected by dip and then adopted as the new reference; C and reference
+    bit for bit."""
     d = 0.5
     rec = _rec(6, d, 40.0)
     s = _settings(
