@@ -835,11 +835,12 @@ static inline void att_i_hi_step(const att_hardiron_params_t *p, att_hardiron_t 
     }
 }
 
-/* A usable gyro sample for the hard-iron estimate: valid (check_flags 0) and no |w_i| at the clip level
-   (rad/s: ATT_REC_CLIP_F gyro_range, also with recovery_time 0): the rotation of a clipping gyro is not
-   what it measured. */
-static inline bool att_i_hi_gyro_ok(uint32_t check_flags, att_vec3_t w, float clip)
+/* A usable gyro sample for the hard-iron estimate: valid (check_flags 0) and no |w_i| at the recovery's
+   clip level ATT_REC_CLIP_F gyro_range (rad/s), also with recovery_time 0: the rotation of a clipping
+   gyro is not what it measured. */
+static inline bool att_i_hi_gyro_ok(uint32_t check_flags, att_vec3_t w, float gyro_range)
 {
+    const float clip = ATT_REC_CLIP_F * gyro_range;
     return check_flags == 0u && att_i_absf(w.x) < clip && att_i_absf(w.y) < clip && att_i_absf(w.z) < clip;
 }
 

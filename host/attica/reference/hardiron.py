@@ -14,6 +14,7 @@ import numpy as np
 
 from attica.reference import detmath as dm
 from attica.reference import sensor
+from attica.reference._common import REC_CLIP
 
 _U0 = np.uint32(0)
 _U1 = np.uint32(1)
@@ -102,8 +103,9 @@ def reset_where(f: Any, cond: Any) -> None:
     f.hi_observable = f.hi_observable & ~cond
 
 
-def gyro_ok(check_flags: Any, g: dm.Vec3, clip: Any) -> Any:
-    """att_i_hi_gyro_ok: a valid gyro sample with no component at the clip level."""
+def gyro_ok(check_flags: Any, g: dm.Vec3, gyro_range: Any) -> Any:
+    """att_i_hi_gyro_ok: a valid gyro sample with no component at the clip level REC_CLIP gyro_range."""
+    clip = (REC_CLIP * np.asarray(gyro_range, np.float32)).astype(np.float32)
     return (check_flags == _U0) & (dm.absf(g[0]) < clip) & (dm.absf(g[1]) < clip) & (dm.absf(g[2]) < clip)
 
 

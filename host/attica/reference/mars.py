@@ -14,7 +14,6 @@ from attica.reference import sensor
 from attica.reference._common import (
     COV_TILT_MAX,
     COV_UNKNOWN,
-    REC_CLIP,
     StateSpec,
     carry_state,
     cov_first,
@@ -439,10 +438,7 @@ class Mars:
     def _hard_iron(self, g: dm.Vec3, m: dm.Vec3) -> dm.Vec3:
         """att_mars_step_hi where hard_iron_tau > 0: the estimate's step, the sample the step then sees."""
         with np.errstate(all="ignore"):
-            clip = (REC_CLIP * self.gyro_range).astype(
-                np.float32
-            )  # also without a recovery (recovery_time 0)
-            gyro_ok = hiron.gyro_ok(sensor.check_gyro(g, self.gyro_range), g, clip)
+            gyro_ok = hiron.gyro_ok(sensor.check_gyro(g, self.gyro_range), g, self.gyro_range)
             mag_ok = sensor.check_mag(m, self.mag_range)[0] == _U0
             hiron.step(self, self.hi_on, self.dt, dm.vec3_sub(g, self.bias), gyro_ok, m, mag_ok)
             return hiron.apply(self, self.hi_on & mag_ok, m)[0]

@@ -23,7 +23,6 @@ from attica.reference import mekf_mag as mg
 from attica.reference import mekf_scale as msc
 from attica.reference import sensor
 from attica.reference._common import (
-    REC_CLIP,
     StateSpec,
     carry_state,
     recovery_lp_gain,
@@ -370,7 +369,7 @@ class Mekf:
             # the hard-iron estimate (att_mekf_hard_iron), then its offset off a valid mag sample
             on = self.use_mag & self.hi_on
             w_hi = dm.vec3_scale(dm.vec3_sub(g, self.bias), dm.ONE + self.scale)
-            g_ok = ck.gyro_ok & hiron.gyro_ok(_U0, g, (REC_CLIP * self.gyro_range).astype(np.float32))
+            g_ok = ck.gyro_ok & hiron.gyro_ok(_U0, g, self.gyro_range)
             hiron.step(self, on, self.dt, w_hi, g_ok, m, ck.mag_ok)
             m, mnorm_hi = hiron.apply(self, on & ck.mag_ok, m)
             ck = ck._replace(mnorm=np.where(on & ck.mag_ok, mnorm_hi, ck.mnorm).astype(np.float32))

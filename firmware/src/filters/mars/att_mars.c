@@ -780,8 +780,7 @@ static ATT_NOINLINE uint32_t att_mars_step_hi(att_mars_t *f, const att_vec3_t *g
                                               const att_vec3_t *mag)
 {
     float mnorm;
-    const bool gyro_ok = att_i_hi_gyro_ok(att_i_sensor_check_gyro(*gyr, f->c.gyro_range), *gyr,
-                                                ATT_REC_CLIP_F * f->c.gyro_range);
+    const bool gyro_ok = att_i_hi_gyro_ok(att_i_sensor_check_gyro(*gyr, f->c.gyro_range), *gyr, f->c.gyro_range);
     const bool mag_ok = att_i_sensor_check_mag(*mag, f->c.mag_range, &mnorm) == 0u;
     att_vec3_t m = *mag;
     att_i_hi_step(&f->c.hi, &f->st.hi, f->c.dt, att_i_vec3_sub(*gyr, f->st.bias), gyro_ok, m, mag_ok);

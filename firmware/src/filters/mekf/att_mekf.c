@@ -1173,7 +1173,7 @@ static ATT_NOINLINE const att_vec3_t *att_mekf_hard_iron(const att_mekf_coeffs_t
                                                         bool mag_ok, att_mekf_work_t *wk)
 {
     const att_vec3_t w = att_i_vec3_scale(att_i_vec3_sub(*gyr, st->bias), 1.0f + st->scale);
-    att_i_hi_step(&c->hi, &st->hi, c->dt, w, gyro_ok && att_i_hi_gyro_ok(0u, *gyr, ATT_REC_CLIP_F * c->gyro_range), *mag, mag_ok);
+    att_i_hi_step(&c->hi, &st->hi, c->dt, w, gyro_ok && att_i_hi_gyro_ok(0u, *gyr, c->gyro_range), *mag, mag_ok);
     if (!mag_ok) {
         return mag;
     }
