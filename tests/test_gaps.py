@@ -355,6 +355,8 @@ def test_eval_steps_attica_and_peers_over_gaps() -> None:
     peer = peer_by_name("vqf9")
     got = peer.estimate(rec)
     assert got.q.shape == (rec.n, 4) and any("40 lost sample(s)" in n for n in got.notes)
+    # VQF's own note counts the rows it was given (the 40 held ones have no mag sample): said so
+    assert f"on the {sim.n} rows given, samples held: 40 of {sim.n} rows without a mag sample" in got.notes[0]
     whole = peer.estimate(Recording(sim.gyr, sim.acc, sim.mag, sim.rate))
     # with the samples held, the peer stays near its no-loss estimate (no drift from skipped rotation)
     dots = np.abs(np.sum(got.q * whole.q[keep], axis=1))

@@ -299,13 +299,18 @@ def _over_gaps(runner: Callable[[Recording], Estimate], rec: Recording) -> Estim
     held = Recording(rec.gyr[idx], rec.acc[idx], mag, rec.rate, name=rec.name, groups=rec.groups)
     est = runner(held)
     last = np.cumsum(steps) - 1
-    note = f"{rec.lost} lost sample(s): each sample held over its periods, as attica steps it"
+    note = (
+        f"{rec.lost} lost sample(s): each sample held over its periods, as attica steps it "
+        f"({rec.n} rows given as {idx.size}; a held row has no mag sample)"
+    )
+    # the runner's own notes count the rows it was given (the held ones included): said so
+    notes = tuple(f"on the {idx.size} rows given, samples held: {n}" for n in est.notes)
     return Estimate(
         est.q[last],
         scored=est.scored[last] if est.scored is not None else None,
         flags=est.flags[last] if est.flags is not None else None,
         gyro_bias=est.gyro_bias[last] if est.gyro_bias is not None else None,
-        notes=(*est.notes, note),
+        notes=(*notes, note),
     )
 
 
