@@ -234,6 +234,8 @@ def test_dequantise_is_exact_and_inverts_quantise() -> None:
         assert np.isnan(py[0]) and np.isnan(cc[0])
         assert (py[1:].view(np.uint32) == cc[1:].view(np.uint32)).all()
         exact = v[1:].astype(np.float64) * 2.0**-frac
+        full = np.abs(v[1:].astype(np.int64)) == 32767  # clipped: beyond every range, not the scale's
+        exact[full] = v[1:][full].astype(np.float64) * 2.0**112
         assert (py[1:].astype(np.float64) == exact).all()
         assert (c.quantise(py[1:], frac) == v[1:]).all()
         assert (_c_quantise(cc[1:], frac) == v[1:]).all()
@@ -473,6 +475,12 @@ def test_dbc_matches_the_c_constants() -> None:
     assert ffi.sizeof("att_can_frame_t") == c.FRAME_DTYPE.itemsize
 
 
+def _by_scale(x: np.ndarray, frac: int) -> np.ndarray:
+    """What cantools decodes an int16 field to: its code times the scale (full scale too), NA as NaN."""
+    q = c.quantise(x, frac)
+    return np.where(q == c.NA, np.float32(np.nan), q.astype(np.float32) * np.float32(2.0**-frac))
+
+
 def test_cantools_decodes_frames_encoded_by_c() -> None:
     rng = np.random.default_rng(21)
     n = 40
@@ -482,14 +490,19 @@ def test_cantools_decodes_frames_encoded_by_c() -> None:
     g[0] = [100.0, -100.0, np.nan]  # clamped and NA
     m[1] = np.nan  # no mag sample
     gq, aq, mq = c.imu_values(g, a, m)
+    frac = {"gyr": c.GYR_FRAC, "acc": c.ACC_FRAC, "mag": c.MAG_FRAC}
     frames = _c_encode_imu(g, a, m, 6, False).reshape(n, 3)
     for i in range(n):
         for frame, prefix, want in zip(frames[i], ("gyr", "acc", "mag"), (gq[i], aq[i], mq[i])):
             name, sig = c.decode(frame)
             assert sig["counter"] == (6 + i) % 16 and name.startswith("IMU_")
             got = np.array([sig[f"{prefix}_{ax}"] for ax in "xyz"], np.float32)
-            assert ((got == want) | (np.isnan(got) & np.isnan(want))).all()
+            # cantools knows the scale only: full scale (+-32767) is 32767 2^-k there, clipped for attica
+            full = np.abs(want) == c.CLIPPED
+            assert (got[full] == np.sign(want[full]) * np.float32(32767 * 2.0 ** -frac[prefix])).all()
+            assert ((got == want) | (np.isnan(got) & np.isnan(want)) | full).all()
     assert c.decode(frames[0][0])[1]["gyr_x"] == 32767 / 1024
+    assert (gq[0, :2] == [c.CLIPPED, -c.CLIPPED]).all()  # the node's filter sees a clipped gyro
     fd = _c_encode_imu(g, a, m, 0, True)
     for i in range(n):
         name, sig = c.decode(fd[i])
@@ -517,10 +530,10 @@ def test_cantools_decodes_frames_encoded_by_c() -> None:
         wq = o["q"][i]
         assert ((q.view(np.uint32) == wq.view(np.uint32)) | (np.isnan(q) & np.isnan(wq))).all(), (i, q, wq)
         q16 = np.array([sig[f"ATT_QUAT16.q_{ax}"] for ax in "wxyz"], np.float32)
-        want16 = c.dequantise(c.quantise(o["q"][i], 14), 14)
+        want16 = _by_scale(o["q"][i], 14)
         assert ((q16 == want16) | (np.isnan(q16) & np.isnan(want16))).all()
         eu = np.array([sig["ATT_EULER.roll"], sig["ATT_EULER.pitch"], sig["ATT_EULER.yaw"]], np.float32)
-        want_eu = c.dequantise(c.quantise(o["euler"][i], 13), 13)
+        want_eu = _by_scale(o["euler"][i], 13)
         assert ((eu == want_eu) | (np.isnan(eu) & np.isnan(want_eu))).all()
         assert sig["ATT_STATUS.kind"] == 3 and sig["ATT_STATUS.flags"] == int(o["flags"][i]) & 0xFFFF
         assert sig["ATT_STATUS.steps"] == int(o["steps"][i]) & 0xFFFF and sig["ATT_STATUS.ack"] == 0

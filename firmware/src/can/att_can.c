@@ -90,6 +90,11 @@ float att_can_dequantise(int16_t v, int32_t frac_bits)
     if (v == (int16_t)ATT_CAN_NA || frac_bits < ATT_CAN_FRAC_MIN || frac_bits > ATT_CAN_FRAC_MAX) {
         return att_can_nan();
     }
+    /* full scale: clipped by the frame, at or beyond 32767 2^-k, the value unknown: beyond any filter's
+     * range (a gyro clipped by the frame starts the recovery of a clipping gyro; docs/can.md, Scaling) */
+    if ((int32_t)v * v == (int32_t)ATT_CAN_Q_FULL * ATT_CAN_Q_FULL) {
+        return (float)v * 0x1p+112f; /* +-32767 2^112, about +-1.7e38 */
+    }
     return (float)v * att_can_pow2(-frac_bits);
 }
 

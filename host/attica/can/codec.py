@@ -100,6 +100,8 @@ from attica.can.node import (
     NodeError,
 )
 from attica.can.quant import (
+    CLIPPED,
+    FULL,
     dequantise,
     imu_values,
     quantise,
@@ -107,6 +109,8 @@ from attica.can.quant import (
 
 __all__ = [
     "ACC_FRAC",
+    "CLIPPED",
+    "FULL",
     "ACK_ANSWER",
     "Ack",
     "Answer",

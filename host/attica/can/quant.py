@@ -26,14 +26,23 @@ def quantise(x: ArrayLike, frac_bits: int) -> NDArray[np.int16]:
     return out
 
 
+FULL = 32767
+"""The int16 code of full scale: a value at or beyond the range, clipped by the frame (``ATT_CAN_Q_FULL``)."""
+CLIPPED = np.float32(32767.0 * 2.0**112)
+"""What a full-scale code decodes to (times its sign): about 1.7e38, beyond every filter's range, so that
+a field clipped by the frame is a clipped sensor to the filter (a gyro's starts the clipping recovery)."""
+
+
 def dequantise(v: ArrayLike, frac_bits: int) -> NDArray[np.float32]:
-    """``att_can_dequantise`` over an array: v * 2^-k (exact), -32768 -> NaN."""
+    """``att_can_dequantise`` over an array: v * 2^-k (exact), -32768 -> NaN, +-32767 -> +-:data:`CLIPPED`."""
     va = np.asarray(v, np.int16)
     if not FRAC_MIN <= frac_bits <= FRAC_MAX:
         return np.full(va.shape, np.nan, np.float32)
-    out: NDArray[np.float32] = np.where(
-        va == NA, np.float32(np.nan), va.astype(np.float32) * np.float32(2.0**-frac_bits)
-    ).astype(np.float32)
+    x = va.astype(np.float32)
+    scaled = np.where(
+        np.abs(va.astype(np.int32)) == FULL, x * np.float32(2.0**112), x * np.float32(2.0**-frac_bits)
+    )
+    out: NDArray[np.float32] = np.where(va == NA, np.float32(np.nan), scaled).astype(np.float32)
     return out
 
 

@@ -386,7 +386,7 @@ struct att_can_db_imu_gyro_t {
     uint8_t counter;
 
     /**
-     * Angular rate x, sensor frame, rad/s; raw * 2^-10 (range +-32 rad/s); -32768 = NA.
+     * Angular rate x, sensor frame, rad/s; raw * 2^-10 (range +-32 rad/s); -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-31.99902..31.99902 rad/s)
      * Scale: 0.0009765625
@@ -440,7 +440,7 @@ struct att_can_db_imu_acc_t {
     uint8_t counter;
 
     /**
-     * Specific force x, sensor frame, m/s^2 (+g up at rest); raw * 2^-8 (range +-128 m/s^2); -32768 = NA.
+     * Specific force x, sensor frame, m/s^2 (+g up at rest); raw * 2^-8 (range +-128 m/s^2); -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
      * Scale: 0.00390625
@@ -494,7 +494,7 @@ struct att_can_db_imu_mag_t {
     uint8_t counter;
 
     /**
-     * Magnetic field x, sensor frame, uT; raw * 2^-5 (range +-1024 uT); -32768 = NA.
+     * Magnetic field x, sensor frame, uT; raw * 2^-5 (range +-1024 uT); -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-1023.96875..1023.96875 uT)
      * Scale: 0.03125
