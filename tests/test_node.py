@@ -11,7 +11,7 @@ import pytest
 
 from attica import kinds, native, sim
 from attica.can import codec as c
-from attica.can.compare import expected_outputs
+from attica.can.compare import compare, expected_outputs
 from attica.crosscheck import Stream, crosscheck
 from attica.reference.filter import Filter as RefFilter
 from attica.settings import FilterKind, Flag, make_settings
@@ -86,6 +86,7 @@ def _check_stream(
         assert_same_bits(s["gyro_bias"], ref["gyro_bias"], "gyro_bias")
         assert_same_bits(s["cov"], ref["cov"], "cov")
     else:
+        assert np.isnan(s["cov"]).all()  # classic sets carry no covariance: unknown, not 0
         assert (s["q16"] == c.quantise(ref["q"], c.QUAT16_FRAC)).all()
         assert (s["euler_raw"] == c.quantise(ref["euler"], c.EULER_FRAC)).all()
         assert (s["bias_raw"] == c.quantise(ref["gyro_bias"], c.BIAS_FRAC)).all()
@@ -167,7 +168,9 @@ def test_output_and_diag_dividers() -> None:
     node = c.Node("ars", sample_rate=RATE, output_divider=3, diag_divider=5)
     out, steps = node.run(c.encode_imu(gyr, acc, mag))
     assert steps == n and node.stats()["sets"] == n // 3
-    ref = _reference("ars", n, 2)[2::3]
+    every = _reference("ars", n, 2)
+    ref = every[2::3].copy()
+    ref["flags"] = every["flags"][0::3] | every["flags"][1::3] | every["flags"][2::3]  # since the last set
     _check_stream(out, ref, FilterKind.ARS, False)
     dec = c.decode_outputs(out)
     assert dec.diag.shape[0] == (n // 3) // 5
@@ -176,6 +179,37 @@ def test_output_and_diag_dividers() -> None:
     node = c.Node("ars", sample_rate=RATE, diag_divider=0)
     out, _ = node.run(c.encode_imu(gyr[:100], acc[:100], mag[:100]))
     assert not (out["id"] == c.ID_DIAG).any()
+
+
+@pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
+def test_a_set_carries_the_flags_of_every_step_since_the_previous_set(fd: bool) -> None:
+    """With output_divider 10 a gyro clipped for one sample between two sets (recovery off, so no later
+    step flags it) is in the next set's flags, as compare() expects; until 2026-12-06 a set had its own
+    sample's flags only and the clip never reached the bus."""
+    n = 400
+    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
+    gyr = np.zeros((n, 3), np.float32)
+    gyr[303, 2] = 30.0  # beyond gyro_range 20 rad/s, within the classic frame
+    node = c.Node(
+        "mars",
+        sample_rate=100.0,
+        fd=fd,
+        data_bitrate=2_000_000 if fd else 0,
+        output_divider=10,
+        recovery_time=0.0,
+        gyro_range=20.0,
+    )
+    out, _ = node.run(c.encode_imu(gyr, acc, mag, fd=fd))
+    sets = c.decode_outputs(out).sets
+    assert sets.shape[0] == n // 10
+    got = {int(s): int(f) for s, f in zip(sets["steps"], sets["flags"], strict=True)}
+    assert got[310] & Flag.GYRO_RANGE and not got[300] & Flag.GYRO_RANGE and not got[320] & Flag.GYRO_RANGE
+    g, a, m = (gyr, acc, mag) if fd else c.imu_values(gyr, acc, mag)
+    settings = make_settings(FilterKind.MARS, None, 0.01, recovery_time=0.0, gyro_range=20.0)
+    exp = expected_outputs(FilterKind.MARS, 100.0, g, a, m, settings=settings)
+    rep = compare(exp, FilterKind.MARS, fd, out, output_divider=10)
+    assert rep.exact and rep.sets_ok == n // 10, "\n".join(rep.lines())
 
 
 # --- fault injection ------------------------------------------------------------------------------
@@ -457,6 +491,13 @@ def test_bus_load_table_and_formulas() -> None:
             assert lib.att_node_bus_load(s) == pytest.approx(
                 c.bus_load(300.0, output_divider=div, diag_divider=dd), rel=1e-6
             )
+    # an ATT_MAG_OFFSET after every ATT_DIAG while the init filter estimates a hard-iron offset
+    for dd in (1, 16):
+        s = _settings(rate=300.0, kind=lib.ATT_FILTER_MARS, diag_divider=dd)
+        s.filter.mars.hard_iron_tau = 60.0
+        want = c.bus_load(300.0, diag_divider=dd, mag_offset=True)
+        assert want > c.bus_load(300.0, diag_divider=dd)
+        assert lib.att_node_bus_load(s) == pytest.approx(want, rel=1e-6)
     assert c.input_bus_load(1000, 500_000) == pytest.approx(3 * 135 * 1000 / 500e3)
 
 

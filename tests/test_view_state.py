@@ -87,6 +87,40 @@ def test_state_shows_the_node_outputs(fd: bool) -> None:
     assert snap["history_seq"] == 1 and len(st.history_since(0)) == 1
 
 
+@pytest.mark.parametrize("kind", ["mars", "mekf", "kf", "gyro"])
+def test_state_shows_the_orientation_covariance_of_fd_sets(kind: str) -> None:
+    """An FD set's covariance reaches the page and Foxglove's /imu as the Imu message's 3x3 (the file
+    export's, attica.data.export.orientation_covariance), turned onto the view's convention's axes; a
+    classic set has none (None: zeros on /imu), nor have gyro and tilt."""
+    from attica.data.export import orientation_covariance
+    from attica.settings import FilterKind
+
+    msgs, node = session(kind, fd=True)
+    st = ViewState(data_bitrate=2_000_000)
+    st.feed_many(msgs)
+    att = st.snapshot()["att"]
+    out, _ = Node(kind, sample_rate=200.0, fd=True, data_bitrate=2_000_000).run(
+        codec.encode_imu(*still(200), fd=True)
+    )
+    last = codec.decode_outputs(out).sets[-1:]
+    if kind == "gyro":
+        assert att["cov"] is None
+        return
+    want = orientation_covariance(FilterKind.parse(kind), last)[0]
+    assert want[0] > 0 and att["cov"] == pytest.approx(want.tolist(), rel=1e-12)
+    st.convention = "NED"  # east <-> north, up -> down: the diagonal's first two swap
+    ned = st.snapshot()["att"]["cov"]
+    assert (
+        ned[0] == pytest.approx(want[4])
+        and ned[4] == pytest.approx(want[0])
+        and ned[8] == pytest.approx(want[8])
+    )
+    classic, _ = session(kind, fd=False)
+    st = ViewState()
+    st.feed_many(classic)
+    assert st.snapshot()["att"]["cov"] is None
+
+
 def test_state_and_monitor_show_the_can_controller() -> None:
     """ATT_DIAG_BUS (a node on a Cortex-M port reports its CAN controller): the page's ``diag_bus`` and the
     monitor's summary line; its counter follows the sets like ATT_DIAG's and is no gap. A node without

@@ -183,13 +183,14 @@ typedef struct {
     att_filter_kind_t kind;                    /**< filter kind now running */
     att_filter_settings_t fs;                  /**< settings of the running filter */
     att_filter_t f;                            /**< the filter */
-    att_output_t out;                          /**< output of the last sample (flags ORed over its periods) */
+    att_output_t out;                          /**< output of the last set (flags ORed over its steps) */
     att_sample_t part;                         /**< sample being assembled */
     uint8_t part_mask;                         /**< parts present: 1 gyro, 2 acc, 4 mag; 0 = none */
     uint8_t part_counter;                      /**< counter of the sample being assembled (part_mask != 0) */
     uint8_t last_counter;                      /**< counter of the last sample stepped from frames */
     bool have_last;                            /**< last_counter is valid (a sample was stepped from frames) */
     uint32_t div_count;                        /**< filter steps since the last output_divider multiple (0 at init, reset, select) */
+    uint32_t div_flags;                        /**< ATT_FLAG_* ORed over the steps since the last set (0 at init, reset, select) */
     uint32_t rx_head;                          /**< rx ring write count */
     uint32_t rx_tail;                          /**< rx ring read count */
     uint32_t tx_head;                          /**< tx ring write count */

@@ -60,14 +60,6 @@ static float att_can_pow2(int32_t k)
     return f;
 }
 
-static float att_can_nan(void)
-{
-    uint32_t bits = 0x7FC00000u;
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
-
 int16_t att_can_quantise(float x, int32_t frac_bits)
 {
     float s;
@@ -87,15 +79,20 @@ int16_t att_can_quantise(float x, int32_t frac_bits)
 
 float att_can_dequantise(int16_t v, int32_t frac_bits)
 {
-    if (v == (int16_t)ATT_CAN_NA || frac_bits < ATT_CAN_FRAC_MIN || frac_bits > ATT_CAN_FRAC_MAX) {
-        return att_can_nan();
+    const bool ok = v != (int16_t)ATT_CAN_NA && frac_bits >= ATT_CAN_FRAC_MIN && frac_bits <= ATT_CAN_FRAC_MAX;
+    uint32_t bits = 0x7FC00000u; /* NaN: -32768, or frac_bits out of range */
+    float f;
+    if (ok) {
+        /* full scale: clipped by the frame, at or beyond 32767 2^-k, the value unknown: beyond any
+         * filter's range (a gyro clipped by the frame starts the recovery of a clipping gyro;
+         * docs/can.md, Scaling): +-32767 2^112, about +-1.7e38 */
+        if ((int32_t)v * v == (int32_t)ATT_CAN_Q_FULL * ATT_CAN_Q_FULL) {
+            frac_bits = -112;
+        }
+        bits = ((uint32_t)(127 - frac_bits)) << 23; /* 2^-frac_bits */
     }
-    /* full scale: clipped by the frame, at or beyond 32767 2^-k, the value unknown: beyond any filter's
-     * range (a gyro clipped by the frame starts the recovery of a clipping gyro; docs/can.md, Scaling) */
-    if ((int32_t)v * v == (int32_t)ATT_CAN_Q_FULL * ATT_CAN_Q_FULL) {
-        return (float)v * 0x1p+112f; /* +-32767 2^112, about +-1.7e38 */
-    }
-    return (float)v * att_can_pow2(-frac_bits);
+    memcpy(&f, &bits, sizeof f);
+    return ok ? (float)v * f : f;
 }
 
 /* --- message table --------------------------------------------------------------------------- */

@@ -511,22 +511,23 @@ static void att_node_emit(att_node_t *n)
 
 /*
  * One sample held over `periods` sample periods (att_filter_step_n: the filter steps that many times;
- * 1 unless samples were lost). The output record is att_filter_output's (the frames carry Euler angles
- * and covariance too) with the flags ORed over the periods, as att_filter_step_n reports them. A set is
- * queued when the step count reaches or passes a multiple of output_divider (div_count: the steps past
- * the last multiple; at most one set per sample, the sets stay on the step grid). Returns the filter
- * steps run.
+ * 1 unless samples were lost). A set is queued when the step count reaches or passes a multiple of
+ * output_divider (div_count: the steps past the last multiple; at most one set per sample, the sets stay
+ * on the step grid). Its record is att_filter_output's (the frames carry Euler angles and covariance
+ * too) with the flags ORed over every step since the previous set (div_flags), so that a clipped gyro
+ * or a rejected field between two sets still reaches the bus. Returns the filter steps run.
  */
 static size_t att_node_step(att_node_t *n, const att_sample_t *in, uint32_t periods)
 {
-    const uint32_t flags = att_filter_step_n(&n->f, in, periods, &n->out);
-    att_filter_output(&n->f, &n->out);
-    n->out.flags = flags;
+    n->div_flags |= att_filter_step_n(&n->f, in, periods, &n->out);
     n->stats.samples++;
     n->stats.steps += periods;
     n->div_count += periods;
     if (n->div_count >= n->s.output_divider) {
         n->div_count %= n->s.output_divider;
+        att_filter_output(&n->f, &n->out);
+        n->out.flags = n->div_flags;
+        n->div_flags = 0u;
         att_node_emit(n);
     }
     return (size_t)periods;

@@ -27,14 +27,19 @@ def bus_load(
     output_divider: int = 1,
     diag_divider: int = 16,
     accel_out: bool = False,
+    mag_offset: bool = False,
 ) -> float:
-    """Fraction of the bus time used by the node's outputs (mirror of ``att_node_bus_load``, in float64)."""
+    """Fraction of the bus time used by the node's outputs (mirror of ``att_node_bus_load``, in float64).
+
+    ``mag_offset``: the filter estimates a hard-iron offset (mars, or a mekf with its magnetometer, with
+    ``hard_iron_tau`` > 0), so an ATT_MAG_OFFSET follows every ATT_DIAG.
+    """
     t_classic = classic_bits(8) / bitrate
     t_set = fd_frame_time(64, bitrate, data_bitrate) if fd else 6 * t_classic
     if accel_out:  # ATT_LIN_ACC + ATT_EARTH_ACC (classic) or ATT_ACCEL_FD after every set
         t_set += fd_frame_time(64, bitrate, data_bitrate) if fd else 2 * t_classic
     if diag_divider:
-        t_set += t_classic / diag_divider
+        t_set += (2 if mag_offset else 1) * t_classic / diag_divider
     return sample_rate / output_divider * t_set
 
 

@@ -449,7 +449,8 @@ def compare(
     """Compare output frames (arrival order) with the expected per-sample outputs.
 
     The node queues a set after a sample whose filter steps reach or pass a multiple of ``output_divider``
-    (every sample with divider 1); a received set is matched to the expected one by its steps field.
+    (every sample with divider 1), its flags ORed over the samples since the previous set; a received set
+    is matched to the expected one by its steps field.
     """
     rep = VerifyReport(kind=kind, fd=fd)
     recs = expected.records
@@ -460,7 +461,11 @@ def compare(
     rep.reference_detail = expected.reference_detail
     before = np.concatenate([np.zeros(1, np.int64), total[:-1]])
     emits = total // output_divider > before // output_divider
-    chosen = recs[emits]
+    chosen = recs[emits].copy()
+    last = np.flatnonzero(emits)
+    if last.size:  # a set's flags: ORed over every step since the previous set
+        starts = np.concatenate([np.zeros(1, np.int64), last[:-1] + 1])
+        chosen["flags"] = np.bitwise_or.reduceat(recs["flags"][: last[-1] + 1], starts)
     set_steps = total[emits]
     rep.sets_expected = int(chosen.shape[0])
     want = (

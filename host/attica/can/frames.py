@@ -275,7 +275,7 @@ SET_DTYPE = np.dtype(
         ("bias_raw", "<i2", (3,)),  # raw ATT_BIAS (classic only)
         ("euler", "<f4", (3,)),  # dequantised (classic) or float32 (FD)
         ("gyro_bias", "<f4", (3,)),
-        ("cov", "<f4", (4,)),  # FD only (classic: 0)
+        ("cov", "<f4", (4,)),  # FD only (classic sets carry none: NaN)
         ("crc_ok", "?"),  # every CRC of the set (STATUS set CRC incl. the quaternion frames)
     ]
 )
@@ -390,6 +390,7 @@ def decode_outputs(fr: NDArray[np.void]) -> OutputStream:
         s["bias_raw"] = _get_i16(bi, 2, 3)
         s["euler"] = dequantise(s["euler_raw"], EULER_FRAC)
         s["gyro_bias"] = dequantise(s["bias_raw"], BIAS_FRAC)
+        s["cov"] = np.nan  # not in the classic frames: unknown, not 0 (which would read as certain)
         ok = _status_crc_rows(st, qa, qb, q16) == st[:, 0]
         ok &= _e2e_rows(ids[block[:, 3]], eu[:, 1:8]) == eu[:, 0]
         ok &= _e2e_rows(ids[block[:, 4]], bi[:, 1:8]) == bi[:, 0]

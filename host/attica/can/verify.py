@@ -25,6 +25,12 @@ different (mismatched), lost; and separately sets with a bad CRC or incomplete (
 received twice (duplicates) and sets for steps that should not exist (unexpected). With a tap or a
 log it also counts the input faults the node must have seen (CRC, DLC, unknown IDs, duplicates,
 stale partial samples, counter gaps), so that every lost sample is accounted for.
+
+Not compared: ATT_DIAG and ATT_DIAG_BUS (the node's own counters, shown), and ATT_MAG_OFFSET (the
+hard-iron offset a mars or mekf filter estimates; the reference's offset is not recorded per step).
+That estimate is bit-exact between C and the reference through :func:`attica.crosscheck.crosscheck`'s
+full-state comparison; the frame the node sends is checked in tests/test_hard_iron.py (its cadence,
+the estimate near the simulated offset, the C and Python decoders alike).
 """
 
 from __future__ import annotations

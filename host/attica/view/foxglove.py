@@ -8,7 +8,9 @@ The bridge runs the SDK's WebSocket server (``foxglove.start_server``, its own p
   rotation = the node's quaternion (sensor-to-earth), translation zero. Foxglove's 3D panel draws it.
 - ``/imu`` (schema ``attica.Imu``, JSON, the fields of ROS ``sensor_msgs/msg/Imu``): orientation (the same
   quaternion), angular velocity (rad/s) and linear acceleration (m/s^2) of the latest IMU sample seen
-  on the bus, covariances unknown (zeros, as ROS says).
+  on the bus. The orientation covariance is the node's (CAN FD sets of a kind with one, about the
+  convention's earth axes: :func:`attica.view.state.orientation_cov`); zeros ("unknown", as ROS says)
+  for classic sets, gyro and tilt, and the two other covariances.
 - ``/attica/status`` (schema ``attica.Status``, JSON): roll, pitch, yaw (rad), gyro bias (rad/s), the
   flags word and names, the filter kind, steps, and the bus health counters.
 
@@ -166,7 +168,7 @@ class FoxgloveBridge:
             {
                 "header": {"stamp": stamp, "frame_id": "imu"},
                 "orientation": rot,
-                "orientation_covariance": zeros,
+                "orientation_covariance": att.get("cov") or zeros,
                 "angular_velocity": _xyz(imu.get("gyr")),
                 "angular_velocity_covariance": zeros,
                 "linear_acceleration": _xyz(imu.get("acc")),

@@ -110,6 +110,33 @@ def json_number(x: Any) -> float | None:
     return v if math.isfinite(v) else None
 
 
+_FROM_ENU = {
+    "ENU": np.eye(3),
+    "NED": np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]),
+    "NWU": np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+}
+"""The earth axes of each convention written in ENU's (rows: the convention's x, y, z)."""
+
+
+def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list[float | None] | None:
+    """The Imu message's 3x3 orientation covariance (row-major, rad^2) of a decoded FD output set.
+
+    :func:`attica.data.export.orientation_covariance` of the set (about ENU's axes, as the node reports
+    it whatever its convention) turned onto the convention's earth axes, R C R^T; None for a kind
+    without one (gyro, tilt). A mekf's yaw variance is its own even when it runs without the magnetometer
+    (the settings are not on the bus), where a file export writes pi^2/3 (unknown).
+    """
+    from attica.data.export import COVARIANCE, orientation_covariance
+
+    if kind not in COVARIANCE:
+        return None
+    c = orientation_covariance(kind, sets[:1])[0]
+    if c[0] >= 0.0:  # -1 in element 0: no orientation estimate, kept as it is
+        r = _FROM_ENU[convention]
+        c = (r @ c.reshape(3, 3) @ r.T).reshape(9)
+    return _vec(c)
+
+
 def _vec(v: Any) -> list[float | None]:
     return [json_number(x) for x in np.asarray(v, np.float64).reshape(-1).tolist()]
 
@@ -460,10 +487,16 @@ class ViewState:
             fr["len"][i] = len(data)
             fr["fd"][i] = 1 if len(data) > 8 else 0
             fr["data"][i, : len(data)] = np.frombuffer(data, np.uint8)
-        s = codec.decode_outputs(fr).sets[0]
+        sets = codec.decode_outputs(fr).sets
+        s = sets[0]
         flags = int(s["flags"])
+        fd = len(latest.set_frames) == 1
+        cov = None
         try:
-            kind = FilterKind(int(s["kind"])).label
+            k = FilterKind(int(s["kind"]))
+            kind = k.label
+            if fd:  # a classic set has no covariance
+                cov = orientation_cov(k, sets, self.convention)
         except ValueError:
             kind = f"kind {int(s['kind'])}"
         return {
@@ -476,7 +509,8 @@ class ViewState:
             "steps": int(s["steps"]),
             "counter": int(s["counter"]),
             "error_count": int(s["error_count"]),
-            "fd": len(latest.set_frames) == 1,
+            "fd": fd,
+            "cov": cov,
             "ts": latest.set_ts,
         }
 
