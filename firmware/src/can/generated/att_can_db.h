@@ -1095,7 +1095,7 @@ struct att_can_db_att_out_fd_t {
     float cov_1;
 
     /**
-     * Covariance diagonal element 2 (KF: y, EKF: psi, MEKF: earth-frame attitude error z, rad^2; ARS, MARS: the heading variance about earth z, pi^2/3 when unknown, rad^2), float32. Every element is about the ENU axes whatever the output convention.
+     * Covariance diagonal element 2 (KF: y, EKF: psi, MEKF: earth-frame attitude error z, rad^2; ARS, MARS: the heading variance about earth z, pi^2/3 when unknown, rad^2), float32. Every element is about the ENU axes whatever the output convention. gyro, tilt: all four 0, no covariance (unknown, as sensor_msgs/Imu reads zeros).
      *
      * Range: -
      * Scale: 1
