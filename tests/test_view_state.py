@@ -121,6 +121,24 @@ def test_state_shows_the_orientation_covariance_of_fd_sets(kind: str) -> None:
     assert st.snapshot()["att"]["cov"] is None
 
 
+def test_state_shows_the_hard_iron_offset() -> None:
+    """The last ATT_MAG_OFFSET (a mars estimating its hard-iron offset sends one after each ATT_DIAG) is in
+    the snapshot, for the page and Foxglove's /attica/status; None from a node that sends none."""
+    gyr, acc, mag = still(64)
+    out, _ = Node("mars", sample_rate=200.0, hard_iron_tau=60.0).run(codec.encode_imu(gyr, acc, mag))
+    sent = codec.decode_outputs(out).mag_offset
+    assert len(sent) == 64 // 16
+    st = ViewState()
+    st.feed_many(to_messages(codec.encode_imu(gyr, acc, mag)) + to_messages(out))
+    mo = st.snapshot()["mag_offset"]
+    assert mo is not None and mo["estimated"] == bool(sent["estimated"][-1])
+    assert mo["offset"] == [float(v) for v in sent["offset"][-1]]
+    msgs, _ = session("mars", n=64)
+    plain = ViewState()
+    plain.feed_many(msgs)
+    assert plain.snapshot()["mag_offset"] is None
+
+
 def test_state_and_monitor_show_the_can_controller() -> None:
     """ATT_DIAG_BUS (a node on a Cortex-M port reports its CAN controller): the page's ``diag_bus`` and the
     monitor's summary line; its counter follows the sets like ATT_DIAG's and is no gap. A node without

@@ -12,7 +12,8 @@ The bridge runs the SDK's WebSocket server (``foxglove.start_server``, its own p
   convention's earth axes: :func:`attica.view.state.orientation_cov`); zeros ("unknown", as ROS says)
   for classic sets, gyro and tilt, and the two other covariances.
 - ``/attica/status`` (schema ``attica.Status``, JSON): roll, pitch, yaw (rad), gyro bias (rad/s), the
-  flags word and names, the filter kind, steps, and the bus health counters.
+  flags word and names, the filter kind, steps, the bus health counters, and the hard-iron offset of
+  the last ATT_MAG_OFFSET (uT; null without one) with whether it was observable.
 
 Time stamps are the frames' (bus time: the receive time on a live bus, the recorded time of a log).
 Foxglove (the app) connects to ``ws://host:port``; nothing is sent anywhere else.
@@ -83,6 +84,8 @@ STATUS_SCHEMA = _object(
         "kind": {"type": "string"},
         "steps": {"type": "integer"},
         "health": {"type": "object"},
+        "mag_offset": _VEC3,
+        "mag_offset_estimated": {"type": "boolean"},
     },
 )
 
@@ -178,6 +181,7 @@ class FoxgloveBridge:
         )
         e = att["euler"]
         health = snap.get("health") or {}
+        mo = snap.get("mag_offset")
         keep = ("frames_per_s", "bus_load", "crc_errors", "counter_gaps", "missing_sets", "latency_ms")
         self.status.log(
             {
@@ -191,6 +195,8 @@ class FoxgloveBridge:
                 "kind": att["kind"],
                 "steps": att["steps"],
                 "health": {k: health.get(k) for k in keep},
+                "mag_offset": _xyz(mo["offset"] if mo else None),
+                "mag_offset_estimated": bool(mo and mo["estimated"]),
             },
             log_time=log_time,
         )

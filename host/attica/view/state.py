@@ -29,7 +29,7 @@ import numpy as np
 from attica.can import codec
 from attica.can.calibration import REASONS, SET_CONVENTION, decode_cal_ack
 from attica.can.idoffset import from_bus
-from attica.can.monitor import Monitor, diag_bus_named
+from attica.can.monitor import Monitor, diag_bus_named, mag_offset_values
 from attica.settings import FilterKind, Flag
 
 __all__ = [
@@ -137,6 +137,17 @@ def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list
     return _vec(c)
 
 
+def _mag_offset(data: bytes | None) -> dict[str, Any] | None:
+    """The last ATT_MAG_OFFSET: the hard-iron offset (uT) and whether it was observable.
+
+    None before the first (a filter without the estimate sends none).
+    """
+    if data is None:
+        return None
+    x, y, z, estimated = mag_offset_values(data)
+    return {"offset": _vec([x, y, z]), "estimated": estimated}
+
+
 def _vec(v: Any) -> list[float | None]:
     return [json_number(x) for x in np.asarray(v, np.float64).reshape(-1).tolist()]
 
@@ -204,6 +215,7 @@ class _Latest:
     diag: bytes | None = None
     diag_ts: float = 0.0
     diag_bus: bytes | None = None  # ATT_DIAG_BUS: the CAN controller of a node on a Cortex-M port
+    mag_offset: bytes | None = None  # ATT_MAG_OFFSET: the hard-iron offset a mars or mekf estimates
     imu: dict[int, bytes] = field(default_factory=dict)
     imu_ts: float = 0.0
     quat: dict[int, bytes] = field(default_factory=dict)
@@ -349,6 +361,8 @@ class ViewState:
             latest.diag_ts = ts
         elif can_id == codec.ID_DIAG_BUS:
             latest.diag_bus = data
+        elif can_id == codec.ID_MAG_OFFSET:
+            latest.mag_offset = data
         elif can_id == codec.ID_CAL_ACK:
             ack = decode_cal_ack(m)
             if ack is not None:
@@ -639,6 +653,7 @@ class ViewState:
                 "health": self._health(now),
                 "diag": self._diag(),
                 "diag_bus": None if self._latest.diag_bus is None else diag_bus_named(self._latest.diag_bus),
+                "mag_offset": _mag_offset(self._latest.mag_offset),
                 "events": list(self._events)[-20:],
                 "commands": [c.as_json() for c in self._commands],
                 "history_seq": self._history_seq,
