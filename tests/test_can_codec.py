@@ -234,9 +234,12 @@ def test_dequantise_is_exact_and_inverts_quantise() -> None:
         assert np.isnan(py[0]) and np.isnan(cc[0])
         assert (py[1:].view(np.uint32) == cc[1:].view(np.uint32)).all()
         exact = v[1:].astype(np.float64) * 2.0**-frac
-        full = np.abs(v[1:].astype(np.int64)) == 32767  # clipped: beyond every range, not the scale's
-        exact[full] = v[1:][full].astype(np.float64) * 2.0**112
         assert (py[1:].astype(np.float64) == exact).all()
+        # a sensor field as the node decodes it: full scale is clipped, beyond every range
+        sensor = c.dequantise_sensor(v, frac).astype(np.float64)
+        full = np.abs(v.astype(np.int64)) == 32767
+        assert (sensor[full] == v[full].astype(np.float64) * 2.0**112).all()
+        assert (sensor[~full][1:] == exact[~full[1:]]).all() and np.isnan(sensor[0])
         assert (c.quantise(py[1:], frac) == v[1:]).all()
         assert (_c_quantise(cc[1:], frac) == v[1:]).all()
     assert math.isnan(lib.att_can_dequantise(5, c.FRAC_MAX + 1))

@@ -117,3 +117,26 @@ def test_dbc_command(
     assert main(["dbc", "-o", str(src)]) == 2
     assert "is attica's own DBC" in capsys.readouterr().err
     assert src.read_text() == original
+
+
+def test_the_three_imu_parts_share_one_layout() -> None:
+    """att_can_decode_imu_part unpacks IMU_GYRO, IMU_ACC and IMU_MAG with one generated unpack (the
+    gyro's): their signals must sit alike (crc, counter, then x, y, z as little-endian int16 in bytes
+    2..7), only the scale differs; and the C decoder gives each part's own values."""
+    db = codec.database()
+    layouts = []
+    for name in ("IMU_GYRO", "IMU_ACC", "IMU_MAG"):
+        m = db.get_message_by_name(name)
+        assert m.length == 8
+        layouts.append([(s.start, s.length, s.byte_order, s.is_signed) for s in m.signals])
+    assert layouts[0] == layouts[1] == layouts[2]
+    g = np.float32([[1.5, -2.25, 40.0]])
+    a = np.float32([[0.5, -9.75, 200.0]])
+    m = np.float32([[20.0, -40.5, 2000.0]])
+    frames = codec.encode_imu(g, a, m)
+    buf = native.ffi.from_buffer("att_can_frame_t[]", frames)
+    v = native.ffi.new("att_vec3_t *")
+    for i, want in enumerate(codec.imu_values(g, a, m)):
+        assert native.lib.att_can_decode_imu_part(buf + i, v)
+        got = np.float32([v.x, v.y, v.z])
+        assert got.view(np.uint32).tolist() == want[0].view(np.uint32).tolist(), (i, got, want)

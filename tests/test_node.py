@@ -170,7 +170,8 @@ def test_output_and_diag_dividers() -> None:
     assert steps == n and node.stats()["sets"] == n // 3
     every = _reference("ars", n, 2)
     ref = every[2::3].copy()
-    ref["flags"] = every["flags"][0::3] | every["flags"][1::3] | every["flags"][2::3]  # since the last set
+    ored = every["flags"][0::3] | every["flags"][1::3] | every["flags"][2::3]  # since the last set
+    ref["flags"] = (ored & ~np.uint32(0xC000)) | (ref["flags"] & np.uint32(0xC000))  # NOT_READY: its own
     _check_stream(out, ref, FilterKind.ARS, False)
     dec = c.decode_outputs(out)
     assert dec.diag.shape[0] == (n // 3) // 5
@@ -210,6 +211,45 @@ def test_a_set_carries_the_flags_of_every_step_since_the_previous_set(fd: bool) 
     exp = expected_outputs(FilterKind.MARS, 100.0, g, a, m, settings=settings)
     rep = compare(exp, FilterKind.MARS, fd, out, output_divider=10)
     assert rep.exact and rep.sets_ok == n // 10, "\n".join(rep.lines())
+
+
+def test_a_set_says_not_ready_only_when_its_own_sample_is() -> None:
+    """NOT_READY and BAD_ARG say whether a set's q is an estimate: they are the set's own sample's, not
+    ORed since the previous set (accel missing for the first 3 samples, divider 10: the filters start at
+    step 4, and the set at step 10 is an estimate)."""
+    n = 40
+    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    acc[:3] = np.nan
+    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
+    gyr = np.zeros((n, 3), np.float32)
+    for kind in ("ars", "mars", "mekf"):
+        node = c.Node(kind, sample_rate=100.0, fd=True, data_bitrate=2_000_000, output_divider=10)
+        out, _ = node.run(c.encode_imu(gyr, acc, mag, fd=True))
+        sets = c.decode_outputs(out).sets
+        assert not (sets["flags"] & Flag.NOT_READY).any(), (kind, sets["flags"])
+        exp = expected_outputs(FilterKind.parse(kind), 100.0, gyr, acc, mag)
+        assert exp.records["flags"][0] & Flag.NOT_READY  # the first samples were not ready
+        rep = compare(exp, FilterKind.parse(kind), True, out, output_divider=10)
+        assert rep.exact, "\n".join(rep.lines())
+
+
+def test_a_reset_starts_the_sets_flags_afresh() -> None:
+    """RESET (and SELECT) restart the sets' step grid and their flags: a gyro clipped after the last set
+    of the filter that was reset is not in the first set after it (verify expects a clean start)."""
+    n, div = 340, 3
+    gyr = np.full((n, 3), 0.001, np.float32)
+    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    mag = np.tile(np.float32([0.0, 20.0, -40.0]), (n, 1))
+    gyr[300] = [40.0, 0.0, 0.0]  # step 301: after the set at step 300, no set of its own
+    g, a, m = c.imu_values(gyr, acc, mag)
+    frames = c.encode_imu(g, a, m).reshape(n, -1)
+    node = c.Node("ars", sample_rate=100.0, output_divider=div)
+    node.run(np.concatenate(list(frames[:301])))
+    node.run(c.encode_cmd(c.Cmd.RESET, counter=1))
+    out, _ = node.run(np.concatenate(list(frames[301:])))
+    exp = expected_outputs(FilterKind.ARS, 100.0, g[301:], a[301:], m[301:])
+    rep = compare(exp, FilterKind.ARS, False, out, output_divider=div)
+    assert rep.exact and rep.sets_ok == (n - 301) // div, "\n".join(rep.lines())
 
 
 # --- fault injection ------------------------------------------------------------------------------

@@ -121,6 +121,61 @@ def test_state_shows_the_orientation_covariance_of_fd_sets(kind: str) -> None:
     assert st.snapshot()["att"]["cov"] is None
 
 
+@pytest.mark.parametrize("convention", ["NED", "NWU"])
+def test_the_ekf_covariance_in_another_convention(convention: str) -> None:
+    """The EKF's covariance turns its Euler angles' variances onto the earth's axes through the angles,
+    which the model takes about ENU: in another convention the view takes them from the set's q turned
+    back to ENU (the set's own angles are the convention's), then turns the matrix onto its axes."""
+    from attica.can.frames import SET_DTYPE
+    from attica.data.export import orientation_covariance
+    from attica.settings import FilterKind
+    from attica.view.state import _FROM_ENU, orientation_cov
+
+    roll, pitch, yaw = 0.1, 0.05, 0.3
+    cr, sr, cp, sp, cy, sy = (f(a / 2) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
+    q_enu = np.array(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ]
+    )
+    enu = np.zeros(1, SET_DTYPE)
+    enu["q"][0], enu["euler"][0], enu["cov"][0] = q_enu, (roll, pitch, yaw), (1e-3, 4e-3, 0.2, 1e-8)
+    r = _FROM_ENU[convention]
+    want = r @ orientation_covariance(FilterKind.EKF, enu)[0].reshape(3, 3) @ r.T
+    # the same attitude in the convention: R_conv = r R_enu, as a quaternion (w from the trace: w > 0 here)
+    m = r @ np.array(
+        [
+            [
+                1 - 2 * (q_enu[2] ** 2 + q_enu[3] ** 2),
+                2 * (q_enu[1] * q_enu[2] - q_enu[0] * q_enu[3]),
+                2 * (q_enu[1] * q_enu[3] + q_enu[0] * q_enu[2]),
+            ],
+            [
+                2 * (q_enu[1] * q_enu[2] + q_enu[0] * q_enu[3]),
+                1 - 2 * (q_enu[1] ** 2 + q_enu[3] ** 2),
+                2 * (q_enu[2] * q_enu[3] - q_enu[0] * q_enu[1]),
+            ],
+            [
+                2 * (q_enu[1] * q_enu[3] - q_enu[0] * q_enu[2]),
+                2 * (q_enu[2] * q_enu[3] + q_enu[0] * q_enu[1]),
+                1 - 2 * (q_enu[1] ** 2 + q_enu[2] ** 2),
+            ],
+        ]
+    )
+    w = math.sqrt(max(0.0, 1 + np.trace(m))) / 2
+    q_conv = np.array(
+        [w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w)]
+    )
+    conv = enu.copy()
+    conv["q"][0] = q_conv
+    conv["euler"][0] = (9.0, 9.0, 9.0)  # the convention's own angles: not used
+    got = np.array(orientation_cov(FilterKind.EKF, conv, convention), np.float64).reshape(3, 3)
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-9)
+
+
 def test_state_shows_the_hard_iron_offset() -> None:
     """The last ATT_MAG_OFFSET (a mars estimating its hard-iron offset sends one after each ATT_DIAG) is in
     the snapshot, for the page and Foxglove's /attica/status; None from a node that sends none."""

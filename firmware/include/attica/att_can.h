@@ -61,7 +61,7 @@ enum {
     ATT_CAN_FRAC_MIN = -30,        /**< smallest frac_bits accepted by (de)quantise */
     ATT_CAN_FRAC_MAX = 30,         /**< largest frac_bits accepted by (de)quantise */
     ATT_CAN_NA = -32768,           /**< int16 code of "not available" (NaN) */
-    ATT_CAN_Q_FULL = 32767,        /**< int16 code of full scale; in a sensor field: clipped (+-FLT_MAX) */
+    ATT_CAN_Q_FULL = 32767,        /**< int16 code of full scale; in an IMU field: clipped (att_can_decode_imu_part) */
     ATT_CAN_CMD_SELECT = 1,        /**< command: select filter, arg = att_filter_kind_t */
     ATT_CAN_CMD_RESET = 2,         /**< command: reset the filter */
     ATT_CAN_CMD_SET_GAIN = 3,      /**< command: set gain, arg = ATT_CAN_GAIN_*, value */
@@ -206,8 +206,9 @@ void att_can_encode_cal_ack(const att_can_cal_ack_t *a, att_can_frame_t *out);
 /** The fields of an ATT_CAL_ACK frame (no CRC check). */
 bool att_can_decode_cal_ack(const att_can_frame_t *f, att_can_cal_ack_t *out);
 /** The 3 dequantised values of an IMU_GYRO/ACC/MAG frame (no CRC check: att_can_check first); a field
- * at full scale (+-ATT_CAN_Q_FULL: clipped by the frame, at or beyond 32767 2^-k) gives +-FLT_MAX,
- * which every filter takes as beyond its range (a gyro's starts the recovery of a clipping gyro). */
+ * at full scale (+-ATT_CAN_Q_FULL: clipped by the frame, at or beyond 32767 2^-k) gives +-32767 2^112
+ * (about +-1.7e38), which every filter takes as beyond its range (a gyro's starts the recovery of a
+ * clipping gyro). Outputs decode with the plain att_can_dequantise. */
 bool att_can_decode_imu_part(const att_can_frame_t *f, att_vec3_t *v);
 /** The sample in an IMU_FD frame (no CRC check). */
 bool att_can_decode_imu_fd(const att_can_frame_t *f, att_sample_t *out);

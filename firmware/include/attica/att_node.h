@@ -183,7 +183,7 @@ typedef struct {
     att_filter_kind_t kind;                    /**< filter kind now running */
     att_filter_settings_t fs;                  /**< settings of the running filter */
     att_filter_t f;                            /**< the filter */
-    att_output_t out;                          /**< output of the last set (flags ORed over its steps) */
+    att_output_t out;                          /**< output of the last sample (flags ORed over its periods) */
     att_sample_t part;                         /**< sample being assembled */
     uint8_t part_mask;                         /**< parts present: 1 gyro, 2 acc, 4 mag; 0 = none */
     uint8_t part_counter;                      /**< counter of the sample being assembled (part_mask != 0) */

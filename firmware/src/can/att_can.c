@@ -83,12 +83,6 @@ float att_can_dequantise(int16_t v, int32_t frac_bits)
     uint32_t bits = 0x7FC00000u; /* NaN: -32768, or frac_bits out of range */
     float f;
     if (ok) {
-        /* full scale: clipped by the frame, at or beyond 32767 2^-k, the value unknown: beyond any
-         * filter's range (a gyro clipped by the frame starts the recovery of a clipping gyro;
-         * docs/can.md, Scaling): +-32767 2^112, about +-1.7e38 */
-        if ((int32_t)v * v == (int32_t)ATT_CAN_Q_FULL * ATT_CAN_Q_FULL) {
-            frac_bits = -112;
-        }
         bits = ((uint32_t)(127 - frac_bits)) << 23; /* 2^-frac_bits */
     }
     memcpy(&f, &bits, sizeof f);
@@ -277,30 +271,46 @@ static att_vec3_t att_can_vec3_dq(int16_t x, int16_t y, int16_t z, int32_t frac)
     return v;
 }
 
+/* A sensor's field at the frame's full scale (+-ATT_CAN_Q_FULL) was clipped there: at or beyond 32767
+ * 2^-k, its value unknown. It is given as +-32767 2^112 (about +-1.7e38), beyond every filter's range
+ * (GYRO_RANGE, ACCEL_RANGE, the field rejected), so that a gyro clipped by the frame starts the recovery
+ * of a clipping gyro, which it would not at 32 rad/s under a gyro_range of 34.9 (docs/can.md,
+ * Scaling). Outputs keep att_can_dequantise's plain scale. */
+static float att_can_dq_sensor(int16_t v, int32_t frac)
+{
+    if ((int32_t)v * v == (int32_t)ATT_CAN_Q_FULL * ATT_CAN_Q_FULL) {
+        return (float)v * 0x1p+112f;
+    }
+    return att_can_dequantise(v, frac);
+}
+
 bool att_can_decode_imu_part(const att_can_frame_t *f, att_vec3_t *v)
 {
+    struct att_can_db_imu_gyro_t p;
+    int32_t frac;
     if (f == NULL || v == NULL || f->len < (uint8_t)ATT_CAN_CLASSIC_LEN) {
         return false;
     }
-    if (f->id == ATT_CAN_ID_IMU_GYRO) {
-        struct att_can_db_imu_gyro_t g;
-        (void)att_can_db_imu_gyro_unpack(&g, f->data, ATT_CAN_CLASSIC_LEN);
-        *v = att_can_vec3_dq(g.gyr_x, g.gyr_y, g.gyr_z, ATT_CAN_GYR_FRAC);
-        return true;
+    switch (f->id) {
+    case ATT_CAN_ID_IMU_GYRO:
+        frac = ATT_CAN_GYR_FRAC;
+        break;
+    case ATT_CAN_ID_IMU_ACC:
+        frac = ATT_CAN_ACC_FRAC;
+        break;
+    case ATT_CAN_ID_IMU_MAG:
+        frac = ATT_CAN_MAG_FRAC;
+        break;
+    default:
+        return false;
     }
-    if (f->id == ATT_CAN_ID_IMU_ACC) {
-        struct att_can_db_imu_acc_t a;
-        (void)att_can_db_imu_acc_unpack(&a, f->data, ATT_CAN_CLASSIC_LEN);
-        *v = att_can_vec3_dq(a.acc_x, a.acc_y, a.acc_z, ATT_CAN_ACC_FRAC);
-        return true;
-    }
-    if (f->id == ATT_CAN_ID_IMU_MAG) {
-        struct att_can_db_imu_mag_t m;
-        (void)att_can_db_imu_mag_unpack(&m, f->data, ATT_CAN_CLASSIC_LEN);
-        *v = att_can_vec3_dq(m.mag_x, m.mag_y, m.mag_z, ATT_CAN_MAG_FRAC);
-        return true;
-    }
-    return false;
+    /* the three parts have one layout (crc, counter, then x, y, z as int16 in bytes 2..7; the DBC's
+     * signals checked alike by tests/test_can_dbc.py): one unpack serves them all */
+    (void)att_can_db_imu_gyro_unpack(&p, f->data, ATT_CAN_CLASSIC_LEN);
+    v->x = att_can_dq_sensor(p.gyr_x, frac);
+    v->y = att_can_dq_sensor(p.gyr_y, frac);
+    v->z = att_can_dq_sensor(p.gyr_z, frac);
+    return true;
 }
 
 bool att_can_decode_imu_fd(const att_can_frame_t *f, att_sample_t *out)

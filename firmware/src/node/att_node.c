@@ -511,24 +511,30 @@ static void att_node_emit(att_node_t *n)
 
 /*
  * One sample held over `periods` sample periods (att_filter_step_n: the filter steps that many times;
- * 1 unless samples were lost). A set is queued when the step count reaches or passes a multiple of
- * output_divider (div_count: the steps past the last multiple; at most one set per sample, the sets stay
- * on the step grid). Its record is att_filter_output's (the frames carry Euler angles and covariance
- * too) with the flags ORed over every step since the previous set (div_flags), so that a clipped gyro
- * or a rejected field between two sets still reaches the bus. Returns the filter steps run.
+ * 1 unless samples were lost). The output record is att_filter_output's (the frames carry Euler angles
+ * and covariance too) with the flags ORed over the periods, as att_filter_step_n reports them. A set is
+ * queued when the step count reaches or passes a multiple of output_divider (div_count: the steps past
+ * the last multiple; at most one set per sample, the sets stay on the step grid). The set's flags are
+ * ORed over every step since the previous set (div_flags), so that a clipped gyro or a rejected field
+ * between two sets still reaches the bus, but for NOT_READY and BAD_ARG, which say whether the set's q is
+ * an estimate: those are its own sample's. Returns the filter steps run.
  */
 static size_t att_node_step(att_node_t *n, const att_sample_t *in, uint32_t periods)
 {
-    n->div_flags |= att_filter_step_n(&n->f, in, periods, &n->out);
+    const uint32_t flags = att_filter_step_n(&n->f, in, periods, &n->out);
+    const uint32_t invalid = (uint32_t)ATT_FLAGS_OUTPUT_INVALID;
+    att_filter_output(&n->f, &n->out);
+    n->out.flags = flags;
+    n->div_flags |= flags;
     n->stats.samples++;
     n->stats.steps += periods;
     n->div_count += periods;
     if (n->div_count >= n->s.output_divider) {
         n->div_count %= n->s.output_divider;
-        att_filter_output(&n->f, &n->out);
-        n->out.flags = n->div_flags;
+        n->out.flags = (n->div_flags & ~invalid) | (flags & invalid);
         n->div_flags = 0u;
         att_node_emit(n);
+        n->out.flags = flags; /* a command's answer: the last sample's */
     }
     return (size_t)periods;
 }
@@ -658,6 +664,7 @@ static uint8_t att_node_select(att_node_t *n, uint8_t arg)
     n->kind = kind;
     n->fs = fs;
     n->div_count = 0u; /* the sets restart on the new filter's step grid */
+    n->div_flags = 0u;
     att_filter_output(&n->f, &n->out);
     return (uint8_t)ATT_CAN_ACK_OK;
 }
@@ -805,6 +812,7 @@ static void att_node_command(att_node_t *n, const att_can_frame_t *f)
     case ATT_CAN_CMD_RESET:
         att_filter_reset(&n->f);
         n->div_count = 0u; /* steps restart at 0: so do the sets' steps grid */
+        n->div_flags = 0u;
         att_filter_output(&n->f, &n->out);
         result = (uint8_t)ATT_CAN_ACK_OK;
         break;

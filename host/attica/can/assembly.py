@@ -141,7 +141,7 @@ def assemble(frames: NDArray[np.void]) -> Assembly:
                 continue
             part_counter = c
         raw = np.frombuffer(data[2:8].tobytes(), "<i2")
-        part[can_id] = codec.dequantise(raw, fracs[can_id])
+        part[can_id] = codec.dequantise_sensor(raw, fracs[can_id])  # as att_can_decode_imu_part
         if len(part) == 3:
             g.append(part[codec.ID_IMU_GYRO])
             a.append(part[codec.ID_IMU_ACC])

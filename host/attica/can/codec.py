@@ -103,6 +103,7 @@ from attica.can.quant import (
     CLIPPED,
     FULL,
     dequantise,
+    dequantise_sensor,
     imu_values,
     quantise,
 )
@@ -177,6 +178,7 @@ __all__ = [
     "decode",
     "decode_outputs",
     "dequantise",
+    "dequantise_sensor",
     "e2e_crc",
     "encode_cmd",
     "encode_imu",

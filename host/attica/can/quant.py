@@ -29,20 +29,32 @@ def quantise(x: ArrayLike, frac_bits: int) -> NDArray[np.int16]:
 FULL = 32767
 """The int16 code of full scale: a value at or beyond the range, clipped by the frame (``ATT_CAN_Q_FULL``)."""
 CLIPPED = np.float32(32767.0 * 2.0**112)
-"""What a full-scale code decodes to (times its sign): about 1.7e38, beyond every filter's range, so that
-a field clipped by the frame is a clipped sensor to the filter (a gyro's starts the clipping recovery)."""
+"""What a sensor field at full scale decodes to (times its sign): about 1.7e38, beyond every filter's
+range, so that a field clipped by the frame is a clipped sensor to the filter (a gyro's starts the
+clipping recovery)."""
 
 
 def dequantise(v: ArrayLike, frac_bits: int) -> NDArray[np.float32]:
-    """``att_can_dequantise`` over an array: v * 2^-k (exact), -32768 -> NaN, +-32767 -> +-:data:`CLIPPED`."""
+    """``att_can_dequantise`` over an array: v * 2^-k (exact), -32768 -> NaN."""
     va = np.asarray(v, np.int16)
     if not FRAC_MIN <= frac_bits <= FRAC_MAX:
         return np.full(va.shape, np.nan, np.float32)
-    x = va.astype(np.float32)
-    scaled = np.where(
-        np.abs(va.astype(np.int32)) == FULL, x * np.float32(2.0**112), x * np.float32(2.0**-frac_bits)
-    )
-    out: NDArray[np.float32] = np.where(va == NA, np.float32(np.nan), scaled).astype(np.float32)
+    out: NDArray[np.float32] = np.where(
+        va == NA, np.float32(np.nan), va.astype(np.float32) * np.float32(2.0**-frac_bits)
+    ).astype(np.float32)
+    return out
+
+
+def dequantise_sensor(v: ArrayLike, frac_bits: int) -> NDArray[np.float32]:
+    """A classic IMU frame's field as the node decodes it (``att_can_decode_imu_part``).
+
+    :func:`dequantise`, but full scale (+-:data:`FULL`) -> +-:data:`CLIPPED`.
+    """
+    va = np.asarray(v, np.int16)
+    full = np.abs(va.astype(np.int32)) == FULL
+    out: NDArray[np.float32] = np.where(
+        full, va.astype(np.float32) * np.float32(2.0**112), dequantise(va, frac_bits)
+    ).astype(np.float32)
     return out
 
 
@@ -62,7 +74,7 @@ def imu_values(
     g = np.asarray(gyr, np.float32).reshape(-1, 3)
     n = g.shape[0]
     return (
-        dequantise(quantise(g, GYR_FRAC), GYR_FRAC),
-        dequantise(quantise(_rows3(acc, n), ACC_FRAC), ACC_FRAC),
-        dequantise(quantise(_rows3(mag, n), MAG_FRAC), MAG_FRAC),
+        dequantise_sensor(quantise(g, GYR_FRAC), GYR_FRAC),
+        dequantise_sensor(quantise(_rows3(acc, n), ACC_FRAC), ACC_FRAC),
+        dequantise_sensor(quantise(_rows3(mag, n), MAG_FRAC), MAG_FRAC),
     )

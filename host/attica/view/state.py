@@ -118,6 +118,25 @@ _FROM_ENU = {
 """The earth axes of each convention written in ENU's (rows: the convention's x, y, z)."""
 
 
+def _enu_euler(r: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """ZYX Euler angles (roll, pitch, yaw) about ENU's axes of an attitude given in another convention.
+
+    ``q`` (w, x, y, z) is sensor-to-earth in the convention whose earth axes are the rows of ``r``:
+    R_enu = r^T R(q).
+    """
+    w, x, y, z = (float(v) for v in q)
+    rq = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    m = r.T @ rq
+    pitch = -math.asin(max(-1.0, min(1.0, float(m[2, 0]))))
+    return np.array([math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0])], np.float32)
+
+
 def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list[float | None] | None:
     """The Imu message's 3x3 orientation covariance (row-major, rad^2) of a decoded FD output set.
 
@@ -130,9 +149,12 @@ def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list
 
     if kind not in COVARIANCE:
         return None
-    c = orientation_covariance(kind, sets[:1])[0]
+    rec = sets[:1].copy()
+    r = _FROM_ENU[convention]
+    if convention != "ENU":  # the set's q and Euler angles are the convention's; the cov model wants ENU's
+        rec["euler"][0] = _enu_euler(r, rec["q"][0])
+    c = orientation_covariance(kind, rec)[0]
     if c[0] >= 0.0:  # -1 in element 0: no orientation estimate, kept as it is
-        r = _FROM_ENU[convention]
         c = (r @ c.reshape(3, 3) @ r.T).reshape(9)
     return _vec(c)
 

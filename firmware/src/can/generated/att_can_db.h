@@ -395,7 +395,7 @@ struct att_can_db_imu_gyro_t {
     int16_t gyr_x;
 
     /**
-     * Angular rate y, sensor frame, rad/s; raw * 2^-10; -32768 = NA.
+     * Angular rate y, sensor frame, rad/s; raw * 2^-10; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-31.99902..31.99902 rad/s)
      * Scale: 0.0009765625
@@ -404,7 +404,7 @@ struct att_can_db_imu_gyro_t {
     int16_t gyr_y;
 
     /**
-     * Angular rate z, sensor frame, rad/s; raw * 2^-10; -32768 = NA.
+     * Angular rate z, sensor frame, rad/s; raw * 2^-10; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-31.99902..31.99902 rad/s)
      * Scale: 0.0009765625
@@ -449,7 +449,7 @@ struct att_can_db_imu_acc_t {
     int16_t acc_x;
 
     /**
-     * Specific force y, m/s^2; raw * 2^-8; -32768 = NA.
+     * Specific force y, m/s^2; raw * 2^-8; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
      * Scale: 0.00390625
@@ -458,7 +458,7 @@ struct att_can_db_imu_acc_t {
     int16_t acc_y;
 
     /**
-     * Specific force z, m/s^2; raw * 2^-8; -32768 = NA.
+     * Specific force z, m/s^2; raw * 2^-8; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-127.99609..127.99609 m/s^2)
      * Scale: 0.00390625
@@ -503,7 +503,7 @@ struct att_can_db_imu_mag_t {
     int16_t mag_x;
 
     /**
-     * Magnetic field y, uT; raw * 2^-5; -32768 = NA.
+     * Magnetic field y, uT; raw * 2^-5; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-1023.96875..1023.96875 uT)
      * Scale: 0.03125
@@ -512,7 +512,7 @@ struct att_can_db_imu_mag_t {
     int16_t mag_y;
 
     /**
-     * Magnetic field z, uT; raw * 2^-5; -32768 = NA.
+     * Magnetic field z, uT; raw * 2^-5; -32768 = NA; +-32767 = clipped (at or beyond the range).
      *
      * Range: -32767..32767 (-1023.96875..1023.96875 uT)
      * Scale: 0.03125
