@@ -122,3 +122,21 @@ def cantools_decode(log: Path, dbc: Path) -> list[str]:
             check=True,
             env=HOST_ENV,
         ).stdout.splitlines()
+
+
+def markdown_table(text: str, after: str, first_col: str) -> tuple[list[str], dict[str, list[str]], int]:
+    """The first table in ``text`` after the string ``after`` whose header starts with ``first_col``.
+
+    Returns its column names, its rows by their first cell, and the index (in the lines of the text from
+    ``after`` on) of the first line after the table.
+    """
+    lines = text[text.index(after) :].splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith(f"| {first_col} |"))
+    header = [c.strip() for c in lines[first].strip().strip("|").split("|")]
+    rows: dict[str, list[str]] = {}
+    i = first + 2
+    while i < len(lines) and lines[i].startswith("|"):
+        cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+        rows[cells[0]] = cells
+        i += 1
+    return header, rows, i

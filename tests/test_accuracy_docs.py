@@ -24,7 +24,7 @@ from attica.evaluate import GRIDS, VARIANT_GRIDS, VARIANTS, attica_method, peer_
 from attica.settings import FilterKind
 from attica.tuning import grid_points, grid_scores, leave_one_out
 
-from helpers import broad_trials, need
+from helpers import broad_trials, markdown_table, need
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "accuracy.md"
 ATTICA_ROWS = ("ars", "kf", "ekf", "mekf6", "mars", "mekf", "gyro", "tilt")
@@ -34,16 +34,7 @@ GRID_ROWS = ("ars", "kf", "ekf", "mekf6", "mars", "mekf")
 
 def _rows(heading: str, first_col: str) -> dict[str, list[str]]:
     """The cells of the first table after ``heading``, by the first column."""
-    text = DOCS.read_text(encoding="utf-8")
-    lines = text[text.index(heading) :].splitlines()
-    first = next(i for i, line in enumerate(lines) if line.startswith(f"| {first_col} |"))
-    rows: dict[str, list[str]] = {}
-    i = first + 2
-    while lines[i].startswith("|"):
-        cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
-        rows[cells[0]] = cells
-        i += 1
-    return rows
+    return markdown_table(DOCS.read_text(encoding="utf-8"), heading, first_col)[1]
 
 
 def _number(cell: str) -> str:

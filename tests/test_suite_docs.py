@@ -15,7 +15,7 @@ import pytest
 
 from attica.evaluate import suite
 
-from helpers import need
+from helpers import markdown_table, need
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "accuracy.md"
 PEERS_INSTALLED = all(importlib.util.find_spec(m) is not None for m in ("vqf", "imufusion"))
@@ -23,18 +23,11 @@ PEERS_INSTALLED = all(importlib.util.find_spec(m) is not None for m in ("vqf", "
 
 def _table() -> tuple[list[str], dict[str, list[str]], str]:
     """The column names, the rows by condition and the text after the table."""
+    after = "The whole suite now (`attica eval --suite"
     text = DOCS.read_text(encoding="utf-8")
-    start = text.index("The whole suite now (`attica eval --suite")
-    lines = text[start:].splitlines()
-    first = next(i for i, line in enumerate(lines) if line.startswith("| condition |"))
-    header = [c.strip() for c in lines[first].strip().strip("|").split("|")]
-    rows: dict[str, list[str]] = {}
-    i = first + 2
-    while lines[i].startswith("|"):
-        cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
-        rows[cells[0]] = cells
-        i += 1
-    return header, rows, "\n".join(lines[i : i + 12])
+    header, rows, end = markdown_table(text, after, "condition")
+    lines = text[text.index(after) :].splitlines()
+    return header, rows, "\n".join(lines[end : end + 12])
 
 
 def _number(cell: str) -> str:
