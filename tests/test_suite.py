@@ -287,3 +287,14 @@ def test_a_nan_figure_is_a_failed_comparison_not_a_smaller_count() -> None:
     assert (
         "1 of 3 comparisons" in text and "no ratio (a NaN figure: counted as behind): 6-axis rate-50" in text
     )
+
+
+def test_every_kind_runs_the_clipped_conditions(capsys: pytest.CaptureFixture[str]) -> None:
+    """The clipped conditions give the sensor's gyro range to the kinds that have one; tilt (accel only)
+    has none. `attica eval --suite --filter all` ended in a TypeError there (a review, session 9)."""
+    methods = suite.suite_methods(["tilt", "gyro", "ars", "mekf6"], [], gyro_range=8.7)
+    assert [m.name for m in methods] == ["tilt", "gyro", "ars", "mekf6"]
+    args = ["eval", "--suite", "--quick", "--jobs", "1", "--peers", "none", "--filter", "tilt,gyro"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "clipped <= 2 s" in out and "tilt" in out

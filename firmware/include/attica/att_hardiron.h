@@ -29,7 +29,10 @@
  * them, before its norm and dip tests). A retune that turns the estimate on or off, and a calibration
  * that changes the magnetometer's stage (att_filter_calibrate: its mag model or mounting, another frame
  * or scale), start it again from nothing; another convention, gyro or accel model keeps it. Mirrored by
- * host/attica/reference/hardiron.py. Units: uT, rad/s, s; sensor frame.
+ * host/attica/reference/hardiron.py. Units: uT, rad/s, s; the frame of the samples the kind sees: the
+ * sensor frame without a calibration, else the body frame after the calibration stage's hard- and
+ * soft-iron correction and mounting (att_filter.h, att_mag_offset_t; docs/calibration.md: folding it
+ * into a calibration file's hard iron takes S^-1 R_mount^T offset, not the offset itself).
  */
 #ifndef ATT_HARDIRON_H
 #define ATT_HARDIRON_H

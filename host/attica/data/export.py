@@ -149,8 +149,9 @@ COVARIANCE: dict[FilterKind, Covariance] = {
         _kf_matrix,
     ),
     FilterKind.EKF: Covariance(
-        ("var_roll", "var_pitch", "var_yaw"),
-        "variance of the ZYX Euler angles roll, pitch, yaw, rad^2 (yaw is not observed: it grows)",
+        ("var_roll", "var_pitch", "var_yaw", "var_bias"),
+        "variance of the ZYX Euler angles roll, pitch, yaw, rad^2 (yaw is not observed: it grows); "
+        "var_bias: mean variance of the gyro bias, (rad/s)^2",
         "the roll and pitch variances turned onto the earth's axes through the Euler angles (dr = z dpsi + "
         "Rz(psi) y dtheta + Rz(psi) Ry(theta) x dphi; no correlations reported: taken as 0), off-diagonal "
         "entries included; the yaw, which this 6-axis filter does not observe, pi^2/3 (unknown)",
@@ -267,7 +268,8 @@ def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any, conve
     bits = ", ".join(f"0x{f.value:04X} {f.name}" for f in Flag)
     lines += [
         f"flags: ATT_FLAG_* bits of the step (an integer, the sum of: {bits}); with NOT_READY or BAD_ARG "
-        "the row is not an attitude estimate",
+        "the row is not an attitude estimate; INITIALISED marks a (re)initialisation and every step of a "
+        "start's or a clipping gyro's recovery (recovery_time), not a new start each time",
         "steps: filter steps since the start (uint32, wraps)",
     ]
     return [f"# {line}" for line in lines]

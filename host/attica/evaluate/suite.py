@@ -42,7 +42,7 @@ from attica.evaluate.estimate import Estimate, as_estimate
 from attica.evaluate.parallel import START_METHOD
 from attica.evaluate.suite_result import CaseScore, MethodInfo, SuiteResult, recovery_stats
 from attica.metrics import Errors, error_angles, evaluate
-from attica.settings import FilterKind
+from attica.settings import FilterKind, make_settings
 from attica.sim import GRADES, SimConfig, simulate_with_truth
 
 __all__ = [
@@ -243,13 +243,16 @@ def suite_methods(kinds: Sequence[str], peers: Sequence[str], gyro_range: float 
     """
     from attica.peers import FUSION_DEFAULT, TUNED, _run_fusion, peer_by_name
 
-    over = {"gyro_range": gyro_range} if gyro_range > 0 else None
     out: list[Method] = []
     for name in kinds:
+        kind = VARIANTS[name][0] if name in VARIANTS else FilterKind.parse(name)
+        # the sensor's range, to the kinds that have one (tilt, accel only, has none)
+        has_range = hasattr(make_settings(kind, None, 0.01), "gyro_range")
+        over = {"gyro_range": gyro_range} if gyro_range > 0 and has_range else None
         if name in VARIANTS:
-            m = attica_method(VARIANTS[name][0], overrides=over, variant=name)
+            m = attica_method(kind, overrides=over, variant=name)
         else:
-            m = attica_method(FilterKind.parse(name), overrides=over)
+            m = attica_method(kind, overrides=over)
         out.append(dataclasses.replace(m, name=name))
     for name in peers:
         p = peer_by_name(name)
