@@ -237,3 +237,34 @@ def test_eval_refuses_before_any_work(
             continue
         assert code == 2 and cap.err.startswith("attica: error: ") and message in cap.err, (extra, cap.err)
         assert "trials" not in cap.out  # nothing was loaded or run
+
+
+def test_eval_set_changes_attica_settings(trial_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`attica eval --set` (issue 23's settings evaluated from the CLI): the setting goes to the kinds that
+    have it, the method's name shows it, and the figure is that of the filter with it; a bad value, an
+    unknown name, --grid or --suite with it are refused before anything runs."""
+    from attica.evaluate import attica_method, run_methods
+    from attica.evaluate.core import load_trials
+    from attica.settings import FilterKind
+
+    base = ["eval", "--data", str(trial_dir), "-q", "--no-plots", "--filter", "mars,ars"]
+    assert main([*base, "--set", "tau_mag=7", "--set", "recovery_time=3"]) == 0
+    cap = capsys.readouterr()
+    assert "mars[tau_mag=7.0,recovery_time=3.0]" in cap.out and "ars[recovery_time=3.0]" in cap.out
+    assert "applies to mars only" in cap.err  # ars has no tau_mag
+    recs = load_trials(str(trial_dir))
+    m = attica_method(FilterKind.MARS, overrides={"tau_mag": 7.0, "recovery_time": 3.0})
+    total = run_methods([m], recs, progress=False).result(m.name).mean("total")
+    line = next(ln for ln in cap.out.splitlines() if ln.startswith("mars[tau_mag=7.0,recovery_time=3.0] "))
+    assert line.split()[1] == f"{total:.2f}"
+    for extra, message in (
+        (["--set", "hard_iron_tau=-1"], "hard_iron_tau = -1.0 is out of range"),
+        (["--set", "nosuch=1"], "no setting 'nosuch'"),
+        (["--set", "tau_mag=7", "--grid"], "drop one"),
+    ):
+        assert main([*base, *extra]) == 2
+        cap = capsys.readouterr()
+        assert "attica: error: " in cap.err and message in cap.err, (extra, cap.err)
+        assert "trials" not in cap.out
+    assert main(["eval", "--suite", "--set", "tau_mag=7"]) == 2
+    assert "drop --set" in capsys.readouterr().err

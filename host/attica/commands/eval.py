@@ -30,8 +30,10 @@ from attica.commands._common import (
     add_unit_check_argument,
     check_units,
     describe_calibration,
+    filter_settings,
     load_calibration,
     parse_kinds,
+    plan_overrides,
     prepare_output_dir,
     warn,
     warn_calibrated_truth,
@@ -85,6 +87,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "fusion9 when left out, 'none' for none",
     )
     add_calibration_argument(p, "attica's filters (not with --peers or --grid)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="NAME=VALUE",
+        help="change a setting of attica's filters (repeatable; applies to the kinds that have it; the "
+        "method's name shows it, e.g. mekf[recovery_time=4.0]); not with --grid or --suite",
+    )
     p.add_argument("--grid", action="store_true", help="run the grid search of the defaults instead")
     p.add_argument("--limit", type=int, help="only the first N trials")
     p.add_argument("--wide", action="store_true", help="one table per kind of method, however wide")
@@ -158,14 +167,20 @@ def run(args: argparse.Namespace) -> int:
     if args.calibration and (args.peers is not None or args.grid):
         what = "--peers (the peers would not get the calibration)" if args.peers is not None else "--grid"
         raise CliError(f"--calibration applies to attica's filters only; drop it or {what}")
+    if args.set and args.grid:
+        raise CliError("--set changes the defaults; --grid searches its own points around them: drop one")
     cal = load_calibration(args)
+    overrides: dict[str, dict[str, Any]] = {}
     if args.grid:
         names = _grid_names(args.filter or "all")
         methods: list[Any] = []
     else:
         names = _method_names(args.filter or "all")
+        overrides = _overrides(names, args.set or [])
+        for name, over in overrides.items():  # checked before loading (again at the trials' rates below)
+            filter_settings(_kind(name), 100.0, over)
         presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
-        methods = [_attica(n, p, cal) for p in presets for n in names] + _peers(args.peers)
+        methods = [_attica(n, p, cal, overrides.get(n)) for p in presets for n in names] + _peers(args.peers)
     out = prepare_output_dir(Path(args.out)) if args.out else None
     plots = out is not None and not args.no_plots and not args.grid
     if plots:
@@ -188,6 +203,9 @@ def run(args: argparse.Namespace) -> int:
         warn_calibrated_truth(cal)
     for rec in recs:
         check_units(rec, args)
+    for rate in sorted({r.rate for r in recs}):  # every setting checked before anything runs
+        for name, over in overrides.items():
+            filter_settings(_kind(name), rate, over)
     with _pool(args) as pool:
         if args.grid:
             return _grid(args, names, recs, out, pool)
@@ -263,13 +281,31 @@ def _grid_names(spec: str) -> list[str]:
     return names
 
 
-def _attica(name: str, preset: Preset, calibration: Any = None) -> Any:
-    """Attica's method for a kind or variant name (with the calibration when given)."""
+def _attica(
+    name: str, preset: Preset, calibration: Any = None, overrides: dict[str, Any] | None = None
+) -> Any:
+    """Attica's method for a kind or variant name (with the calibration and setting overrides when given)."""
     from attica.evaluate import VARIANTS, attica_method
 
     if name in VARIANTS:
-        return attica_method(VARIANTS[name][0], preset, variant=name, calibration=calibration)
-    return attica_method(FilterKind.parse(name), preset, calibration=calibration)
+        return attica_method(VARIANTS[name][0], preset, overrides, variant=name, calibration=calibration)
+    return attica_method(FilterKind.parse(name), preset, overrides, calibration=calibration)
+
+
+def _kind(name: str) -> FilterKind:
+    """The kind of a kind or variant name."""
+    from attica.evaluate import VARIANTS
+
+    return VARIANTS[name][0] if name in VARIANTS else FilterKind.parse(name)
+
+
+def _overrides(names: list[str], items: list[str]) -> dict[str, dict[str, Any]]:
+    """``--set`` for the methods named: each setting to the kinds that have it (``plan_overrides``)."""
+    if not items:
+        return {}
+    kinds = list(dict.fromkeys(_kind(n) for n in names))
+    plan = plan_overrides(kinds, items)
+    return {n: plan[_kind(n)] for n in names if plan[_kind(n)]}
 
 
 def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None, pool: Any) -> int:
@@ -336,6 +372,7 @@ def _suite(args: argparse.Namespace) -> int:
             ("--calibration", bool(args.calibration)),
             ("--scheduler", args.scheduler is not None),
             ("--preset", args.preset != "default"),
+            ("--set", bool(args.set)),
         )
         if bad
     ]
