@@ -308,3 +308,44 @@ def test_the_monitor_shows_the_offset() -> None:
     x, y, z, est = mon.stats.mag_offset
     assert est and np.max(np.abs(np.array([x, y, z]) - h_true)) < 0.5
     assert any("hard-iron offset (ATT_MAG_OFFSET):" in ln and "(estimated)" in ln for ln in mon.summary())
+
+
+def test_attica_node_set_turns_the_estimate_on(capsys: pytest.CaptureFixture[str]) -> None:
+    """`attica node --set hard_iron_tau=60` serves a mars whose init settings estimate the offset: an
+    ATT_MAG_OFFSET follows each ATT_DIAG on the bus (no CLI could turn it on before: a review); a value out
+    of range or an unknown name is refused before the node starts."""
+    import threading
+    import time
+    import uuid
+
+    from attica.can.bus import open_bus, to_messages
+    from attica.cli import main
+
+    assert main(["node", "-c", "x", "--filter", "mars", "--set", "hard_iron_tau=-1"]) == 2
+    assert "hard_iron_tau = -1.0 is out of range" in capsys.readouterr().err
+    assert main(["node", "-c", "x", "--filter", "ars", "--set", "hard_iron_tau=60"]) == 2
+    assert "no setting 'hard_iron_tau'" in capsys.readouterr().err
+    ch, n = "t" + uuid.uuid4().hex[:12], 64
+    codes: list[int] = []
+    argv = ["node", "-c", ch, "--filter", "mars", "--set", "hard_iron_tau=60", "--count", str(n), "-q"]
+    node = threading.Thread(target=lambda: codes.append(main([*argv, "--idle-timeout", "20"])))
+    bus = open_bus("virtual", ch)
+    node.start()
+    try:
+        time.sleep(1.0)  # the node's start-up
+        gyr = np.zeros((n, 3), np.float32)
+        acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+        mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
+        for msg in to_messages(codec.encode_imu(gyr, acc, mag)):
+            bus.send(msg)
+        ids: list[int] = []
+        t0 = time.monotonic()
+        while ids.count(codec.ID_MAG_OFFSET) < n // 16 and time.monotonic() - t0 < 20:
+            got = bus.recv(0.5)
+            if got is not None:
+                ids.append(got.arbitration_id)
+    finally:
+        node.join(30)
+        bus.shutdown()
+    assert codes == [0]
+    assert ids.count(codec.ID_DIAG) == ids.count(codec.ID_MAG_OFFSET) == n // 16

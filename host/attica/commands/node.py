@@ -18,7 +18,14 @@ from attica.commands._can import (
     open_bus,
     parse_kind,
 )
-from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
+from attica.commands._common import (
+    CliError,
+    add_calibration_argument,
+    describe_calibration,
+    filter_settings,
+    load_calibration,
+    parse_overrides,
+)
 
 NAME = "node"
 HELP = "run the C node in-process on a CAN bus (virtual, udp_multicast, socketcan)"
@@ -33,6 +40,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--output-divider", type=int, default=1, help="send outputs every Nth step (default 1)")
     p.add_argument("--diag-divider", type=int, default=16, help="ATT_DIAG every Nth output set (0 = never)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="NAME=VALUE",
+        help="change a setting of the filter's init settings (repeatable; e.g. hard_iron_tau=60 makes a "
+        "mars or mekf node send ATT_MAG_OFFSET); `attica settings KIND` lists them",
+    )
     add_calibration_argument(p, "the node from the start (CAN commands can change it later)")
     p.add_argument("--count", type=int, help="stop after N filter steps")
     p.add_argument("--idle-timeout", type=float, help="stop after this many seconds without a frame")
@@ -45,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
     from attica.can.runner import NodeRunner
 
     kind = parse_kind(args.filter)
+    overrides = parse_overrides(kind, args.set or [])
+    filter_settings(kind, args.rate, overrides)  # a refusal names the field and its range
     cal = load_calibration(args)
     try:
         node = Node(
@@ -57,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
             diag_divider=args.diag_divider,
             calibration=cal,
             id_offset=id_offset(args),
+            **overrides,
         )
     except (NodeError, ValueError, TypeError) as exc:
         raise CliError(f"node settings refused: {exc}") from None
