@@ -393,3 +393,13 @@ def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFix
         cap.err.startswith("attica: note: --set tau=-1 applies to ars only") and "attica: error: " in cap.err
     )
     assert cap.out == ""
+
+
+def test_run_prints_the_hard_iron_estimate(capsys: pytest.CaptureFixture[str]) -> None:
+    """With hard_iron_tau > 0 `attica run` prints the offset a mars or mekf ends with (the per-row outputs
+    do not hold it); not for a kind without the estimate or with it off."""
+    assert main(["run", "--filter", "mars,ars", "--set", "hard_iron_tau=60", "--duration", "20", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("hard-iron offset at the end:") == 1 and " uT (" in out
+    assert main(["run", "--filter", "mars", "--duration", "20", "-q"]) == 0
+    assert "hard-iron offset" not in capsys.readouterr().out

@@ -70,11 +70,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_native(
-    kind: FilterKind, rec: Any, settings: Any, show_progress: bool, calibration: Any = None
+    kind: FilterKind,
+    rec: Any,
+    settings: Any,
+    show_progress: bool,
+    calibration: Any = None,
+    end: dict[str, Any] | None = None,
 ) -> NDArray[np.void]:
     """Run the C filter over a recording in chunks (for the progress bar); (N,) output records.
 
     Each sample steps the filter over the periods since the one before (:attr:`Recording.steps`).
+    ``end``, when given, receives the filter's state at the end that the records do not hold: its
+    ``mag_offset`` (:meth:`attica.native.Filter.mag_offset`) when the kind estimates a hard-iron offset.
     """
     from attica import native
 
@@ -86,6 +93,8 @@ def run_native(
             sl = slice(start, start + CHUNK)
             out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl])
             bar.update(len(out[sl]))
+    if end is not None and hasattr(settings, "hard_iron_tau") and settings.hard_iron_tau > 0:
+        end["mag_offset"] = f.mag_offset()
     return out
 
 
@@ -210,10 +219,16 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     for kind in kinds:
         t0 = time.perf_counter()
-        out = run_native(kind, rec, settings[kind], not args.quiet, cal)
+        end: dict[str, Any] = {}
+        out = run_native(kind, rec, settings[kind], not args.quiet, cal, end)
         elapsed = time.perf_counter() - t0
         print(error_line(kind, rec, out, settings[kind]))
         print(f"        {len(out)} steps in {elapsed * 1e3:.0f} ms; flags: {flag_summary(out['flags'])}")
+        if "mag_offset" in end:  # the on-device hard-iron estimate (not in the per-row outputs)
+            mo = end["mag_offset"]
+            h = ", ".join(f"{v:.2f}" for v in mo.offset)
+            state = "estimated" if mo.estimated else "not observable yet: not applied"
+            print(f"        hard-iron offset at the end: {h} uT ({state})")
         if args.check:
             ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet, cal)
             print("\n".join(lines))
