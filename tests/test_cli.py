@@ -403,3 +403,13 @@ def test_run_prints_the_hard_iron_estimate(capsys: pytest.CaptureFixture[str]) -
     assert out.count("hard-iron offset at the end:") == 1 and " uT (" in out
     assert main(["run", "--filter", "mars", "--duration", "20", "-q"]) == 0
     assert "hard-iron offset" not in capsys.readouterr().out
+
+
+def test_a_gyro_range_in_deg_per_s_is_warned_about(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--set gyro_range=500` (meant as deg/s) is within the accepted (0, 1e3] rad/s but beyond any MEMS
+    gyro, and it turns the clip recovery off: a warning says so (a review); 34.9 rad/s is not warned."""
+    assert main(["run", "--filter", "mars", "--set", "gyro_range=500", "--duration", "2", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "attica: warning: gyro_range 500 rad/s is 28,648 deg/s" in err and "8.727 rad/s" in err
+    assert main(["run", "--filter", "mars", "--set", "gyro_range=34.9", "--duration", "2", "-q"]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import enum
+import math
 import os
 import sys
 import warnings
@@ -294,6 +295,11 @@ def parse_overrides(kind: FilterKind, items: Sequence[str]) -> dict[str, Any]:
     return plan_overrides([kind], items)[kind]
 
 
+GYRO_RANGE_MAX = 70.0
+"""rad/s (about 4,000 deg/s, the widest MEMS gyros): a larger ``--set gyro_range`` is warned about as
+probably given in deg/s."""
+
+
 def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[FilterKind, dict[str, Any]]:
     """``--set name=value`` for several kinds: each setting goes to the kinds that have it.
 
@@ -319,6 +325,17 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
                 out[k][name] = _parse_value(value, fields[k][name])
             except ValueError as exc:
                 raise CliError(f"--set {name}: {exc}") from None
+        if (
+            name == "gyro_range"
+            and isinstance(out[having[0]][name], float)
+            and out[having[0]][name] > GYRO_RANGE_MAX
+        ):
+            w = out[having[0]][name]
+            warn(
+                f"gyro_range {w:g} rad/s is {math.degrees(w):,.0f} deg/s, beyond any MEMS gyro: attica takes "
+                f"rad/s ({w:g} deg/s would be {math.radians(w):.4g} rad/s); a range above the sensor's "
+                "full scale turns the recovery after a clipping gyro off"
+            )
         missing = [k.label for k in kinds if k not in having]
         if missing:
             print(
