@@ -403,6 +403,9 @@ def test_run_prints_the_hard_iron_estimate(capsys: pytest.CaptureFixture[str]) -
     assert out.count("hard-iron offset at the end:") == 1 and " uT (" in out
     assert main(["run", "--filter", "mars", "--duration", "20", "-q"]) == 0
     assert "hard-iron offset" not in capsys.readouterr().out
+    # a mekf without its magnetometer has no estimate (as the node: no ATT_MAG_OFFSET)
+    assert main(["run", "--filter", "mekf", "--set", "use_mag=false", "--set", "hard_iron_tau=60", "-q"]) == 0
+    assert "hard-iron offset" not in capsys.readouterr().out
 
 
 def test_a_gyro_range_in_deg_per_s_is_warned_about(capsys: pytest.CaptureFixture[str]) -> None:
@@ -413,3 +416,6 @@ def test_a_gyro_range_in_deg_per_s_is_warned_about(capsys: pytest.CaptureFixture
     assert "attica: warning: gyro_range 500 rad/s is 28,648 deg/s" in err and "8.727 rad/s" in err
     assert main(["run", "--filter", "mars", "--set", "gyro_range=34.9", "--duration", "2", "-q"]) == 0
     assert "warning" not in capsys.readouterr().err
+    assert main(["run", "--filter", "mars", "--set", "gyro_range=5000", "--duration", "2", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "out of range" in err and "warning" not in err  # refused, not warned about

@@ -327,12 +327,16 @@ def test_attica_node_set_turns_the_estimate_on(capsys: pytest.CaptureFixture[str
     assert "no setting 'hard_iron_tau'" in capsys.readouterr().err
     ch, n = "t" + uuid.uuid4().hex[:12], 64
     codes: list[int] = []
-    argv = ["node", "-c", ch, "--filter", "mars", "--set", "hard_iron_tau=60", "--count", str(n), "-q"]
+    argv = ["node", "-c", ch, "--filter", "mars", "--set", "hard_iron_tau=60", "--count", str(n)]
     node = threading.Thread(target=lambda: codes.append(main([*argv, "--idle-timeout", "20"])))
     bus = open_bus("virtual", ch)
     node.start()
     try:
-        time.sleep(1.0)  # the node's start-up
+        said = ""
+        t0 = time.monotonic()
+        while "ready" not in said and time.monotonic() - t0 < 20:  # its bus is open: frames reach it
+            time.sleep(0.05)
+            said += capsys.readouterr().out
         gyr = np.zeros((n, 3), np.float32)
         acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
         mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))

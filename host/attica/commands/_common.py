@@ -325,12 +325,8 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
                 out[k][name] = _parse_value(value, fields[k][name])
             except ValueError as exc:
                 raise CliError(f"--set {name}: {exc}") from None
-        if (
-            name == "gyro_range"
-            and isinstance(out[having[0]][name], float)
-            and out[having[0]][name] > GYRO_RANGE_MAX
-        ):
-            w = out[having[0]][name]
+        w = out[having[0]][name]
+        if name == "gyro_range" and isinstance(w, float) and GYRO_RANGE_MAX < w <= 1e3:  # (above: refused)
             warn(
                 f"gyro_range {w:g} rad/s is {math.degrees(w):,.0f} deg/s, beyond any MEMS gyro: attica takes "
                 f"rad/s ({w:g} deg/s would be {math.radians(w):.4g} rad/s); a range above the sensor's "

@@ -303,6 +303,9 @@ def _overrides(names: list[str], items: list[str]) -> dict[str, dict[str, Any]]:
     """``--set`` for the methods named: each setting to the kinds that have it (``plan_overrides``)."""
     if not items:
         return {}
+    if any(item.partition("=")[0].strip() == "use_mag" for item in items):
+        # it decides the axes a method is judged by, which its name says: mekf (9-axis) or mekf6
+        raise CliError("--set use_mag: choose the axes with --filter mekf (9-axis) or mekf6 (6-axis) instead")
     kinds = list(dict.fromkeys(_kind(n) for n in names))
     plan = plan_overrides(kinds, items)
     return {n: plan[_kind(n)] for n in names if plan[_kind(n)]}

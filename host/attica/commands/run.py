@@ -93,7 +93,8 @@ def run_native(
             sl = slice(start, start + CHUNK)
             out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl])
             bar.update(len(out[sl]))
-    if end is not None and hasattr(settings, "hard_iron_tau") and settings.hard_iron_tau > 0:
+    runs = getattr(settings, "hard_iron_tau", 0.0) > 0 and getattr(settings, "use_mag", True)  # as the node
+    if end is not None and runs:
         end["mag_offset"] = f.mag_offset()
     return out
 

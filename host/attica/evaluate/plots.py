@@ -81,6 +81,17 @@ def plot_groups(report: Report, path: Path, methods: Sequence[str] | None = None
     save(groups_figure(report, methods), path)
 
 
+def _label(name: str) -> str:
+    """A method's kind or variant label: its name without the setting changes (``mars[tau_mag=7.0]``)."""
+    return name.split("[", 1)[0]
+
+
+def _seed_name(name: str) -> str:
+    """The seed preset's name of a default-setting method (``mars[x=1]`` -> ``mars@seed[x=1]``)."""
+    label, sep, rest = name.partition("[")
+    return f"{label}@seed{sep}{rest}"
+
+
 def write_plots(report: Report, recs: Iterable[Recording], out: Path) -> list[Path]:
     """Write the PNGs; returns their paths.
 
@@ -91,7 +102,9 @@ def write_plots(report: Report, recs: Iterable[Recording], out: Path) -> list[Pa
     baselines = {k.label for k in KINDS if k.baseline}
     ran = [r.method for r in report.results]
     mine = [
-        m.name for m in ran if m.family == "attica" and m.setting == "default" and m.name not in baselines
+        m.name
+        for m in ran
+        if m.family == "attica" and m.setting == "default" and _label(m.name) not in baselines
     ]
     peers = [m.name for m in ran if m.family != "attica" and m.name in PLOT_PEERS]
     written = []
@@ -102,7 +115,7 @@ def write_plots(report: Report, recs: Iterable[Recording], out: Path) -> list[Pa
     plot_groups(report, out / "groups.png", mine + peers)
     written.append(out / "groups.png")
     seeds = {m.name for m in ran if m.setting == "seed"}
-    pairs = [n for k in mine for n in (k, f"{k}@seed") if f"{k}@seed" in seeds]
+    pairs = [n for k in mine for n in (k, _seed_name(k)) if _seed_name(k) in seeds]
     if pairs:
         plot_groups(report, out / "groups_seed.png", pairs)
         written.append(out / "groups_seed.png")
