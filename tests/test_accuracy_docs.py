@@ -20,8 +20,15 @@ from typing import Any
 import pytest
 
 from attica.data import load_recording
-from attica.evaluate import GRIDS, VARIANT_GRIDS, VARIANTS, attica_method, peer_methods, run_methods
-from attica.settings import FilterKind
+from attica.evaluate import (
+    GRIDS,
+    VARIANT_GRIDS,
+    VARIANTS,
+    attica_method,
+    method_kind,
+    peer_methods,
+    run_methods,
+)
 from attica.tuning import grid_points, grid_scores, leave_one_out
 
 from helpers import broad_trials, markdown_table, need
@@ -45,11 +52,7 @@ def _number(cell: str) -> str:
 
 
 def _method(name: str) -> Any:
-    return (
-        attica_method(VARIANTS[name][0], variant=name)
-        if name in VARIANTS
-        else attica_method(FilterKind.parse(name))
-    )
+    return attica_method(method_kind(name), variant=name if name in VARIANTS else "")
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +81,7 @@ def test_the_in_sample_and_leave_one_out_table(broad: list[Any], name: str) -> N
     rows = _rows("## In sample and leave-one-trial-out", "filter")
     cells = rows[name]
     variant = name if name in VARIANT_GRIDS else ""
-    kind = VARIANTS[name][0] if variant else FilterKind.parse(name)
+    kind = method_kind(name)
     grid = VARIANT_GRIDS[name] if variant else GRIDS[kind]
     assert cells[2] == str(len(grid_points(grid)))
     res = grid_scores(kind, broad, grid, variant=variant, progress=False)

@@ -64,6 +64,14 @@ def _reference(kind: str, n: int, seed: int, keep: bytes | None = None) -> np.nd
     return res.c_outputs[0]
 
 
+def _still(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """n samples of a level sensor at rest (gyro 0, accel +g up, a field north and down), float32."""
+    gyr = np.zeros((n, 3), np.float32)
+    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
+    return gyr, acc, mag
+
+
 def _sets_only(fr: np.ndarray) -> np.ndarray:
     return fr[fr["id"] != c.ID_DIAG]
 
@@ -188,9 +196,7 @@ def test_a_set_carries_the_flags_of_every_step_since_the_previous_set(fd: bool) 
     step flags it) is in the next set's flags, as compare() expects; until 2026-12-06 a set had its own
     sample's flags only and the clip never reached the bus."""
     n = 400
-    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
-    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
-    gyr = np.zeros((n, 3), np.float32)
+    gyr, acc, mag = _still(n)
     gyr[303, 2] = 30.0  # beyond gyro_range 20 rad/s, within the classic frame
     node = c.Node(
         "mars",
@@ -218,10 +224,8 @@ def test_a_set_says_not_ready_only_when_its_own_sample_is() -> None:
     ORed since the previous set (accel missing for the first 3 samples, divider 10: the filters start at
     step 4, and the set at step 10 is an estimate)."""
     n = 40
-    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    gyr, acc, mag = _still(n)
     acc[:3] = np.nan
-    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
-    gyr = np.zeros((n, 3), np.float32)
     for kind in ("ars", "mars", "mekf"):
         node = c.Node(kind, sample_rate=100.0, fd=True, data_bitrate=2_000_000, output_divider=10)
         out, _ = node.run(c.encode_imu(gyr, acc, mag, fd=True))
@@ -237,9 +241,8 @@ def test_a_reset_starts_the_sets_flags_afresh() -> None:
     """RESET (and SELECT) restart the sets' step grid and their flags: a gyro clipped after the last set
     of the filter that was reset is not in the first set after it (verify expects a clean start)."""
     n, div = 340, 3
-    gyr = np.full((n, 3), 0.001, np.float32)
-    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
-    mag = np.tile(np.float32([0.0, 20.0, -40.0]), (n, 1))
+    gyr, acc, mag = _still(n)
+    gyr += np.float32(0.001)
     gyr[300] = [40.0, 0.0, 0.0]  # step 301: after the set at step 300, no set of its own
     g, a, m = c.imu_values(gyr, acc, mag)
     frames = c.encode_imu(g, a, m).reshape(n, -1)
@@ -916,9 +919,7 @@ def test_a_gyro_clipped_by_the_classic_frame_is_a_clipping_gyro(kind: str) -> No
     CAN FD; bit for bit with the reference fed codec.imu_values. Until 2026-12-06 the node integrated
     32 rad/s, flagged nothing, and the yaw was still off 2 s later."""
     n, rate = 400, 100.0
-    acc = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
-    mag = np.tile(np.float32([20.0, 0.0, -40.0]), (n, 1))
-    gyr = np.zeros((n, 3), np.float32)
+    gyr, acc, mag = _still(n)
     gyr[200:210, 2] = 33.0  # within the sensor's 2000 deg/s, beyond the frame's 32 rad/s
     g, a, m = c.imu_values(gyr, acc, mag)
     assert (g[200:210, 2] == c.CLIPPED).all()

@@ -34,6 +34,10 @@ class Flag(enum.IntFlag):
     BAD_ARG = 0x8000
 
 
+OUTPUT_INVALID = int(Flag.NOT_READY | Flag.BAD_ARG)
+"""``ATT_FLAGS_OUTPUT_INVALID``: with one of these flags q is not an attitude estimate (att_filter.h)."""
+
+
 def flag_names(value: int) -> list[str]:
     """Names of the flags set in a flags word, in bit order (``[]`` for none)."""
     return [f.name for f in Flag if f.name is not None and int(value) & f.value]

@@ -25,7 +25,7 @@ from attica.can import codec
 from attica.can.assembly import INPUT_FAULTS, INPUT_IDS, OUTPUT_IDS
 from attica.can.bus import from_messages, is_attica_candidate
 from attica.can.replay import ImuStream, ReplayStats, StepTracker
-from attica.settings import FilterKind, Flag, make_settings
+from attica.settings import OUTPUT_INVALID, FilterKind, make_settings
 
 _COMPARED = (
     "counter",
@@ -467,7 +467,7 @@ def compare(
         # estimate (NOT_READY, BAD_ARG), which is the set's own sample's (att_node.c, att_node_step)
         starts = np.concatenate([np.zeros(1, np.int64), last[:-1] + 1])
         ored = np.bitwise_or.reduceat(recs["flags"][: last[-1] + 1], starts)
-        invalid = np.uint32(Flag.NOT_READY | Flag.BAD_ARG)  # ATT_FLAGS_OUTPUT_INVALID
+        invalid = np.uint32(OUTPUT_INVALID)
         chosen["flags"] = (ored & ~invalid) | (chosen["flags"] & invalid)
     set_steps = total[emits]
     rep.sets_expected = int(chosen.shape[0])

@@ -52,9 +52,9 @@ def dequantise_sensor(v: ArrayLike, frac_bits: int) -> NDArray[np.float32]:
     """
     va = np.asarray(v, np.int16)
     full = np.abs(va.astype(np.int32)) == FULL
-    out: NDArray[np.float32] = np.where(
-        full, va.astype(np.float32) * np.float32(2.0**112), dequantise(va, frac_bits)
-    ).astype(np.float32)
+    out: NDArray[np.float32] = np.where(full, np.copysign(CLIPPED, va), dequantise(va, frac_bits)).astype(
+        np.float32
+    )
     return out
 
 

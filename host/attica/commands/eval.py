@@ -38,7 +38,7 @@ from attica.commands._common import (
     warn,
     warn_calibrated_truth,
 )
-from attica.settings import FilterKind, Preset, implemented_kinds
+from attica.settings import Preset, implemented_kinds
 
 NAME = "eval"
 HELP = "accuracy on recorded trials (BROAD metrics): tables, plots, JSON, peers side by side"
@@ -177,8 +177,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         names = _method_names(args.filter or "all")
         overrides = _overrides(names, args.set or [])
-        for name, over in overrides.items():  # checked before loading (again at the trials' rates below)
-            filter_settings(_kind(name), 100.0, over)
+        _check_settings(overrides, 100.0)  # before loading; again at the trials' rates below
         presets = [Preset.DEFAULT, Preset.SEED] if args.preset == "both" else [Preset.parse(args.preset)]
         methods = [_attica(n, p, cal, overrides.get(n)) for p in presets for n in names] + _peers(args.peers)
     out = prepare_output_dir(Path(args.out)) if args.out else None
@@ -204,8 +203,7 @@ def run(args: argparse.Namespace) -> int:
     for rec in recs:
         check_units(rec, args)
     for rate in sorted({r.rate for r in recs}):  # every setting checked before anything runs
-        for name, over in overrides.items():
-            filter_settings(_kind(name), rate, over)
+        _check_settings(overrides, rate)
     with _pool(args) as pool:
         if args.grid:
             return _grid(args, names, recs, out, pool)
@@ -285,18 +283,19 @@ def _attica(
     name: str, preset: Preset, calibration: Any = None, overrides: dict[str, Any] | None = None
 ) -> Any:
     """Attica's method for a kind or variant name (with the calibration and setting overrides when given)."""
-    from attica.evaluate import VARIANTS, attica_method
+    from attica.evaluate import VARIANTS, attica_method, method_kind
 
-    if name in VARIANTS:
-        return attica_method(VARIANTS[name][0], preset, overrides, variant=name, calibration=calibration)
-    return attica_method(FilterKind.parse(name), preset, overrides, calibration=calibration)
+    variant = name if name in VARIANTS else ""
+    return attica_method(method_kind(name), preset, overrides, variant=variant, calibration=calibration)
 
 
-def _kind(name: str) -> FilterKind:
-    """The kind of a kind or variant name."""
-    from attica.evaluate import VARIANTS
+def _check_settings(overrides: dict[str, dict[str, Any]], rate: float) -> None:
+    """Each method's settings with its --set changes at ``rate``, checked as attica run checks them."""
+    from attica.evaluate import VARIANTS, method_kind
 
-    return VARIANTS[name][0] if name in VARIANTS else FilterKind.parse(name)
+    for name, over in overrides.items():
+        base = VARIANTS[name][1] if name in VARIANTS else {}
+        filter_settings(method_kind(name), rate, {**base, **over})
 
 
 def _overrides(names: list[str], items: list[str]) -> dict[str, dict[str, Any]]:
@@ -306,14 +305,16 @@ def _overrides(names: list[str], items: list[str]) -> dict[str, dict[str, Any]]:
     if any(item.partition("=")[0].strip() == "use_mag" for item in items):
         # it decides the axes a method is judged by, which its name says: mekf (9-axis) or mekf6
         raise CliError("--set use_mag: choose the axes with --filter mekf (9-axis) or mekf6 (6-axis) instead")
-    kinds = list(dict.fromkeys(_kind(n) for n in names))
+    from attica.evaluate import method_kind
+
+    kinds = list(dict.fromkeys(method_kind(n) for n in names))
     plan = plan_overrides(kinds, items)
-    return {n: plan[_kind(n)] for n in names if plan[_kind(n)]}
+    return {n: plan[method_kind(n)] for n in names if plan[method_kind(n)]}
 
 
 def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path | None, pool: Any) -> int:
     """``attica eval --grid``: every grid (kinds and variants), best five, in-sample and leave-one-out."""
-    from attica.evaluate import GRIDS, METRICS, VARIANT_GRIDS, VARIANTS
+    from attica.evaluate import GRIDS, METRICS, VARIANT_GRIDS, method_kind
     from attica.tuning import grid_scores, leave_one_out
 
     if args.peers is not None:
@@ -321,7 +322,7 @@ def _grid(args: argparse.Namespace, names: list[str], recs: list[Any], out: Path
     grids: dict[str, Any] = {}
     for name in names:
         variant = name if name in VARIANT_GRIDS else ""
-        kind = VARIANTS[name][0] if variant else FilterKind.parse(name)
+        kind = method_kind(name)
         grid = VARIANT_GRIDS[name] if variant else GRIDS[kind]
         res = grid_scores(kind, recs, grid, variant=variant, progress=not args.quiet, pool=pool)
         rows = res.ranked()

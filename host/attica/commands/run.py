@@ -93,9 +93,10 @@ def run_native(
             sl = slice(start, start + CHUNK)
             out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl])
             bar.update(len(out[sl]))
-    runs = getattr(settings, "hard_iron_tau", 0.0) > 0 and getattr(settings, "use_mag", True)  # as the node
-    if end is not None and runs:
-        end["mag_offset"] = f.mag_offset()
+    if end is not None and hasattr(settings, "hard_iron_tau"):  # mars, mekf: the filter says if it runs
+        mo = f.mag_offset()
+        if mo.on:
+            end["mag_offset"] = mo
     return out
 
 

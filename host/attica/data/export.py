@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica.kinds import KINDS, info
-from attica.settings import FilterKind, Flag
+from attica.settings import OUTPUT_INVALID, FilterKind, Flag
 
 __all__ = [
     "COVARIANCE",
@@ -57,8 +57,6 @@ PathLike = str | os.PathLike[str]
 OUTPUT_SUFFIXES = (".npz", ".csv", ".mcap")
 """The output formats, by file suffix (any case)."""
 
-OUTPUT_INVALID = int(Flag.NOT_READY | Flag.BAD_ARG)
-"""``ATT_FLAGS_OUTPUT_INVALID``: with one of these flags q is not an attitude estimate (att_filter.h)."""
 
 RECORDINGS_EXTRA = "pip install 'attica[recordings]'"
 """How to install the packages that .mcap needs (mcap, rosbags)."""

@@ -31,6 +31,7 @@ from attica.evaluate.core import (
     attica_method,
     grid_search,
     load_trials,
+    method_kind,
     peer_methods,
     run_methods,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "VARIANTS",
     "VARIANT_GRIDS",
     "attica_method",
+    "method_kind",
     "format_notes",
     "format_summary",
     "format_tables",

@@ -72,6 +72,12 @@ VARIANTS: dict[str, tuple[FilterKind, dict[str, Any], bool]] = {
 after their kind, ``--filter mekf6`` alone. ``nine_axis`` is :func:`attica.kinds.uses_mag` of the
 variant's settings."""
 
+
+def method_kind(name: str) -> FilterKind:
+    """The kind behind a kind or variant name (``mekf6`` -> MEKF); a ValueError for an unknown name."""
+    return VARIANTS[name][0] if name in VARIANTS else FilterKind.parse(name)
+
+
 DATA_SUFFIXES = (".npz", ".csv", ".hdf5", ".h5", ".mat")
 """Recording files ``load_trials`` picks up from a directory."""
 

@@ -37,12 +37,12 @@ from typing import Any
 import numpy as np
 
 from attica.data import Recording
-from attica.evaluate.core import VARIANTS, Method, attica_method
+from attica.evaluate.core import VARIANTS, Method, attica_method, method_kind
 from attica.evaluate.estimate import Estimate, as_estimate
 from attica.evaluate.parallel import START_METHOD
 from attica.evaluate.suite_result import CaseScore, MethodInfo, SuiteResult, recovery_stats
 from attica.metrics import Errors, error_angles, evaluate
-from attica.settings import FilterKind, make_settings
+from attica.settings import make_settings
 from attica.sim import GRADES, SimConfig, simulate_with_truth
 
 __all__ = [
@@ -245,7 +245,7 @@ def suite_methods(kinds: Sequence[str], peers: Sequence[str], gyro_range: float 
 
     out: list[Method] = []
     for name in kinds:
-        kind = VARIANTS[name][0] if name in VARIANTS else FilterKind.parse(name)
+        kind = method_kind(name)
         # the sensor's range, to the kinds that have one (tilt, accel only, has none)
         has_range = hasattr(make_settings(kind, None, 0.01), "gyro_range")
         over = {"gyro_range": gyro_range} if gyro_range > 0 and has_range else None

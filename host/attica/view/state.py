@@ -110,6 +110,7 @@ def json_number(x: Any) -> float | None:
     return v if math.isfinite(v) else None
 
 
+_H = math.sqrt(0.5)
 _FROM_ENU = {
     "ENU": np.eye(3),
     "NED": np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]),
@@ -117,24 +118,9 @@ _FROM_ENU = {
 }
 """The earth axes of each convention written in ENU's (rows: the convention's x, y, z)."""
 
-
-def _enu_euler(r: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """ZYX Euler angles (roll, pitch, yaw) about ENU's axes of an attitude given in another convention.
-
-    ``q`` (w, x, y, z) is sensor-to-earth in the convention whose earth axes are the rows of ``r``:
-    R_enu = r^T R(q).
-    """
-    w, x, y, z = (float(v) for v in q)
-    rq = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    m = r.T @ rq
-    pitch = -math.asin(max(-1.0, min(1.0, float(m[2, 0]))))
-    return np.array([math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0])], np.float32)
+_TO_ENU = {"NED": (0.0, -_H, -_H, 0.0), "NWU": (_H, 0.0, 0.0, _H)}
+"""The rotation from each convention's earth frame to ENU's, as a quaternion (the inverse of _FROM_ENU's
+rotation): a sensor-to-earth q in the convention is ``_TO_ENU * q`` in ENU."""
 
 
 def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list[float | None] | None:
@@ -146,13 +132,16 @@ def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list
     (the settings are not on the bus), where a file export writes pi^2/3 (unknown).
     """
     from attica.data.export import COVARIANCE, orientation_covariance
+    from attica.evaluate.trace import euler_deg
+    from attica.metrics import quat_mul
 
     if kind not in COVARIANCE:
         return None
     rec = sets[:1].copy()
     r = _FROM_ENU[convention]
     if convention != "ENU":  # the set's q and Euler angles are the convention's; the cov model wants ENU's
-        rec["euler"][0] = _enu_euler(r, rec["q"][0])
+        q_enu = quat_mul(_TO_ENU[convention], rec["q"][0])
+        rec["euler"][0] = np.radians(euler_deg(q_enu[None, :]))[0]
     c = orientation_covariance(kind, rec)[0]
     if c[0] >= 0.0:  # -1 in element 0: no orientation estimate, kept as it is
         c = (r @ c.reshape(3, 3) @ r.T).reshape(9)
