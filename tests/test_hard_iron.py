@@ -26,6 +26,7 @@ import pytest
 from attica import metrics, native
 from attica.can import codec
 from attica.crosscheck import Stream, crosscheck
+from attica.outputs import MAG_OFFSET_DTYPE
 from attica.settings import FilterKind, MarsSettings, MekfSettings
 from attica.sim import SimConfig
 from attica.sim.engine import simulate_with_truth
@@ -353,3 +354,53 @@ def test_attica_node_set_turns_the_estimate_on(capsys: pytest.CaptureFixture[str
         bus.shutdown()
     assert codes == [0]
     assert ids.count(codec.ID_DIAG) == ids.count(codec.ID_MAG_OFFSET) == n // 16
+
+
+@pytest.mark.parametrize("kind", [FilterKind.MARS, FilterKind.MEKF])
+def test_run_records_the_offset_of_every_step(kind: FilterKind) -> None:
+    """Filter.run(mag_offset=...) holds after each row what mag_offset() says after stepping to it, with
+    rows that advance several periods too (att_host_filter_run's moff, the outputs of `attica run`)."""
+    rec, _ = _sim(2, duration=40.0)
+    steps = np.ones(rec.n, np.uint32)
+    steps[500:520] = 3  # lost samples: each of these rows advances three periods
+    f = native.Filter(kind, _settings(kind, hard_iron_tau=60.0))
+    mo = np.zeros(rec.n, MAG_OFFSET_DTYPE)
+    out = f.run(rec.gyr, rec.acc, rec.mag, steps=steps, mag_offset=mo)
+    assert mo["on"].all() and not mo["estimated"][0] and mo["estimated"][-1]
+    g = native.Filter(kind, _settings(kind, hard_iron_tau=60.0))
+    for i in list(range(0, 600)) + list(range(rec.n - 300, rec.n)):
+        if i == rec.n - 300:
+            g.run(rec.gyr[600:i], rec.acc[600:i], rec.mag[600:i], steps=steps[600:i])
+        row = g.run(rec.gyr[i : i + 1], rec.acc[i : i + 1], rec.mag[i : i + 1], steps=steps[i : i + 1])
+        assert row.tobytes() == out[i : i + 1].tobytes()
+        h = g.mag_offset()
+        assert h.offset.tobytes() == mo["offset"][i].tobytes() and h.estimated == mo["estimated"][i], i
+    assert np.unique(mo["offset"], axis=0).shape[0] > 100  # it moves: rows that repeat one would fail
+    # the same records with and without the offsets recorded
+    plain = native.Filter(kind, _settings(kind, hard_iron_tau=60.0)).run(
+        rec.gyr, rec.acc, rec.mag, steps=steps
+    )
+    assert plain.tobytes() == out.tobytes()
+
+
+def test_run_mag_offset_refusals() -> None:
+    rec, _ = _sim(3, duration=2.0)
+    with pytest.raises(native.NativeError, match="not supported"):
+        native.Filter(FilterKind.ARS, 1.0 / RATE).run(
+            rec.gyr, rec.acc, mag_offset=np.zeros(rec.n, MAG_OFFSET_DTYPE)
+        )
+    f = native.Filter(FilterKind.MARS, _settings(FilterKind.MARS, hard_iron_tau=60.0))
+    for bad in (np.zeros(rec.n - 1, MAG_OFFSET_DTYPE), np.zeros((rec.n, 4), np.float32), [0.0] * rec.n):
+        with pytest.raises(ValueError, match="mag_offset must be"):
+            f.run(rec.gyr, rec.acc, rec.mag, mag_offset=bad)  # type: ignore[arg-type]
+    ro = np.zeros(rec.n, MAG_OFFSET_DTYPE)
+    ro.flags.writeable = False
+    with pytest.raises(ValueError, match="writeable"):
+        f.run(rec.gyr, rec.acc, rec.mag, mag_offset=ro)
+    assert f.mag_offset().offset.tobytes() == bytes(12)  # nothing ran
+
+
+def test_mag_offset_dtype_is_the_c_struct() -> None:
+    assert native.ffi.sizeof("att_mag_offset_t") == MAG_OFFSET_DTYPE.itemsize
+    for name in ("offset", "on", "estimated"):
+        assert native.ffi.offsetof("att_mag_offset_t", name) == MAG_OFFSET_DTYPE.fields[name][1]

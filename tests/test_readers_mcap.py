@@ -51,10 +51,12 @@ def test_attica_run_output_reads_back(tmp_path: Path, rec: Recording) -> None:
     """The file `attica run -o out.mcap` writes (attica.data.export.write_mcap) is a recording again."""
     import attica
     from attica.data.export import write_mcap
+    from attica.outputs import MAG_OFFSET_DTYPE
 
-    out = attica.Filter("mars", rec.dt).run(rec.gyr, rec.acc, rec.mag)
+    mo = np.zeros(rec.n, MAG_OFFSET_DTYPE)  # the hard-iron estimate: a second MagneticField topic
+    out = attica.Filter("mars", rec.dt, hard_iron_tau=60.0).run(rec.gyr, rec.acc, rec.mag, mag_offset=mo)
     path = tmp_path / "out.mcap"
-    write_mcap(path, out, rec, "mars")
+    write_mcap(path, out, rec, "mars", mag_offset=mo)
     got, contents = read_recording(path, orientation=True)
     np.testing.assert_array_equal(got.gyr, rec.gyr)
     np.testing.assert_array_equal(got.acc, rec.acc)
@@ -65,6 +67,8 @@ def test_attica_run_output_reads_back(tmp_path: Path, rec: Recording) -> None:
     assert {s.name: s.role for s in contents.streams} == {
         "/attica/imu": "gyr, acc, quat_true",
         "/attica/mag": "mag",
+        "/attica/mag_offset": "",
+        "/attica/flags": "",
         "/tf": "",
     }
     assert load_recording(path).quat_true is None  # the estimate is truth only when asked

@@ -133,10 +133,13 @@ def test_mcap_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind:
     rec = load_recording(timed)
     ref = np.load(_per_kind(written["npz"], kind))
     msgs = _mcap_messages(_per_kind(written["mcap"], kind))
-    assert set(msgs) == {export.IMU_TOPIC, export.TF_TOPIC, export.MAG_TOPIC}
+    assert set(msgs) == {export.IMU_TOPIC, export.TF_TOPIC, export.MAG_TOPIC, export.FLAGS_TOPIC}
     imu = [m for _, m in msgs[export.IMU_TOPIC]]
     n = len(rec.gyr)
     assert len(imu) == n and len(msgs[export.TF_TOPIC]) == n
+    flags = [(t, m.data) for t, m in msgs[export.FLAGS_TOPIC]]
+    np.testing.assert_array_equal([f for _, f in flags], ref["flags"])  # a recovery is visible in a file
+    assert (ref["flags"] & Flag.GYRO_INVALID).any()  # the recording's lost gyro sample
     q = np.array([[m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z] for m in imu])
     np.testing.assert_array_equal(q, ref["q"].astype(np.float64))  # float32 -> float64 is exact
     assert rec.time is not None
@@ -218,6 +221,7 @@ def test_mcap_opens_with_rosbags_anyreader(written: dict[str, Path]) -> None:
             export.IMU_TOPIC: "sensor_msgs/msg/Imu",
             export.TF_TOPIC: "tf2_msgs/msg/TFMessage",
             export.MAG_TOPIC: "sensor_msgs/msg/MagneticField",
+            export.FLAGS_TOPIC: "std_msgs/msg/UInt32",
         }
         decoded = sum(1 for c, _, raw in reader.messages() if reader.deserialize(raw, c.msgtype) is not None)
         assert decoded == sum(c.msgcount for c in reader.connections) > 0
@@ -399,3 +403,48 @@ def test_docs_writers_examples_run(tmp_path: Path, monkeypatch: pytest.MonkeyPat
             line = line.split("  #")[0].strip()
             if line.startswith("attica "):
                 assert main(shlex.split(line)[1:]) == 0, line
+
+
+def test_outputs_hold_the_hard_iron_estimate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A mars with hard_iron_tau writes the offset of every step in each format, as Filter.run(mag_offset)
+    gives it; a kind without the estimate (or with it off) writes no such column, array or topic."""
+    _need_recordings()
+    from attica import native
+    from attica.outputs import MAG_OFFSET_DTYPE
+    from attica.sim.errors import mag_only
+
+    hard = mag_only(hard_iron=20.0, soft_iron_scale=0.0, soft_iron_coupling=0.0)
+    rec = simulate(SimConfig(duration=40.0, seed=6, sensor_errors=hard))
+    data = tmp_path / "hi.npz"
+    rec.save(data)
+    base = ["run", "--data", str(data), "-q", "--no-unit-check", "--set", "hard_iron_tau=60"]
+    for suffix in ("npz", "csv", "mcap"):
+        assert main([*base, "--filter", "mars,ars", "-o", str(tmp_path / f"o.{suffix}")]) == 0
+    capsys.readouterr()
+    f = native.Filter("mars", 1.0 / rec.rate, hard_iron_tau=60.0)
+    mo = np.zeros(len(rec.gyr), MAG_OFFSET_DTYPE)
+    f.run(rec.gyr, rec.acc, rec.mag, check_units=False, mag_offset=mo)
+    assert mo["estimated"][-1] and not mo["estimated"][0] and np.abs(mo["offset"][-1]).max() > 3.0
+
+    npz = np.load(tmp_path / "o_mars.npz")
+    assert npz["mag_offset"].tobytes() == mo["offset"].tobytes()
+    np.testing.assert_array_equal(npz["mag_offset_estimated"], mo["estimated"])
+    assert "mag_offset" not in np.load(tmp_path / "o_ars.npz")
+
+    comments, columns, table = _read_csv(tmp_path / "o_mars.csv")
+    assert columns == export.csv_columns("mars", mag_offset=True) and columns[-4:] == list(
+        export.MAG_OFFSET_COLUMNS
+    )
+    col = {name: table[:, i] for i, name in enumerate(columns)}
+    for i, axis in enumerate("xyz"):
+        np.testing.assert_array_equal(col[f"mag_offset_{axis}"].astype(np.float32), mo["offset"][:, i])
+    np.testing.assert_array_equal(col["mag_offset_estimated"].astype(bool), mo["estimated"])
+    assert any("mag_offset_x" in c and "uT" in c for c in comments)
+    assert _read_csv(tmp_path / "o_ars.csv")[1] == export.csv_columns("ars")
+
+    msgs = _mcap_messages(tmp_path / "o_mars.mcap")
+    fields = [m for _, m in msgs[export.MAG_OFFSET_TOPIC]]
+    h = np.array([[m.magnetic_field.x, m.magnetic_field.y, m.magnetic_field.z] for m in fields])
+    np.testing.assert_allclose(h * 1e6, mo["offset"].astype(np.float64), rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal([m.magnetic_field_covariance[0] == -1.0 for m in fields], ~mo["estimated"])
+    assert export.MAG_OFFSET_TOPIC not in _mcap_messages(tmp_path / "o_ars.mcap")

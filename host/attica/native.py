@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from attica.calibration.stages import fill_c
 from attica.checks import filter_settings, imu_arrays, warn_units
 from attica.cview import CView
-from attica.outputs import OUTPUT_DTYPE
+from attica.outputs import MAG_OFFSET_DTYPE, OUTPUT_DTYPE
 from attica.results import Outputs, as_outputs
 from attica.settings import FilterKind, Preset, make_settings, to_dict
 
@@ -345,6 +345,19 @@ class MagOffset(NamedTuple):
     """The rotations have made the offset observable."""
 
 
+def _check_mag_offset_array(a: Any, n: int, who: str) -> None:
+    """ValueError unless ``a`` is a writeable C-contiguous (n,) array of MAG_OFFSET_DTYPE."""
+    if not isinstance(a, np.ndarray) or a.dtype != MAG_OFFSET_DTYPE or a.shape != (n,):
+        got = f"{a.shape} {a.dtype}" if isinstance(a, np.ndarray) else type(a).__name__
+        raise ValueError(
+            f"{who}: mag_offset must be an ({n},) array of attica.outputs.MAG_OFFSET_DTYPE, not {got}"
+        )
+    if not (a.flags.c_contiguous and a.flags.writeable):
+        raise ValueError(
+            f"{who}: mag_offset must be writeable C-contiguous memory (np.zeros(n, MAG_OFFSET_DTYPE))"
+        )
+
+
 class Filter:
     """Any C filter through the unified interface (``att_filter_t``).
 
@@ -602,6 +615,8 @@ class Filter:
         full: bool = True,
         check_units: bool = True,
         steps: Any = None,
+        *,
+        mag_offset: NDArray[np.void] | None = None,
     ) -> Any:
         """N steps in C over (N, 3) arrays without copying float32 C-contiguous input; (N,) records.
 
@@ -627,13 +642,19 @@ class Filter:
             (N,) integers >= 1: the sample periods each row advances (``att_filter_step_n``: n after n - 1
             lost samples, e.g. :attr:`attica.data.Recording.steps`); that row's flags are the OR over
             them. None: 1 each.
+        mag_offset
+            An (N,) array of :data:`attica.outputs.MAG_OFFSET_DTYPE` (mars, mekf): filled with the
+            hard-iron estimate after each step (:meth:`mag_offset`), for the outputs of ``attica run``.
 
         Raises
         ------
         ValueError
-            Inputs not all of shape (N, 3) with the same N; steps of another length or below 1.
+            Inputs not all of shape (N, 3) with the same N; steps of another length or below 1; a
+            ``mag_offset`` array of another shape or dtype, or not writeable C-contiguous memory.
         TypeError
             Inputs that are not real numbers (bool, complex, object, text).
+        NativeError
+            ``mag_offset`` for a kind without a hard-iron estimate (ATT_ERR_KIND).
 
         """
         who = f"{self.kind.label} Filter.run"
@@ -641,6 +662,11 @@ class Filter:
         if check_units:
             warn_units(g, a, m, who)
         st = step_counts(steps, g.shape[0], who)
+        moff = ffi.NULL
+        if mag_offset is not None:
+            _check_mag_offset_array(mag_offset, g.shape[0], who)
+            self.mag_offset()  # NativeError for a kind without the estimate, before any step
+            moff = ffi.from_buffer("att_mag_offset_t[]", mag_offset)
         out = np.zeros(g.shape[0], OUTPUT_DTYPE)
         every = max(int(snapshot_every), 0)
         snaps = ffi.new("att_filter_t[]", -(-g.shape[0] // every)) if every else ffi.NULL
@@ -655,6 +681,7 @@ class Filter:
             1 if full else 0,
             every,
             snaps,
+            moff,
         )
         if every:
             return as_outputs(out), CView(snaps, snaps, ffi)

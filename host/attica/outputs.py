@@ -1,4 +1,4 @@
-"""The filter output record, laid out exactly like ``att_output_t`` (68 bytes)."""
+"""The filter output record, laid out exactly like ``att_output_t`` (68 bytes), and ``att_mag_offset_t``."""
 
 from __future__ import annotations
 
@@ -16,6 +16,18 @@ OUTPUT_DTYPE = np.dtype(
     ]
 )
 """numpy dtype of one ``att_output_t``."""
+
+MAG_OFFSET_DTYPE = np.dtype(
+    {
+        "names": ["offset", "on", "estimated"],
+        "formats": [("<f4", (3,)), "?", "?"],
+        "offsets": [0, 12, 13],
+        "itemsize": 16,
+    }
+)
+"""numpy dtype of one ``att_mag_offset_t`` (16 bytes): the hard-iron ``offset`` (uT, the frame of the
+samples the filter sees; 0 until estimated), whether the estimate runs (``on``) and whether the rotations
+have made it observable (``estimated``)."""
 
 FLOAT_FIELDS = ("q", "euler", "gyro_bias", "cov")
 """Float fields of an output record, compared bit for bit between C and the reference."""

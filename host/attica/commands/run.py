@@ -30,7 +30,7 @@ from attica.commands._common import (
     warn_calibrated_truth,
 )
 from attica.kinds import axes, uses_mag
-from attica.outputs import OUTPUT_DTYPE
+from attica.outputs import MAG_OFFSET_DTYPE, OUTPUT_DTYPE
 from attica.settings import FilterKind, describe_flags
 
 NAME = "run"
@@ -80,23 +80,27 @@ def run_native(
     """Run the C filter over a recording in chunks (for the progress bar); (N,) output records.
 
     Each sample steps the filter over the periods since the one before (:attr:`Recording.steps`).
-    ``end``, when given, receives the filter's state at the end that the records do not hold: its
-    ``mag_offset`` (:meth:`attica.native.Filter.mag_offset`) when the kind estimates a hard-iron offset.
+    ``end``, when given, receives what the records do not hold: where the filter's hard-iron estimate
+    runs (:meth:`attica.native.Filter.mag_offset`), ``mag_offset``, its (N,) estimates after each step
+    (:data:`attica.outputs.MAG_OFFSET_DTYPE`).
     """
     from attica import native
 
     f = native.Filter(kind, settings=settings, calibration=calibration)
-    out = np.zeros(len(rec.gyr), OUTPUT_DTYPE)
+    n = len(rec.gyr)
+    out = np.zeros(n, OUTPUT_DTYPE)
+    moff = None
+    if end is not None and hasattr(settings, "hard_iron_tau") and f.mag_offset().on:  # the filter says
+        moff = end["mag_offset"] = np.zeros(n, MAG_OFFSET_DTYPE)
     steps = rec.steps  # n after n - 1 lost samples (Recording.time): the gap is integrated
-    with progress(len(rec.gyr), f"{kind.label} (C)", show_progress) as bar:
-        for start in range(0, len(rec.gyr), CHUNK):
+    with progress(n, f"{kind.label} (C)", show_progress) as bar:
+        for start in range(0, n, CHUNK):
             sl = slice(start, start + CHUNK)
-            out[sl] = f.run(rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl])
+            mo = moff[sl] if moff is not None else None
+            out[sl] = f.run(
+                rec.gyr[sl], rec.acc[sl], rec.mag[sl], check_units=False, steps=steps[sl], mag_offset=mo
+            )
             bar.update(len(out[sl]))
-    if end is not None and hasattr(settings, "hard_iron_tau"):  # mars, mekf: the filter says if it runs
-        mo = f.mag_offset()
-        if mo.on:
-            end["mag_offset"] = mo
     return out
 
 
@@ -184,13 +188,19 @@ def check_outputs(outputs: dict[FilterKind, Path], rec: Any) -> None:
 
 
 def write_output(
-    path: Path, kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any, convention: str = "enu"
+    path: Path,
+    kind: FilterKind,
+    rec: Any,
+    out: NDArray[np.void],
+    settings: Any,
+    convention: str = "enu",
+    mag_offset: NDArray[np.void] | None = None,
 ) -> None:
     """Write one filter's outputs in the format of the suffix (:func:`attica.data.export.write_outputs`)."""
     from attica.data.export import write_outputs
 
     try:
-        write_outputs(path, out, rec, kind, settings, convention)
+        write_outputs(path, out, rec, kind, settings, convention, mag_offset)
     except OSError as exc:
         raise CliError(f"cannot write {path}: {exc.strerror or exc}") from None
 
@@ -226,16 +236,16 @@ def run(args: argparse.Namespace) -> int:
         elapsed = time.perf_counter() - t0
         print(error_line(kind, rec, out, settings[kind]))
         print(f"        {len(out)} steps in {elapsed * 1e3:.0f} ms; flags: {flag_summary(out['flags'])}")
-        if "mag_offset" in end:  # the on-device hard-iron estimate (not in the per-row outputs)
-            mo = end["mag_offset"]
-            h = ", ".join(f"{v:.2f}" for v in mo.offset)
-            state = "estimated" if mo.estimated else "not observable yet: not applied"
+        moff = end.get("mag_offset")
+        if moff is not None and len(moff):  # the on-device hard-iron estimate (also in the outputs)
+            h = ", ".join(f"{v:.2f}" for v in moff["offset"][-1])
+            state = "estimated" if moff["estimated"][-1] else "not observable yet: not applied"
             print(f"        hard-iron offset at the end: {h} uT ({state})")
         if args.check:
             ok, lines = crosscheck_line(kind, rec, settings[kind], not args.quiet, cal)
             print("\n".join(lines))
             status = status or (0 if ok else 1)
         if kind in outputs:
-            write_output(outputs[kind], kind, rec, out, settings[kind], convention)
+            write_output(outputs[kind], kind, rec, out, settings[kind], convention, moff)
             print(f"        wrote {outputs[kind]}")
     return status

@@ -179,13 +179,14 @@ static ATT_HOST_INLINE void att_host_sample_load(att_sample_t *in, const float *
     }
 }
 
-/* Steps i0 .. i1 - 1 into the records out[i0 .. i1 - 1]; steps (or NULL: 1 each) periods per row. */
+/* Steps i0 .. i1 - 1 into the records out[i0 .. i1 - 1]; steps (or NULL: 1 each) periods per row; moff
+ * (or NULL) gets att_filter_mag_offset after each step. */
 static void att_host_run_records(att_filter_t *f, att_sample_t *in, const float *gyr, const float *acc,
                                  const float *mag, const uint32_t *steps, size_t i0, size_t i1,
-                                 att_output_t *out, int full)
+                                 att_output_t *out, int full, att_mag_offset_t *moff)
 {
     size_t i;
-    if (steps == NULL) {
+    if (steps == NULL && moff == NULL) {
         for (i = i0; i < i1; i++) {
             att_host_sample_load(in, gyr, acc, mag, i);
             (void)att_filter_step(f, in, out + i);
@@ -198,17 +199,20 @@ static void att_host_run_records(att_filter_t *f, att_sample_t *in, const float 
     for (i = i0; i < i1; i++) {
         uint32_t flags;
         att_host_sample_load(in, gyr, acc, mag, i);
-        flags = att_filter_step_n(f, in, steps[i], out + i);
+        flags = att_filter_step_n(f, in, (steps != NULL) ? steps[i] : 1u, out + i);
         if (full != 0) {
             att_filter_output(f, out + i);
             out[i].flags = flags; /* the OR over the n steps, as att_filter_step_n reports it */
+        }
+        if (moff != NULL) {
+            (void)att_filter_mag_offset(f, moff + i);
         }
     }
 }
 
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
                            const uint32_t *steps, size_t n, att_output_t *out, int full, size_t every,
-                           att_filter_t *snaps)
+                           att_filter_t *snaps, att_mag_offset_t *moff)
 {
     size_t i;
     att_sample_t in;
@@ -217,14 +221,14 @@ size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, 
     }
     att_host_sample_clear(&in);
     if (snaps == NULL || every == 0u) {
-        att_host_run_records(f, &in, gyr, acc, mag, steps, 0u, n, out, full);
+        att_host_run_records(f, &in, gyr, acc, mag, steps, 0u, n, out, full, moff);
         return n;
     }
     /* a snapshot, then a run of every steps without a test per step */
     for (i = 0u; i < n; i += every) {
         const size_t end = (n - i > every) ? i + every : n;
         snaps[i / every] = *f;
-        att_host_run_records(f, &in, gyr, acc, mag, steps, i, end, out, full);
+        att_host_run_records(f, &in, gyr, acc, mag, steps, i, end, out, full, moff);
     }
     return n;
 }

@@ -45,11 +45,13 @@ int att_host_mapq(int fn, const float *in, size_t in_width, float *out, size_t o
  * advances (att_filter_step_n; its flags are the OR over them), or NULL for 1 each; out gets n records: the
  * per-step fields of att_filter_step, or with full != 0 the whole record of att_filter_output after
  * each step. With every > 0 and snaps != NULL, snaps[j] receives a copy of the filter state just before
- * step j * every (ceil(n / every) snapshots). Returns n, or 0 when f or an input is NULL.
+ * step j * every (ceil(n / every) snapshots). moff (n) or NULL: att_filter_mag_offset after each step (the
+ * hard-iron estimate of a mars or mekf; the caller checks the kind has one). Returns n, or 0 when f or an
+ * input is NULL.
  */
 size_t att_host_filter_run(att_filter_t *f, const float *gyr, const float *acc, const float *mag,
                            const uint32_t *steps, size_t n, att_output_t *out, int full, size_t every,
-                           att_filter_t *snaps);
+                           att_filter_t *snaps, att_mag_offset_t *moff);
 /**
  * n steps of any filter, the lean batch: gyr, acc (n x 3); mag (n x 3) or NULL (absent); steps as for
  * att_host_filter_run (NULL: 1 each). q (n x 4)

@@ -11,33 +11,43 @@ One file holds one filter's outputs over one recording, one row (or message) per
 Time: a recording with a time of its own (:attr:`attica.data.Recording.time`, e.g. the time column of
 a log) is written on that clock; one without gets the time from its first sample, ``index / rate``.
 
-Covariance: ``att_output_t.cov`` holds a diagonal whose meaning depends on the kind
-(``firmware/include/attica/att_filter.h``); :data:`COVARIANCE` names its columns and says how it becomes
-the 3x3 orientation covariance of a ROS ``sensor_msgs/msg/Imu``.
+Covariance: ``att_output_t.cov`` holds a diagonal whose meaning depends on the kind; :data:`COVARIANCE`
+(:mod:`attica.data.covariance`) names its columns and says how it becomes the 3x3 orientation covariance
+of a ROS ``sensor_msgs/msg/Imu``.
+
+Hard-iron offset: a mars or mekf whose on-device estimate runs (``hard_iron_tau`` > 0) gives each
+sample's estimate (:data:`attica.outputs.MAG_OFFSET_DTYPE`, ``Filter.run(mag_offset=...)``) to every
+format: the CSV's ``mag_offset_*`` columns, the ``.npz``'s ``mag_offset`` arrays, the ``.mcap``'s
+:data:`MAG_OFFSET_TOPIC`.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from attica.kinds import KINDS, info
+from attica.data.covariance import COVARIANCE, UNKNOWN_YAW, Covariance, orientation_covariance
+from attica.data.rosbag import ESTIMATE_TOPIC
+from attica.kinds import info
+from attica.outputs import MAG_OFFSET_DTYPE
 from attica.settings import OUTPUT_INVALID, FilterKind, Flag
 
 __all__ = [
     "COVARIANCE",
     "IMU_TOPIC",
+    "FLAGS_TOPIC",
+    "MAG_OFFSET_COLUMNS",
+    "MAG_OFFSET_TOPIC",
     "MAG_TOPIC",
     "TF_TOPIC",
     "OUTPUT_INVALID",
     "OUTPUT_SUFFIXES",
     "Covariance",
+    "UNKNOWN_YAW",
     "check_output",
     "csv_columns",
     "orientation_covariance",
@@ -60,115 +70,6 @@ OUTPUT_SUFFIXES = (".npz", ".csv", ".mcap")
 
 RECORDINGS_EXTRA = "pip install 'attica[recordings]'"
 """How to install the packages that .mcap needs (mcap, rosbags)."""
-
-
-@dataclass(frozen=True)
-class Covariance:
-    """What ``att_output_t.cov`` holds for one kind.
-
-    Attributes
-    ----------
-    columns : tuple of str
-        CSV names of ``cov[0]``, ``cov[1]``, ... (the entries the kind fills; the rest are 0).
-    meaning : str
-        The header comment of those columns (units and frame).
-    orientation : str
-        How :func:`orientation_covariance` turns them into the Imu message's 3x3 (rad^2).
-    diagonal : callable
-        (N, 4) ``cov`` (float64) to the (N, 3) diagonal of the orientation covariance, rad^2.
-
-    """
-
-    columns: tuple[str, ...]
-    meaning: str
-    orientation: str
-    matrix: Callable[[NDArray[np.void]], F64]
-
-
-UNKNOWN_YAW = float(np.float32(np.pi**2 / 3.0))
-"""rad^2: the variance of a heading that is not known (uniform over a turn), as ars and mars report it."""
-
-
-def _diagonal(cov: F64) -> F64:
-    """(N, 3) variances as the (N, 9) row-major matrices with them on the diagonal."""
-    m = np.zeros((len(cov), 9))
-    m[:, [0, 4, 8]] = cov
-    return m
-
-
-def _kf_matrix(out: NDArray[np.void]) -> F64:
-    # P = p I (4x4) projects onto the tangent space of the unit sphere at q as p I3; a small rotation
-    # dtheta moves q by q (x) (0, dtheta / 2), so dtheta = 2 dq: 4 p rad^2 about the tilt axes. The yaw of
-    # this 6-axis filter is not observed: unknown.
-    p = np.asarray(out["cov"], np.float64).mean(axis=1)
-    return _diagonal(np.stack([4.0 * p, 4.0 * p, np.full_like(p, UNKNOWN_YAW)], axis=1))
-
-
-def _ekf_matrix(out: NDArray[np.void]) -> F64:
-    # The state is the ZYX Euler angles: a small change turns the sensor by
-    # dr = z dpsi + Rz(psi) y dtheta + Rz(psi) Ry(theta) x dphi about the earth's axes, so the covariance
-    # about them is sum_i var_i v_i v_i^T with v_phi = (c_psi c_theta, s_psi c_theta, -s_theta),
-    # v_theta = (-s_psi, c_psi, 0), v_psi = (0, 0, 1) (the EKF reports no correlations: taken as 0). The
-    # yaw of this 6-axis filter is not observed: unknown, whatever its variance has grown to.
-    cov = np.asarray(out["cov"], np.float64)
-    e = np.asarray(out["euler"], np.float64)
-    cth, sth, cps, sps = np.cos(e[:, 1]), np.sin(e[:, 1]), np.cos(e[:, 2]), np.sin(e[:, 2])
-    v_phi = np.stack([cps * cth, sps * cth, -sth], axis=1)
-    v_theta = np.stack([-sps, cps, np.zeros_like(cps)], axis=1)
-    m = cov[:, 0, None, None] * (v_phi[:, :, None] * v_phi[:, None, :])
-    m += cov[:, 1, None, None] * (v_theta[:, :, None] * v_theta[:, None, :])
-    m[:, 2, 2] += UNKNOWN_YAW
-    flat: F64 = m.reshape(len(cov), 9)
-    return flat
-
-
-def _first3(out: NDArray[np.void]) -> F64:
-    return _diagonal(np.asarray(out["cov"], np.float64)[:, :3])
-
-
-_COMPLEMENTARY = Covariance(
-    ("var_att_e", "var_att_n", "var_att_u"),
-    "variance of the attitude error about the earth's east, north, up axes from the covariance model of "
-    "docs/filters.md (tilt: both horizontal axes alike; up: the heading), rad^2",
-    "the model's tilt and heading variances about the earth's x (east), y (north), z (up) axes on the "
-    "diagonal; the heading's pi^2/3 where it is unknown",
-    _first3,
-)
-"""ars and mars: the covariance model of the complementary filters (att_ars.h, att_mars.h)."""
-
-COVARIANCE: dict[FilterKind, Covariance] = {
-    FilterKind.ARS: _COMPLEMENTARY,
-    FilterKind.MARS: _COMPLEMENTARY,
-    FilterKind.KF: Covariance(
-        ("var_q_w", "var_q_x", "var_q_y", "var_q_z"),
-        "variance of each quaternion component, (unit quaternion)^2 (the KF carries P = p I: all equal)",
-        "4 p about the earth's x and y: the isotropic quaternion variance p as a rotation, dtheta = 2 dq; "
-        "the yaw, which this 6-axis filter does not observe, pi^2/3 (unknown)",
-        _kf_matrix,
-    ),
-    FilterKind.EKF: Covariance(
-        ("var_roll", "var_pitch", "var_yaw", "var_bias"),
-        "variance of the ZYX Euler angles roll, pitch, yaw, rad^2 (yaw is not observed: it grows); "
-        "var_bias: mean variance of the gyro bias, (rad/s)^2",
-        "the roll and pitch variances turned onto the earth's axes through the Euler angles (dr = z dpsi + "
-        "Rz(psi) y dtheta + Rz(psi) Ry(theta) x dphi; no correlations reported: taken as 0), off-diagonal "
-        "entries included; the yaw, which this 6-axis filter does not observe, pi^2/3 (unknown)",
-        _ekf_matrix,
-    ),
-    FilterKind.MEKF: Covariance(
-        ("var_att_e", "var_att_n", "var_att_u", "var_bias"),
-        "variance of the attitude error (a rotation vector about the earth's east, north, up axes), rad^2; "
-        "var_bias: mean variance of the gyro bias, (rad/s)^2",
-        "the attitude error variances about the earth's x (east), y (north), z (up) axes on the diagonal",
-        _first3,
-    ),
-}
-"""The kinds with a covariance (:attr:`attica.kinds.KindInfo.covariance`) and what their ``cov`` holds.
-Only the diagonal is reported (``att_output_t``), so the off-diagonal entries written are 0 (but the
-EKF's, whose Euler angles' variances turn onto the earth's axes)."""
-
-if set(COVARIANCE) != {k.kind for k in KINDS if k.covariance}:  # pragma: no cover - a registry edit
-    raise RuntimeError("attica.data.export.COVARIANCE must describe every kind with a covariance")
 
 
 def output_format(path: PathLike) -> str:
@@ -204,8 +105,12 @@ def _kind_text(kind: FilterKind, settings: Any) -> str:
     return f"{k.label} ({k.axes(settings)}-axis: {', '.join(k.inputs(settings))})"
 
 
-def csv_columns(kind: FilterKind | str) -> list[str]:
-    """The columns of :func:`write_csv` for ``kind``, in order."""
+MAG_OFFSET_COLUMNS = ("mag_offset_x", "mag_offset_y", "mag_offset_z", "mag_offset_estimated")
+"""The CSV columns of the hard-iron estimate (after ``steps``; only with a ``mag_offset``)."""
+
+
+def csv_columns(kind: FilterKind | str, mag_offset: bool = False) -> list[str]:
+    """The columns of :func:`write_csv` for ``kind``, in order (``mag_offset``: the hard-iron ones too)."""
     k = info(kind)
     cov = COVARIANCE[k.kind].columns if k.kind in COVARIANCE else ()
     return [
@@ -223,6 +128,7 @@ def csv_columns(kind: FilterKind | str) -> list[str]:
         *cov,
         "flags",
         "steps",
+        *(MAG_OFFSET_COLUMNS if mag_offset else ()),
     ]
 
 
@@ -241,7 +147,9 @@ MCAP_ENU_ONLY = (
 """The error of an .mcap output with a non-ENU output convention."""
 
 
-def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any, convention: str) -> list[str]:
+def _csv_header(
+    kind: FilterKind, rec: Any, absolute: bool, settings: Any, convention: str, mag_offset: bool
+) -> list[str]:
     k = info(kind)
     clock = (
         "s on the recording's own clock (its time as recorded, any origin, e.g. Unix time)"
@@ -270,6 +178,13 @@ def _csv_header(kind: FilterKind, rec: Any, absolute: bool, settings: Any, conve
         "start's or a clipping gyro's recovery (recovery_time), not a new start each time",
         "steps: filter steps since the start (uint32, wraps)",
     ]
+    if mag_offset:
+        lines.append(
+            "mag_offset_x, mag_offset_y, mag_offset_z: the hard-iron offset the filter estimates and "
+            "subtracts from its mag samples after this step, uT, the frame of the samples it sees (after a "
+            "calibration's input stage); mag_offset_estimated: 1 once the rotations made it observable "
+            "(0: the offset is 0, not applied yet)"
+        )
     return [f"# {line}" for line in lines]
 
 
@@ -280,6 +195,7 @@ def write_csv(
     kind: FilterKind | str,
     settings: Any = None,
     convention: str = "enu",
+    mag_offset: NDArray[np.void] | None = None,
 ) -> None:
     """Write one filter's outputs as CSV: comment lines, a header row, one row per sample.
 
@@ -303,6 +219,9 @@ def write_csv(
     convention : str
         The earth frame of ``q`` and the Euler angles (the calibration's output convention: ``enu``,
         ``ned`` or ``nwu``), for the header; the covariance stays about the ENU axes.
+    mag_offset : ndarray of :data:`attica.outputs.MAG_OFFSET_DTYPE`, shape (N,), optional
+        The hard-iron estimate after each step (``Filter.run(mag_offset=...)``): the columns
+        :data:`MAG_OFFSET_COLUMNS` after ``steps``.
 
     """
     k = info(kind)
@@ -311,6 +230,7 @@ def write_csv(
     times, absolute = sample_times(rec)
     if len(times) != len(out):
         raise ValueError(f"{len(out)} outputs for a recording of {len(times)} samples")
+    _check_mag_offset(mag_offset, len(out))
     ncov = len(COVARIANCE[k.kind].columns) if k.kind in COVARIANCE else 0
     cols = [
         times[:, None],
@@ -321,43 +241,42 @@ def write_csv(
         out["flags"][:, None],
         out["steps"][:, None],
     ]
-    table = np.hstack([np.asarray(c, np.float64) for c in cols])
     fmt = ["%.9f"] + ["%.9g"] * (10 + ncov) + ["%d", "%d"]
+    if mag_offset is not None:
+        cols += [mag_offset["offset"], mag_offset["estimated"][:, None]]
+        fmt += ["%.9g"] * 3 + ["%d"]
+    table = np.hstack([np.asarray(c, np.float64) for c in cols])
+    header = _csv_header(k.kind, rec, absolute, settings, convention, mag_offset is not None)
     with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write("\n".join(_csv_header(k.kind, rec, absolute, settings, convention)) + "\n")
-        f.write(",".join(csv_columns(k.kind)) + "\n")
+        f.write("\n".join(header) + "\n")
+        f.write(",".join(csv_columns(k.kind, mag_offset is not None)) + "\n")
         np.savetxt(f, table, fmt=fmt, delimiter=",")
 
 
-def write_npz(path: PathLike, out: NDArray[np.void]) -> None:
-    """Write the output fields as arrays of a compressed ``.npz`` (``q``, ``euler``, ``flags`` ...)."""
+def _check_mag_offset(mag_offset: NDArray[np.void] | None, n: int) -> None:
+    """ValueError unless ``mag_offset`` is None or (n,) records of :data:`attica.outputs.MAG_OFFSET_DTYPE`."""
+    if mag_offset is None:
+        return
+    if mag_offset.dtype != MAG_OFFSET_DTYPE or mag_offset.shape != (n,):
+        raise ValueError(
+            f"mag_offset must be ({n},) records of attica.outputs.MAG_OFFSET_DTYPE (one per output), "
+            f"not {mag_offset.shape} {mag_offset.dtype}"
+        )
+
+
+def write_npz(path: PathLike, out: NDArray[np.void], mag_offset: NDArray[np.void] | None = None) -> None:
+    """Write the output fields as arrays of a compressed ``.npz`` (``q``, ``euler``, ``flags`` ...).
+
+    With ``mag_offset`` (the hard-iron estimate after each step, :data:`attica.outputs.MAG_OFFSET_DTYPE`)
+    also ``mag_offset`` ((N, 3) float32, uT) and ``mag_offset_estimated`` ((N,) bool).
+    """
+    _check_mag_offset(mag_offset, len(out))
     arrays: dict[str, Any] = {name: out[name] for name in out.dtype.names or ()}
+    if mag_offset is not None:
+        arrays["mag_offset"] = np.ascontiguousarray(mag_offset["offset"])
+        arrays["mag_offset_estimated"] = np.ascontiguousarray(mag_offset["estimated"])
     with open(path, "wb") as f:  # a file object: numpy appends no second ".npz" (e.g. to "out.NPZ")
         np.savez_compressed(f, **arrays)
-
-
-def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void], settings: Any = None) -> F64:
-    """The (N, 9) row-major orientation covariance of ``sensor_msgs/msg/Imu`` for each output, rad^2.
-
-    ``settings``: the kind's settings of the run (None: its defaults); a mekf with ``use_mag`` off is a
-    6-axis filter, whose yaw is written as unknown (pi^2/3) like the kf's and the ekf's.
-
-    As the message definition asks: the kind's variances about the earth's axes (:data:`COVARIANCE`:
-    on the diagonal, 0 off it where only the diagonal is reported); all zeros, "covariance unknown",
-    for a kind without one (gyro, tilt); element 0 = -1, "no orientation estimate", for the samples
-    whose flags say q is not one (:data:`OUTPUT_INVALID`: before the first valid sample).
-    """
-    k = info(kind)
-    n = len(out)
-    c = np.zeros((n, 9), np.float64)
-    if k.kind in COVARIANCE:
-        c[:] = COVARIANCE[k.kind].matrix(out)
-        if k.kind == FilterKind.MEKF and settings is not None and not getattr(settings, "use_mag", True):
-            c[:, 8] = UNKNOWN_YAW  # the 6-axis mekf: its yaw is not observed
-    invalid = (np.asarray(out["flags"]) & OUTPUT_INVALID) != 0
-    c[invalid] = 0.0
-    c[invalid, 0] = -1.0
-    return c
 
 
 def ros_stamps(times: F64) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -429,6 +348,12 @@ TF_TOPIC = "/tf"
 """Topic of the ``tf2_msgs/msg/TFMessage`` messages (where ROS tools and Foxglove look for transforms)."""
 MAG_TOPIC = "/attica/mag"
 """Topic of the ``sensor_msgs/msg/MagneticField`` messages (the input's magnetometer samples)."""
+FLAGS_TYPE = "std_msgs/msg/UInt32"
+FLAGS_TOPIC = "/attica/flags"
+"""Topic of the ``std_msgs/msg/UInt32`` messages: each step's ATT_FLAG_* bits (the metadata names them)."""
+MAG_OFFSET_TOPIC = ESTIMATE_TOPIC
+"""Topic of the hard-iron estimate, ``sensor_msgs/msg/MagneticField`` (only with a ``mag_offset``; the
+readers of :mod:`attica.data.rosbag` do not take it for the magnetometer unless it is named)."""
 
 
 def write_mcap(
@@ -440,6 +365,7 @@ def write_mcap(
     frame_id: str = "imu",
     world_frame: str = "enu",
     settings: Any = None,
+    mag_offset: NDArray[np.void] | None = None,
 ) -> None:
     """Write one filter's outputs as an MCAP file of ROS 2 messages (CDR, ``ros2msg`` schemas).
 
@@ -460,6 +386,11 @@ def write_mcap(
     - :data:`MAG_TOPIC`, ``sensor_msgs/msg/MagneticField`` in ``frame_id``, in T, for the samples that
       have one (a recording without a magnetometer has none): with the Imu topic the file is again
       a complete recording.
+    - :data:`FLAGS_TOPIC`, ``std_msgs/msg/UInt32``: the step's ATT_FLAG_* bits (a recovery, a rejected
+      field, a clipped sample: what the live view's ``/attica/status`` shows); the metadata names the bits.
+    - :data:`MAG_OFFSET_TOPIC`, with ``mag_offset`` (the hard-iron estimate after each step,
+      :data:`attica.outputs.MAG_OFFSET_DTYPE`): ``sensor_msgs/msg/MagneticField`` in ``frame_id``, in T,
+      covariance all zeros, or element 0 = -1 while the offset is not observable yet (0, not applied).
 
     The MCAP metadata record ``attica`` names the kind, the clock of the stamps and the covariance's
     meaning. The stamps need 0 <= time < 2^31 s (``builtin_interfaces/msg/Time`` and MCAP log times);
@@ -480,6 +411,7 @@ def write_mcap(
     times, absolute = sample_times(rec)
     if len(times) != len(out):
         raise ValueError(f"{len(out)} outputs for a recording of {len(times)} samples")
+    _check_mag_offset(mag_offset, len(out))
     problem = stamp_problem(times)
     if problem:
         raise ValueError(problem)
@@ -500,9 +432,17 @@ def write_mcap(
         else f"all zeros (unknown): {k.label} does not estimate a covariance",
         "no_estimate": "orientation_covariance[0] = -1 where the filter had no attitude estimate yet",
         "frames": f"{world_frame} (ENU) -> {frame_id} (sensor)",
+        "flags": f"{FLAGS_TOPIC}: ATT_FLAG_* bits of each step, the sum of: "
+        + ", ".join(f"0x{f.value:04X} {f.name}" for f in Flag),
     }
+    if mag_offset is not None:
+        meta["mag_offset"] = (
+            f"{MAG_OFFSET_TOPIC}: the hard-iron offset the filter estimates and subtracts from its mag "
+            "samples after each step, T, sensor frame; covariance[0] = -1 while it is not observable yet "
+            "(0, not applied)"
+        )
     types = ts.types
-    imu_t, tf_t, field_t = types[IMU_TYPE], types[TF_TYPE], types[MAG_TYPE]
+    imu_t, tf_t, field_t, flags_t = types[IMU_TYPE], types[TF_TYPE], types[MAG_TYPE], types[FLAGS_TYPE]
     header_t, time_t, quat_t, vec_t = (
         types["std_msgs/msg/Header"],
         types["builtin_interfaces/msg/Time"],
@@ -512,12 +452,15 @@ def write_mcap(
     stamped_t, transform_t = types["geometry_msgs/msg/TransformStamped"], types["geometry_msgs/msg/Transform"]
     zero = vec_t(x=0.0, y=0.0, z=0.0)
     unknown = np.zeros(9, np.float64)
+    not_yet = np.zeros(9, np.float64)
+    not_yet[0] = -1.0
+    flags = np.asarray(out["flags"], np.uint32)
     with open(path, "wb") as stream:
         w = writer_class(stream)
         w.start(profile="ros2", library=f"attica {_version()}")
-        topics = [(IMU_TOPIC, IMU_TYPE), (TF_TOPIC, TF_TYPE)] + (
-            [(MAG_TOPIC, MAG_TYPE)] if has_mag.any() else []
-        )
+        topics = [(IMU_TOPIC, IMU_TYPE), (TF_TOPIC, TF_TYPE), (FLAGS_TOPIC, FLAGS_TYPE)]
+        topics += [(MAG_TOPIC, MAG_TYPE)] if has_mag.any() else []
+        topics += [(MAG_OFFSET_TOPIC, MAG_TYPE)] if mag_offset is not None else []
         chan = {}
         for topic, name in topics:
             schema = w.register_schema(name, "ros2msg", ts.generate_msgdef(name, ros_version=2)[0].encode())
@@ -553,6 +496,17 @@ def write_mcap(
                     magnetic_field_covariance=unknown,
                 )
                 w.add_message(chan[MAG_TOPIC], ns, bytes(ts.serialize_cdr(field, MAG_TYPE)), ns, sequence=i)
+            fl = flags_t(data=int(flags[i]))
+            w.add_message(chan[FLAGS_TOPIC], ns, bytes(ts.serialize_cdr(fl, FLAGS_TYPE)), ns, sequence=i)
+            if mag_offset is not None:
+                h = np.asarray(mag_offset["offset"][i], np.float64) * 1e-6  # uT to T
+                field = field_t(
+                    header=header,
+                    magnetic_field=vec_t(x=h[0], y=h[1], z=h[2]),
+                    magnetic_field_covariance=unknown if mag_offset["estimated"][i] else not_yet,
+                )
+                data = bytes(ts.serialize_cdr(field, MAG_TYPE))
+                w.add_message(chan[MAG_OFFSET_TOPIC], ns, data, ns, sequence=i)
         w.finish()
 
 
@@ -577,11 +531,14 @@ def write_outputs(
     kind: FilterKind | str,
     settings: Any = None,
     convention: str = "enu",
+    mag_offset: NDArray[np.void] | None = None,
 ) -> None:
     """Write one filter's outputs in the format of ``path``'s suffix (:data:`OUTPUT_SUFFIXES`).
 
     ``convention`` is the earth frame of the outputs' ``q`` (the calibration's output convention): the
     CSV's header says it; ``.mcap`` takes ENU only (REP-145's world frame of ``sensor_msgs/Imu``).
+    ``mag_offset``: the hard-iron estimate after each step (:data:`attica.outputs.MAG_OFFSET_DTYPE`),
+    written in every format.
 
     Raises
     ------
@@ -598,8 +555,8 @@ def write_outputs(
     if fmt == ".mcap" and convention != "enu":
         raise ValueError(MCAP_ENU_ONLY.format(convention=convention))
     if fmt == ".npz":
-        write_npz(path, out)
+        write_npz(path, out, mag_offset)
     elif fmt == ".csv":
-        write_csv(path, out, rec, kind, settings, convention)
+        write_csv(path, out, rec, kind, settings, convention, mag_offset)
     else:
-        write_mcap(path, out, rec, kind, settings=settings)
+        write_mcap(path, out, rec, kind, settings=settings, mag_offset=mag_offset)

@@ -8,7 +8,9 @@ rules.
 **Topics.** The IMU topic is the one ``sensor_msgs/msg/Imu`` topic of the bag (``topic=`` names one
 when there are several), the magnetometer the one ``sensor_msgs/msg/MagneticField`` topic
 (``mag_topic=``; ``mag_topic=""`` reads none; a bag without one gives a recording without
-magnetometer). An ambiguous or missing choice is a ValueError listing the candidates.
+magnetometer). An ambiguous or missing choice is a ValueError listing the candidates. A file that
+``attica run -o`` wrote has a second ``MagneticField`` topic, ``/attica/mag_offset`` (the filter's
+hard-iron estimate, not a sensor): it is not a candidate unless named.
 
 **Units.** ``angular_velocity`` rad/s and ``linear_acceleration`` m/s^2 as they are (REP-145: specific
 force, +g up at rest, as attica's); ``magnetic_field`` in tesla, times 1e6 to uT.
@@ -56,6 +58,8 @@ from attica.data.streams import (
 
 IMU = "sensor_msgs/msg/Imu"
 MAG = "sensor_msgs/msg/MagneticField"
+ESTIMATE_TOPIC = "/attica/mag_offset"
+"""attica's hard-iron estimate in its own outputs (``attica.data.export.MAG_OFFSET_TOPIC``): no sensor."""
 STAMPS = ("header", "log")
 
 __all__ = ["IMU", "MAG", "load_rosbag", "read_rosbag"]
@@ -92,7 +96,7 @@ def choose(
     """The topic of type ``kind``: ``wanted`` by name, else the only one (see the module docstring)."""
     if wanted == "" and not required:
         return None
-    cands = [t for t in topics if t.usable and t.type == kind]
+    cands = [t for t in topics if t.usable and t.type == kind and t.name != ESTIMATE_TOPIC]
     if wanted is not None:
         named = [t for t in topics if t.name == wanted]
         if not named:
