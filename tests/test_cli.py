@@ -396,8 +396,8 @@ def test_set_with_filter_all_says_where_before_running(capsys: pytest.CaptureFix
 
 
 def test_run_prints_the_hard_iron_estimate(capsys: pytest.CaptureFixture[str]) -> None:
-    """With hard_iron_tau > 0 `attica run` prints the offset a mars or mekf ends with (the per-row outputs
-    do not hold it); not for a kind without the estimate or with it off."""
+    """With hard_iron_tau > 0 `attica run` prints the offset a mars or mekf ends with (its -o files hold
+    every step's: tests/test_run_output.py); not for a kind without the estimate or with it off."""
     assert main(["run", "--filter", "mars,ars", "--set", "hard_iron_tau=60", "--duration", "20", "-q"]) == 0
     out = capsys.readouterr().out
     assert out.count("hard-iron offset at the end:") == 1 and " uT (" in out

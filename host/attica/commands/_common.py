@@ -49,7 +49,10 @@ SIM_DEFAULTS: dict[str, Any] = {"duration": 60.0, "rate": 285.714, "seed": 0, "t
 
 
 def add_sim_arguments(p: argparse.ArgumentParser, duration: float | None = None) -> None:
-    """``--duration --rate --seed --taps --breaks`` (None defaults: :func:`sim_config` fills them in)."""
+    """The simulation options (their None defaults: :func:`sim_config` fills them in).
+
+    ``--duration --rate --seed --taps --breaks --condition --grade --declination``.
+    """
     d = {**SIM_DEFAULTS, **({"duration": duration} if duration is not None else {})}
     g = p.add_argument_group("simulation (without --data)")
     g.add_argument("--duration", type=float, help=f"seconds to simulate (default {d['duration']:g})")
@@ -59,10 +62,40 @@ def add_sim_arguments(p: argparse.ArgumentParser, duration: float | None = None)
         "--taps", type=int, help=f"number of taps, short acceleration impulses (default {d['taps']})"
     )
     g.add_argument("--breaks", type=int, help=f"still pauses inside the motion (default {d['breaks']})")
+    g.add_argument(
+        "--condition",
+        metavar="NAME",
+        help=f"a condition of the generalisation suite ({', '.join(CONDITION_NAMES)}; docs/accuracy.md): "
+        "its sensor, motion and disturbances, the same recording as the suite's for a --seed of 1-10; "
+        "its own length and rate unless --duration / --rate are given",
+    )
+    g.add_argument(
+        "--grade",
+        choices=GRADE_NAMES,
+        help="a sensor grade: its noise densities, gyro bias and calibration errors (default: the "
+        "simulator's, or the condition's)",
+    )
+    g.add_argument(
+        "--declination",
+        type=float,
+        metavar="DEG",
+        help="the field's declination, deg east of true north (default 0: magnetic north is true north)",
+    )
     p.set_defaults(_sim_defaults=d)
 
 
-SIM_OPTIONS = ("duration", "rate", "seed", "taps", "breaks")
+CONDITION_NAMES = (
+    "baseline", "rate-50", "rate-100", "rate-1000", "consumer", "industrial", "mag-start", "moving-magnet",
+    "long-rest", "near-clip", "clipped", "vibration",
+)  # fmt: skip
+"""The names of :data:`attica.sim.conditions.CONDITIONS` (for the help, without importing the simulator;
+tests/test_cli_sim.py checks them)."""
+
+GRADE_NAMES = ("consumer", "industrial")
+"""The names of :data:`attica.sim.GRADES` (checked as CONDITION_NAMES)."""
+
+SIM_OPTIONS = ("duration", "rate", "seed", "taps", "breaks", "condition", "grade", "declination")
+_SIM_FIELDS = {"duration": "duration", "rate": "rate", "taps": "taps", "breaks": "rest_breaks"}
 
 
 def sim_options_given(args: argparse.Namespace) -> list[str]:
@@ -70,34 +103,67 @@ def sim_options_given(args: argparse.Namespace) -> list[str]:
     return [f"--{k}" for k in SIM_OPTIONS if getattr(args, k, None) is not None]
 
 
+def _condition(args: argparse.Namespace) -> Any:
+    """The suite condition of ``--condition`` (None without it; a CliError naming the conditions)."""
+    name = getattr(args, "condition", None)
+    if name is None:
+        return None
+    if name not in CONDITION_NAMES:
+        raise CliError(f"--condition {name!r}: unknown; the conditions are: {', '.join(CONDITION_NAMES)}")
+    from attica.sim.conditions import condition
+
+    return condition(name)
+
+
 def sim_value(args: argparse.Namespace, name: str) -> Any:
-    """A simulation option's value (its default when not given)."""
+    """A simulation option's value (its default when not given: the condition's, else the command's)."""
     v = getattr(args, name, None)
-    return v if v is not None else args._sim_defaults[name]
+    if v is not None:
+        return v
+    cond = _condition(args) if name in _SIM_FIELDS else None
+    if cond is not None:
+        return getattr(cond.config(0), _SIM_FIELDS[name])
+    return args._sim_defaults.get(name)
 
 
 def sim_config(args: argparse.Namespace) -> Any:
     """The :class:`attica.sim.SimConfig` of the simulation options.
 
     Without ``--breaks``, a short simulation gets as many of the default still pauses as fit in it.
+    ``--condition`` starts from the suite's condition (:meth:`attica.sim.conditions.Condition.config`:
+    the options given replace its fields, a rate without a grade keeps its noise densities); ``--grade``
+    sets the sensor grade's noise and errors; ``--declination`` (deg) the field's declination.
     """
-    import math
+    from attica.sim import GRADES, SimConfig
 
-    from attica.sim import SimConfig
-
-    cfg = SimConfig(
-        duration=sim_value(args, "duration"),
-        rate=sim_value(args, "rate"),
-        seed=sim_value(args, "seed"),
-        taps=sim_value(args, "taps"),
-        rest_breaks=sim_value(args, "breaks"),
-    )
-    if getattr(args, "breaks", None) is None:
-        motion = cfg.duration - cfg.rest_start - cfg.rest_end
-        if motion > 0:
-            # nb pauses of break_duration need motion left between them
-            fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
-            cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+    cond = _condition(args)
+    grade = getattr(args, "grade", None)
+    seed = sim_value(args, "seed")
+    if cond is not None:
+        over = {f: getattr(args, o) for o, f in _SIM_FIELDS.items() if getattr(args, o, None) is not None}
+        cond = dataclasses.replace(cond, sim={**cond.sim, **over}, grade=grade or cond.grade)
+        cfg = cond.config(seed)
+    else:
+        cfg = SimConfig(
+            duration=sim_value(args, "duration"),
+            rate=sim_value(args, "rate"),
+            seed=seed,
+            taps=sim_value(args, "taps"),
+            rest_breaks=sim_value(args, "breaks"),
+        )
+        if getattr(args, "breaks", None) is None:
+            motion = cfg.duration - cfg.rest_start - cfg.rest_end
+            if motion > 0:
+                # nb pauses of break_duration need motion left between them
+                fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
+                cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+        if grade is not None:
+            cfg = GRADES[grade].config(cfg)
+    deg = getattr(args, "declination", None)
+    if deg is not None:
+        if not (math.isfinite(deg) and -180.0 <= deg <= 180.0):
+            raise CliError(f"--declination must be in [-180, 180] deg, got {deg:g}")
+        cfg = dataclasses.replace(cfg, mag_declination=math.radians(deg))
     return cfg
 
 
@@ -113,12 +179,15 @@ def simulate(args: argparse.Namespace) -> Any:
 
 
 def describe_source(args: argparse.Namespace) -> str:
-    """``<file>`` or ``simulation (seed S, D s at R Hz)``."""
+    """``<file>`` or ``simulation (seed S, D s at R Hz, ...)``."""
     if getattr(args, "data", None):
         return str(args.data)
+    extra = [f"{o} {getattr(args, o)}" for o in ("condition", "grade") if getattr(args, o, None) is not None]
+    if getattr(args, "declination", None) is not None:
+        extra.append(f"declination {args.declination:g} deg")
     return (
         f"simulation (seed {sim_value(args, 'seed')}, {sim_value(args, 'duration'):g} s at "
-        f"{sim_value(args, 'rate'):g} Hz, {sim_value(args, 'taps')} taps)"
+        f"{sim_value(args, 'rate'):g} Hz, {sim_value(args, 'taps')} taps{''.join(', ' + e for e in extra)})"
     )
 
 
@@ -341,6 +410,31 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
                 flush=True,
             )
     return out
+
+
+def give_sensor_range(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
+    """A simulated gyro that clips (``--condition near-clip / clipped``): its range to the filters.
+
+    As the suite does (and as a user configures the sensor), ``gyro_range`` becomes the simulated
+    sensor's full scale for every kind in ``overrides`` that has the setting and was not given one with
+    ``--set``; a note on stderr says so. Nothing for a recording or a sensor that does not clip.
+    """
+    if getattr(args, "data", None):
+        return
+    clip = float(sim_config(args).gyro_clip)
+    if clip <= 0.0:
+        return
+    given = [k for k in overrides if "gyro_range" in _fields(k) and "gyro_range" not in overrides[k]]
+    for k in given:
+        overrides[k]["gyro_range"] = clip
+    if given:
+        print(
+            f"attica: note: the simulated gyro clips at {clip:.6g} rad/s ({math.degrees(clip):g} deg/s): "
+            f"gyro_range={clip:.6g} for {', '.join(k.label for k in given)}, as the suite gives it "
+            "(--set gyro_range=... to choose)",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def filter_settings(kind: FilterKind, rate: float, overrides: dict[str, Any], base: Any = None) -> Any:

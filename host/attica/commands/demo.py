@@ -7,10 +7,17 @@ reference, proves bit-exact agreement and prints the attitude error and the gyro
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
-from attica.commands._common import add_sim_arguments, check_data_or_sim, filter_settings, sim_config
+from attica.commands._common import (
+    add_sim_arguments,
+    check_data_or_sim,
+    filter_settings,
+    give_sensor_range,
+    sim_config,
+)
 from attica.commands.run import crosscheck_line, error_line, run_native
 from attica.settings import FilterKind, Flag
 
@@ -40,7 +47,9 @@ def run(args: argparse.Namespace) -> int:
         f"{len(rec.gyr)} samples, gyro bias up to {cfg.gyro_bias} rad/s, {cfg.taps} taps"
     )
     kind = FilterKind.ARS
-    settings = filter_settings(kind, rec.rate, {})
+    overrides: dict[FilterKind, dict[str, Any]] = {kind: {}}
+    give_sensor_range(args, overrides)
+    settings = filter_settings(kind, rec.rate, overrides[kind])
     out = run_native(kind, rec, settings, not args.quiet)
     ok, lines = crosscheck_line(kind, rec, settings, not args.quiet)
     print("\n".join(lines))

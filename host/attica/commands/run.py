@@ -22,6 +22,7 @@ from attica.commands._common import (
     describe_calibration,
     describe_source,
     filter_settings,
+    give_sensor_range,
     load_calibration,
     load_data,
     parse_kinds,
@@ -211,6 +212,7 @@ def run(args: argparse.Namespace) -> int:
     check_data_or_sim(args)
     outputs = output_paths(Path(args.output), kinds) if args.output else {}
     overrides = plan_overrides(kinds, args.set or [])
+    give_sensor_range(args, overrides)
     cal = load_calibration(args)
     convention = str(cal.convention) if cal is not None else "enu"
     if convention != "enu" and any(p.suffix.lower() == ".mcap" for p in outputs.values()):
