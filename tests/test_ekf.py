@@ -726,11 +726,13 @@ def test_near_singular_roll_pitch_block(corr: float, near: bool) -> None:
 
 @pytest.mark.parametrize(
     ("gyr", "recovers"),
-    [((NAN, 0, 0), False), ((0, INF, 0), True), ((0, 0, -40.0), True), ((34.3, 0, 0), True)],
+    [((NAN, 0, 0), False), ((0, INF, 0), True), ((0, 0, -80.0), True), ((34.3, 0, 0), True)],
 )
 def test_a_gyro_at_its_range_starts_a_recovery(gyr: Any, recovers: bool) -> None:
     """Inf, beyond gyro_range or at 98 % of it (34.3 of 34.9 rad/s) is a clipping gyro: INITIALISED and
-    the roll and pitch variances + q_rec besides Q (docs/filters.md); NaN is no reading at all."""
+    the roll and pitch variances + q_rec besides Q (docs/filters.md); NaN is no reading at all. (-80 is
+    beyond twice the range: not integrated, so the prediction is Q's alone; a reading at the rail, within
+    twice, is integrated: tests/test_gyro_rail.py.)"""
     f, ref = pair(ekf_default(init_from_accel=False, euler_init=(0.1, -0.2, 0.3)))
     p0 = state(f)[2]
     fl = step_both(f, ref, gyr, (NAN, 0, 0))
@@ -744,11 +746,12 @@ def test_a_gyro_at_its_range_starts_a_recovery(gyr: Any, recovers: bool) -> None
 
 @pytest.mark.parametrize(
     ("gyr", "flag"),
-    [((NAN, 0, 0), Flag.GYRO_INVALID), ((0, INF, 0), Flag.GYRO_INVALID), ((0, 0, -40.0), Flag.GYRO_RANGE)],
+    [((NAN, 0, 0), Flag.GYRO_INVALID), ((0, INF, 0), Flag.GYRO_INVALID), ((0, 0, -80.0), Flag.GYRO_RANGE)],
 )
 def test_bad_gyro_keeps_angles(gyr: Any, flag: Flag) -> None:
     """An unusable gyro sample: prediction with w = 0 (angles and bias kept, variances + Q). Without the
-    recovery after a clipping gyro: an Inf or out-of-range sample starts one (below)."""
+    recovery after a clipping gyro: an Inf or out-of-range sample starts one (below). Out of range here is
+    beyond twice gyro_range (a corrupt sample); within twice it is a reading at the rail, integrated."""
     f, ref = pair(
         ekf_default(
             init_from_accel=False, euler_init=(0.1, -0.2, 0.3), bias_init=(0.01, 0.0, 0.0), recovery_time=0.0

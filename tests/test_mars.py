@@ -616,7 +616,7 @@ def _fresh(**kw: Any) -> tuple[Any, Mars]:
     [
         ((NAN, 0, 0), GOOD_A, GOOD_M, Flag.GYRO_INVALID),
         ((0, INF, 0), GOOD_A, GOOD_M, Flag.GYRO_INVALID),
-        ((0, 0, 40.0), GOOD_A, GOOD_M, Flag.GYRO_RANGE),
+        ((0, 0, 80.0), GOOD_A, GOOD_M, Flag.GYRO_RANGE),  # beyond twice gyro_range: corrupt, skipped
         (GOOD_G, (NAN, 0, G), GOOD_M, Flag.ACCEL_INVALID),
         (GOOD_G, (0, 0, 0), GOOD_M, Flag.ACCEL_INVALID),
         (GOOD_G, (0, 0, -INF), GOOD_M, Flag.ACCEL_INVALID),

@@ -94,7 +94,9 @@ typedef struct {
     float gravity;                 /**< g, m/s^2; [1, 100] */
     float accel_reject;            /**< skip correction when ||a|/g - 1| > this; [0, 1e3]; 0 = never skip */
     float accel_range;             /**< |a| above this is saturation: correction skipped, m/s^2; (gravity, 1e4] */
-    float gyro_range;              /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
+    float gyro_range;              /**< the gyro's full scale, rad/s, (0, 1e3]: a |w_i| beyond it, up to
+                                       twice it, is a reading at the rail, used as read
+                                       (ATT_FLAG_GYRO_RANGE); beyond, the sample is not used */
     att_bias_mode_t bias_mode;     /**< gyro bias estimation: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;           /**< cap on n in the running mean; [1, 2^24] */
     att_vec3_t bias_init;          /**< initial gyro bias w_m, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */

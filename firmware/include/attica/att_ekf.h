@@ -139,7 +139,9 @@ typedef struct {
     float gravity;         /**< g, m/s^2; [1, 100] */
     float accel_reject;    /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
     float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
-    float gyro_range;      /**< any |w_i| above this: prediction with w = 0, rad/s; (0, 1e3] */
+    float gyro_range;      /**< the gyro's full scale, rad/s, (0, 1e3]: a |w_i| beyond it, up to
+                               twice it, is a reading at the rail, used as read
+                               (ATT_FLAG_GYRO_RANGE); beyond, the sample is not used */
     float cos_min;         /**< guard on |cos(theta)|; (0, 1) */
     float tau_acc_lp;      /**< low-pass time constant of the heading-frame accel, s, [0, 1e4]; 0 = off */
     bool init_from_accel;  /**< take roll/pitch from the first usable accel sample (yaw 0) */

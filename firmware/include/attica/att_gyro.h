@@ -30,7 +30,9 @@ extern "C" {
 /** Settings of the gyro-only baseline (valid ranges in brackets; anything else is refused). */
 typedef struct {
     float dt;              /**< sample period, s; [1e-6, 1] */
-    float gyro_range;      /**< any |w_i| above this: step skipped, rad/s; (0, 1e3] */
+    float gyro_range;      /**< the gyro's full scale, rad/s, (0, 1e3]: a |w_i| beyond it, up to
+                               twice it, is a reading at the rail, used as read
+                               (ATT_FLAG_GYRO_RANGE); beyond, the sample is not used */
     float cos_min;         /**< guard on |cos(theta)|, (0, 1) */
     att_vec3_t euler_init; /**< initial (phi, theta, psi), rad; x (phi), z (psi) in [-8192, 8192], y (theta) in [-pi/2, pi/2] */
 } att_gyro_settings_t;

@@ -77,7 +77,9 @@ typedef struct {
     float gravity;             /**< g, m/s^2; [1, 100] */
     float accel_reject;        /**< skip the update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
     float accel_range;         /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
-    float gyro_range;          /**< any |w_i| above this: propagation skipped, rad/s; (0, 1e3] */
+    float gyro_range;          /**< the gyro's full scale, rad/s, (0, 1e3]: a |w_i| beyond it, up to
+                                   twice it, is a reading at the rail, used as read
+                                   (ATT_FLAG_GYRO_RANGE); beyond, the sample is not used */
     att_bias_mode_t bias_mode; /**< gyro bias as att_ars.h: OFF (0), FROZEN (1), RUNNING (2) or AT_REST (3) */
     uint32_t bias_n_max;       /**< cap on n in the running mean of the bias; [1, 2^24] */
     att_vec3_t bias_init;      /**< initial gyro bias, rad/s, sensor frame; each component in [-gyro_range, gyro_range] */

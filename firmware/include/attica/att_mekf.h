@@ -203,7 +203,9 @@ typedef struct {
     float gravity;         /**< g, m/s^2; [1, 100] */
     float accel_reject;    /**< skip the accel update when ||a|/g - 1| > this, [0, 1e3]; 0 = never skip */
     float accel_range;     /**< |a| above this is saturation: update skipped, m/s^2; (gravity, 1e4] */
-    float gyro_range;      /**< any |w_i| above this: integration skipped, rad/s; (0, 1e3] */
+    float gyro_range;      /**< the gyro's full scale, rad/s, (0, 1e3]: a |w_i| beyond it, up to
+                               twice it, is a reading at the rail, used as read
+                               (ATT_FLAG_GYRO_RANGE); beyond, the sample is not used */
     float mag_range;       /**< |m| above this: sample invalid, uT; (0, 1e5] */
     float mag_norm_reject; /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */

@@ -15,7 +15,8 @@ extern "C" {
 /* ATT_CDEF_BEGIN */
 /**
  * Check a gyro sample (rad/s, sensor frame): ATT_FLAG_GYRO_INVALID when a component is NaN/Inf,
- * else ATT_FLAG_GYRO_RANGE when a component's magnitude exceeds range; 0 when usable.
+ * else ATT_FLAG_GYRO_RANGE when a component's magnitude exceeds range; 0 when within range. (The filters
+ * still integrate a GYRO_RANGE sample within twice the range, as read: a reading at the rail.)
  */
 uint32_t att_sensor_check_gyro(att_vec3_t gyr, float range);
 /**

@@ -72,7 +72,8 @@ typedef struct {
  */
 enum {
     ATT_FLAG_GYRO_INVALID = 0x0001,    /**< gyro sample NaN/Inf: integration skipped */
-    ATT_FLAG_GYRO_RANGE = 0x0002,      /**< |gyro component| > gyro_range: integration skipped */
+    ATT_FLAG_GYRO_RANGE = 0x0002,      /**< |gyro component| > gyro_range: up to 2 gyro_range a reading at
+                                            the rail, integrated as read; beyond, not used */
     ATT_FLAG_ACCEL_INVALID = 0x0004,   /**< accel NaN/Inf or zero vector: correction skipped */
     ATT_FLAG_ACCEL_RANGE = 0x0008,     /**< |accel| > accel_range (saturation): correction skipped */
     ATT_FLAG_ACCEL_REJECTED = 0x0010,  /**< ||accel| - g| > accel_reject: correction skipped */

@@ -28,13 +28,32 @@ static inline uint32_t att_i_sensor_check_gyro(att_vec3_t gyr, float range)
     if (att_i_absf(gyr.x) <= range && att_i_absf(gyr.y) <= range && att_i_absf(gyr.z) <= range) {
         return 0u;
     }
-    if (!att_i_vec3_isfinite(gyr)) {
-        return ATT_FLAG_GYRO_INVALID;
-    }
-    if (att_i_absf(gyr.x) > range || att_i_absf(gyr.y) > range || att_i_absf(gyr.z) > range) {
-        return ATT_FLAG_GYRO_RANGE;
-    }
-    return 0u;
+    /* a finite sample that is not within the (finite) range has a component beyond it */
+    return att_i_vec3_isfinite(gyr) ? (uint32_t)ATT_FLAG_GYRO_RANGE : (uint32_t)ATT_FLAG_GYRO_INVALID;
+}
+
+/**
+ * A gyro component beyond gyro_range but within this many times it is a reading at the sensor's rail, not
+ * a corrupt sample: a MEMS gyro's last code is not exactly its nominal full scale (32767 LSB at 65.5
+ * LSB/(deg/s) is 500.3 deg/s on a 500 deg/s range) and its sensitivity has a tolerance of a few percent,
+ * so a saturated axis can read a little beyond the range a user sets from the data sheet. No rail is twice
+ * its full scale.
+ */
+#define ATT_GYRO_RAIL 0x1p+1f /* 2 */
+
+/**
+ * Whether a filter integrates the gyro sample gyr, given att_i_sensor_check_gyro's flags: yes for 0; for
+ * ATT_FLAG_GYRO_RANGE with every component within ATT_GYRO_RAIL * range yes, as read (a saturated
+ * reading: the rail's value is the best there is, the true rate at least that; skipping the sample would
+ * lose all of its rotation instead of the excess); no for a sample that is not finite or beyond the rail
+ * (corrupt). The flag stays set, and the recovery after a clipping gyro starts as for any sample at 0.98
+ * of the range.
+ */
+static ATT_ALWAYS_INLINE bool att_i_gyro_usable(att_vec3_t gyr, float range, uint32_t flags)
+{
+    const float rail = ATT_GYRO_RAIL * range;
+    return flags == 0u || (flags == (uint32_t)ATT_FLAG_GYRO_RANGE && att_i_absf(gyr.x) <= rail &&
+                           att_i_absf(gyr.y) <= rail && att_i_absf(gyr.z) <= rail);
 }
 
 /**

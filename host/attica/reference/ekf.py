@@ -604,7 +604,7 @@ class Ekf:
         g = split3(gyr, self.n)
         a = split3(acc, self.n)
         flags = sensor.check_gyro(g, self.gyro_range)
-        gyro_ok = flags == _U0
+        gyro_ok = sensor.gyro_usable(g, self.gyro_range, flags)
         accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
         accel_ok = accel_flags == _U0
         flags = flags | accel_flags

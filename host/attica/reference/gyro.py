@@ -72,7 +72,7 @@ class Gyro:
         """One update with gyro (n, 3) or (3,), rad/s. Returns flags (n,)."""
         p, q, r = split3(gyr, self.n)
         flags = sensor.check_gyro((p, q, r), self.gyro_range)
-        ok = flags == _U0
+        ok = sensor.gyro_usable((p, q, r), self.gyro_range, flags)
         phi, theta, psi = self.euler
         dt = self.dt
         with np.errstate(all="ignore"):

@@ -449,7 +449,7 @@ class Mars:
         a = split3(acc, self.n)
         m = self._hard_iron(g, split3(mag, self.n))
         flags = sensor.check_gyro(g, self.gyro_range)
-        gyro_ok = flags == _U0
+        gyro_ok = sensor.gyro_usable(g, self.gyro_range, flags)
         accel_flags, n2 = sensor.check_accel2(a, self.accel_range2)
         accel_ok = accel_flags == _U0
         flags = flags | accel_flags

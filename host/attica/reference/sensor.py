@@ -20,6 +20,21 @@ def check_gyro(gyr: dm.Vec3, rng: Any) -> Any:
     return np.where(~finite, np.uint32(Flag.GYRO_INVALID), np.where(over, np.uint32(Flag.GYRO_RANGE), _U0))
 
 
+GYRO_RAIL = np.float32(2.0)
+"""ATT_GYRO_RAIL (att_core.h): a component within this many times gyro_range is a reading at the rail."""
+
+
+def gyro_usable(g: dm.Vec3, rng: Any, flags: Any) -> Any:
+    """att_i_gyro_usable: whether the sample is integrated (as read), from check_gyro's flags.
+
+    Yes for no flag, and for a GYRO_RANGE sample whose components are all within GYRO_RAIL * range.
+    """
+    rail = GYRO_RAIL * dm.f32(rng)
+    with np.errstate(invalid="ignore"):
+        at_rail = (dm.absf(g[0]) <= rail) & (dm.absf(g[1]) <= rail) & (dm.absf(g[2]) <= rail)
+    return (flags == _U0) | ((flags == np.uint32(Flag.GYRO_RANGE)) & at_rail)
+
+
 def check_accel(acc: dm.Vec3, rng: Any) -> tuple[Any, Any]:
     """att_sensor_check_accel: (flags, norm)."""
     rng = dm.f32(rng)

@@ -129,7 +129,7 @@ uint32_t att_gyro_step(att_gyro_t *f, att_vec3_t gyr)
         return ATT_FLAG_BAD_ARG;
     }
     flags = att_i_sensor_check_gyro(gyr, f->c.gyro_range);
-    if (flags == 0u) {
+    if (att_i_gyro_usable(gyr, f->c.gyro_range, flags)) {
         dt = f->c.dt;
         att_i_sincosf(f->st.euler.x, &sphi, &cphi);
         att_i_sincosf(f->st.euler.y, &sth, &cth);

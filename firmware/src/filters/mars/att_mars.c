@@ -707,7 +707,7 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     bool mag_ok;
     /* the sample checks */
     flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
-    gyro_ok = (flags == 0u);
+    gyro_ok = att_i_gyro_usable(gyr, c->gyro_range, flags);
     accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;

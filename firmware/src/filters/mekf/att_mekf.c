@@ -1209,7 +1209,7 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     c = &f->c;
     st = &f->st;
     flags = att_i_sensor_check_gyro(gyr, c->gyro_range);
-    gyro_ok = (flags == 0u);
+    gyro_ok = att_i_gyro_usable(gyr, c->gyro_range, flags);
     accel_flags = att_i_sensor_check_accel2(acc, c->accel_range2, &n2);
     accel_ok = (accel_flags == 0u);
     flags |= accel_flags;
