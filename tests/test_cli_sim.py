@@ -124,3 +124,31 @@ def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list
     with pytest.raises(SystemExit) if "invalid choice" in message else contextlib.nullcontext():
         assert main([a.format(tmp=tmp_path) for a in argv]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_short_condition_keeps_what_fits(capsys: pytest.CaptureFixture[str]) -> None:
+    """As without --condition, a short run keeps the still pauses that fit (and --breaks is the user's)."""
+    assert main(["run", "--condition", "baseline", "--duration", "8", "-q"]) == 0
+    capsys.readouterr()
+    assert main(["run", "--condition", "baseline", "--duration", "8", "--breaks", "2", "-q"]) == 2
+    assert "do not fit" in capsys.readouterr().err
+
+
+def test_notes_where_the_simulation_is_not_given_to_the_filter(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--declination", "10", "--duration", "10", "--filter", "mars,ars", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "declined by 10 deg, and mars keeps a magnetic heading" in err and "declination=0.174533" in err
+    argv = ["run", "--declination", "10", "--duration", "10", "--filter", "mars", "-q"]
+    assert main([*argv, "--set", "declination=0.1745"]) == 0
+    assert "declined" not in capsys.readouterr().err
+    # a node on its init settings (the CAN commands, view --demo): the clipping is the user's to give it
+    assert main(["verify", "--with-node", "--condition", "clipped", "--count", "500", "-q"]) == 0
+    assert "the node keeps its own gyro_range" in capsys.readouterr().err
+    assert (
+        main(
+            ["verify", "--with-node", "--condition", "clipped", "--count", "500", "-q"]
+            + ["--set", "gyro_range=8.7266"]
+        )
+        == 0
+    )
+    assert "keeps its own gyro_range" not in capsys.readouterr().err

@@ -948,7 +948,8 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
 
 
 def test_largest_accepted_samples_keep_the_state_finite() -> None:
-    """Samples beyond the (finite) ranges are skipped; the largest accepted ones keep the state finite."""
+    """Accel beyond its (finite) range is skipped, gyro beyond twice its range; the largest samples within
+    the ranges keep the state finite (a gyro reading at the rail, up to twice the range: test_gyro_rail)."""
     s = ekf_seed(init_from_accel=False, gyro_range=1e3, accel_range=1e4, euler_init=(0.1, 0.2, 0.3))
     f, ref = pair(s)
     before = state(f)

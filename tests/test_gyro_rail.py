@@ -104,3 +104,22 @@ def test_a_range_just_below_the_rail_costs_nothing(kind: str) -> None:
     )
     judged = (lambda e: e.total) if kind in ("mars", "mekf") else (lambda e: e.inclination)
     assert judged(below[0]) < 1.05 * judged(at[0]), (judged(below[0]), judged(at[0]))
+
+
+@pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.label)
+def test_the_largest_rate_integrated_stays_finite(kind: FilterKind) -> None:
+    """The largest rate a filter now integrates is twice the largest gyro_range (2e3 rad/s at 1e3), here at
+    a period of 0.5 s (1e3 rad a step): every output finite and q a unit quaternion."""
+    n = 200
+    rng = np.random.default_rng(3)
+    g = (rng.uniform(-1.0, 1.0, (n, 3)) * 2e3).astype(np.float32)
+    g[::7] = np.float32(2e3)
+    a = np.tile(np.float32([0.0, 0.0, 9.80665]), (n, 1))
+    m = np.tile(np.float32([0.0, 20.0, -40.0]), (n, 1))
+    f = native.Filter(kind, 0.5, gyro_range=1e3)
+    out = np.asarray(
+        f.run(g, a, m if kind in (FilterKind.MARS, FilterKind.MEKF) else None, check_units=False)
+    )
+    assert np.isfinite(out["q"]).all() and np.isfinite(out["euler"]).all() and np.isfinite(out["cov"]).all()
+    np.testing.assert_allclose(np.linalg.norm(out["q"].astype(np.float64), axis=1), 1.0, atol=1e-5)
+    assert not (out["flags"] & Flag.GYRO_INVALID).any()

@@ -404,3 +404,77 @@ def test_mag_offset_dtype_is_the_c_struct() -> None:
     assert native.ffi.sizeof("att_mag_offset_t") == MAG_OFFSET_DTYPE.itemsize
     for name in ("offset", "on", "estimated"):
         assert native.ffi.offsetof("att_mag_offset_t", name) == MAG_OFFSET_DTYPE.fields[name][1]
+
+
+def test_verify_compares_the_offset_frames() -> None:
+    """compare() (attica verify) checks each ATT_MAG_OFFSET against the estimate after the set it followed:
+    a node's frames pass, a changed offset (its CRC sealed again) or a frame from a node whose estimate
+    should not run fails, and an offset after a set that did not arrive whole is not checked."""
+    from attica.can.compare import compare, expected_outputs
+    from attica.can.e2e import data_id, e2e_crc
+
+    rec, _ = _sim(4, duration=60.0)
+    imu = codec.encode_imu(rec.gyr, rec.acc, rec.mag)
+    sent, _ = codec.Node("mars", sample_rate=RATE, hard_iron_tau=60.0).run(imu)
+    gyr, acc, mag = codec.imu_values(rec.gyr, rec.acc, rec.mag)
+    on = _settings(FilterKind.MARS, hard_iron_tau=60.0)
+    exp = expected_outputs(FilterKind.MARS, RATE, gyr, acc, mag, on)
+    rep = compare(exp, FilterKind.MARS, False, sent)
+    n_off = int(np.count_nonzero(sent["id"] == codec.ID_MAG_OFFSET))
+    assert rep.exact and rep.offsets_ok == n_off == rec.n // 16 and rep.offsets_mismatched == 0
+    assert codec.decode_outputs(sent).mag_offset["estimated"].any()  # estimated ones among them
+    assert any("ATT_MAG_OFFSET): " + f"{n_off} bit-exact" in line for line in rep.lines())
+
+    bad = sent.copy()
+    k = int(np.flatnonzero(bad["id"] == codec.ID_MAG_OFFSET)[-1])
+    bad["data"][k, 2] ^= 0x01  # one LSB of off_x (2^-5 uT)
+    bad["data"][k, 0] = e2e_crc(data_id(codec.ID_MAG_OFFSET), bytes(bad["data"][k, 1:8]))
+    rep = compare(exp, FilterKind.MARS, False, bad)
+    assert (
+        not rep.exact and rep.offsets_mismatched == 1 and "ATT_MAG_OFFSET after the set" in rep.first_mismatch
+    )
+
+    # the set it followed broken (its STATUS lost), or lost whole: the offset is not checked
+    before = np.arange(sent.shape[0]) < k
+    status = int(np.flatnonzero((sent["id"] == codec.ID_STATUS) & before)[-1])
+    quat_a = int(np.flatnonzero((sent["id"] == codec.SET_IDS[0]) & before)[-1])
+    for gone in ([status], list(range(quat_a, status + 1))):
+        rep = compare(exp, FilterKind.MARS, False, np.delete(sent, gone))
+        assert rep.offsets_unmatched == 1 and rep.offsets_ok == n_off - 1 and rep.offsets_mismatched == 0
+
+    off = expected_outputs(FilterKind.MARS, RATE, gyr, acc, mag, _settings(FilterKind.MARS))
+    rep = compare(off, FilterKind.MARS, False, sent)
+    assert off.mag_offset is None and rep.offsets_unexpected == n_off and not rep.exact
+
+
+def test_attica_verify_set_checks_the_offsets(capsys: pytest.CaptureFixture[str], tmp_path: Any) -> None:
+    """attica verify --set: the node's init settings, for the reference and the --with-node node (live)
+    and for a log; a node sending ATT_MAG_OFFSET verifies bit-exact only when told its settings."""
+    from attica.cli import main
+
+    log = tmp_path / "hi.log"
+    argv = ["verify", "--with-node", "--filter", "mars", "--duration", "20", "-q"]
+    assert main([*argv, "--set", "hard_iron_tau=60", "--write", str(log)]) == 0
+    out = capsys.readouterr().out
+    n = int(out.split("hard-iron offsets (ATT_MAG_OFFSET): ")[1].split()[0])
+    assert n == round(20 * 285.714) // 16 and "verdict: BIT-EXACT" in out
+    assert main(["verify", "--log", str(log), "--filter", "mars", "--set", "hard_iron_tau=60"]) == 0
+    assert f"ATT_MAG_OFFSET): {n} bit-exact" in capsys.readouterr().out
+    assert main(["verify", "--log", str(log), "--filter", "mars"]) == 1  # not told: the sets differ too
+    assert "verdict: FAILED" in capsys.readouterr().out
+
+
+def test_attica_run_chunks_keep_the_offsets(monkeypatch: pytest.MonkeyPatch) -> None:
+    """attica run steps in chunks (its progress bar): the per-row offsets are the same in any chunking."""
+    from attica.commands import run as run_cmd
+    from attica.sim import simulate
+
+    rec = simulate(SimConfig(duration=30.0, rate=RATE, seed=6, sensor_errors=HARD))
+    s = _settings(FilterKind.MEKF, hard_iron_tau=60.0)
+    whole: dict[str, Any] = {}
+    out = run_cmd.run_native(FilterKind.MEKF, rec, s, False, None, whole)
+    monkeypatch.setattr(run_cmd, "CHUNK", 777)
+    parts: dict[str, Any] = {}
+    out2 = run_cmd.run_native(FilterKind.MEKF, rec, s, False, None, parts)
+    assert out.tobytes() == out2.tobytes() and whole["mag_offset"].tobytes() == parts["mag_offset"].tobytes()
+    assert whole["mag_offset"]["estimated"][-1]

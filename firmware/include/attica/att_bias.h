@@ -12,7 +12,9 @@
  * first sample of the mean on (n > 0, also after a retune that keeps n) the test is rest_gyro^2 again;
  * rest_gyro^2 = 0 means no rest in either case.
  * Running mean b := (n b + w) / (n + 1), n capped at n_max, updated for every valid gyro sample
- * (ATT_BIAS_RUNNING) or only at rest (ATT_BIAS_AT_REST). Units: rad/s, m/s^2; sensor frame.
+ * (ATT_BIAS_RUNNING) or only at rest (ATT_BIAS_AT_REST); valid is what the filter integrates, so a
+ * reading at the rail (beyond gyro_range, within twice it: att_types.h ATT_FLAG_GYRO_RANGE) enters a
+ * running mean too (it is never at rest). Units: rad/s, m/s^2; sensor frame.
  */
 #ifndef ATT_BIAS_H
 #define ATT_BIAS_H

@@ -56,6 +56,7 @@ class Expected:
     records: NDArray[np.void]  # OUTPUT_DTYPE, one per sample stepped (its last period; flags ORed)
     reference_ok: bool
     reference_detail: str = ""
+    mag_offset: NDArray[np.void] | None = None  # MAG_OFFSET_DTYPE per record: the hard-iron estimate, if on
 
 
 def node_steps(
@@ -134,6 +135,7 @@ def expected_outputs(
             raise ValueError(f"steps must be ({n},) integers >= 1")
         if (per == 1).all():
             per = None
+    mo = _expected_offsets(kind, s, gyr, acc, mag, per, calibration)
     idx = np.arange(n) if per is None else np.repeat(np.arange(n), per)
     # many short lockstep segments: the reference steps all of them at once (vectorised)
     segment = max(50, min(1000, int(idx.shape[0]) // 400))
@@ -141,7 +143,7 @@ def expected_outputs(
     r = crosscheck(kind, [stream], s, segment=segment, progress=progress, calibration=calibration)
     detail = "" if r.ok else f"{r.mismatched_steps} steps differ; {r.first_mismatch}"
     if per is None:
-        return Expected(r.c_outputs[0], r.ok, detail)
+        return Expected(r.c_outputs[0], r.ok, detail, mo)
     every = r.c_outputs[0]
     ends = np.cumsum(per) - 1
     records = every[ends].copy()
@@ -156,7 +158,35 @@ def expected_outputs(
             f"att_filter_step_n differs from its {int(per[i])} single steps at sample {i}: "
             f"{np.asarray(node_path)[i]!r} vs {records[i]!r}"
         )
-    return Expected(records, r.ok and bool(same.all()), detail)
+    return Expected(records, r.ok and bool(same.all()), detail, mo)
+
+
+def _expected_offsets(
+    kind: FilterKind,
+    s: Any,
+    gyr: NDArray[np.float32],
+    acc: NDArray[np.float32],
+    mag: NDArray[np.float32],
+    per: NDArray[np.int64] | None,
+    calibration: Any,
+) -> NDArray[np.void] | None:
+    """The hard-iron estimate after each sample (the node's ATT_MAG_OFFSET), None where it does not run.
+
+    From the C filter over the node's path (``att_filter_step_n``); that the C estimate is the
+    reference's, bit for bit, is the crosscheck's full-state comparison (its ``hi`` state included).
+    """
+    from attica import native
+    from attica.outputs import MAG_OFFSET_DTYPE
+
+    if not hasattr(s, "hard_iron_tau"):
+        return None
+    f = native.Filter(kind, s, calibration=calibration)
+    if not f.mag_offset().on:
+        return None
+    mo = np.zeros(int(gyr.shape[0]), MAG_OFFSET_DTYPE)
+    steps = per.astype(np.uint32) if per is not None else None
+    f.run(gyr, acc, mag, steps=steps, check_units=False, mag_offset=mo)
+    return mo
 
 
 def input_values(stream: ImuStream, fd: bool) -> tuple[NDArray[np.float32], ...]:
@@ -233,6 +263,10 @@ class VerifyReport:
     frames_received: int = 0
     elapsed: float = 0.0
     replay: ReplayStats | None = None
+    offsets_ok: int = 0  # ATT_MAG_OFFSET frames equal to the estimate after the set they followed
+    offsets_mismatched: int = 0
+    offsets_unmatched: int = 0  # following a set that did not arrive whole: not checked
+    offsets_unexpected: int = 0  # from a node whose filter has no hard-iron estimate running
 
     @property
     def exact(self) -> bool:
@@ -245,6 +279,8 @@ class VerifyReport:
             and self.lost == 0
             and self.corrupted == 0
             and self.unexpected == 0
+            and self.offsets_mismatched == 0
+            and self.offsets_unexpected == 0
         )
 
     @property
@@ -276,6 +312,12 @@ class VerifyReport:
             f"({self.corrupted} corrupted, {self.incomplete} of them incomplete; {self.lost} lost), "
             f"{self.duplicates} duplicates, {self.unexpected} unexpected"
         )
+        if self.offsets_ok or self.offsets_mismatched or self.offsets_unmatched or self.offsets_unexpected:
+            out.append(
+                f"  hard-iron offsets (ATT_MAG_OFFSET): {self.offsets_ok} bit-exact, "
+                f"{self.offsets_mismatched} mismatched, {self.offsets_unmatched} after a set that did not "
+                f"arrive whole (not checked), {self.offsets_unexpected} unexpected"
+            )
         if self.skipped:
             shown = ", ".join(str(i) for i in self.skipped[:10]) + (" ..." if len(self.skipped) > 10 else "")
             out.append(
@@ -313,8 +355,13 @@ class VerifyReport:
         return out
 
 
-def _split_sets(fr: NDArray[np.void]) -> tuple[NDArray[np.void], int, NDArray[np.void], int]:
-    """Sort output frames: (complete sets' frames, incomplete sets, DIAG frames, command answers).
+def _split_sets(
+    fr: NDArray[np.void],
+) -> tuple[NDArray[np.void], int, NDArray[np.void], int, NDArray[np.void], NDArray[np.int64]]:
+    """Sort output frames: sets, incomplete sets, DIAG frames, answers, ATT_MAG_OFFSET frames.
+
+    Returns (complete sets' frames, incomplete sets, DIAG frames, command answers, ATT_MAG_OFFSET frames,
+    and for each of those the index of the last complete set before it, -1: none).
 
     The complete sets' frames (classic sets and OUT_FD frames) stay in arrival order.
 
@@ -328,10 +375,17 @@ def _split_sets(fr: NDArray[np.void]) -> tuple[NDArray[np.void], int, NDArray[np
     broken = False
     incomplete = 0
     diag: list[int] = []
+    offsets: list[int] = []
+    after: list[int] = []
+    done = 0  # complete sets so far
     answers = 0
     for i, can_id in enumerate(ids):
         if can_id == codec.ID_DIAG:
             diag.append(i)
+            continue
+        if can_id == codec.ID_MAG_OFFSET:  # the node sends it after the DIAG that follows a set
+            offsets.append(i)
+            after.append(done - 1)
             continue
         if can_id == codec.ID_STATUS and int(fr["len"][i]) == 8 and int(fr["data"][i, 7]) & codec.ACK_ANSWER:
             answers += 1
@@ -341,6 +395,7 @@ def _split_sets(fr: NDArray[np.void]) -> tuple[NDArray[np.void], int, NDArray[np
                 incomplete += 1
                 partial, broken = [], False
             keep.append(i)
+            done += 1
             continue
         if can_id not in codec.SET_IDS:
             continue
@@ -356,12 +411,15 @@ def _split_sets(fr: NDArray[np.void]) -> tuple[NDArray[np.void], int, NDArray[np
             if pos == 5:
                 keep.extend(partial)
                 partial = []
+                done += 1
         else:
             # out of sequence: the set in progress (or a set whose start was lost) is broken
             partial, broken = [], True
     if partial or broken:
         incomplete += 1
-    return fr[np.array(keep, np.int64)], incomplete, fr[np.array(diag, np.int64)], answers
+    sets = fr[np.array(keep, np.int64)]
+    offs = fr[np.array(offsets, np.int64)]
+    return sets, incomplete, fr[np.array(diag, np.int64)], answers, offs, np.array(after, np.int64)
 
 
 def _describe(name: str, got: Any, want: Any) -> str:
@@ -427,16 +485,29 @@ class Received:
     incomplete: int
     answers: int
     diag: NDArray[np.void]
+    offsets: NDArray[np.void] = field(default_factory=lambda: np.zeros(0, codec.MAG_OFFSET_DTYPE))
+    """ATT_MAG_OFFSET frames (decoded, CRC good), arrival order."""
+    offset_step: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    """The full step of the good set each of :attr:`offsets` followed (-1: none, or a set with a bad CRC)."""
 
 
 def sort_outputs(outputs: NDArray[np.void]) -> Received:
     """Split output frames into sets (checked), DIAG frames and command answers."""
     fr = np.atleast_1d(outputs)
-    good, incomplete, diag, answers = _split_sets(fr)
+    good, incomplete, diag, answers, offs, after = _split_sets(fr)
     got = codec.decode_outputs(good).sets if good.shape[0] else np.zeros(0, codec.SET_DTYPE)
     dg = codec.decode_outputs(diag).diag if diag.shape[0] else np.zeros(0, codec.DIAG_DTYPE)
     ok = got[got["crc_ok"]]
-    return Received(ok, _unwrap(ok["steps"]), int((~got["crc_ok"]).sum()), incomplete, answers, dg)
+    step = _unwrap(ok["steps"])
+    mo = codec.decode_outputs(offs).mag_offset if offs.shape[0] else np.zeros(0, codec.MAG_OFFSET_DTYPE)
+    # the step of the set each offset followed, by its place among the good sets (-1: none, a bad CRC)
+    place = np.cumsum(got["crc_ok"]) - 1
+    offset_step = np.full(mo.shape[0], -1, np.int64)
+    for k, a in enumerate(after.tolist()):
+        if a >= 0 and bool(got["crc_ok"][a]):
+            offset_step[k] = step[place[a]]
+    crc = mo["crc_ok"]
+    return Received(ok, step, int((~got["crc_ok"]).sum()), incomplete, answers, dg, mo[crc], offset_step[crc])
 
 
 def compare(
@@ -515,9 +586,55 @@ def compare(
         if rep.mismatched and not rep.first_mismatch:
             k = int(np.argmin(eq))
             rep.first_mismatch = f"step {int(full[idx[k]])}: " + _mismatch_text(got[k], w[k], offset)
+    _compare_offsets(rep, expected, rx, set_steps, np.flatnonzero(emits))
     rep.missing = int((~seen).sum())
     rep.lost = max(rep.missing - rep.corrupted, 0)
     return rep
+
+
+def _compare_offsets(
+    rep: VerifyReport,
+    expected: Expected,
+    rx: Received,
+    set_steps: NDArray[np.int64],
+    set_rows: NDArray[np.int64],
+) -> None:
+    """Each ATT_MAG_OFFSET received against the estimate after the set it followed.
+
+    att_node.c sends it after the DIAG of every diag_divider-th set; compared as the frame encodes it
+    (offset, estimated bit).
+    """
+    got = rx.offsets
+    if expected.mag_offset is None:
+        rep.offsets_unexpected = int(got.shape[0])  # the filter's estimate does not run: no such frame
+        return
+    want = expected.mag_offset
+    for k in range(got.shape[0]):
+        st = int(rx.offset_step[k])
+        j = int(np.searchsorted(set_steps, st))
+        own = np.flatnonzero(rx.step == st)  # the set it followed carries the same counter
+        if (
+            st < 0
+            or j >= set_steps.shape[0]
+            or int(set_steps[j]) != st
+            or own.shape[0] == 0
+            or int(rx.sets["counter"][own[0]]) != int(got["counter"][k])
+        ):
+            rep.offsets_unmatched += 1  # its own set was lost or damaged on the way: not checkable
+            continue
+        r = int(set_rows[j])
+        h = codec.dequantise(codec.quantise(want["offset"][r], codec.MAG_FRAC), codec.MAG_FRAC)
+        same = h.tobytes() == np.asarray(got["offset"][k], np.float32).tobytes()
+        if same and bool(want["estimated"][r]) == bool(got["estimated"][k]):
+            rep.offsets_ok += 1
+            continue
+        rep.offsets_mismatched += 1
+        if not rep.first_mismatch:
+            rep.first_mismatch = (
+                f"ATT_MAG_OFFSET after the set of step {st}: got {np.asarray(got['offset'][k]).tolist()} uT "
+                f"(estimated {bool(got['estimated'][k])}), expected {h.tolist()} uT "
+                f"(estimated {bool(want['estimated'][r])})"
+            )
 
 
 def align_inputs(

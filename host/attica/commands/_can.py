@@ -22,6 +22,7 @@ from attica.commands._common import (
     check_data_or_sim,
     check_output_file,
     load_data,
+    note_node_defaults,
     sim_value,
 )
 from attica.kinds import labels
@@ -178,6 +179,7 @@ def stream(args: argparse.Namespace) -> Any:
 
     if not args.data and args.count is not None and args.duration is None:  # simulate what is sent
         args.duration = args.count / sim_value(args, "rate") + 0.5
+    note_node_defaults(args)
     rec = load_data(args)
     return ImuStream.from_recording(rec, args.count)
 

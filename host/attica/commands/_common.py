@@ -55,8 +55,12 @@ def add_sim_arguments(p: argparse.ArgumentParser, duration: float | None = None)
     """
     d = {**SIM_DEFAULTS, **({"duration": duration} if duration is not None else {})}
     g = p.add_argument_group("simulation (without --data)")
-    g.add_argument("--duration", type=float, help=f"seconds to simulate (default {d['duration']:g})")
-    g.add_argument("--rate", type=float, help=f"sample rate in Hz (default {d['rate']:g})")
+    g.add_argument(
+        "--duration", type=float, help=f"seconds to simulate (default {d['duration']:g}; a --condition's own)"
+    )
+    g.add_argument(
+        "--rate", type=float, help=f"sample rate in Hz (default {d['rate']:g}; a --condition's own)"
+    )
     g.add_argument("--seed", type=int, help=f"random seed (default {d['seed']})")
     g.add_argument(
         "--taps", type=int, help=f"number of taps, short acceleration impulses (default {d['taps']})"
@@ -126,6 +130,16 @@ def sim_value(args: argparse.Namespace, name: str) -> Any:
     return args._sim_defaults.get(name)
 
 
+def _fit_breaks(cfg: Any) -> Any:
+    """``cfg`` with as many of its still pauses as fit in its motion (a short simulation)."""
+    motion = cfg.duration - cfg.rest_start - cfg.rest_end
+    if motion > 0:
+        # nb pauses of break_duration need motion left between them
+        fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
+        cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+    return cfg
+
+
 def sim_config(args: argparse.Namespace) -> Any:
     """The :class:`attica.sim.SimConfig` of the simulation options.
 
@@ -143,6 +157,8 @@ def sim_config(args: argparse.Namespace) -> Any:
         over = {f: getattr(args, o) for o, f in _SIM_FIELDS.items() if getattr(args, o, None) is not None}
         cond = dataclasses.replace(cond, sim={**cond.sim, **over}, grade=grade or cond.grade)
         cfg = cond.config(seed)
+        if getattr(args, "breaks", None) is None:
+            cfg = _fit_breaks(cfg)
     else:
         cfg = SimConfig(
             duration=sim_value(args, "duration"),
@@ -152,11 +168,7 @@ def sim_config(args: argparse.Namespace) -> Any:
             rest_breaks=sim_value(args, "breaks"),
         )
         if getattr(args, "breaks", None) is None:
-            motion = cfg.duration - cfg.rest_start - cfg.rest_end
-            if motion > 0:
-                # nb pauses of break_duration need motion left between them
-                fit = max(0, math.ceil(motion / cfg.break_duration) - 1)
-                cfg = dataclasses.replace(cfg, rest_breaks=min(cfg.rest_breaks, fit))
+            cfg = _fit_breaks(cfg)
         if grade is not None:
             cfg = GRADES[grade].config(cfg)
     deg = getattr(args, "declination", None)
@@ -410,6 +422,48 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
                 flush=True,
             )
     return out
+
+
+def note_node_defaults(args: argparse.Namespace) -> None:
+    """A note where a simulation's clipping gyro or declination does not reach a node's settings.
+
+    ``attica view --demo`` and the CAN stream commands send the simulation to a node on its init settings:
+    a clipping condition's range and a declined field are the user's to give it (``attica node --set``).
+    """
+    if getattr(args, "data", None):
+        return
+    cfg = sim_config(args)
+    given = {item.partition("=")[0].strip() for item in getattr(args, "set", None) or []}
+    if cfg.gyro_clip > 0.0 and "gyro_range" not in given:
+        _note(
+            f"the simulated gyro clips at {cfg.gyro_clip:.6g} rad/s, but the node keeps its own gyro_range "
+            f"(default 2000 deg/s), so it does not see the clipping (attica node --set gyro_range=...)"
+        )
+    if cfg.mag_declination != 0.0 and "declination" not in given:
+        _note(
+            f"the simulated field is declined by {math.degrees(cfg.mag_declination):g} deg; the node's "
+            "heading is magnetic unless its declination setting (rad) says so"
+        )
+
+
+def _note(text: str) -> None:
+    print(f"attica: note: {text}", file=sys.stderr, flush=True)
+
+
+def note_declination(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
+    """``--declination`` without ``--set declination``: a note that the filters' heading stays magnetic."""
+    deg = None if getattr(args, "data", None) else getattr(args, "declination", None)
+    if not deg:
+        return
+    missing = [
+        k.label for k in overrides if "declination" in _fields(k) and "declination" not in overrides[k]
+    ]
+    if missing:
+        _note(
+            f"the simulated field is declined by {deg:g} deg, and {', '.join(missing)} "
+            f"{'keeps' if len(missing) == 1 else 'keep'} a magnetic heading (0 declination): "
+            f"--set declination={math.radians(deg):.6g} (rad) for true north"
+        )
 
 
 def give_sensor_range(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:

@@ -25,6 +25,7 @@ from attica.commands._common import (
     give_sensor_range,
     load_calibration,
     load_data,
+    note_declination,
     parse_kinds,
     plan_overrides,
     progress,
@@ -213,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
     outputs = output_paths(Path(args.output), kinds) if args.output else {}
     overrides = plan_overrides(kinds, args.set or [])
     give_sensor_range(args, overrides)
+    note_declination(args, overrides)
     cal = load_calibration(args)
     convention = str(cal.convention) if cal is not None else "enu"
     if convention != "enu" and any(p.suffix.lower() == ".mcap" for p in outputs.values()):

@@ -27,7 +27,14 @@ from attica.commands._can import (
     parse_kind,
     stream,
 )
-from attica.commands._common import CliError, add_calibration_argument, describe_calibration, load_calibration
+from attica.commands._common import (
+    CliError,
+    add_calibration_argument,
+    describe_calibration,
+    filter_settings,
+    load_calibration,
+    parse_overrides,
+)
 
 NAME = "verify"
 HELP = "replay a stream to a node (or read a log) and check every output set bit for bit"
@@ -40,6 +47,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_pacing_arguments(p)
     p.add_argument("--filter", default="ars", choices=KINDS, help="the node's filter (default ars)")
     p.add_argument("--output-divider", type=int, default=1, help="the node's output divider (default 1)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="NAME=VALUE",
+        help="a setting of the node's init filter settings, as `attica node --set` started it (repeatable; "
+        "the reference uses them, and so does the --with-node node; e.g. hard_iron_tau=60: its "
+        "ATT_MAG_OFFSET frames are checked too)",
+    )
     p.add_argument("--no-reset", action="store_true", help="do not reset the node first (it must be fresh)")
     p.add_argument("--with-node", action="store_true", help="run the node in this process on the same bus")
     p.add_argument(
@@ -68,6 +83,8 @@ def _verify_log(args: argparse.Namespace) -> int:
     kind = parse_kind(args.filter)
     cal = load_calibration(args)
     rate = args.rate if args.rate is not None else 285.714
+    overrides = parse_overrides(kind, args.set or [])
+    settings = filter_settings(kind, rate, overrides) if overrides else None
     offset = id_offset(args)
     try:
         msgs = [from_bus(m, offset) for m in read_log(args.log)]
@@ -77,7 +94,13 @@ def _verify_log(args: argparse.Namespace) -> int:
     if frames.shape[0] and not any(int(i) in MSG_LEN for i in set(frames["id"].tolist())):
         raise CliError(f"{args.log}: {frames.shape[0]} frames, {silent_node_hint(offset, msgs[:1000])}")
     rep = verify_frames(
-        frames, kind, rate, fd=True if args.fd else None, output_divider=args.output_divider, calibration=cal
+        frames,
+        kind,
+        rate,
+        fd=True if args.fd else None,
+        output_divider=args.output_divider,
+        settings=settings,
+        calibration=cal,
     )
     where = f", attica ID offset {offset_text(offset)}" if offset else ""
     print(f"{args.log}: {rep.frames_received} frames{where}")
@@ -110,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
     cal = load_calibration(args)
     st = stream(args)
     offset = id_offset(args)
+    overrides = parse_overrides(kind, args.set or [])
+    settings = filter_settings(kind, st.rate, overrides) if overrides else None  # refusals name the field
     node = None
     if args.with_node:
         try:
@@ -122,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
                 output_divider=args.output_divider,
                 calibration=cal,
                 id_offset=offset,
+                **overrides,
             )
         except NodeError as exc:
             raise CliError(f"node settings refused: {exc}") from None
@@ -170,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
                 on_message=on_message if (mon is not None or tee) else None,
                 service=runner.service if runner is not None else None,
                 on_send=tee.sent if tee else None,
+                settings=settings,
                 calibration=cal,
             )
         except (NodeNotAnsweringError, ValueError) as exc:

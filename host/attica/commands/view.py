@@ -175,7 +175,7 @@ def _bus_config(args: argparse.Namespace) -> Any:
 
 def _source(args: argparse.Namespace) -> tuple[Any, float | None]:
     """The source of the options and the |m| reference it brings."""
-    from attica.commands._common import load_data, sim_config
+    from attica.commands._common import load_data, note_node_defaults, sim_config
     from attica.view.demo import ImuSource
     from attica.view.playback import LogSource
     from attica.view.sources import BusSource, SourceError
@@ -192,6 +192,7 @@ def _source(args: argparse.Namespace) -> tuple[Any, float | None]:
         from attica.sim import simulate_with_truth
 
         sc = sim_config(args)
+        note_node_defaults(args)
         try:
             rec, _ = simulate_with_truth(sc)
         except ValueError as exc:

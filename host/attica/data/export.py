@@ -438,7 +438,8 @@ def write_mcap(
     if mag_offset is not None:
         meta["mag_offset"] = (
             f"{MAG_OFFSET_TOPIC}: the hard-iron offset the filter estimates and subtracts from its mag "
-            "samples after each step, T, sensor frame; covariance[0] = -1 while it is not observable yet "
+            "samples after each step, T, in the frame of the samples the filter sees (the sensor frame, or "
+            "after a calibration's input stage); covariance[0] = -1 while it is not observable yet "
             "(0, not applied)"
         )
     types = ts.types

@@ -73,7 +73,12 @@ FLAGS: tuple[tuple[str, str, str, str], ...] = (
     ("BIAS_UPDATED", "bias updated", "the gyro bias estimate changed", "good"),
     ("MAG_ABSENT", "no mag", "no magnetometer sample", "info"),
     ("GYRO_INVALID", "gyro invalid", "gyro NaN or infinite: integration skipped", "bad"),
-    ("GYRO_RANGE", "gyro range", "a gyro component beyond gyro_range: integration skipped", "bad"),
+    (
+        "GYRO_RANGE",
+        "gyro range",
+        "a gyro component beyond gyro_range: integrated as read up to twice it (clipped), beyond skipped",
+        "bad",
+    ),
     ("ACCEL_INVALID", "accel invalid", "accel NaN, infinite or zero: correction skipped", "warn"),
     ("ACCEL_RANGE", "accel range", "|a| beyond accel_range (saturation): correction skipped", "warn"),
     ("MAG_INVALID", "mag invalid", "mag NaN, infinite or huge: correction skipped", "warn"),
