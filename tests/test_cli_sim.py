@@ -152,3 +152,13 @@ def test_notes_where_the_simulation_is_not_given_to_the_filter(capsys: pytest.Ca
         == 0
     )
     assert "keeps its own gyro_range" not in capsys.readouterr().err
+
+
+def test_runs_without_a_moving_sample_and_late_scoring_say_so(capsys: pytest.CaptureFixture[str]) -> None:
+    """A simulation that is all rest has nothing to score (not 'RMSE nan'); mag-start's suite score
+    starts at 15 s, which run says."""
+    assert main(["run", "--condition", "baseline", "--duration", "5", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "no moving sample to score" in out and "nan" not in out
+    assert main(["run", "--condition", "mag-start", "--duration", "20", "--filter", "mars", "-q"]) == 0
+    assert "the suite scores mag-start from 15 s" in capsys.readouterr().err

@@ -450,6 +450,20 @@ def _note(text: str) -> None:
     print(f"attica: note: {text}", file=sys.stderr, flush=True)
 
 
+def note_scoring(args: argparse.Namespace) -> None:
+    """A note where the suite scores a ``--condition`` from later than its start (mag-start: 15 s)."""
+    cond = None if getattr(args, "data", None) else _condition(args)
+    if cond is None:
+        return
+    from attica.sim.conditions import CONVERGENCE
+
+    if cond.score_from > CONVERGENCE:
+        _note(
+            f"the suite scores {cond.name} from {cond.score_from:g} s (no method can know the attitude "
+            "before); the figures here are over every moving sample"
+        )
+
+
 def note_declination(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
     """``--declination`` without ``--set declination``: a note that the filters' heading stays magnetic."""
     deg = None if getattr(args, "data", None) else getattr(args, "declination", None)

@@ -26,6 +26,7 @@ from attica.commands._common import (
     load_calibration,
     load_data,
     note_declination,
+    note_scoring,
     parse_kinds,
     plan_overrides,
     progress,
@@ -123,6 +124,12 @@ def error_line(kind: FilterKind, rec: Any, out: NDArray[np.void], settings: Any 
 
     if rec.quat_true is None:
         return f"{kind.label:>6}: no ground truth in this recording; last attitude {out['q'][-1]}"
+    if rec.movement is not None and not np.any(rec.movement):
+        return (
+            f"{kind.label:>6}: no moving sample to score (the metric scores only the samples marked as "
+            f"movement; a short simulation can be all rest: give a longer --duration); last attitude "
+            f"{out['q'][-1]}"
+        )
     e = evaluate(out["q"].astype(np.float64), rec.quat_true, rec.movement)
     if uses_mag(kind, settings):
         return (
@@ -215,6 +222,7 @@ def run(args: argparse.Namespace) -> int:
     overrides = plan_overrides(kinds, args.set or [])
     give_sensor_range(args, overrides)
     note_declination(args, overrides)
+    note_scoring(args)
     cal = load_calibration(args)
     convention = str(cal.convention) if cal is not None else "enu"
     if convention != "enu" and any(p.suffix.lower() == ".mcap" for p in outputs.values()):
