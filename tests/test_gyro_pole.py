@@ -36,18 +36,18 @@ def _draw(rng: np.random.Generator) -> tuple[object, np.ndarray]:
     )
     phi = float(F32(e0[0]))
     while True:
-        w = rng.normal(size=3) * 10 ** rng.uniform(-1, math.log10(gr))
-        w = np.clip(w, -gr, gr).astype(F32)
+        w = rng.normal(size=3) * 10 ** rng.uniform(-1, math.log10(2.0 * gr))
+        w = np.clip(w, -2.0 * gr, 2.0 * gr).astype(F32)  # up to twice the range: a reading at the rail
         if abs(float(w[1]) * math.sin(phi) + float(w[2]) * math.cos(phi)) * dt >= 1e-3:
             return s, w
 
 
 def test_unrepresentable_euler_step_turns_the_quaternion() -> None:
     """300 draws at a pole (either float32 pitch nearest +-pi/2, any roll and yaw, cos_min 1e-38 .. 1e-8, dt
-    1e-4 .. 1 s, rates up to 1e3 rad/s), 32 samples of a constant rate each: the first step (NUMERIC before
-    the fix, and every step after it) is flagged GIMBAL, not NUMERIC, and its attitude is q exp(w dt / 2)
-    within 1e-5 rad plus the float32 rounding of the angle (3e-7 |w| dt); no step is NUMERIC; C and
-    reference bit for bit."""
+    1e-4 .. 1 s, rates up to 2e3 rad/s: twice the largest range, a reading at the rail), 32 samples of a
+    constant rate each: the first step (NUMERIC before the fix, and every step after it) is flagged GIMBAL,
+    not NUMERIC, and its attitude is q exp(w dt / 2) within 1e-5 rad plus the float32 rounding of the
+    angle (3e-7 |w| dt); no step is NUMERIC; C and reference bit for bit."""
     rng = np.random.default_rng(2601)
     worst = 0.0
     for i in range(300):
