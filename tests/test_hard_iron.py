@@ -438,13 +438,32 @@ def test_verify_compares_the_offset_frames() -> None:
     before = np.arange(sent.shape[0]) < k
     status = int(np.flatnonzero((sent["id"] == codec.ID_STATUS) & before)[-1])
     quat_a = int(np.flatnonzero((sent["id"] == codec.SET_IDS[0]) & before)[-1])
-    for gone in ([status], list(range(quat_a, status + 1))):
+    # the 16 sets before it lost too: the set 16 earlier carries the same counter, but is not its set
+    sixteen = list(range(int(np.flatnonzero((sent["id"] == codec.SET_IDS[0]) & before)[-16]), status + 1))
+    sixteen = [i for i in sixteen if int(sent["id"][i]) not in (codec.ID_DIAG, codec.ID_MAG_OFFSET)]
+    for gone in ([status], list(range(quat_a, status + 1)), sixteen):
         rep = compare(exp, FilterKind.MARS, False, np.delete(sent, gone))
         assert rep.offsets_unmatched == 1 and rep.offsets_ok == n_off - 1 and rep.offsets_mismatched == 0
+        assert rep.offsets_missing == 0
+
+    # an offset lost, or damaged (bad CRC): counted, and the run is not exact
+    rep = compare(exp, FilterKind.MARS, False, np.delete(sent, k))
+    assert rep.offsets_missing == 1 and rep.offsets_ok == n_off - 1 and not rep.exact
+    crc = sent.copy()
+    crc["data"][k, 0] ^= 0xFF
+    rep = compare(exp, FilterKind.MARS, False, crc)
+    assert rep.offsets_corrupted == 1 and rep.offsets_missing == 0 and not rep.exact
+
+    # a node without the estimate against a reference with it: the offsets are missing, not unchecked
+    plain, _ = codec.Node("mars", sample_rate=RATE).run(imu[: 16 * 30 * 3])
+    short = expected_outputs(FilterKind.MARS, RATE, gyr[: 16 * 30], acc[: 16 * 30], mag[: 16 * 30], on)
+    rep = compare(short, FilterKind.MARS, False, plain)
+    assert rep.offsets_missing == 30 and not rep.exact
 
     off = expected_outputs(FilterKind.MARS, RATE, gyr, acc, mag, _settings(FilterKind.MARS))
     rep = compare(off, FilterKind.MARS, False, sent)
     assert off.mag_offset is None and rep.offsets_unexpected == n_off and not rep.exact
+    assert "give the settings it was started with" in rep.first_mismatch
 
 
 def test_attica_verify_set_checks_the_offsets(capsys: pytest.CaptureFixture[str], tmp_path: Any) -> None:

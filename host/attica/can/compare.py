@@ -267,6 +267,9 @@ class VerifyReport:
     offsets_mismatched: int = 0
     offsets_unmatched: int = 0  # following a set that did not arrive whole: not checked
     offsets_unexpected: int = 0  # from a node whose filter has no hard-iron estimate running
+    offsets_corrupted: int = 0  # ATT_MAG_OFFSET frames with a bad CRC
+    offsets_missing: int = 0  # DIAGs (after a good set) without their ATT_MAG_OFFSET
+    offsets_expected: bool = False  # the reference's filter estimates a hard-iron offset
 
     @property
     def exact(self) -> bool:
@@ -281,6 +284,8 @@ class VerifyReport:
             and self.unexpected == 0
             and self.offsets_mismatched == 0
             and self.offsets_unexpected == 0
+            and self.offsets_corrupted == 0
+            and self.offsets_missing == 0
         )
 
     @property
@@ -312,10 +317,11 @@ class VerifyReport:
             f"({self.corrupted} corrupted, {self.incomplete} of them incomplete; {self.lost} lost), "
             f"{self.duplicates} duplicates, {self.unexpected} unexpected"
         )
-        if self.offsets_ok or self.offsets_mismatched or self.offsets_unmatched or self.offsets_unexpected:
+        if self.offsets_expected or self.offsets_unexpected:
             out.append(
                 f"  hard-iron offsets (ATT_MAG_OFFSET): {self.offsets_ok} bit-exact, "
-                f"{self.offsets_mismatched} mismatched, {self.offsets_unmatched} after a set that did not "
+                f"{self.offsets_mismatched} mismatched, {self.offsets_missing} missing, "
+                f"{self.offsets_corrupted} corrupted, {self.offsets_unmatched} after a set that did not "
                 f"arrive whole (not checked), {self.offsets_unexpected} unexpected"
             )
         if self.skipped:
@@ -357,11 +363,16 @@ class VerifyReport:
 
 def _split_sets(
     fr: NDArray[np.void],
-) -> tuple[NDArray[np.void], int, NDArray[np.void], int, NDArray[np.void], NDArray[np.int64]]:
+) -> tuple[
+    NDArray[np.void], int, NDArray[np.void], int, NDArray[np.void], NDArray[np.int64], NDArray[np.int64]
+]:
     """Sort output frames: sets, incomplete sets, DIAG frames, answers, ATT_MAG_OFFSET frames.
 
     Returns (complete sets' frames, incomplete sets, DIAG frames, command answers, ATT_MAG_OFFSET frames,
-    and for each of those the index of the last complete set before it, -1: none).
+    for each of those the index of the complete set it follows, and the same for each DIAG frame). A DIAG
+    or an offset follows a set when no set frame came between them (the node queues set, its DIAG and
+    its offset back to back); only the first offset after a set does; -1: none (its own set was lost or
+    broken, which a counter mod 16 alone could not tell from the set 16 earlier).
 
     The complete sets' frames (classic sets and OUT_FD frames) stay in arrival order.
 
@@ -375,17 +386,21 @@ def _split_sets(
     broken = False
     incomplete = 0
     diag: list[int] = []
+    diag_after: list[int] = []
     offsets: list[int] = []
     after: list[int] = []
     done = 0  # complete sets so far
+    link = -1  # the complete set the frames since follow (-1: a set frame came since, or none yet)
     answers = 0
     for i, can_id in enumerate(ids):
         if can_id == codec.ID_DIAG:
             diag.append(i)
+            diag_after.append(link)
             continue
         if can_id == codec.ID_MAG_OFFSET:  # the node sends it after the DIAG that follows a set
             offsets.append(i)
-            after.append(done - 1)
+            after.append(link)
+            link = -1
             continue
         if can_id == codec.ID_STATUS and int(fr["len"][i]) == 8 and int(fr["data"][i, 7]) & codec.ACK_ANSWER:
             answers += 1
@@ -396,9 +411,11 @@ def _split_sets(
                 partial, broken = [], False
             keep.append(i)
             done += 1
+            link = done - 1
             continue
         if can_id not in codec.SET_IDS:
             continue
+        link = -1
         pos = codec.SET_IDS.index(can_id)
         if pos == 0:
             if partial or broken:
@@ -412,6 +429,7 @@ def _split_sets(
                 keep.extend(partial)
                 partial = []
                 done += 1
+                link = done - 1
         else:
             # out of sequence: the set in progress (or a set whose start was lost) is broken
             partial, broken = [], True
@@ -419,7 +437,8 @@ def _split_sets(
         incomplete += 1
     sets = fr[np.array(keep, np.int64)]
     offs = fr[np.array(offsets, np.int64)]
-    return sets, incomplete, fr[np.array(diag, np.int64)], answers, offs, np.array(after, np.int64)
+    dg = fr[np.array(diag, np.int64)]
+    return sets, incomplete, dg, answers, offs, np.array(after, np.int64), np.array(diag_after, np.int64)
 
 
 def _describe(name: str, got: Any, want: Any) -> str:
@@ -488,26 +507,49 @@ class Received:
     offsets: NDArray[np.void] = field(default_factory=lambda: np.zeros(0, codec.MAG_OFFSET_DTYPE))
     """ATT_MAG_OFFSET frames (decoded, CRC good), arrival order."""
     offset_step: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
-    """The full step of the good set each of :attr:`offsets` followed (-1: none, or a set with a bad CRC)."""
+    """The full step of the good set each of :attr:`offsets` followed (-1: not checkable: its own set was
+    lost or broken, had a bad CRC, or carries another counter)."""
+    offsets_bad_crc: int = 0
+    """ATT_MAG_OFFSET frames with a bad CRC."""
+    offsets_missing: int = 0
+    """Good sets followed by their DIAG (good CRC) but by no ATT_MAG_OFFSET: where the node's estimate
+    runs it sends one after every DIAG (counted by :func:`compare` only where one is expected)."""
 
 
 def sort_outputs(outputs: NDArray[np.void]) -> Received:
     """Split output frames into sets (checked), DIAG frames and command answers."""
     fr = np.atleast_1d(outputs)
-    good, incomplete, diag, answers, offs, after = _split_sets(fr)
+    good, incomplete, diag, answers, offs, after, diag_after = _split_sets(fr)
     got = codec.decode_outputs(good).sets if good.shape[0] else np.zeros(0, codec.SET_DTYPE)
     dg = codec.decode_outputs(diag).diag if diag.shape[0] else np.zeros(0, codec.DIAG_DTYPE)
     ok = got[got["crc_ok"]]
     step = _unwrap(ok["steps"])
     mo = codec.decode_outputs(offs).mag_offset if offs.shape[0] else np.zeros(0, codec.MAG_OFFSET_DTYPE)
-    # the step of the set each offset followed, by its place among the good sets (-1: none, a bad CRC)
+    # the step of the set each offset followed, by its place among the good sets, where that set is
+    # good and carries the offset's counter (-1: not checkable)
     place = np.cumsum(got["crc_ok"]) - 1
     offset_step = np.full(mo.shape[0], -1, np.int64)
     for k, a in enumerate(after.tolist()):
-        if a >= 0 and bool(got["crc_ok"][a]):
+        if a >= 0 and bool(got["crc_ok"][a]) and int(got["counter"][a]) == int(mo["counter"][k]):
             offset_step[k] = step[place[a]]
     crc = mo["crc_ok"]
-    return Received(ok, step, int((~got["crc_ok"]).sum()), incomplete, answers, dg, mo[crc], offset_step[crc])
+    # sets with a good DIAG after them but no offset (of any CRC): offsets lost on the way
+    with_diag = {
+        int(a) for a, c in zip(diag_after.tolist(), dg["crc_ok"].tolist(), strict=True) if a >= 0 and c
+    }
+    missing = len(with_diag - {int(a) for a in after.tolist() if a >= 0})
+    return Received(
+        ok,
+        step,
+        int((~got["crc_ok"]).sum()),
+        incomplete,
+        answers,
+        dg,
+        mo[crc],
+        offset_step[crc],
+        int((~crc).sum()),
+        missing,
+    )
 
 
 def compare(
@@ -606,20 +648,23 @@ def _compare_offsets(
     """
     got = rx.offsets
     if expected.mag_offset is None:
-        rep.offsets_unexpected = int(got.shape[0])  # the filter's estimate does not run: no such frame
+        rep.offsets_unexpected = int(got.shape[0]) + rx.offsets_bad_crc  # the estimate does not run here
+        if rep.offsets_unexpected:  # the cause of any set mismatch too: said first
+            hint = (
+                f"the node sends ATT_MAG_OFFSET ({rep.offsets_unexpected} frames): it estimates a hard-iron "
+                "offset, which these settings do not; give the settings it was started with (--set "
+                "hard_iron_tau=...)"
+            )
+            rep.first_mismatch = hint + (f"; then {rep.first_mismatch}" if rep.first_mismatch else "")
         return
+    rep.offsets_expected = True
+    rep.offsets_corrupted = rx.offsets_bad_crc
+    rep.offsets_missing = rx.offsets_missing
     want = expected.mag_offset
     for k in range(got.shape[0]):
         st = int(rx.offset_step[k])
         j = int(np.searchsorted(set_steps, st))
-        own = np.flatnonzero(rx.step == st)  # the set it followed carries the same counter
-        if (
-            st < 0
-            or j >= set_steps.shape[0]
-            or int(set_steps[j]) != st
-            or own.shape[0] == 0
-            or int(rx.sets["counter"][own[0]]) != int(got["counter"][k])
-        ):
+        if st < 0 or j >= set_steps.shape[0] or int(set_steps[j]) != st:
             rep.offsets_unmatched += 1  # its own set was lost or damaged on the way: not checkable
             continue
         r = int(set_rows[j])

@@ -437,7 +437,7 @@ def note_node_defaults(args: argparse.Namespace) -> None:
     if cfg.gyro_clip > 0.0 and "gyro_range" not in given:
         _note(
             f"the simulated gyro clips at {cfg.gyro_clip:.6g} rad/s, but the node keeps its own gyro_range "
-            f"(default 2000 deg/s), so it does not see the clipping (attica node --set gyro_range=...)"
+            "(default 2000 deg/s), so it does not see the clipping (give the node --set gyro_range=...)"
         )
     if cfg.mag_declination != 0.0 and "declination" not in given:
         _note(

@@ -131,9 +131,9 @@ def run(args: argparse.Namespace) -> int:
     check_stream_args(args)
     paths = log_paths(args)
     cal = load_calibration(args)
+    overrides = parse_overrides(kind, args.set or [])  # a mistyped name before any work
     st = stream(args)
     offset = id_offset(args)
-    overrides = parse_overrides(kind, args.set or [])
     settings = filter_settings(kind, st.rate, overrides) if overrides else None  # refusals name the field
     node = None
     if args.with_node:
