@@ -180,6 +180,10 @@ def test_mag_offset_api() -> None:
     assert on and not est and not h.any()
     off = native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF)).mag_offset()
     assert not off.on and not off.estimated and not off.offset.any()
+    assert f.estimates_mag_offset and not ars.estimates_mag_offset
+    assert not native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF)).estimates_mag_offset
+    no_mag = _settings(FilterKind.MEKF, hard_iron_tau=60.0, use_mag=False)
+    assert not native.Filter(FilterKind.MEKF, no_mag).estimates_mag_offset
     with pytest.raises(native.NativeError):
         native.Filter(FilterKind.MEKF, _settings(FilterKind.MEKF, hard_iron_rate=0.0))
 

@@ -456,6 +456,15 @@ class Filter:
         o = h.offset
         return MagOffset(np.array([o.x, o.y, o.z], np.float32), bool(h.on), bool(h.estimated))
 
+    @property
+    def estimates_mag_offset(self) -> bool:
+        """Whether this filter's hard-iron estimate runs: :meth:`mag_offset`'s ``on``.
+
+        True for mars and a mekf with its magnetometer with ``hard_iron_tau`` > 0; False for other kinds.
+        """
+        h = ffi.new("att_mag_offset_t *")
+        return lib.att_filter_mag_offset(self._f, h) == lib.ATT_OK and bool(h.on)
+
     def set_heading(self, heading: float) -> None:
         """att_filter_set_heading (rad, the output convention's yaw)."""
         _check(lib.att_filter_set_heading(self._f, heading), "att_filter_set_heading")

@@ -178,10 +178,8 @@ def _expected_offsets(
     from attica import native
     from attica.outputs import MAG_OFFSET_DTYPE
 
-    if not hasattr(s, "hard_iron_tau"):
-        return None
     f = native.Filter(kind, s, calibration=calibration)
-    if not f.mag_offset().on:
+    if not f.estimates_mag_offset:
         return None
     mo = np.zeros(int(gyr.shape[0]), MAG_OFFSET_DTYPE)
     steps = per.astype(np.uint32) if per is not None else None

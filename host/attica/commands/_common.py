@@ -26,6 +26,11 @@ def warn(message: str) -> None:
     print(f"attica: warning: {message}", file=sys.stderr, flush=True)
 
 
+def note(message: str) -> None:
+    """Print ``attica: note: <message>`` on stderr."""
+    print(f"attica: note: {message}", file=sys.stderr, flush=True)
+
+
 def progress(total: int, desc: str, enabled: bool, unit: str = "step") -> Any:
     """A tqdm bar on stderr, shown only on a terminal."""
     from tqdm import tqdm
@@ -157,8 +162,6 @@ def sim_config(args: argparse.Namespace) -> Any:
         over = {f: getattr(args, o) for o, f in _SIM_FIELDS.items() if getattr(args, o, None) is not None}
         cond = dataclasses.replace(cond, sim={**cond.sim, **over}, grade=grade or cond.grade)
         cfg = cond.config(seed)
-        if getattr(args, "breaks", None) is None:
-            cfg = _fit_breaks(cfg)
     else:
         cfg = SimConfig(
             duration=sim_value(args, "duration"),
@@ -167,10 +170,10 @@ def sim_config(args: argparse.Namespace) -> Any:
             taps=sim_value(args, "taps"),
             rest_breaks=sim_value(args, "breaks"),
         )
-        if getattr(args, "breaks", None) is None:
-            cfg = _fit_breaks(cfg)
         if grade is not None:
             cfg = GRADES[grade].config(cfg)
+    if getattr(args, "breaks", None) is None:
+        cfg = _fit_breaks(cfg)
     deg = getattr(args, "declination", None)
     if deg is not None:
         if not (math.isfinite(deg) and -180.0 <= deg <= 180.0):
@@ -415,11 +418,9 @@ def plan_overrides(kinds: Sequence[FilterKind], items: Sequence[str]) -> dict[Fi
             )
         missing = [k.label for k in kinds if k not in having]
         if missing:
-            print(
-                f"attica: note: --set {item} applies to {', '.join(k.label for k in having)} only "
-                f"({', '.join(missing)} {'has' if len(missing) == 1 else 'have'} no setting {name!r})",
-                file=sys.stderr,
-                flush=True,
+            note(
+                f"--set {item} applies to {', '.join(k.label for k in having)} only "
+                f"({', '.join(missing)} {'has' if len(missing) == 1 else 'have'} no setting {name!r})"
             )
     return out
 
@@ -428,80 +429,64 @@ def note_node_defaults(args: argparse.Namespace) -> None:
     """A note where a simulation's clipping gyro or declination does not reach a node's settings.
 
     ``attica view --demo`` and the CAN stream commands send the simulation to a node on its init settings:
-    a clipping condition's range and a declined field are the user's to give it (``attica node --set``).
+    a clipping condition's range and a declined field are the user's to give it (``--set``).
     """
     if getattr(args, "data", None):
         return
     cfg = sim_config(args)
     given = {item.partition("=")[0].strip() for item in getattr(args, "set", None) or []}
     if cfg.gyro_clip > 0.0 and "gyro_range" not in given:
-        _note(
+        note(
             f"the simulated gyro clips at {cfg.gyro_clip:.6g} rad/s, but the node keeps its own gyro_range "
             "(default 2000 deg/s), so it does not see the clipping (give the node --set gyro_range=...)"
         )
     if cfg.mag_declination != 0.0 and "declination" not in given:
-        _note(
+        note(
             f"the simulated field is declined by {math.degrees(cfg.mag_declination):g} deg; the node's "
             "heading is magnetic unless its declination setting (rad) says so"
         )
 
 
-def _note(text: str) -> None:
-    print(f"attica: note: {text}", file=sys.stderr, flush=True)
+def fit_to_simulation(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
+    """What a simulation means for the filters of ``attica run`` / ``demo`` (nothing for a recording).
 
-
-def note_scoring(args: argparse.Namespace) -> None:
-    """A note where the suite scores a ``--condition`` from later than its start (mag-start: 15 s)."""
-    cond = None if getattr(args, "data", None) else _condition(args)
-    if cond is None:
-        return
-    from attica.sim.conditions import CONVERGENCE
-
-    if cond.score_from > CONVERGENCE:
-        _note(
-            f"the suite scores {cond.name} from {cond.score_from:g} s (no method can know the attitude "
-            "before); the figures here are over every moving sample"
-        )
-
-
-def note_declination(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
-    """``--declination`` without ``--set declination``: a note that the filters' heading stays magnetic."""
-    deg = None if getattr(args, "data", None) else getattr(args, "declination", None)
-    if not deg:
-        return
-    missing = [
-        k.label for k in overrides if "declination" in _fields(k) and "declination" not in overrides[k]
-    ]
-    if missing:
-        _note(
-            f"the simulated field is declined by {deg:g} deg, and {', '.join(missing)} "
-            f"{'keeps' if len(missing) == 1 else 'keep'} a magnetic heading (0 declination): "
-            f"--set declination={math.radians(deg):.6g} (rad) for true north"
-        )
-
-
-def give_sensor_range(args: argparse.Namespace, overrides: dict[FilterKind, dict[str, Any]]) -> None:
-    """A simulated gyro that clips (``--condition near-clip / clipped``): its range to the filters.
-
-    As the suite does (and as a user configures the sensor), ``gyro_range`` becomes the simulated
-    sensor's full scale for every kind in ``overrides`` that has the setting and was not given one with
-    ``--set``; a note on stderr says so. Nothing for a recording or a sensor that does not clip.
+    - A gyro that clips (``--condition near-clip / clipped``): as the suite does (and as a user
+      configures the sensor), ``gyro_range`` becomes the sensor's full scale for every kind in
+      ``overrides`` that has the setting and was not given one with ``--set``, with a note.
+    - ``--declination`` without ``--set declination``: a note that those kinds' heading stays magnetic.
+    - A condition the suite scores from later than its start (mag-start: 15 s): a note.
     """
     if getattr(args, "data", None):
         return
-    clip = float(sim_config(args).gyro_clip)
-    if clip <= 0.0:
-        return
-    given = [k for k in overrides if "gyro_range" in _fields(k) and "gyro_range" not in overrides[k]]
-    for k in given:
-        overrides[k]["gyro_range"] = clip
-    if given:
-        print(
-            f"attica: note: the simulated gyro clips at {clip:.6g} rad/s ({math.degrees(clip):g} deg/s): "
-            f"gyro_range={clip:.6g} for {', '.join(k.label for k in given)}, as the suite gives it "
-            "(--set gyro_range=... to choose)",
-            file=sys.stderr,
-            flush=True,
+    cfg = sim_config(args)
+    clip = float(cfg.gyro_clip)
+    having = {
+        name: [k for k in overrides if name in _fields(k) and name not in overrides[k]]
+        for name in ("gyro_range", "declination")
+    }
+    if clip > 0.0 and having["gyro_range"]:
+        for k in having["gyro_range"]:
+            overrides[k]["gyro_range"] = clip
+        note(
+            f"the simulated gyro clips at {clip:.6g} rad/s ({math.degrees(clip):g} deg/s): "
+            f"gyro_range={clip:.6g} for {', '.join(k.label for k in having['gyro_range'])}, as the suite "
+            "gives it (--set gyro_range=... to choose)"
+        )
+    deg = getattr(args, "declination", None)
+    missing = having["declination"]
+    if deg and missing:
+        note(
+            f"the simulated field is declined by {deg:g} deg, and {', '.join(k.label for k in missing)} "
+            f"{'keeps' if len(missing) == 1 else 'keep'} a magnetic heading (0 declination): "
+            f"--set declination={math.radians(deg):.6g} (rad) for true north"
+        )
+    cond = _condition(args)
+    from attica.sim.conditions import CONVERGENCE
+
+    if cond is not None and cond.score_from > CONVERGENCE:
+        note(
+            f"the suite scores {cond.name} from {cond.score_from:g} s (no method can know the attitude "
+            "before); the figures here are over every moving sample"
         )
 
 

@@ -15,7 +15,7 @@ from attica.commands._common import (
     add_sim_arguments,
     check_data_or_sim,
     filter_settings,
-    give_sensor_range,
+    fit_to_simulation,
     sim_config,
 )
 from attica.commands.run import crosscheck_line, error_line, run_native
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     )
     kind = FilterKind.ARS
     overrides: dict[FilterKind, dict[str, Any]] = {kind: {}}
-    give_sensor_range(args, overrides)
+    fit_to_simulation(args, overrides)
     settings = filter_settings(kind, rec.rate, overrides[kind])
     out = run_native(kind, rec, settings, not args.quiet)
     ok, lines = crosscheck_line(kind, rec, settings, not args.quiet)

@@ -22,11 +22,9 @@ from attica.commands._common import (
     describe_calibration,
     describe_source,
     filter_settings,
-    give_sensor_range,
+    fit_to_simulation,
     load_calibration,
     load_data,
-    note_declination,
-    note_scoring,
     parse_kinds,
     plan_overrides,
     progress,
@@ -93,7 +91,7 @@ def run_native(
     n = len(rec.gyr)
     out = np.zeros(n, OUTPUT_DTYPE)
     moff = None
-    if end is not None and hasattr(settings, "hard_iron_tau") and f.mag_offset().on:  # the filter says
+    if end is not None and f.estimates_mag_offset:
         moff = end["mag_offset"] = np.zeros(n, MAG_OFFSET_DTYPE)
     steps = rec.steps  # n after n - 1 lost samples (Recording.time): the gap is integrated
     with progress(n, f"{kind.label} (C)", show_progress) as bar:
@@ -220,9 +218,7 @@ def run(args: argparse.Namespace) -> int:
     check_data_or_sim(args)
     outputs = output_paths(Path(args.output), kinds) if args.output else {}
     overrides = plan_overrides(kinds, args.set or [])
-    give_sensor_range(args, overrides)
-    note_declination(args, overrides)
-    note_scoring(args)
+    fit_to_simulation(args, overrides)
     cal = load_calibration(args)
     convention = str(cal.convention) if cal is not None else "enu"
     if convention != "enu" and any(p.suffix.lower() == ".mcap" for p in outputs.values()):
