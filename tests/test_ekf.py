@@ -355,8 +355,9 @@ def test_retune_keeps_the_state(change: dict[str, Any]) -> None:
 
 def test_output_quaternion_derived_from_the_angles() -> None:
     """att_filter_step fills the angles, bias, flags and steps (valid = EULER | BIAS); att_filter_output
-    derives q = att_quat_from_euler(state angles) bit for bit, and gives the variances of phi, theta,
-    psi and the mean bias variance. 20 s of motion, 3 settings."""
+    derives q = att_quat_from_euler(state angles) bit for bit, and gives the variances of phi and theta,
+    pi^2/3 for psi (no heading set: unknown, tests/test_heading_cov.py) and the mean bias variance. 20 s
+    of motion, 3 settings."""
     for s in (ekf_default(), ekf_seed(), ekf_default(tau_acc_lp=0.0, gate=9.0)):
         gyr, acc, _ = motion(1, 2000, 0.01, seed=6, acc_noise=0.3, gyro_bias=(0.02, 0.0, -0.01))
         cheap = native.Filter(FilterKind.EKF, s).run(gyr[:, 0], acc[:, 0], full=False)
@@ -376,7 +377,8 @@ def test_output_quaternion_derived_from_the_angles() -> None:
         assert_same_bits(out["q"], np.stack(dm.quat_from_euler(e[:, 0], e[:, 1], e[:, 2]), -1), "reference q")
         p = c["P"][:, 0]
         mean_b = ((p[:, 15] + p[:, 18]) + p[:, 20]) * dm.c("0x1.555556p-2")
-        assert_same_bits(out["cov"], np.stack([p[:, 0], p[:, 6], p[:, 11], mean_b], -1), "cov")
+        unknown = np.full(len(p), dm.c("0x1.a51a66p+1"), F32)  # ATT_COV_UNKNOWN, pi^2 / 3
+        assert_same_bits(out["cov"], np.stack([p[:, 0], p[:, 6], unknown, mean_b], -1), "cov")
 
 
 # --- bit-exactness -------------------------------------------------------------------------------
@@ -909,7 +911,8 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
     gyro's range could keep every later prediction out of the wrap's range, docs/robustness.md F10); C
     equals the reference bit for bit. As after every NUMERIC step (issue 26 R1), the filter then waits for
     a usable accel sample (NOT_READY, the angles kept), which re-initialises roll and pitch with the yaw
-    kept, and the next ordinary step proceeds from there."""
+    kept, and the next ordinary step proceeds from there. A set heading is unknown again after it (the
+    output's yaw variance pi^2/3: the rotation of the step and of the waiting ones is lost)."""
     s = ekf_default(
         init_from_accel=False,
         dt=1.0,
@@ -923,10 +926,13 @@ def test_prediction_beyond_the_wrap_range_keeps_the_angles() -> None:
     ref.lp_ready[:] = True
     f[0].st.bias.x = 0.3  # an estimate the prediction leaves behind (the reference alike)
     ref.bias = (np.full(1, 0.3, np.float32), ref.bias[1].copy(), ref.bias[2].copy())
+    f[0].st.head_known = True  # as after att_filter_set_heading
+    ref.head_known[:] = True
     before, _, _ = state(f)
     fl = step_both(f, ref, (0.0, 0.0, 34.9), (NAN, NAN, NAN))
     e, b, p = state(f)
     assert fl & Flag.NUMERIC
+    assert not f[0].st.head_known and not ref.head_known.any()
     assert e == before
     assert b == tuple(float(np.float32(x)) for x in s.bias_init)
     assert not f[0].st.lp_ready

@@ -21,11 +21,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from attica import native
 from attica.cli import main
 from attica.data import export, load_recording
 from attica.kinds import info
 from attica.outputs import OUTPUT_DTYPE
-from attica.settings import Flag
+from attica.settings import FilterKind, Flag
 from attica.sim import SimConfig, simulate
 
 from helpers import ROOT, need
@@ -167,13 +168,13 @@ def test_mcap_holds_the_npz_outputs(written: dict[str, Path], timed: Path, kind:
     c = ref["cov"][~no_estimate].astype(np.float64)
     diag = np.diagonal(est, axis1=1, axis2=2)
     unknown = np.full(len(c), export.UNKNOWN_YAW)
-    if kind == "ekf":  # the Euler angles' variances turned onto the earth's axes; the yaw unknown
+    if kind == "ekf":  # the Euler angles' variances turned onto the earth's axes; the yaw's own (pi^2/3)
         e = ref["euler"][~no_estimate].astype(np.float64)
         s_th, c_th = np.sin(e[:, 1]), np.cos(e[:, 1])
         s_ps, c_ps = np.sin(e[:, 2]), np.cos(e[:, 2])
         ekf_x = c[:, 0] * (c_ps * c_th) ** 2 + c[:, 1] * s_ps**2
         ekf_y = c[:, 0] * (s_ps * c_th) ** 2 + c[:, 1] * c_ps**2
-        ekf_z = c[:, 0] * s_th**2 + export.UNKNOWN_YAW
+        ekf_z = c[:, 0] * s_th**2 + c[:, 2]
     expected = {
         "ars": c[:, :3],  # the model's tilt, tilt, heading
         "gyro": np.zeros((len(c), 3)),  # no covariance: all zeros, "unknown"
@@ -343,7 +344,7 @@ def test_orientation_covariance_marks_no_estimate() -> None:
     u = export.UNKNOWN_YAW
     for kind, diag in (
         ("mekf", [1.0, 2.0, 3.0]),
-        ("ekf", [1.0, 2.0, u]),  # level, yaw 0: roll about east, pitch about north; the yaw unknown
+        ("ekf", [1.0, 2.0, 3.0]),  # level, yaw 0: roll about east, pitch about north; the yaw's own
         ("kf", [10.0, 10.0, u]),
         ("tilt", [0.0] * 3),
     ):
@@ -353,15 +354,38 @@ def test_orientation_covariance_marks_no_estimate() -> None:
 
 
 def test_the_6_axis_mekf_writes_its_yaw_as_unknown() -> None:
-    """With use_mag off (the run's settings) the mekf's yaw is not observed: pi^2/3, as kf and ekf."""
+    """With use_mag off the mekf's yaw is observed by nothing: its output says pi^2/3 (until a heading is
+    set: tests/test_heading_cov.py), and the Imu message takes that; a 9-axis mekf's is P's."""
     from attica.settings import MekfSettings
 
-    out = np.zeros(1, OUTPUT_DTYPE)
-    out["cov"] = [[1.0, 2.0, 0.5, 4.0]]
-    nine = export.orientation_covariance("mekf", out, MekfSettings(dt=0.01))
-    six = export.orientation_covariance("mekf", out, MekfSettings(dt=0.01, use_mag=False))
-    np.testing.assert_array_equal(nine[0], np.diag([1.0, 2.0, 0.5]).ravel())
-    np.testing.assert_array_equal(six[0], np.diag([1.0, 2.0, export.UNKNOWN_YAW]).ravel())
+    r = simulate(SimConfig(duration=10.0, rate=100.0, seed=2))
+    dt = float(np.float32(0.01))
+    six = native.Filter(FilterKind.MEKF, MekfSettings(dt=dt, use_mag=False)).run(r.gyr, r.acc)
+    nine = native.Filter(FilterKind.MEKF, MekfSettings(dt=dt)).run(r.gyr, r.acc, r.mag)
+    c6 = export.orientation_covariance("mekf", six[1:])
+    c9 = export.orientation_covariance("mekf", nine[1:])
+    np.testing.assert_array_equal(c6[:, 8], np.full(len(c6), export.UNKNOWN_YAW))
+    np.testing.assert_array_equal(c9[:, 8], nine["cov"][1:, 2].astype(np.float64))
+    assert (c9[:, 8] < export.UNKNOWN_YAW).all() and len(np.unique(c9[:, 8])) > 10
+
+
+def test_mcap_metadata_names_the_filter_and_its_axes(tmp_path: Path) -> None:
+    """The metadata's ``filter`` entry says the run's axes (a mekf with use_mag off is 6-axis)."""
+    _need_recordings()
+    from mcap.reader import make_reader
+
+    from attica.settings import MekfSettings
+
+    rec = simulate(SimConfig(duration=0.5, rate=100.0, seed=1))
+    out = np.zeros(len(rec), OUTPUT_DTYPE)
+    out["q"] = (1.0, 0.0, 0.0, 0.0)
+    cases = ((MekfSettings(dt=0.01), "9-axis"), (MekfSettings(dt=0.01, use_mag=False), "6-axis"))
+    for settings, axes in cases:
+        path = tmp_path / f"{axes}.mcap"
+        export.write_mcap(path, out, rec, "mekf", settings=settings)
+        with open(path, "rb") as f:
+            meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+        assert meta["attica"]["kind"] == "mekf" and meta["attica"]["filter"].startswith(f"mekf ({axes}")
 
 
 def test_ekf_covariance_turns_with_the_yaw() -> None:
@@ -372,7 +396,7 @@ def test_ekf_covariance_turns_with_the_yaw() -> None:
     out["cov"] = [[1.0, 2.0, 3.0, 0.0]] * 3
     out["euler"] = [[0.0, 0.0, np.pi / 2], [0.0, np.pi / 2, 0.0], [0.3, 0.2, 0.1]]
     c = export.orientation_covariance("ekf", out).reshape(3, 3, 3)
-    u = export.UNKNOWN_YAW
+    u = 3.0  # the yaw's, about up
     np.testing.assert_allclose(c[0], np.diag([2.0, 1.0, u]), atol=1e-7)  # float32 angles
     np.testing.assert_allclose(c[1], np.diag([0.0, 2.0, 1.0 + u]), atol=1e-7)
     # the general case: unit axes, so the trace is the sum of the variances; positive definite

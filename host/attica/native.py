@@ -466,11 +466,15 @@ class Filter:
         return lib.att_filter_mag_offset(self._f, h) == lib.ATT_OK and bool(h.on)
 
     def set_heading(self, heading: float) -> None:
-        """att_filter_set_heading (rad, the output convention's yaw)."""
+        """att_filter_set_heading (rad, the output convention's yaw); a 6-axis heading is known from here.
+
+        ars, the ekf and a mekf without the magnetometer then report the heading's variance (``cov[2]``)
+        small and growing instead of pi^2/3, until a clipping gyro sample (docs/filters.md).
+        """
         _check(lib.att_filter_set_heading(self._f, heading), "att_filter_set_heading")
 
     def heading_update(self, heading: float, gain: float, valid: bool = True) -> None:
-        """att_filter_heading_update (ars, kf, ekf, gyro)."""
+        """att_filter_heading_update (ars, kf, ekf, gyro, mekf with ``use_mag`` off); gain 1 = set_heading."""
         _check(lib.att_filter_heading_update(self._f, heading, gain, valid), "att_filter_heading_update")
 
     @property

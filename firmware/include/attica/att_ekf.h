@@ -203,6 +203,9 @@ typedef struct {
                                start or re-initialisation, counted in a recovery and while lp_mean
                                (att_i_recovery_lp_gain) */
     bool initialised;     /**< euler holds a valid attitude */
+    bool head_known;      /**< a heading was set (att_filter_set_heading) and no clipping gyro sample nor a
+                               NUMERIC restart has turned it since: the output's yaw variance is p[11], else
+                               pi^2/3 */
 } att_ekf_state_t;
 
 /** One Euler EKF instance (no heap; copy freely). */

@@ -98,7 +98,9 @@ typedef struct {
                                variance, (rad/s)^2); MEKF (dtheta x, y, z (earth frame), rad^2; mean bias
                                variance, (rad/s)^2); ARS, MARS: the covariance model's (tilt about earth
                                x, y, heading about z, 0) rad^2 (att_ars.h, step 5); gyro, tilt: 0. About
-                               the ENU axes whatever the calibration's convention (q, euler converted) */
+                               the ENU axes whatever the calibration's convention (q, euler converted).
+                               A heading nothing observes (ars, EKF, MEKF without mag) is pi^2/3 except
+                               from att_filter_set_heading to the next clipping gyro sample */
     uint32_t flags;       /**< ATT_FLAG_* of the step */
     uint32_t steps;       /**< steps since init/reset (wraps) */
     uint32_t valid;       /**< ATT_OUT_* bits of the fields written by the call that filled the record */
@@ -304,6 +306,9 @@ att_status_t att_filter_mag_offset(const att_filter_t *f, att_mag_offset_t *out)
  * Set the heading: keep the tilt, replace the yaw by heading (rad, the yaw of the output convention:
  * ENU counter-clockwise from east, NED / NWU from north, NED clockwise), |heading| <= 8192. The
  * earth-frame memories (accel low-passes, the 9-axis filter's reference field) turn with the attitude.
+ * A 6-axis heading (ars, ekf, mekf without mag) is known from here: the output's cov[2] is the heading's
+ * variance from ~0 (the ekf's yaw variance and the mekf's heading row restart at one step's noise)
+ * instead of pi^2/3, until a clipping gyro sample; a 9-axis filter's covariance is unchanged.
  * ATT_ERR_KIND for the tilt baseline (no heading) or an uninitialised f, ATT_ERR_STATE before the
  * filter's first valid sample (ATT_FLAG_NOT_READY: the attitude is not set yet), ATT_ERR_SETTINGS for
  * a non-finite or too large heading; on error f is unchanged.
@@ -312,8 +317,8 @@ att_status_t att_filter_set_heading(att_filter_t *f, float heading);
 /**
  * External heading update (GNSS course, compass) for the filters without a magnetometer (ars, kf,
  * ekf, gyro, and mekf with use_mag false): with valid true, turn the yaw by gain * wrap(heading - yaw), gain in [0, 1] per update
- * (1 = set heading), heading as for att_filter_set_heading; valid false does nothing (ATT_OK). The
- * covariance is left as it is. ATT_ERR_KIND for mars, a 9-axis mekf, tilt or an uninitialised f, ATT_ERR_STATE before
+ * (1 = set heading), heading as for att_filter_set_heading; valid false does nothing (ATT_OK). Gain 1 is
+ * att_filter_set_heading, covariance included; a smaller gain leaves the covariance as it is. ATT_ERR_KIND for mars, a 9-axis mekf, tilt or an uninitialised f, ATT_ERR_STATE before
  * the first valid sample, ATT_ERR_SETTINGS for a bad heading or gain; on error f is unchanged.
  */
 att_status_t att_filter_heading_update(att_filter_t *f, float heading, float gain, bool valid);

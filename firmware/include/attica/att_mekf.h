@@ -68,7 +68,8 @@
  *     the heading is then unknown against it: its variance is set to p_max and its correlations to zero,
  *     so the next samples set the heading at the pace their noise allows (a few seconds at the defaults,
  *     where the steady heading variance is about p0_att). The heading is not tied to the field of the
- *     first samples.
+ *     first samples. In 6-axis use (use_mag off) a set heading (att_filter_set_heading) resets the
+ *     heading's row the same way, to one step's noise qa: the heading is then known (head_known).
  *  4. conditioning of P: a variance above its cap (p_max for the attitude, p0_bias for the bias) is
  *     brought to the cap by the congruence D P D (correlations kept; in 6-axis use it holds the
  *     unobservable yaw variance at p_max, a normal condition that is not flagged). P must then pass a
@@ -329,6 +330,9 @@ typedef struct {
     bool lp_valid;         /**< lp1, lp2 hold samples (else the next usable sample starts them) */
     bool rec_clip;         /**< the last recovery began at a clipping gyro sample (false: the start's); read only during one */
     bool initialised;      /**< q holds a valid attitude */
+    bool head_known;       /**< a heading was set (att_filter_set_heading; or the field tracked it before a
+                                retune to 6 axes) and no clipping gyro sample has turned it since. With use_mag
+                                off the output's cov[2] is P's when true, pi^2/3 when false; unused with it on */
 } att_mekf_state_t;
 
 /** One MEKF instance (no heap; copy freely). */

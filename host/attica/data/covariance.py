@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,7 +46,9 @@ class Covariance:
 
 
 UNKNOWN_YAW = float(np.float32(np.pi**2 / 3.0))
-"""rad^2: the variance of a heading that is not known (uniform over a turn), as ars and mars report it."""
+"""rad^2: the variance of a heading that is not known (uniform over a turn), as the kinds report it (ars,
+ekf and a 6-axis mekf before a set heading and after a clip, mars before its reference field), and as
+the kf's is written."""
 
 
 def _diagonal(cov: F64) -> F64:
@@ -70,7 +71,8 @@ def _ekf_matrix(out: NDArray[np.void]) -> F64:
     # dr = z dpsi + Rz(psi) y dtheta + Rz(psi) Ry(theta) x dphi about the earth's axes, so the covariance
     # about them is sum_i var_i v_i v_i^T with v_phi = (c_psi c_theta, s_psi c_theta, -s_theta),
     # v_theta = (-s_psi, c_psi, 0), v_psi = (0, 0, 1) (the EKF reports no correlations: taken as 0). The
-    # yaw of this 6-axis filter is not observed: unknown, whatever its variance has grown to.
+    # yaw of this 6-axis filter is observed by nothing: the output says pi^2/3 (unknown) but from a set
+    # heading to the next clipping gyro sample.
     cov = np.asarray(out["cov"], np.float64)
     e = np.asarray(out["euler"], np.float64)
     cth, sth, cps, sps = np.cos(e[:, 1]), np.sin(e[:, 1]), np.cos(e[:, 2]), np.sin(e[:, 2])
@@ -78,7 +80,7 @@ def _ekf_matrix(out: NDArray[np.void]) -> F64:
     v_theta = np.stack([-sps, cps, np.zeros_like(cps)], axis=1)
     m = cov[:, 0, None, None] * (v_phi[:, :, None] * v_phi[:, None, :])
     m += cov[:, 1, None, None] * (v_theta[:, :, None] * v_theta[:, None, :])
-    m[:, 2, 2] += UNKNOWN_YAW
+    m[:, 2, 2] += cov[:, 2]
     flat: F64 = m.reshape(len(cov), 9)
     return flat
 
@@ -109,16 +111,18 @@ COVARIANCE: dict[FilterKind, Covariance] = {
     ),
     FilterKind.EKF: Covariance(
         ("var_roll", "var_pitch", "var_yaw", "var_bias"),
-        "variance of the ZYX Euler angles roll, pitch, yaw, rad^2 (yaw is not observed: it grows); "
-        "var_bias: mean variance of the gyro bias, (rad/s)^2",
+        "variance of the ZYX Euler angles roll, pitch, yaw, rad^2 (yaw, which nothing observes: pi^2/3, "
+        "unknown, but from a set heading to the next clipping gyro sample); var_bias: mean variance of "
+        "the gyro bias, (rad/s)^2",
         "the roll and pitch variances turned onto the earth's axes through the Euler angles (dr = z dpsi + "
         "Rz(psi) y dtheta + Rz(psi) Ry(theta) x dphi; no correlations reported: taken as 0), off-diagonal "
-        "entries included; the yaw, which this 6-axis filter does not observe, pi^2/3 (unknown)",
+        "entries included; the yaw's about up (pi^2/3 while the heading is unknown)",
         _ekf_matrix,
     ),
     FilterKind.MEKF: Covariance(
         ("var_att_e", "var_att_n", "var_att_u", "var_bias"),
-        "variance of the attitude error (a rotation vector about the earth's east, north, up axes), rad^2; "
+        "variance of the attitude error (a rotation vector about the earth's east, north, up axes), rad^2 "
+        "(up with use_mag off: pi^2/3, unknown, but from a set heading to the next clipping gyro sample); "
         "var_bias: mean variance of the gyro bias, (rad/s)^2",
         "the attitude error variances about the earth's x (east), y (north), z (up) axes on the diagonal",
         _first3,
@@ -132,11 +136,12 @@ if set(COVARIANCE) != {k.kind for k in KINDS if k.covariance}:  # pragma: no cov
     raise RuntimeError("attica.data.export.COVARIANCE must describe every kind with a covariance")
 
 
-def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void], settings: Any = None) -> F64:
+def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void]) -> F64:
     """The (N, 9) row-major orientation covariance of ``sensor_msgs/msg/Imu`` for each output, rad^2.
 
-    ``settings``: the kind's settings of the run (None: its defaults); a mekf with ``use_mag`` off is a
-    6-axis filter, whose yaw is written as unknown (pi^2/3) like the kf's and the ekf's.
+    A 6-axis filter's yaw is observed by nothing: the kf's is written as unknown (pi^2/3, its P = p I
+    cannot say more); the ekf and a mekf with ``use_mag`` off report pi^2/3 themselves but from a set
+    heading to the next clipping gyro sample (their output's ``cov[2]``), as ars does.
 
     As the message definition asks: the kind's variances about the earth's axes (:data:`COVARIANCE`:
     on the diagonal, 0 off it where only the diagonal is reported); all zeros, "covariance unknown",
@@ -148,8 +153,6 @@ def orientation_covariance(kind: FilterKind | str, out: NDArray[np.void], settin
     c = np.zeros((n, 9), np.float64)
     if k.kind in COVARIANCE:
         c[:] = COVARIANCE[k.kind].matrix(out)
-        if k.kind == FilterKind.MEKF and settings is not None and not getattr(settings, "use_mag", True):
-            c[:, 8] = UNKNOWN_YAW  # the 6-axis mekf: its yaw is not observed
     invalid = (np.asarray(out["flags"]) & OUTPUT_INVALID) != 0
     c[invalid] = 0.0
     c[invalid, 0] = -1.0

@@ -395,8 +395,8 @@ def write_mcap(
     The MCAP metadata record ``attica`` names the kind, the clock of the stamps and the covariance's
     meaning. The stamps need 0 <= time < 2^31 s (``builtin_interfaces/msg/Time`` and MCAP log times);
     a recording's own clock outside that is refused (a ValueError). ``settings``: the kind's settings of
-    the run (None: its defaults), for the covariance of a mekf with ``use_mag`` off
-    (:func:`orientation_covariance`).
+    the run (None: its defaults), for the metadata's ``filter`` entry (its axes and inputs: a mekf with
+    ``use_mag`` off is 6-axis).
 
     Raises
     ------
@@ -418,13 +418,14 @@ def write_mcap(
     sec, nsec = ros_stamps(times)
     log_ns = sec * 1_000_000_000 + nsec
     q = np.asarray(out["q"], np.float64)
-    ocov = orientation_covariance(k.kind, out, settings)
+    ocov = orientation_covariance(k.kind, out)
     gyr = np.asarray(rec.gyr, np.float64)
     acc = np.asarray(rec.acc, np.float64)
     mag = np.asarray(rec.mag, np.float64)
     has_mag = np.isfinite(mag).all(axis=1) & (mag != 0.0).any(axis=1)
     meta = {
         "kind": k.label,
+        "filter": _kind_text(k.kind, settings),
         "clock": "the recording's own clock" if absolute else "from the first sample (index / rate)",
         "orientation": "q sensor-to-earth, ENU world frame",
         "orientation_covariance": COVARIANCE[k.kind].orientation

@@ -331,11 +331,11 @@ def yaw_to(kind: str, impl: Any, target: Any, gain: Any) -> None:
             impl.euler = (dm.f32(impl.euler[0]), dm.f32(impl.euler[1]), dm.f32(psi))
             if k.q_state:  # kept beside the angles (gyro)
                 impl.q = dm.quat_from_euler(*impl.euler)
-            return
-        hs, hc = dm.sinf(delta * dm.HALF), dm.cosf(delta * dm.HALF)
-        _, qn = dm.quat_normalize_bounded(dm.quat_mul_z(hc, hs, q))
-        impl.q = tuple(dm.f32(v) for v in qn)
-    if gain == 1 and hasattr(impl, "heading_set"):  # the covariance's heading (ars)
+        else:
+            hs, hc = dm.sinf(delta * dm.HALF), dm.cosf(delta * dm.HALF)
+            _, qn = dm.quat_normalize_bounded(dm.quat_mul_z(hc, hs, q))
+            impl.q = tuple(dm.f32(v) for v in qn)
+    if gain == 1 and hasattr(impl, "heading_set"):  # the covariance's heading (ars, ekf, mekf)
         impl.heading_set()
 
 

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from attica.reference import detmath as dm
 from attica.reference import sensor
 from attica.reference._common import (
+    COV_UNKNOWN,
     StateSpec,
     carry_state,
     pd6,
@@ -221,6 +222,7 @@ class Ekf:
         "st.rec_left": "u32",
         "st.rec_lp_n": "u32",
         "st.initialised": "bool",
+        "st.head_known": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
     EARTH: tuple[str, ...] = ("lp1", "lp2")
@@ -330,6 +332,7 @@ class Ekf:
         self.rec_left = np.zeros(self.n, np.uint32)
         self.rec_lp_n = np.zeros(self.n, np.uint32)
         self.initialised = ~self.init_from_accel
+        self.head_known = np.zeros(self.n, np.bool_)
 
     def _guard(self, c: Any) -> tuple[Any, Any]:
         small = dm.absf(c) < self.cos_min
@@ -632,6 +635,8 @@ class Ekf:
             )
             rec = run & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
+            # a clipping sample: the yaw lost rotation too (the output's cov[2])
+            self.head_known = self.head_known & ~(rec & (self.rec_left == self.rec_n))
             w = dm.vec3_where(gyro_ok, dm.vec3_sub(g, self.bias), (z, z, z))
             ok_p, taken_p, e_p, p_p, fl_p, trig, big_p = self._predict(w, gyro_ok, rec)
             flags = flags | np.where(run, fl_p, _U0)
@@ -720,6 +725,7 @@ class Ekf:
             self.rec_lp_n = np.where(init_now, np.uint32(1), self.rec_lp_n).astype(np.uint32)
         self.recover = (self.recover & ~init_now) | numeric
         self.initialised = (self.initialised | init_now) & ~numeric
+        self.head_known = self.head_known & ~numeric  # the rotation of the restart is lost (cov[2])
         self.steps = self.steps + np.uint32(1)
         self.flags = flags.astype(np.uint32)
         return self.flags
@@ -746,10 +752,20 @@ class Ekf:
         """The packed upper triangles of P (n, 21)."""
         return stack(tuple(self.p))
 
+    def heading_set(self) -> None:
+        """att_ekf_yaw_to with gain 1: yaw's variance restarts at one step's noise; the output reports it."""
+        self.p[11] = np.broadcast_to(self.q_step[2], (self.n,)).astype(np.float32)
+        self.head_known = np.ones(self.n, np.bool_)
+
     def output_cov(self) -> tuple[Any, Any, Any, Any]:
-        """The output record's ``cov`` (att_filter_output): phi, theta, psi, then the mean bias variance."""
+        """The output record's ``cov`` (att_filter_output): phi, theta, psi, then the mean bias variance.
+
+        Yaw, which nothing observes, is pi^2/3 (unknown) but from a set heading to the next clipping
+        gyro sample, where it is p[11] (at most pi^2/3).
+        """
         p = self.p
-        return (p[0], p[6], p[11], ((p[15] + p[18]) + p[20]) * THIRD)
+        yaw = np.where(self.head_known & (p[11] < COV_UNKNOWN), p[11], COV_UNKNOWN).astype(np.float32)
+        return (p[0], p[6], yaw, ((p[15] + p[18]) + p[20]) * THIRD)
 
     def run(self, gyr: Any, acc: Any) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc (N, 3) for n == 1 or (N, n, 3)."""

@@ -23,6 +23,7 @@ from attica.reference import mekf_mag as mg
 from attica.reference import mekf_scale as msc
 from attica.reference import sensor
 from attica.reference._common import (
+    COV_UNKNOWN,
     StateSpec,
     carry_state,
     recovery_lp_gain,
@@ -157,6 +158,7 @@ class Mekf:
         "st.lp_valid": "bool",
         "st.rec_clip": "bool",
         "st.initialised": "bool",
+        "st.head_known": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
     EARTH: tuple[str, ...] = ("lp1", "lp2", "m0", "m0_ref", "mag_h")
@@ -335,6 +337,7 @@ class Mekf:
         self.lp_valid: Any = np.zeros(n, np.bool_)
         self.rec_clip: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
+        self.head_known: Any = np.zeros(n, np.bool_)
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = mg.derive_m0(self, mi)
@@ -382,6 +385,7 @@ class Mekf:
             clipping = run & (self.rec_n > _U0) & (self.rec_left == self.rec_n)
             self.lp_valid = self.lp_valid & ~clipping  # the low-pass restarts after a clipping sample
             self.rec_clip = self.rec_clip | clipping
+            self.head_known = self.head_known & ~clipping  # the heading lost rotation (6-axis cov[2])
             rec = run & (self.rec_left > _U0)
             flags = flags | np.where(rec, _u(Flag.INITIALISED), _U0)
             # 0. rest: the zero-rate pseudo-measurement
@@ -622,6 +626,9 @@ class Mekf:
         """att_mekf_retune: new settings, the state kept (reference limits recomputed, counter limited)."""
         new = Mekf(settings, self.n)
         carry_state(self, new)
+        # 9 -> 6 axes: the heading is known if the field tracked it
+        to_six = self.use_mag & ~new.use_mag
+        new.head_known = np.where(to_six, new.m0_valid, new.head_known)
         hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
         hiron.retune(new)
         ok, parts = mg.derive_m0(new, new.m0)
@@ -674,7 +681,27 @@ class Mekf:
         the packed P is at 0, 6, 11, 15, 18, 20).
         """
         p = self.p
-        return (p[0], p[6], p[11], (p[15] + p[18] + p[20]) / THREE)
+        return (p[0], p[6], self._cov_heading(), (p[15] + p[18] + p[20]) / THREE)
+
+    def _cov_heading(self) -> Any:
+        """att_mekf_cov_heading: P's heading variance, but pi^2/3 for a 6-axis filter's unknown heading.
+
+        Known from a set heading to the next clipping gyro sample (then at most pi^2/3).
+        """
+        v = self.p[11]
+        own = self.use_mag | (self.head_known & (v < COV_UNKNOWN))
+        return np.where(own, v, COV_UNKNOWN).astype(np.float32)
+
+    def heading_set(self) -> None:
+        """att_mekf_yaw_to with gain 1: the heading is known from here.
+
+        Without the magnetometer the set heading is exact: the heading's row reset to one step's noise qa
+        (its correlations zero). With it north is relabelled (the reference field turns with the
+        attitude): P is unchanged.
+        """
+        six = ~np.broadcast_to(self.use_mag, (self.n,))
+        self.p, self.scale_v = mg.yaw_reset(six, self.p, self.scale_v, self.qa)
+        self.head_known = np.ones(self.n, np.bool_)
 
     def run(self, gyr: Any, acc: Any, mag: Any = None) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
         """Step through N samples: gyr, acc, mag (N, 3) for n == 1 or (N, n, 3); mag None = absent.

@@ -133,8 +133,9 @@ def orientation_cov(kind: FilterKind, sets: np.ndarray, convention: str) -> list
 
     :func:`attica.data.export.orientation_covariance` of the set (about ENU's axes, as the node reports
     it whatever its convention) turned onto the convention's earth axes, R C R^T; None for a kind
-    without one (gyro, tilt). A mekf's yaw variance is its own even when it runs without the magnetometer
-    (the settings are not on the bus), where a file export writes pi^2/3 (unknown).
+    without one (gyro, tilt). The yaw variance is the node's: pi^2/3 (unknown) for a 6-axis filter's
+    heading (ars, ekf, mekf without the magnetometer) but from a set heading to the next clipping gyro
+    sample, as in a file export.
     """
     from attica.data.export import COVARIANCE, orientation_covariance
     from attica.evaluate.trace import euler_deg

@@ -191,6 +191,7 @@ void att_ekf_reset(att_ekf_t *f)
     f->st.rec_left = 0u;
     f->st.rec_lp_n = 0u;
     f->st.initialised = !f->c.init_from_accel;
+    f->st.head_known = false;
 }
 
 /* a outside (-pi, pi] wrapped: one step of 2 pi (exact split as att_wrap_pi), att_wrap_pi beyond. */
@@ -1071,6 +1072,9 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
     (void)att_i_recovery_step(gyr, c->clip, c->rec_n, &st->rec_left, &st->rec_lp_n); /* step 3 */
     if (st->rec_left > 0u) {
         flags |= ATT_FLAG_INITIALISED;
+        if (st->rec_left == c->rec_n) {
+            st->head_known = false; /* a clipping sample: the yaw lost rotation too (the output's cov[2]) */
+        }
     }
     if (!gyro_ok) {
         st->lp_ready = false; /* an unmeasured rotation: the stages (estimate's heading frame) are stale */
@@ -1089,6 +1093,7 @@ static ATT_NOINLINE uint32_t att_ekf_update_step(att_ekf_t *f, att_vec3_t gyr, a
         st->euler = e0;
         st->initialised = false;
         st->recover = true;
+        st->head_known = false; /* the rotation of this step and of the waiting ones is lost (cov[2]) */
     }
     if ((st->steps & ATT_EKF_COND_MASK) == 0u || (flags & (ATT_FLAG_GIMBAL | ATT_EKF_COND_NOW)) != 0u ||
         st->rec_left > 0u) {
@@ -1167,7 +1172,7 @@ void att_ekf_output(const att_ekf_t *f, att_output_t *out)
     out->valid = ATT_OUT_EULER | ATT_OUT_BIAS;
     out->cov[0] = p[0]; /* phi, theta, psi; then the mean bias variance */
     out->cov[1] = p[6];
-    out->cov[2] = p[11];
+    out->cov[2] = (f->st.head_known && p[11] < ATT_COV_UNKNOWN) ? p[11] : ATT_COV_UNKNOWN; /* yaw: unobserved */
     out->cov[3] = ((p[15] + p[18]) + p[20]) * 0x1.555556p-2f;
 }
 
@@ -1192,6 +1197,10 @@ att_status_t att_ekf_yaw_to(att_ekf_t *f, float target, float gain)
     f->st.lp1 = att_i_yaw_vec(f->st.lp1, c, s);
     f->st.lp2 = att_i_yaw_vec(f->st.lp2, c, s);
     f->st.euler.z = (gain == 1.0f) ? target : att_wrap_pi(yaw + d);
+    if (gain == 1.0f) {
+        f->st.p[11] = f->c.q_step[2]; /* a set heading: exact, one step's noise (> 0: P's test), cov[2] */
+        f->st.head_known = true;
+    }
     return ATT_OK;
 }
 

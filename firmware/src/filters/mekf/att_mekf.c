@@ -264,6 +264,7 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
 {
     att_status_t st;
     bool hi_was_on;
+    bool mag_was;
     float dt_was;
     if (f == NULL || settings == NULL) {
         return ATT_ERR_NULL;
@@ -274,7 +275,11 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
     }
     hi_was_on = f->c.hi.on;
     dt_was = f->c.dt;
+    mag_was = f->c.use_mag;
     att_mekf_coeffs(&f->c, settings);
+    if (mag_was && !f->c.use_mag) {
+        f->st.head_known = f->st.m0_valid; /* 9 -> 6 axes: the heading is known if the field tracked it */
+    }
     if (f->c.hi.on != hi_was_on) {
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
     }
@@ -342,6 +347,7 @@ void att_mekf_reset(att_mekf_t *f)
     st->lp_valid = false;
     st->rec_clip = false;
     st->initialised = !f->c.init_from_sensors;
+    st->head_known = false;
     if (!att_mekf_vec3_is_zero(f->c.m0_init)) {
         (void)att_mekf_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
     }
@@ -1254,6 +1260,7 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
     if (c->rec_n > 0u && st->rec_left == c->rec_n) {
         st->lp_valid = false; /* a clipping sample: the low-pass holds samples turned by a wrong rotation */
         st->rec_clip = true;
+        st->head_known = false; /* and the heading lost rotation (a 6-axis output's cov[2]) */
     }
     rec = st->rec_left > 0u;
     if (rec) {
@@ -1334,6 +1341,20 @@ float att_mekf_period(const att_mekf_settings_t *s)
     return s->dt;
 }
 
+/*
+ * The output's heading variance (cov[2]), rad^2: P's with the magnetometer; without it (use_mag off, a
+ * 6-axis filter, whose heading nothing observes) P's only from a set heading on (att_mekf_yaw_to, gain 1)
+ * to the next clipping gyro sample, at most pi^2/3, and pi^2/3 (unknown) otherwise.
+ */
+static float att_mekf_cov_heading(const att_mekf_t *f)
+{
+    const float v = f->st.p[ATT_MEKF_IX(2u, 2u)];
+    if (f->c.use_mag || (f->st.head_known && v < ATT_COV_UNKNOWN)) {
+        return v;
+    }
+    return ATT_COV_UNKNOWN;
+}
+
 void att_mekf_output(const att_mekf_t *f, att_output_t *out)
 {
     out->q = f->st.q;
@@ -1343,7 +1364,7 @@ void att_mekf_output(const att_mekf_t *f, att_output_t *out)
     out->valid = ATT_OUT_Q | ATT_OUT_BIAS;
     out->cov[0] = f->st.p[0]; /* packed upper triangle: the diagonal at 0, 6, 11, 15, 18, 20 */
     out->cov[1] = f->st.p[6];
-    out->cov[2] = f->st.p[11];
+    out->cov[2] = att_mekf_cov_heading(f);
     out->cov[3] = (f->st.p[15] + f->st.p[18] + f->st.p[20]) / 3.0f;
 }
 
@@ -1358,6 +1379,14 @@ att_status_t att_mekf_yaw_to(att_mekf_t *f, float target, float gain)
     float c;
     att_vec3_t h;
     const att_status_t st = att_yaw_q(&f->st.q, &f->st.lp1, &f->st.lp2, f->st.initialised, target, gain, &s, &c);
+    if (st == ATT_OK && gain == 1.0f) {
+        if (!f->c.use_mag) {
+            att_mekf_yaw_reset(&f->st, f->c.qa); /* a set heading is exact: one step's noise (cov[2]) */
+        }
+        /* with the mag the reference field turns with the attitude below: north is relabelled, the
+         * heading's uncertainty against the field (P) is unchanged */
+        f->st.head_known = true;
+    }
     if (st == ATT_OK) {
         /* the heading measurement's tilt entries (-c r_x, -c r_y) are linear in m0_ref: they turn with it */
         h = att_i_yaw_vec(att_i_vec3(f->st.mag_hx, f->st.mag_hy, 0.0f), c, s);
