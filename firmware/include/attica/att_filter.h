@@ -184,7 +184,9 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
  * the first implementation: ARS k = 0.1 per sample, c = 100, no accel low-pass; MARS alpha_acc 0.02,
  * alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass; KF
  * Q = 1e-4 I and R = 10 I per step; EKF Q = diag(1e-4, 1e-4, 0.1) and R = 6 I2 per step; MEKF: its
- * defaults (it has no earlier literal settings). ATT_ERR_KIND for an unknown kind or preset.
+ * defaults (it has no earlier literal settings). MARS's is the first implementation's where a mag sample
+ * comes every step (a slower one's gain now spans its interval, att_mars.h step 3). ATT_ERR_KIND for an
+ * unknown kind or preset.
  */
 att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
                                         att_filter_settings_t *settings);

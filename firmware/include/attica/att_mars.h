@@ -33,6 +33,12 @@
  *     by more than mag_dip_reject (tested as m'_z outside |m| sin(dip0 -+ mag_dip_reject), the interval
  *     limited to +-pi/2 where sin is monotonic), or when the direction is degenerate (horizontal mode:
  *     |h| == 0 or no horizontal m0).
+ *     A magnetometer slower than the gyro gives no sample (MAG_ABSENT: zero or NaN) on the steps between
+ *     its samples. A valid sample after g such steps corrects with the gain of n steps, 1 - (1 - k)^n
+ *     (k of the phase at the sample's step: k_mag, k_fast or k_rec), n = g + 1 when the sample before
+ *     also ended a gap, at most that gap + 1 (a regular period is made up, an outage beyond it is not;
+ *     g counted up to 255), else 1 (after samples on every step): tau_mag stays a time constant in
+ *     seconds. An invalid sample (MAG_INVALID) or a rejected one ends its gap with nothing applied.
  *     The reference is estimated, not frozen: the steps count the accepted samples and those rejected by
  *     norm or dip (summing their |m| and earth-frame vertical field m'_z) in blocks of 1 s (at least one
  *     sample). At the end of a block with more accepted than rejected samples, the norm and sin(dip) of
@@ -135,7 +141,8 @@ typedef enum {
 typedef struct {
     float dt;                     /**< sample period, s; [1e-6, 1] */
     float alpha_acc;              /**< per-sample accel correction gain, [0, 1]; unused when tau_acc > 0 */
-    float alpha_mag;              /**< per-sample mag correction gain, [0, 1]; unused when tau_mag > 0 */
+    float alpha_mag;              /**< mag correction gain per step (per sample when a mag sample comes every
+                                       step; step 3: a slower mag's), [0, 1]; unused when tau_mag > 0 */
     float tau_acc;                /**< accel time constant, s, [0, 1e4]; > 0 sets k_acc = dt/(tau_acc+dt)
                                        (alpha_acc is then ignored); 0 = k_acc is alpha_acc */
     float tau_mag;                /**< mag time constant, s, [0, 1e4]; > 0 sets k_mag = dt/(tau_mag+dt)
@@ -267,6 +274,11 @@ typedef struct {
     uint32_t rec_lp_n;     /**< accel low-pass updates since the last clipping gyro sample or the start (att_i_recovery_lp_gain) */
     uint32_t acc_step;     /**< steps before the step of the last accepted accel sample (or the start): covariance */
     uint32_t mag_step;     /**< steps before the step of the last accepted mag sample or alignment: covariance */
+    uint32_t mag_gap;      /**< running steps with no mag sample (MAG_ABSENT) since the last sample, valid or
+                                not (saturates at 255) */
+    uint32_t mag_period;   /**< the gap that the last gap-ending sample ended, 0 from the first step of a gap
+                                that does not follow such a sample: the most a sample makes up (att_mars.c) */
+    uint32_t mag_gap_step; /**< steps at that sample */
     bool m0_ref_ok;        /**< m0_ref is defined (horizontal mode: m0 has a horizontal component) */
     bool m0_valid;         /**< m0 holds the reference field (and m0_ref .. dip_hi are derived from it) */
     bool initialised;      /**< q holds a valid attitude */

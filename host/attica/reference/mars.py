@@ -81,6 +81,32 @@ def _rotation_toward(v: dm.Vec3, r: dm.Vec3, fallback: dm.Vec3, gain: Any) -> dm
         return dm.quat_from_axis_angle(axis, gain * angle)
 
 
+GAP_MAX = np.uint32(255)
+"""ATT_MARS_GAP_MAX: the steps without a mag sample counted (a longer gap counts 255: an outage)."""
+
+
+def gap_steps(gap: Any, period: Any) -> Any:
+    """att_mars_gap_close's count, min(gap, period) + 1.
+
+    The steps a sample after ``gap`` absent ones stands for (``period``: the gap before, 0 when the gap
+    did not follow a gap-ending sample).
+    """
+    return (np.minimum(period, gap) + _U1).astype(np.uint32)
+
+
+def gap_gain(k: Any, n: Any) -> Any:
+    """att_mars_gap_gain: 1 - (1 - k)^n for n = 1 .. 256 steps, by binary powers composed as a + b - a b."""
+    acc = np.zeros(np.shape(k), np.float32)
+    p = np.asarray(k, np.float32)
+    n = np.asarray(n, np.uint32)
+    with np.errstate(all="ignore"):
+        for i in range(9):  # n <= 256: nine bits; C stops at the highest (the later p unused)
+            bit = ((n >> np.uint32(i)) & _U1) != _U0
+            acc = np.where(bit, (acc + p) - acc * p, acc).astype(np.float32)
+            p = ((p + p) - p * p).astype(np.float32)
+    return acc
+
+
 class Mars:
     """9-axis complementary filter reference: ``n`` independent instances sharing one settings object.
 
@@ -110,6 +136,9 @@ class Mars:
         "st.rec_lp_n": "u32",
         "st.acc_step": "u32",
         "st.mag_step": "u32",
+        "st.mag_gap": "u32",
+        "st.mag_period": "u32",
+        "st.mag_gap_step": "u32",
         "st.bias_n": "u32",
         "st.rest_count": "u32",
         "st.rest_gate2": "f32",
@@ -334,6 +363,9 @@ class Mars:
         self.rec_clip: Any = np.zeros(n, np.bool_)
         self.acc_step = np.zeros(n, np.uint32)
         self.mag_step = np.zeros(n, np.uint32)
+        self.mag_gap = np.zeros(n, np.uint32)
+        self.mag_period = np.zeros(n, np.uint32)
+        self.mag_gap_step = np.zeros(n, np.uint32)
         mr.reset(self, n)
         hiron.reset(self, n)
         mi = self.m0_init
@@ -411,6 +443,10 @@ class Mars:
         rec = self.rec_left > _U0
         k = np.where(rec, self.k_rec, np.where(fast, self.k_fast, self.k_mag))
         k1 = np.where(rec, self.k_rec1, np.where(fast, self.k_fast1, self.k_mag1))
+        gap = self.mag_gap != _U0  # a slower magnetometer: the correction of its interval (att_mars_gap_gain)
+        k_gap = gap_gain(k, gap_steps(self.mag_gap, self.mag_period))
+        k = np.where(gap, k_gap, k).astype(np.float32)
+        k1 = np.where(gap, dm.ONE - k_gap, k1).astype(np.float32)
         with np.errstate(all="ignore"):
             dip_off = (me[2] < self.dip_lo * mnorm) | (me[2] > self.dip_hi * mnorm)
             gated = (mnorm < self.m0_lo) | (mnorm > self.m0_hi) | dip_off
@@ -548,7 +584,8 @@ class Mars:
             ok_dl, parts_l = self._derive_m0(m0_al)
             good_l = ok_al & ok_dl
             ok_ds, parts_s = self._derive_m0(dm.quat_rotate(q2, m))
-            use_corr = run & mag_ok & self.m0_valid
+            m0_was = self.m0_valid.copy()  # the mag step's reference state (before this step's commit)
+            use_corr = run & mag_ok & m0_was
             use_align = run & mag_ok & ~self.m0_valid & self.init_from_sensors
             use_set = run & mag_ok & ~self.m0_valid & ~self.init_from_sensors
             q3 = dm.quat_where(use_corr, q_corr, dm.quat_where(use_align & good_l, q_al, q2))
@@ -586,6 +623,20 @@ class Mars:
         before = self.steps - _U1  # the stamps hold the steps before the step (as in C)
         self.acc_step = np.where(acc_now, before, self.acc_step).astype(np.uint32)
         self.mag_step = np.where(mag_now, before, self.mag_step).astype(np.uint32)
+        # the running steps without a valid mag sample (saturating), 0 from a valid one
+        # the gap: a valid sample after one and the alignment's or reference's sample and an invalid one
+        # end it (att_mars_gap_close: the chain of regular gaps), a valid one without one leaves it at 0,
+        # an absent step (MAG_ABSENT) counts (saturating)
+        absent = (mag_flags & _u(Flag.MAG_ABSENT)) != _U0
+        closes = run & ((mag_ok & m0_was & (self.mag_gap != _U0)) | (mag_ok & ~m0_was) | (~mag_ok & ~absent))
+        # att_mars_gap_count: a gap's first step forgets the previous gap unless a gap-ending sample was
+        # the step before
+        forget = run & absent & (self.mag_gap == _U0) & ((before - _U1) != self.mag_gap_step)
+        self.mag_period = np.where(forget, _U0, self.mag_period).astype(np.uint32)
+        self.mag_period = np.where(closes, self.mag_gap, self.mag_period).astype(np.uint32)
+        self.mag_gap_step = np.where(closes, before, self.mag_gap_step).astype(np.uint32)
+        more = np.minimum(self.mag_gap + _U1, GAP_MAX)
+        self.mag_gap = np.where(run & ~absent, _U0, np.where(run, more, self.mag_gap)).astype(np.uint32)
         self.flags = flags.astype(np.uint32)
         return self.flags
 

@@ -16,6 +16,7 @@
 #define ATT_MARS_PIO2_F 0x1.921fb6p+0f
 #define ATT_MARS_MAG_ACCEPTED ATT_MAGREF_ACCEPTED /* the sample passed the norm and dip tests */
 #define ATT_MARS_MAG_GATED ATT_MAGREF_GATED       /* the sample failed them */
+#define ATT_MARS_GAP_MAX 255u /* steps without a mag sample counted (a longer gap counts 255: an outage) */
 
 /* The covariance model's default densities (docs/filters.md "Covariance": how they were chosen). */
 #define ATT_MARS_GYRO_NOISE 0.002f /* rad/s/sqrt(Hz) */
@@ -304,6 +305,9 @@ void att_mars_reset(att_mars_t *f)
     st->fast_left = 0u;
     st->acc_step = 0u;
     st->mag_step = 0u;
+    st->mag_gap = 0u;
+    st->mag_period = 0u;
+    st->mag_gap_step = 0u;
     st->rec_left = 0u;
     st->rec_lp_n = 0u;
     st->rec_clip = false;
@@ -403,6 +407,59 @@ static ATT_NOINLINE bool att_mars_align(const att_mars_coeffs_t *c, float qw, fl
 }
 
 /*
+ * A step without a mag sample (MAG_ABSENT): the gap grows (up to 255). Its first step forgets the
+ * previous gap (mag_period 0) unless the sample just before it ended one: only a gap that follows a gap
+ * has a regular period to make up.
+ */
+static ATT_NOINLINE void att_mars_gap_count(att_mars_state_t *st)
+{
+    if (st->mag_gap == 0u && st->steps - 1u != st->mag_gap_step) {
+        st->mag_period = 0u;
+    }
+    if (st->mag_gap < ATT_MARS_GAP_MAX) {
+        st->mag_gap = st->mag_gap + 1u;
+    }
+}
+
+/*
+ * A mag sample, valid or not, ends the gap of steps without one (mag_gap, reset; mag_period and
+ * mag_gap_step then hold it and this step). Returns the steps it stands for, min(gap, mag_period) + 1:
+ * a magnetometer that samples every n steps stands for n; the sample after an outage for one regular
+ * period, not the outage (mag_period: the gap before it); after samples on every step, 1.
+ */
+static uint32_t att_mars_gap_close(att_mars_state_t *st)
+{
+    const uint32_t gap = st->mag_gap;
+    const uint32_t n = ((st->mag_period < gap) ? st->mag_period : gap) + 1u;
+    st->mag_period = gap;
+    st->mag_gap_step = st->steps;
+    st->mag_gap = 0u;
+    return n;
+}
+
+/*
+ * The gain of the n steps a sample after a gap stands for (att_mars_gap_close), each of gain k,
+ * 1 - (1 - k)^n, by binary powers composed as a + b - a b (exact for small gains, where 1 - (1 - k)^n
+ * would cancel): a magnetometer that samples every n steps corrects per sample what one sampling every
+ * step would over those n steps, so that tau_mag (and the fast phase's and the recovery's, the phase of
+ * the sample's step) stays a time constant in seconds.
+ */
+static ATT_NOINLINE float att_mars_gap_gain(att_mars_state_t *st, float k)
+{
+    uint32_t n = att_mars_gap_close(st);
+    float acc = 0.0f;
+    float p = k;
+    while (n != 0u) {
+        if ((n & 1u) != 0u) {
+            acc = (acc + p) - acc * p;
+        }
+        p = (p + p) - p * p;
+        n = n >> 1;
+    }
+    return acc;
+}
+
+/*
  * Magnetometer correction of q with a usable sample of norm mnorm (the reference field is known);
  * sets ATT_FLAG_MAG_REJECTED when the sample is not used. Horizontal mode: with h the horizontal part of
  * q mag q* and r that of m0 (unit), the rotation about z that takes h to r is the shortest-arc
@@ -411,11 +468,12 @@ static ATT_NOINLINE bool att_mars_align(const att_mars_coeffs_t *c, float qw, fl
  * as q := ((1 - k_mag) + k_mag C_w, 0, 0, k_mag C_z) * q (the final normalisation of the step makes it
  * a rotation). No trigonometry; for small gains it turns by k_mag times 2 sin(angle / 2), i.e. k_mag
  * times the angle for the small heading errors of tracking. Full mode: att_mars_rotation_toward.
- * The gain is k_rec during a recovery, k_fast during the fast phase. *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
+ * The gain is k_rec during a recovery, k_fast during the fast phase, each that of the steps the sample
+ * stands for after steps without one (att_mars_gap_gain; a rejected sample drops them all). *use: ATT_MARS_MAG_ACCEPTED when the sample passed the norm
  * and dip tests, ATT_MARS_MAG_GATED when it failed them (the reference statistics count both). *theta:
  * the heading correction's angle 2 C'_z (horizontal mode; 0 when none), rad.
  */
-static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t *c, const att_mars_state_t *st,
+static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t *c, att_mars_state_t *st,
                                                          att_quat_t q, att_vec3_t me, float mnorm, uint32_t *flags,
                                                          uint32_t *use, float *theta)
 {
@@ -427,6 +485,10 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_correct(const att_mars_coeffs_t
     } else if (st->fast_left > 0u) {
         k = c->k_fast;
         k1 = c->k_fast1;
+    }
+    if (ATT_IN_LINE(st->mag_gap != 0u)) { /* rare (a slower magnetometer), in line: one instruction less */
+        k = att_mars_gap_gain(st, k); /* a slower magnetometer: the correction of its interval */
+        k1 = 1.0f - k;
     }
     att_vec3_t unit;
     att_quat_t qc;
@@ -667,6 +729,7 @@ static ATT_ALWAYS_INLINE att_quat_t att_mars_mag_step(const att_mars_coeffs_t *c
     if (st->m0_valid) {
         return att_mars_mag_correct(c, st, q, me, mnorm, flags, use, theta);
     }
+    (void)att_mars_gap_close(st); /* the alignment or the reference from this sample: its gap ends */
     st->flags = *flags;
     if (att_mars_mag_first(c, st, q.w, q.x, q.y, q.z, mag_in, &qa)) {
         q = qa;
@@ -749,6 +812,10 @@ static ATT_NOINLINE uint32_t att_mars_update(att_mars_t *f, const att_vec3_t *gy
     }
     if (mag_ok) {
         q = att_mars_mag_step(c, st, q, me, mnorm, mag_in, &flags, &use, &theta);
+    } else if ((mag_flags & ATT_FLAG_MAG_ABSENT) == 0u) {
+        (void)att_mars_gap_close(st); /* an invalid sample (saturated, Inf) ends the gap: its steps are lost */
+    } else {
+        att_mars_gap_count(st);
     }
     if (att_i_quat_normalize_bounded(q, &qn)) {
         st->q = qn;
