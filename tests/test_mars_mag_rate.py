@@ -29,6 +29,7 @@ import pytest
 from attica import native
 from attica.evaluate.core import attica_method, method_kind
 from attica.evaluate.suite import score_method
+from attica.evaluate.trace import euler_deg
 from attica.reference.filter import Filter as RefFilter
 from attica.reference.mars import gap_gain
 from attica.settings import BiasMode, FilterKind, MagMode, make_settings
@@ -118,10 +119,7 @@ def test_c_equals_reference(case: str) -> None:
 
 
 def _yaw(q: np.ndarray) -> np.ndarray:
-    q = q.astype(np.float64)
-    return np.degrees(
-        np.arctan2(2.0 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]), 1.0 - 2.0 * (q[:, 2] ** 2 + q[:, 3] ** 2))
-    )
+    return euler_deg(q.astype(np.float64))[:, 2]
 
 
 @pytest.mark.parametrize("every", [1, 10])

@@ -25,6 +25,7 @@ from attica import native
 from attica.data import Recording
 from attica.evaluate.core import attica_method, method_kind
 from attica.evaluate.suite import score_method
+from attica.evaluate.trace import euler_deg
 from attica.settings import BiasMode, FilterKind, make_settings
 from attica.sim import SimConfig, simulate
 
@@ -41,7 +42,7 @@ def steady_ratio(every: int, bias: float = 0.01, tau: float = 2.0) -> float:
     mag[np.arange(n) % every != 0] = np.nan
     s = make_settings(FilterKind.MARS, dt=dt, tau_mag=tau, tau_mag_fast=0.0, bias_mode=BiasMode.OFF)
     q = native.Filter(FilterKind.MARS, s).run(gyr, acc, mag, check_units=False)["q"].astype(np.float64)
-    yaw = np.arctan2(2.0 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]), 1.0 - 2.0 * (q[:, 2] ** 2 + q[:, 3] ** 2))
+    yaw = np.radians(euler_deg(q)[:, 2])
     return float(yaw[-1000:].mean() / (bias * tau))
 
 
