@@ -563,3 +563,18 @@ def test_cli_and_node_name_the_field() -> None:
     with pytest.raises(NodeError, match=r"att_node_init: .*ars\.tau_acc_lp = -1\.0"):
         Node("ars", sample_rate=100.0, tau_acc_lp=-1.0)
     Node("ars", sample_rate=100.0, gain=0.3, tau=0.5)  # refused (SettingsConflictError) before issue 22
+
+
+@pytest.mark.parametrize("kind", list(FilterKind), ids=lambda k: k.label)
+def test_a_preset_writes_the_whole_union(kind: FilterKind) -> None:
+    """att_filter_settings_default and _preset clear the union before the kind's member: the bytes past it
+    are 0 whatever the caller's memory held, so an image compared or saved byte by byte (the node's
+    persisted configuration, examples/c/persist) is the same every time. Before stop 47 the node's
+    SELECT of a kind smaller than the largest member left stack bytes there."""
+    member = ffi.sizeof(f"att_{kind.label}_settings_t")
+    for preset in (lib.ATT_PRESET_DEFAULT, lib.ATT_PRESET_SEED):
+        s = ffi.new("att_filter_settings_t *")
+        ffi.memmove(s, b"\xaa" * ffi.sizeof(s[0]), ffi.sizeof(s[0]))
+        assert lib.att_filter_settings_preset(int(kind), preset, 0.01, s) == lib.ATT_OK
+        tail = bytes(ffi.buffer(s))[member:]
+        assert tail == b"\0" * len(tail), (kind.label, preset)

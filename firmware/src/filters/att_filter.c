@@ -4,6 +4,8 @@
  * the input/output stages and the heading. Reads no field of any filter: each kind's hooks do.
  * Mirrored by reference/filter.py.
  */
+#include <string.h>
+
 #include "../math/att_fp.h"
 
 #include "../calib/att_calib_i.h"
@@ -57,8 +59,12 @@ bool att_filter_settings_gain(att_filter_kind_t kind, att_filter_settings_t *set
 
 /* --- settings, init, retune, reset ----------------------------------------------------------- */
 
+/* The whole union is cleared first: the bytes past the kind's member are 0, not what the caller's memory
+   held, so a settings image compared or saved byte by byte (the node's persisted configuration) is the
+   same every time. */
 #define ATT_FILTER_CASE_PRESET(NAME, name, num)                                                            \
     case ATT_FILTER_##NAME:                                                                                  \
+        (void)memset(settings, 0, sizeof *settings);                                                         \
         att_##name##_preset(&settings->name, preset, dt);                                                    \
         return ATT_OK;
 
