@@ -245,7 +245,8 @@ class MekfSettings:
     mag_range: float = 1000.0
     mag_norm_reject: float = 0.2
     mag_dip_reject: float = 0.5
-    tau_acc_lp: float = 1.25
+    tau_acc_lp: float = 1.45
+    tau_acc_lp_no_rest: float = 1.25
     rest_noise: float = 1e-4
     rest_gyro: float = 0.05
     rest_accel: float = 0.5

@@ -26,7 +26,9 @@
  *     Its lag at low frequencies is 2 tau_acc_lp, as two cascaded first-order stages of time constant
  *     tau_acc_lp (att_ars.h), and it attenuates faster linear accelerations twice as much: during
  *     motion the estimate's tilt follows u closely, so the lag (the gyro errors u cannot follow) and the
- *     linear acceleration left in u are the two errors traded. The residual is the horizontal part of
+ *     linear acceleration left in u are the two errors traded. Until the first rest (step 0's zero-rate
+ *     update) has measured the gyro bias, the section runs at tau_acc_lp_no_rest instead: a bias learnt
+ *     from the accel alone drifts more within the lag, so a shorter one pays (docs/accuracy.md). The residual is the horizontal part of
  *     the shortest rotation taking u to z = (0, 0, 1) in half-angle form, y = 2 (c_x, c_y) with
  *     (c_w, c_x, c_y, 0) = att_i_align_up(u): to first order u = z - dtheta x z, so y = (dtheta_x,
  *     dtheta_y), H = [I2 0]; unlike the raw (u_x, u_y) it grows monotonically up to a half turn
@@ -211,6 +213,9 @@ typedef struct {
     float mag_norm_reject; /**< skip mag when ||m|/|m0| - 1| > this; [0, 1e3]; 0 = never skip */
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
     float tau_acc_lp;      /**< earth-frame accel low-pass (Butterworth, lag 2 tau_acc_lp), s, [0, 1e4]; 0 = off */
+    float tau_acc_lp_no_rest; /**< the low-pass's time constant until a rest (the zero-rate update) has
+                                measured the gyro bias, s, [0, 1e4]; 0 = tau_acc_lp throughout; unused
+                                when tau_acc_lp is 0 */
     float rest_noise;      /**< least noise density of the zero-rate pseudo-measurement at rest (the measured
                                 one is used when larger), rad/s/sqrt(Hz); [1e-7, 1] */
     float rest_gyro;       /**< at rest when |w - b| < rest_gyro (+ the bias's error), rad/s, [0, gyro_range]; 0 = none ... */
@@ -270,6 +275,7 @@ typedef struct {
     float mag_norm_reject; /**< ||m|/|m0| - 1| limit (0 = never) */
     float mag_dip_reject;  /**< dip deviation limit, rad (0 = never) */
     float k_lp;            /**< per-sample gain of the accel low-pass, dt / (sqrt(2) tau_acc_lp + dt) (0 = off) */
+    float k_lp_no_rest;    /**< its gain until the first rest, from tau_acc_lp_no_rest (k_lp when 0 or off) */
     uint32_t n_recover;    /**< consecutive gate rejections before the recovery (0 = never) */
     float r_rest;          /**< least zero-rate noise per sample and axis, rest_noise^2 / dt, (rad/s)^2 */
     float rest_gyro2;      /**< rest_gyro^2, (rad/s)^2 */
@@ -279,7 +285,7 @@ typedef struct {
     float p0_scale;        /**< initial variance of the scale-factor error, gyro_scale_sd^2 (0 = off) */
     float scale_init;      /**< scale-factor error after reset */
     float clip;            /**< |w_i| at or above this is clipping: 0.98 gyro_range, rad/s (Inf: no recovery) */
-    float k_lp_rec;        /**< the low-pass gain in the start's recovery once its mean is below it: max(k_lp, dt / (recovery_time / 8 + dt)) */
+    float k_lp_rec;        /**< the low-pass gain in the start's recovery once its mean is below it: max(k_lp_no_rest, dt / (recovery_time / 8 + dt)) */
     float q_rec_tilt;      /**< tilt process noise per step of a recovery, min(k^2 r_acc / (1 - k), p_max), rad^2 */
     float q_rec_head;      /**< heading process noise per step of a recovery, min(k^2 r_mag / (1 - k), p_max), rad^2 */
     uint32_t rec_n;        /**< samples of a recovery (0 = none) */
@@ -307,6 +313,7 @@ typedef struct {
     float scale_v[6];      /**< sensitivity of (dtheta, db) to s: rad (earth frame), then rad/s (sensor) */
     att_vec3_t lp1;        /**< inner state of the accel low-pass, m/s^2, earth frame */
     att_vec3_t lp2;        /**< output of the accel low-pass (the measured up direction), m/s^2, earth */
+    float k_lp;            /**< the low-pass's gain now: k_lp_no_rest until the first rest, then k_lp */
     att_vec3_t m0;         /**< reference magnetic field, uT, earth frame (ENU); valid when m0_valid */
     att_vec3_t m0_ref;     /**< unit horizontal direction of m0 (z = 0), earth */
     float mag_hx;          /**< H entry of dtheta_x in the heading innovation, -c r_x (c = m0_z / |m0_xy|) */
@@ -333,6 +340,8 @@ typedef struct {
     bool head_known;       /**< a heading was set (att_filter_set_heading; or the field tracked it before a
                                 retune to 6 axes) and no clipping gyro sample has turned it since. With use_mag
                                 off the output's cov[2] is P's when true, pi^2/3 when false; unused with it on */
+    bool rested;           /**< a rest (the zero-rate update) has measured the gyro bias since the reset:
+                                the accel low-pass runs at k_lp, before at k_lp_no_rest */
 } att_mekf_state_t;
 
 /** One MEKF instance (no heap; copy freely). */

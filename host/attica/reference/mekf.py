@@ -136,6 +136,7 @@ class Mekf:
         "st.scale_v": "f32x6",
         "st.lp1": "vec3",
         "st.lp2": "vec3",
+        "st.k_lp": "f32:k_lp_now",
         "st.m0": "vec3",
         "st.m0_ref": "vec3",
         "st.mag_hx": "f32",
@@ -159,6 +160,7 @@ class Mekf:
         "st.rec_clip": "bool",
         "st.initialised": "bool",
         "st.head_known": "bool",
+        "st.rested": "bool",
     }
     """C state fields mirrored by this class (see reference._common.load_c_state)."""
     EARTH: tuple[str, ...] = ("lp1", "lp2", "m0", "m0_ref", "mag_h")
@@ -175,6 +177,7 @@ class Mekf:
         "c.r_mag": "f32",
         "c.mag_soft": "f32",
         "c.k_lp": "f32",
+        "c.k_lp_no_rest": "f32",
         "c.n_recover": "u32",
         "c.r_rest": "f32",
         "c.rest_gyro2": "f32",
@@ -236,6 +239,11 @@ class Mekf:
             tau_lp = f(s.tau_acc_lp, n)
             k_lp = np.where(tau_lp > dm.ZERO, self.dt / (SQRT2 * tau_lp + self.dt), dm.ZERO)
             self.k_lp = k_lp.astype(np.float32)
+            tau_nr = f(s.tau_acc_lp_no_rest, n)
+            k_nr = np.where(
+                (self.k_lp > dm.ZERO) & (tau_nr > dm.ZERO), self.dt / (SQRT2 * tau_nr + self.dt), self.k_lp
+            )
+            self.k_lp_no_rest = k_nr.astype(np.float32)
         self.r_accel = f(s.r_accel, n)
         self.gate = f(s.gate, n)
         self.soft = self.gate * QUARTER
@@ -298,7 +306,8 @@ class Mekf:
     def _rec_coeffs(self, s: MekfSettings) -> None:
         """att_mekf_rec_coeffs: the recovery after a clipping gyro (k^2 r / (1 - k): steady-state gain k)."""
         self.rec_n, self.clip, k = recovery_params(setting(s.recovery_time, self.n), self.gyro_range, self.dt)
-        self.k_lp_rec = np.where(self.lp_on & (k > self.k_lp), k, self.k_lp).astype(np.float32)
+        k_nr = self.k_lp_no_rest
+        self.k_lp_rec = np.where(self.lp_on & (k > k_nr), k, k_nr).astype(np.float32)
         on = self.rec_n > _U0
         self.q_rec_tilt = np.where(on, recovery_q(k, self.r_acc, self.p_max), dm.ZERO).astype(np.float32)
         self.q_rec_head = np.where(on, recovery_q(k, self.r_mag, self.p_max), dm.ZERO).astype(np.float32)
@@ -338,6 +347,8 @@ class Mekf:
         self.rec_clip: Any = np.zeros(n, np.bool_)
         self.initialised: Any = ~self.init_from_sensors
         self.head_known: Any = np.zeros(n, np.bool_)
+        self.rested: Any = np.zeros(n, np.bool_)
+        self.k_lp_now: Any = self.k_lp_no_rest.copy()
         mi = self.m0_init
         nonzero = ~((mi[0] == dm.ZERO) & (mi[1] == dm.ZERO) & (mi[2] == dm.ZERO))
         ok, parts = mg.derive_m0(self, mi)
@@ -465,7 +476,10 @@ class Mekf:
         ended = run & ~rest  # the next rest measures its own noise
         self.rest_e2 = w(ended, dm.ZERO, self.rest_e2).astype(np.float32)
         self.rest_e2_n = w(ended, _U0, self.rest_e2_n).astype(np.uint32)
-        return run & rest & (self.rest_count >= self.rest_n)
+        at_rest = run & rest & (self.rest_count >= self.rest_n)
+        self.rested = self.rested | at_rest  # the bias measured: the low-pass's longer lag pays from now on
+        self.k_lp_now = np.where(at_rest, self.k_lp, self.k_lp_now).astype(np.float32)
+        return at_rest
 
     def _rest_noise(self, at_rest: Any, g: dm.Vec3, bias: dm.Vec3) -> Any:
         """Mirror of att_mekf_rest_noise where ``at_rest``: the zero-rate noise per sample and axis."""
@@ -548,10 +562,11 @@ class Mekf:
         start_lp = ~wk.lp_valid
         l1 = dm.vec3_where(start_lp, u, wk.lp1)
         l2 = dm.vec3_where(start_lp, u, wk.lp2)
-        floor = w(self.rec_clip, self.k_lp, self.k_lp_rec).astype(np.float32)
+        k = self.k_lp_now
+        floor = w(self.rec_clip, k, self.k_lp_rec).astype(np.float32)
         k_end = (REC_MEAN_END * floor).astype(np.float32)
         k_mean, lp_n1, k_mean2 = recovery_lp_gain(self.rec_lp_n, floor, k_end)
-        l1, l2 = _lowpass(u, w(rec, k_mean, self.k_lp), w(rec, k_mean2, self.k_lp), l1, l2)
+        l1, l2 = _lowpass(u, w(rec, k_mean, k), w(rec, k_mean2, k), l1, l2)
         self.rec_lp_n = w(acc_try & self.lp_on & rec, lp_n1, self.rec_lp_n).astype(np.uint32)
         u = dm.vec3_where(self.lp_on, l2, u)
         ok_u, (_, cx, cy), _ = align_up(u)
@@ -631,6 +646,7 @@ class Mekf:
         new.head_known = np.where(to_six, new.m0_valid, new.head_known)
         hiron.reset_where(new, new.hi_on != self.hi_on)  # turned on or off: the estimate starts again
         hiron.retune(new)
+        new.k_lp_now = np.where(new.rested, new.k_lp, new.k_lp_no_rest).astype(np.float32)
         ok, parts = mg.derive_m0(new, new.m0)
         mg.commit_m0(new, new.m0_valid & ok, parts, new_block=False)
         new.rest_count = np.minimum(new.rest_count, new.rest_n).astype(np.uint32)

@@ -66,7 +66,8 @@ void att_mekf_settings_default(att_mekf_settings_t *settings, float dt)
     settings->mag_range = 1000.0f;
     settings->mag_norm_reject = 0.2f;
     settings->mag_dip_reject = 0.5f; /* about 29 deg */
-    settings->tau_acc_lp = 1.25f;     /* s: Butterworth low-pass, a lag of 2.5 s (docs/accuracy.md) */
+    settings->tau_acc_lp = 1.45f;         /* s: Butterworth low-pass, a lag of 2.9 s (docs/accuracy.md) */
+    settings->tau_acc_lp_no_rest = 1.25f; /* s: a lag of 2.5 s until a rest has measured the bias */
     settings->rest_noise = 1e-4f; /* rad/s/sqrt(Hz): the floor of the measured noise at rest (gyro_noise's) */
     settings->rest_gyro = 0.05f;
     settings->rest_accel = 0.5f;
@@ -104,7 +105,7 @@ att_status_t att_mekf_settings_validate(const att_mekf_settings_t *s)
 static void att_mekf_rec_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
 {
     const float k = att_i_recovery_params(s->recovery_time, s->gyro_range, s->dt, &c->rec_n, &c->clip);
-    c->k_lp_rec = (c->lp_on && k > c->k_lp) ? k : c->k_lp;
+    c->k_lp_rec = (c->lp_on && k > c->k_lp_no_rest) ? k : c->k_lp_no_rest;
     c->q_rec_tilt = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_acc, c->p_max) : 0.0f;
     c->q_rec_head = (c->rec_n > 0u) ? att_i_recovery_q(k, c->r_mag, c->p_max) : 0.0f;
 }
@@ -134,6 +135,9 @@ static void att_mekf_coeffs(att_mekf_coeffs_t *c, const att_mekf_settings_t *s)
     c->mag_norm_reject = s->mag_norm_reject;
     c->mag_dip_reject = s->mag_dip_reject;
     c->k_lp = (s->tau_acc_lp > 0.0f) ? s->dt / (ATT_MEKF_SQRT2 * s->tau_acc_lp + s->dt) : 0.0f;
+    c->k_lp_no_rest = (c->k_lp > 0.0f && s->tau_acc_lp_no_rest > 0.0f)
+                          ? s->dt / (ATT_MEKF_SQRT2 * s->tau_acc_lp_no_rest + s->dt)
+                          : c->k_lp;
     c->n_recover = att_sensor_samples(s->gate_recover, s->dt);
     c->r_rest = (s->rest_noise * s->rest_noise) / s->dt;
     c->rest_gyro2 = s->rest_gyro * s->rest_gyro;
@@ -284,6 +288,7 @@ att_status_t att_mekf_retune(att_mekf_t *f, const att_mekf_settings_t *settings)
         att_i_hi_reset(&f->st.hi); /* turned on or off: the estimate starts again (off: no offset applied) */
     }
     att_i_hi_retune(&f->c.hi, &f->st.hi);
+    f->st.k_lp = f->st.rested ? f->c.k_lp : f->c.k_lp_no_rest;
     if (!(f->c.p0_scale > 0.0f)) {
         f->st.p_scale = 0.0f; /* no longer estimated: the estimate is kept, fixed */
         att_mekf_scale_v_zero(&f->st);
@@ -348,6 +353,8 @@ void att_mekf_reset(att_mekf_t *f)
     st->rec_clip = false;
     st->initialised = !f->c.init_from_sensors;
     st->head_known = false;
+    st->rested = false;
+    st->k_lp = f->c.k_lp_no_rest;
     if (!att_mekf_vec3_is_zero(f->c.m0_init)) {
         (void)att_mekf_set_m0(&f->c, st, f->c.m0_init); /* succeeds: checked by the settings validation */
     }
@@ -1033,13 +1040,15 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, float k2, 
 /*
  * The low-pass gain during a recovery (step 6): the running mean of att_i_recovery_lp_gain (att_core.h)
  * until it is below the floor over 2 sqrt(2) (ATT_MEKF_REC_MEAN_END), then the floor: after a clipping
- * gyro sample k_lp; in the recovery of the start k_lp_rec, the fast exponential window, since there the
- * gyro bias is not known yet and the samples of a long mean would be turned by it. *k2: the second
- * stage's gain (1 while the mean runs, then the floor).
+ * gyro sample the low-pass's own gain k (k_lp, or k_lp_no_rest before the first rest); in the recovery
+ * of the start k_lp_rec, the fast exponential window, since there the gyro bias is not known yet and the
+ * samples of a long mean would be turned by it. *k2: the second stage's gain (1 while the mean runs,
+ * then the floor).
  */
-static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float *k2)
+static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float k,
+                                                    float *k2)
 {
-    const float floor = st->rec_clip ? c->k_lp : c->k_lp_rec;
+    const float floor = st->rec_clip ? k : c->k_lp_rec;
     *k2 = floor;
     return att_i_recovery_lp_gain(&st->rec_lp_n, floor, ATT_MEKF_REC_MEAN_END * floor, k2);
 }
@@ -1069,8 +1078,8 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp1 = u; /* the first sample starts the low-pass */
             lp2 = u;
         }
-        float k2 = c->k_lp;
-        const float k1 = rec ? att_mekf_rec_lp_gain(c, st, &k2) : c->k_lp;
+        float k2 = st->k_lp;
+        const float k1 = rec ? att_mekf_rec_lp_gain(c, st, st->k_lp, &k2) : st->k_lp;
         att_mekf_lowpass(u, k1, k2, &lp1, &lp2);
         u = lp2;
     }
@@ -1279,6 +1288,8 @@ static ATT_NOINLINE uint32_t att_mekf_update(att_mekf_t *f, const att_vec3_t *gy
         }
         if (rest && st->rest_count >= c->rest_n) {
             att_mekf_rest_update(c, st, gyr_in, &wk.q, rec);
+            st->rested = true; /* the bias measured: the accel low-pass's longer lag pays from now on */
+            st->k_lp = c->k_lp;
             flags |= ATT_FLAG_AT_REST | ATT_FLAG_BIAS_UPDATED;
         }
     }

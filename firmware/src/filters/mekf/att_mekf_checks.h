@@ -48,6 +48,7 @@ static inline bool att_mekf_vec3_is_zero(att_vec3_t v)
     ATT_CK_INERTIAL(C)                                                                                    \
     ATT_CK_MAG(C, ATT_MEKF_PI_F)                                                                           \
     ATT_CK_IN(C, tau_acc_lp, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                               \
+    ATT_CK_IN(C, tau_acc_lp_no_rest, 0.0f, ATT_TAU_MAX, "[0, 1e4]", "s")                                       \
     ATT_CK_IN(C, rest_noise, ATT_MEKF_GYRO_NOISE_MIN, 1.0f, "[1e-7, 1]", "rad/s/sqrt(Hz)")                     \
     ATT_CK_IN(C, rest_gyro, 0.0f, s->gyro_range, "[0, gyro_range]", "rad/s")                                   \
     ATT_CK_IN(C, rest_accel, 0.0f, s->gravity, "[0, gravity]", "m/s^2")                                        \
