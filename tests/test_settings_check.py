@@ -573,8 +573,16 @@ def test_a_preset_writes_the_whole_union(kind: FilterKind) -> None:
     SELECT of a kind smaller than the largest member left stack bytes there."""
     member = ffi.sizeof(f"att_{kind.label}_settings_t")
     for preset in (lib.ATT_PRESET_DEFAULT, lib.ATT_PRESET_SEED):
+        images = []
+        for fill in (b"\xaa", b"\x55"):
+            s = ffi.new("att_filter_settings_t *")
+            ffi.memmove(s, fill * ffi.sizeof(s[0]), ffi.sizeof(s[0]))
+            assert lib.att_filter_settings_preset(int(kind), preset, 0.01, s) == lib.ATT_OK
+            images.append(bytes(ffi.buffer(s)))
+            tail = images[-1][member:]
+            assert tail == b"\0" * len(tail), (kind.label, preset)
+        assert images[0] == images[1], f"{kind.label}: the member's padding too is cleared"
         s = ffi.new("att_filter_settings_t *")
         ffi.memmove(s, b"\xaa" * ffi.sizeof(s[0]), ffi.sizeof(s[0]))
-        assert lib.att_filter_settings_preset(int(kind), preset, 0.01, s) == lib.ATT_OK
-        tail = bytes(ffi.buffer(s))[member:]
-        assert tail == b"\0" * len(tail), (kind.label, preset)
+        assert lib.att_filter_settings_preset(int(kind), 7, 0.01, s) == lib.ATT_ERR_KIND
+        assert bytes(ffi.buffer(s)) == b"\xaa" * ffi.sizeof(s[0]), "untouched on an error"

@@ -175,8 +175,10 @@ typedef struct {
 } att_filter_t;
 
 /**
- * Default settings of a kind for sample period dt (s). ATT_ERR_KIND for an unknown kind,
- * ATT_ERR_DISABLED for a kind compiled out (att_config.h).
+ * Default settings of a kind for sample period dt (s). settings points to a whole att_filter_settings_t:
+ * it is cleared first (the bytes past the kind's member and its padding are 0, so the same call gives the
+ * same image byte for byte), then the kind's member written; untouched on an error. ATT_ERR_KIND for an
+ * unknown kind, ATT_ERR_DISABLED for a kind compiled out (att_config.h).
  */
 att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_filter_settings_t *settings);
 /**
@@ -185,8 +187,8 @@ att_status_t att_filter_settings_default(att_filter_kind_t kind, float dt, att_f
  * alpha_mag 0.01 per sample, accel_reject 0.1, first-order integration, fixed bias, no low-pass; KF
  * Q = 1e-4 I and R = 10 I per step; EKF Q = diag(1e-4, 1e-4, 0.1) and R = 6 I2 per step; MEKF: its
  * defaults (it has no earlier literal settings). MARS's is the first implementation's where a mag sample
- * comes every step (a slower one's gain now spans its interval, att_mars.h step 3). ATT_ERR_KIND for an
- * unknown kind or preset.
+ * comes every step (a slower one's gain now spans its interval, att_mars.h step 3). The union is cleared
+ * first, as by att_filter_settings_default. ATT_ERR_KIND for an unknown kind or preset.
  */
 att_status_t att_filter_settings_preset(att_filter_kind_t kind, att_preset_t preset, float dt,
                                         att_filter_settings_t *settings);

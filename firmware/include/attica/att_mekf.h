@@ -91,9 +91,10 @@
  *     each clipping sample restarts the accel low-pass (its stages hold samples turned by a wrong
  *     rotation: the next applied accel sample starts them, as at the start), which then takes the
  *     running mean of the samples since (att_i_recovery_lp_gain, att_ars.h; both states hold it) until
- *     its age is the section's lag, 1 / (n + 1) below k_lp / (2 sqrt(2)) (ATT_MEKF_REC_MEAN_END; in
- *     the start's recovery, where the bias is not known yet, only until it is below k_lp_rec / (2
- *     sqrt(2)), k_lp_rec = max(k_lp, k): a long mean would gather samples turned by that bias); an accel
+ *     its age is the section's lag, 1 / (n + 1) below k / (2 sqrt(2)) for the low-pass's gain of the
+ *     moment k (k_lp, or k_lp_no_rest before the first rest; ATT_MEKF_REC_MEAN_END); in the start's
+ *     recovery, where the bias is not known yet, only until it is below k_lp_rec / (2 sqrt(2)),
+ *     k_lp_rec = max(k_lp_no_rest, k): a long mean would gather samples turned by that bias); an accel
  *     gate rejection is recovered at once
  *     (the gate_recover wait is skipped); the accel update takes the bias as a consider state (Schmidt:
  *     its gain rows zero, its rows of P and V kept); and the updates leave the scale-factor estimate
@@ -214,8 +215,8 @@ typedef struct {
     float mag_dip_reject;  /**< skip mag when |dip(q m q*) - dip(m0)| > this, rad, [0, pi]; 0 = never */
     float tau_acc_lp;      /**< earth-frame accel low-pass (Butterworth, lag 2 tau_acc_lp), s, [0, 1e4]; 0 = off */
     float tau_acc_lp_no_rest; /**< the low-pass's time constant until a rest (the zero-rate update) has
-                                measured the gyro bias, s, [0, 1e4]; 0 = tau_acc_lp throughout; unused
-                                when tau_acc_lp is 0 */
+                                measured the gyro bias (a bias_init does not count), s, [0, 1e4];
+                                0 = tau_acc_lp throughout; unused when tau_acc_lp is 0 */
     float rest_noise;      /**< least noise density of the zero-rate pseudo-measurement at rest (the measured
                                 one is used when larger), rad/s/sqrt(Hz); [1e-7, 1] */
     float rest_gyro;       /**< at rest when |w - b| < rest_gyro (+ the bias's error), rad/s, [0, gyro_range]; 0 = none ... */

@@ -135,7 +135,7 @@ VARIANT_GRIDS: dict[str, dict[str, list[Any]]] = {
     "mekf6": {
         "accel_noise": [0.001, 0.003, 0.01],
         "gyro_rate_noise": [0.003, 0.01, 0.03],
-        "tau_acc_lp": [1.0, 1.25, 1.6],
+        "tau_acc_lp": [1.25, 1.45, 1.6],
         "gyro_scale_sd": [0.0, 0.002, 0.003, 0.005],
     },
 }

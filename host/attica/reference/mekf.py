@@ -554,8 +554,9 @@ class Mekf:
         """Mirror of att_mekf_accel where ``acc_try`` (a usable sample, initialised); returns its flags.
 
         ``rec``: a recovery runs (the low-pass: the running mean of recovery_lp_gain in both states until
-        it is below its floor over 2 sqrt(2), the floor k_lp after a clipping sample and k_lp_rec in the
-        start's recovery; a gate rejection recovered at once, the scale estimate left alone).
+        it is below its floor over 2 sqrt(2), the floor the gain of the moment (k_lp_now) after a clipping
+        sample and k_lp_rec in the start's recovery; a gate rejection recovered at once, the scale
+        estimate left alone).
         """
         w = np.where
         u = wk.v
