@@ -54,6 +54,13 @@ def _run(f: native.Filter, ref: RefFilter, gyr: Any, acc: Any) -> np.ndarray:
     return out
 
 
+def _set_after(f: native.Filter, ref: RefFilter, gyr: Any, acc: Any, heading: float) -> None:
+    """Both filters run ``gyr, acc`` and then have ``heading`` set (rad)."""
+    for obj in (f, ref):
+        obj.run(gyr, acc, check_units=False)
+        obj.set_heading(heading)
+
+
 def _step_noise(name: str, s: Any) -> np.float32:
     """One step's heading process noise, where a set heading's variance restarts: the ekf's q_psi dt
     (noise_rates), the mekf's gyro_noise^2 dt."""
@@ -91,9 +98,7 @@ def test_heading_unknown_until_set(name: str, how: str) -> None:
 def test_heading_unknown_again_after_a_clip(name: str) -> None:
     r = simulate(SimConfig(duration=10.0, rate=RATE, seed=6))
     f, ref, s = _pair(name)
-    for obj in (f, ref):
-        obj.run(r.gyr[:300], r.acc[:300], check_units=False)
-        obj.set_heading(0.5)
+    _set_after(f, ref, r.gyr[:300], r.acc[:300], 0.5)
     _run(f, ref, r.gyr[300:400], r.acc[300:400])
     assert f.output()["cov"][2] < 0.01
     gyr = r.gyr[400:800].copy()
@@ -111,9 +116,8 @@ def test_heading_unknown_again_after_a_clip(name: str) -> None:
 def test_a_reset_forgets_the_set_heading(name: str) -> None:
     r = simulate(SimConfig(duration=10.0, rate=RATE, seed=3))
     f, ref, _ = _pair(name)
+    _set_after(f, ref, r.gyr[:100], r.acc[:100], 0.2)
     for obj in (f, ref):
-        obj.run(r.gyr[:100], r.acc[:100], check_units=False)
-        obj.set_heading(0.2)
         obj.reset()
     out = _run(f, ref, r.gyr[100:200], r.acc[100:200])
     assert (out["cov"][1:, 2] == UNKNOWN).all()
@@ -164,9 +168,7 @@ def test_without_a_recovery_a_clip_keeps_the_heading_known(name: str) -> None:
     kind, s = _settings(name)
     s = replace(s, recovery_time=0.0)
     f, ref = native.Filter(kind, s), RefFilter(kind, s)
-    for obj in (f, ref):
-        obj.run(r.gyr[:300], r.acc[:300], check_units=False)
-        obj.set_heading(0.5)
+    _set_after(f, ref, r.gyr[:300], r.acc[:300], 0.5)
     gyr = r.gyr[300:400].copy()
     gyr[50:60, 2] = 1.5 * float(s.gyro_range)
     out = _run(f, ref, gyr, r.acc[300:400])

@@ -623,10 +623,9 @@ class Mars:
         before = self.steps - _U1  # the stamps hold the steps before the step (as in C)
         self.acc_step = np.where(acc_now, before, self.acc_step).astype(np.uint32)
         self.mag_step = np.where(mag_now, before, self.mag_step).astype(np.uint32)
-        # the running steps without a valid mag sample (saturating), 0 from a valid one
-        # the gap: a valid sample after one and the alignment's or reference's sample and an invalid one
-        # end it (att_mars_gap_close: the chain of regular gaps), a valid one without one leaves it at 0,
-        # an absent step (MAG_ABSENT) counts (saturating)
+        # the gap of steps without a mag sample: a valid sample after one, the alignment's or the
+        # reference's sample and an invalid one end it (att_mars_gap_close: period and stamp kept), a valid
+        # one without a gap leaves it at 0, an absent step (MAG_ABSENT) counts it up (saturating)
         absent = (mag_flags & _u(Flag.MAG_ABSENT)) != _U0
         closes = run & ((mag_ok & m0_was & (self.mag_gap != _U0)) | (mag_ok & ~m0_was) | (~mag_ok & ~absent))
         # att_mars_gap_count: a gap's first step forgets the previous gap unless a gap-ending sample was
