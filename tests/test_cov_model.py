@@ -9,7 +9,8 @@
   it; the heading is unknown (pi^2/3) until set (ars) or aligned (mars), then small and growing without
   mag samples; a weak horizontal field gives a larger heading variance;
 - the settings contract of the three densities;
-- docs/accuracy.md's table of the model against BROAD is what ``attica_dev.cov_check`` computes.
+- docs/accuracy.md's tables of every kind's covariance against BROAD and the simulator are what
+  ``attica_dev.cov_check`` computes.
 """
 
 from __future__ import annotations
@@ -276,33 +277,42 @@ def _doc_rows(marker: str) -> list[list[str]]:
     return rows[2:]
 
 
+def _doc_header(marker: str) -> list[str]:
+    text = (Path(__file__).resolve().parent.parent / "docs" / "accuracy.md").read_text(encoding="utf-8")
+    line = next(x for x in text[text.index(f"<!-- {marker}") :].splitlines()[1:] if x.startswith("|"))
+    return [c.strip() for c in line.strip().strip("|").split("|")]
+
+
 def test_docs_cov_check_table() -> None:
-    """docs/accuracy.md's BROAD table of the covariance model is what attica_dev.cov_check computes."""
+    """docs/accuracy.md's BROAD table of every kind's covariance is what attica_dev.cov_check computes."""
     broad_trials()
     recs = load_trials(BROAD)
     got = {}
-    for kind in (FilterKind.ARS, FilterKind.MARS):
-        for name, c in cov_check.measure(recs, kind).items():
+    for method in cov_check.METHODS:
+        for angle, c in cov_check.measure(recs, method).items():
             r = c.per_trial
             held = float(np.mean(c.held_out() * c.var) / np.mean(c.var))
-            got[f"{kind.label} {name}"] = [
+            got[f"{method} {angle}"] = [
                 f"{np.degrees(np.sqrt(c.mse.mean())):.2f}",
                 f"{np.degrees(np.sqrt(c.var.mean())):.2f}",
                 f"{c.pooled:.2f}",
                 f"{held:.2f}",
                 f"{r.min():.2f}, {np.median(r):.2f}, {r.max():.2f}",
             ]
-    assert {row[0]: row[1:] for row in _doc_rows("cov-check")} == got
+    rows = _doc_rows("cov-check")
+    assert [row[0] for row in rows] == [f"{m} {a}" for m, a in cov_check.columns()]
+    assert {row[0]: row[1:] for row in rows} == got
 
 
 def test_docs_cov_check_simulator_table() -> None:
-    """docs/accuracy.md's simulator table of the covariance model (the rows it shows) is cov_check's."""
-    ars = cov_check.simulated(FilterKind.ARS)
-    mars = cov_check.simulated(FilterKind.MARS)
+    """docs/accuracy.md's simulator table of every kind's covariance (the rows it shows) is cov_check's."""
+    sims = {method: cov_check.simulated(method) for method in cov_check.METHODS}
+    header = _doc_header("cov-check-sim")
+    assert header == ["condition"] + [f"{m} {a}" for m, a in cov_check.columns()]
     rows = _doc_rows("cov-check-sim")
     assert len(rows) >= 8
     for name, *cells in rows:
-        got = [ars[name]["tilt"].pooled, mars[name]["tilt"].pooled, mars[name]["heading"].pooled]
+        got = [sims[m][name][a].pooled for m, a in cov_check.columns()]
         assert cells == [f"{x:.2f}" for x in got], name
 
 

@@ -1,21 +1,27 @@
-"""How well the complementary filters' covariance model matches their errors on BROAD (issue 23).
+"""How well each kind's stated orientation covariance matches its errors on BROAD (issue 23).
 
-``python -m attica_dev.cov_check [BROAD_DIR]`` runs ars and mars with their defaults on the BROAD trials
-(as ``attica eval`` does: one period per row, lost rows stepped over) and compares, over each trial's
-scored rows, the mean squared error with the mean variance the output's ``cov`` states:
+``python -m attica_dev.cov_check [BROAD_DIR]`` runs every kind that reports a covariance (ars, kf, ekf,
+the mekf with and without the magnetometer, mars) with its defaults on the BROAD trials (as ``attica
+eval`` does: one period per row, lost rows stepped over) and compares, over each trial's scored rows,
+the mean squared error with the mean variance the output states, as the ROS ``sensor_msgs/Imu`` of
+the MCAP output carries it (:func:`attica.data.covariance.orientation_covariance`: the kind's
+variances about the earth's axes):
 
-- tilt: the inclination error squared against cov[0] + cov[1] (the tilt's two axes);
-- heading (mars): the heading error squared against cov[2].
+- tilt: the inclination error squared against the sum of the two horizontal axes' variances;
+- heading (the 9-axis methods, mars and mekf): the heading error squared against the vertical axis's.
 
-It does the same on the simulator, for every condition of ``attica eval --suite`` (seeds 1-3, scored
-from 5 s or the condition's start; the sensor's gyro range given where the condition sets one).
+ars and mars state a documented model of their fixed-gain corrections (docs/filters.md, "Covariance
+of the complementary filters"), whose default densities were chosen from the pooled in-sample ratios
+here; the Kalman kinds (kf, ekf, mekf) state their own P, which follows from the settings chosen for
+the attitude. It does the same on the simulator, for every condition of ``attica eval --suite``
+(seeds 1-3, scored from 5 s or the condition's start; the sensor's gyro range given where the
+condition sets one).
 
-A ratio of 1 is a consistent model; above 1 it is optimistic. It prints the ratio pooled over the
-trials (the mean squared error of all trials over their mean variance), its leave-one-trial-out form
-(each trial's ratio after scaling the model by the pooled ratio of the other 19, the way a default
-density chosen on the other trials would), and the spread of the per-trial ratios. The default
-densities of att_ars.h and att_mars.h were chosen from the pooled in-sample ratios (docs/filters.md
-"Covariance"); docs/accuracy.md quotes this output (tests/test_cov_model.py recomputes it).
+A ratio of 1 is a consistent model; above 1 it is optimistic, below 1 conservative. It prints the
+ratio pooled over the trials (the mean squared error of all trials over their mean variance), its
+leave-one-trial-out form (each trial's ratio after scaling the model by the pooled ratio of the other
+19, the way a default density chosen on the other trials would), and the spread of the per-trial
+ratios. docs/accuracy.md quotes this output (tests/test_cov_model.py recomputes it).
 """
 
 from __future__ import annotations
@@ -31,11 +37,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 from attica import metrics, native
+from attica.data.covariance import orientation_covariance
 from attica.data.recording import Recording
 from attica.evaluate import load_trials
 from attica.settings import FilterKind, Preset, preset_settings
 
 F64 = NDArray[np.float64]
+
+METHODS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
+    "ars": (FilterKind.ARS, {}),
+    "kf": (FilterKind.KF, {}),
+    "ekf": (FilterKind.EKF, {}),
+    "mekf6": (FilterKind.MEKF, {"use_mag": False}),
+    "mars": (FilterKind.MARS, {}),
+    "mekf": (FilterKind.MEKF, {}),
+}
+"""The methods measured: name -> (kind, settings other than the defaults); mekf6 is the 6-axis mekf of
+``attica eval``."""
+
+NINE_AXIS = ("mars", "mekf")
+"""The methods whose heading is measured (the others' is not observed: pi^2/3, unknown)."""
 
 
 @dataclass(frozen=True)
@@ -72,42 +93,44 @@ class Consistency:
         return out
 
 
-def measure(recs: Sequence[Recording], kind: FilterKind) -> dict[str, Consistency]:
-    """Run ``kind`` (defaults) on ``recs``: the tilt's and (mars) the heading's consistency."""
+def measure(recs: Sequence[Recording], name: str) -> dict[str, Consistency]:
+    """Run method ``name`` (:data:`METHODS`) on ``recs``: its tilt's and (9-axis) heading's consistency."""
     rows: dict[str, list[tuple[float, float]]] = {"tilt": [], "heading": []}
     for rec in recs:
-        incl, head, cov = _run(kind, rec)
+        incl, head, cov = _run(name, rec)
         scored = np.ones(len(rec), np.bool_) if rec.movement is None else rec.movement.copy()
         _add(rows, incl, head, cov, scored)
-    return _result(kind, rows)
+    return _result(name, rows)
 
 
-def _run(kind: FilterKind, rec: Recording, **over: Any) -> tuple[F64, F64, F64]:
-    """(inclination, heading errors (rad), cov) of ``kind`` (defaults and ``over``) on ``rec``."""
-    s = dataclasses.replace(preset_settings(kind, Preset.DEFAULT, dt=1.0 / rec.rate), **over)
+def _run(name: str, rec: Recording, **over: Any) -> tuple[F64, F64, F64]:
+    """(inclination, heading errors (rad), (N, 9) orientation covariance) of ``name`` on ``rec``."""
+    kind, own = METHODS[name]
+    s = dataclasses.replace(preset_settings(kind, Preset.DEFAULT, dt=1.0 / rec.rate), **own, **over)
     out = native.Filter(kind, settings=s).run(
         rec.gyr, rec.acc, rec.mag, check_units=False, steps=rec.steps if rec.lost else None
     )
     assert rec.quat_true is not None, rec.name
     _, heading, inclination = metrics.error_angles(out["q"].astype(np.float64), rec.quat_true)
-    return inclination, heading, out["cov"].astype(np.float64)
+    return inclination, heading, orientation_covariance(kind, out)
 
 
 def _add(rows: dict[str, list[tuple[float, float]]], incl: F64, head: F64, cov: F64, scored: Any) -> None:
     scored = scored & np.isfinite(incl)
-    rows["tilt"].append((float(np.mean(incl[scored] ** 2)), float(np.mean(cov[scored, 0] + cov[scored, 1]))))
-    rows["heading"].append((float(np.mean(head[scored] ** 2)), float(np.mean(cov[scored, 2]))))
+    tilt = cov[scored, 0] + cov[scored, 4]  # the variances about the earth's x and y axes
+    rows["tilt"].append((float(np.mean(incl[scored] ** 2)), float(np.mean(tilt))))
+    rows["heading"].append((float(np.mean(head[scored] ** 2)), float(np.mean(cov[scored, 8]))))
 
 
-def _result(kind: FilterKind, rows: dict[str, list[tuple[float, float]]]) -> dict[str, Consistency]:
-    names = ("tilt", "heading") if kind == FilterKind.MARS else ("tilt",)
+def _result(name: str, rows: dict[str, list[tuple[float, float]]]) -> dict[str, Consistency]:
+    names = ("tilt", "heading") if name in NINE_AXIS else ("tilt",)
     return {
         n: Consistency(np.array([r[0] for r in rows[n]]), np.array([r[1] for r in rows[n]])) for n in names
     }
 
 
-def simulated(kind: FilterKind, seeds: Sequence[int] = (1, 2, 3)) -> dict[str, dict[str, Consistency]]:
-    """Per condition of the suite: the consistency of ``kind`` over ``seeds`` (one entry per seed)."""
+def simulated(name: str, seeds: Sequence[int] = (1, 2, 3)) -> dict[str, dict[str, Consistency]]:
+    """Per condition of the suite: the consistency of method ``name`` over ``seeds`` (one entry per seed)."""
     from attica.evaluate.suite import CONDITIONS, CONVERGENCE
     from attica.sim import simulate_with_truth
 
@@ -117,37 +140,41 @@ def simulated(kind: FilterKind, seeds: Sequence[int] = (1, 2, 3)) -> dict[str, d
         over = {"gyro_range": cond.gyro_range} if cond.gyro_range > 0 else {}
         for seed in seeds:
             rec, _ = simulate_with_truth(cond.config(seed))
-            incl, head, cov = _run(kind, rec, **over)
+            incl, head, cov = _run(name, rec, **over)
             _add(rows, incl, head, cov, rec.t >= max(CONVERGENCE, cond.score_from))
-        out[cond.name] = _result(kind, rows)
+        out[cond.name] = _result(name, rows)
     return out
 
 
+def columns() -> list[tuple[str, str]]:
+    """The (method, angle) pairs measured, in the order of the tables: every tilt, then the headings."""
+    return [(m, "tilt") for m in METHODS] + [(m, "heading") for m in NINE_AXIS]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: print the consistency of ars and mars on the BROAD trials."""
+    """Command line: print the consistency of every kind's covariance on BROAD and the simulator."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     ap.add_argument("data", nargs="?", default="../shared/data/broad", help="BROAD trials folder")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     recs = load_trials(args.data)
-    print("kind  angle    RMS error  model RMS  pooled  held out (pooled)  per trial min-median-max")
-    for kind in (FilterKind.ARS, FilterKind.MARS):
-        for name, c in measure(recs, kind).items():
+    print("method angle    RMS error  model RMS  pooled  held out (pooled)  per trial min-median-max")
+    for name in METHODS:
+        for angle, c in measure(recs, name).items():
             held = c.held_out()
             r = c.per_trial
             print(
-                f"{kind.label:<5} {name:<8} {np.degrees(np.sqrt(c.mse.mean())):7.2f} deg "
+                f"{name:<6} {angle:<8} {np.degrees(np.sqrt(c.mse.mean())):6.2f} deg "
                 f"{np.degrees(np.sqrt(c.var.mean())):6.2f} deg  {c.pooled:6.2f}  "
                 f"{float(np.mean(held * c.var) / np.mean(c.var)):6.2f}             "
                 f"{r.min():.2f} - {np.median(r):.2f} - {r.max():.2f}"
             )
     print(f"{len(recs)} trials in {time.perf_counter() - t0:.1f} s\n")
-    print("simulator, pooled ratio per condition (seeds 1-3): ars tilt, mars tilt, mars heading")
-    sims = {kind: simulated(kind) for kind in (FilterKind.ARS, FilterKind.MARS)}
-    for cond in sims[FilterKind.ARS]:
-        a = sims[FilterKind.ARS][cond]["tilt"].pooled
-        m = sims[FilterKind.MARS][cond]
-        print(f"{cond:<14} {a:6.2f} {m['tilt'].pooled:6.2f} {m['heading'].pooled:6.2f}")
+    cols = columns()
+    print("simulator, pooled ratio per condition (seeds 1-3): " + ", ".join(f"{m} {a}" for m, a in cols))
+    sims = {name: simulated(name) for name in METHODS}
+    for cond in sims["ars"]:
+        print(f"{cond:<14} " + " ".join(f"{sims[m][cond][a].pooled:7.2f}" for m, a in cols))
     print(f"in {time.perf_counter() - t0:.1f} s")
     return 0
 
