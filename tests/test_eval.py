@@ -96,6 +96,89 @@ def test_combined_offset_and_judging_metric() -> None:
     assert rep.result("nine").score() == pytest.approx(err.total)
 
 
+def _stated_method(name: str, offsets: dict[str, np.ndarray], var: tuple[float, float], nine: bool) -> Method:
+    """The offset method stating a constant covariance: ``var`` = (tilt per horizontal axis, heading)."""
+    from attica.evaluate import Estimate
+
+    def run(rec: Recording) -> Estimate:
+        assert rec.quat_true is not None
+        n = len(rec)
+        cov = np.zeros((n, 9))
+        cov[:, 0] = cov[:, 4] = var[0]
+        cov[:, 8] = var[1]
+        cov[:10, :] = 0.0
+        cov[:10, 0] = -1.0  # "no orientation estimate": not compared
+        return Estimate(quat_mul(offsets[rec.name], rec.quat_true), cov=cov)
+
+    return Method(name, "test", nine, "default", run)
+
+
+def test_stated_covariance_against_known_errors() -> None:
+    """The stated variance against known errors: the ratio per angle, pooled with each trial alike."""
+    from attica.evaluate import format_stated
+
+    recs = [_rec("a", ("all_trials",)), _rec("b", ("all_trials",), seed=1)]
+    tilt = np.radians(2.0)
+    head = np.radians(4.0)
+    offsets = {"a": _qaxis((1, 0, 0), 2.0), "b": _qaxis((0, 0, 1), 4.0)}  # a: tilt 2 deg, b: heading 4 deg
+    var = (tilt**2 / 8.0, head**2)  # tilt: stated 2 x var per axis = tilt^2 / 4; heading: head^2
+    methods = [
+        _stated_method("nine", offsets, var, True),
+        _stated_method("six", offsets, var, False),
+        _offset_method("none", offsets),
+    ]
+    rep = run_methods(methods, recs, progress=False)
+    a, b = (t.stated for t in rep.result("nine").trials)
+    assert a is not None and b is not None
+    assert a.n == b.n == 300  # movement rows only; the first ten (no estimate) are outside movement here
+    assert a.tilt_mse == pytest.approx(tilt**2) and a.tilt_var == pytest.approx(tilt**2 / 4.0)
+    assert a.heading_mse == pytest.approx(0.0, abs=1e-12) and b.heading_mse == pytest.approx(head**2)
+    assert b.tilt_mse == pytest.approx(0.0, abs=1e-10)
+    nine = rep.result("nine")
+    assert nine.stated_ratio("tilt") == pytest.approx((tilt**2 / 2.0) / (tilt**2 / 4.0))  # 2: optimistic
+    assert nine.stated_ratio("heading") == pytest.approx(0.5)
+    assert np.isnan(rep.result("none").stated_ratio("tilt"))
+    text = format_stated(rep)
+    assert text.splitlines()[-2].split() == ["nine", "2.00", "0.50"]
+    assert text.splitlines()[-1].split() == ["six", "2.00", "-"]  # a 6-axis heading is not compared
+    assert "none" not in text
+    d = rep.as_dict()["methods"]
+    assert d["nine"]["stated_ratio"] == {"tilt": 2.0, "heading": 0.5}
+    assert d["six"]["stated_ratio"] == {"tilt": 2.0} and "stated_ratio" not in d["none"]
+
+
+def test_stated_skips_rows_without_an_estimate() -> None:
+    """Rows whose covariance says "no estimate" (-1) or is not finite, or whose truth is NaN, are skipped."""
+    from attica.metrics import stated
+
+    q = np.tile(_qaxis((0, 1, 0), 3.0), (6, 1))
+    truth = np.tile([1.0, 0.0, 0.0, 0.0], (6, 1))
+    truth[1] = np.nan
+    cov = np.zeros((6, 9))
+    cov[:, 0] = cov[:, 4] = 1e-3
+    cov[2, 0] = -1.0
+    cov[3, 8] = np.inf
+    s = stated(q, truth, cov)
+    assert s.n == 3 and s.tilt_var == pytest.approx(2e-3)
+    assert s.tilt_mse == pytest.approx(np.radians(3.0) ** 2)
+    assert stated(q, truth, cov, np.zeros(6, bool)).n == 0
+    with pytest.raises(ValueError, match="cov"):
+        stated(q, truth, cov[:, :4])
+    with pytest.raises(ValueError, match="movement"):
+        stated(q, truth, cov, np.ones(6))
+
+
+def test_attica_kinds_state_their_covariance() -> None:
+    """attica's kinds with a covariance state it to the evaluation (what sensor_msgs/Imu carries)."""
+    rec = simulate(SimConfig(duration=20.0, rate=100.0, seed=3))
+    rep = run_methods([attica_method(FilterKind.MARS), attica_method(FilterKind.TILT)], [rec], progress=False)
+    mars = rep.result("mars").trials[0].stated
+    assert mars is not None and mars.n > 1000
+    assert 0.0 < mars.tilt_var < 0.01 and 0.0 < mars.heading_var < 0.01
+    assert np.isfinite(rep.result("mars").stated_ratio("heading"))
+    assert rep.result("tilt").trials[0].stated is None  # tilt states none
+
+
 def test_needs_ground_truth() -> None:
     rec = _rec("x", ())
     rec.quat_true = None
@@ -320,6 +403,16 @@ def test_eval_command_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert set(res["methods"]) == {"ars", "mars", "ars@seed", "mars@seed"}
     assert res["groups"] == ["undisturbed", "rotation", "slow", "no_breaks", "disturbed", "tapping"]
     assert res["methods"]["mars"]["mean"]["total"] < 5.0
+    assert "stated orientation covariance" in text  # each kind's covariance against its errors
+    stated = [ln.split() for ln in text[text.index("stated orientation covariance") :].splitlines()]
+    assert [row[0] for row in stated if row and row[0] in res["methods"]] == [
+        "ars",
+        "mars",
+        "ars@seed",
+        "mars@seed",
+    ]
+    assert set(res["methods"]["mars"]["stated_ratio"]) == {"tilt", "heading"}
+    assert set(res["methods"]["ars"]["stated_ratio"]) == {"tilt"}
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs == [
         "error_01_undisturbed_slow_rotation_A.png",

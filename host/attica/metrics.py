@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["Errors", "error_angles", "error_quat", "evaluate", "quat_mul", "rmse_deg"]
+__all__ = ["Errors", "Stated", "error_angles", "error_quat", "evaluate", "quat_mul", "rmse_deg", "stated"]
 
 F64 = NDArray[np.float64]
 
@@ -230,3 +230,81 @@ def evaluate(q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike | None = N
     if np.isnan(total).any():  # a zero quaternion
         return Errors(nan, nan, nan, count)
     return Errors(rmse_deg(total), rmse_deg(heading), rmse_deg(inclination), count)
+
+
+@dataclass(frozen=True)
+class Stated:
+    """A stated orientation covariance against the errors over one recording's scored rows (rad^2).
+
+    Attributes
+    ----------
+    tilt_mse, tilt_var : float
+        Mean squared inclination error, and mean stated tilt variance: the sum of the variances about
+        the earth's two horizontal axes (what the inclination error squared is, to first order).
+    heading_mse, heading_var : float
+        Mean squared heading error, and mean stated variance about the vertical (meaningful for a
+        9-axis method; a 6-axis one states its unobserved heading as unknown).
+    n : int
+        Rows compared (scored, truth known, an estimate with a stated covariance).
+
+    """
+
+    tilt_mse: float
+    tilt_var: float
+    heading_mse: float
+    heading_var: float
+    n: int = 0
+
+
+def stated(q_est: ArrayLike, q_true: ArrayLike, cov: ArrayLike, movement: ArrayLike | None = None) -> Stated:
+    """The errors against the stated orientation covariance (``sensor_msgs/Imu``'s, about ENU's axes).
+
+    Parameters
+    ----------
+    q_est, q_true : array_like, shape (N, 4)
+        Estimated and true orientation, ``w, x, y, z`` sensor-to-ENU; rows with a NaN truth are skipped.
+    cov : array_like, shape (N, 9)
+        Row-major 3x3 orientation covariance about the earth's east, north, up axes, rad^2, as
+        :func:`attica.data.covariance.orientation_covariance` writes it; rows whose element 0 is -1 (no
+        estimate) or not finite are skipped.
+    movement : array_like of bool, shape (N,), optional
+        Rows that count; all when None.
+
+    Returns
+    -------
+    Stated
+        Means over the rows compared; NaN when there is none.
+
+    Raises
+    ------
+    ValueError
+        On shape mismatches or a non-boolean ``movement``.
+
+    """
+    est = _quats(q_est, "q_est")
+    true = _quats(q_true, "q_true")
+    c = np.asarray(cov, dtype=np.float64)
+    n = true.shape[0]
+    if est.shape != true.shape or c.shape != (n, 9):
+        raise ValueError(f"q_est {est.shape}, q_true {true.shape} and cov {c.shape} do not match (N, 4/9)")
+    rows = np.ones(n, np.bool_)
+    if movement is not None:
+        mov = np.asarray(movement)
+        if mov.dtype != np.bool_ or mov.shape != (n,):
+            raise ValueError(f"movement must be boolean of shape ({n},), got {mov.dtype} {mov.shape}")
+        rows &= mov
+    _, heading, inclination = error_angles(est, true)
+    tilt_var = c[:, 0] + c[:, 4]
+    rows &= np.isfinite(inclination) & np.isfinite(heading) & (c[:, 0] >= 0.0)
+    rows &= np.isfinite(tilt_var) & np.isfinite(c[:, 8])
+    k = int(rows.sum())
+    if k == 0:
+        nan = float("nan")
+        return Stated(nan, nan, nan, nan, 0)
+    return Stated(
+        float(np.mean(inclination[rows] ** 2)),
+        float(np.mean(tilt_var[rows])),
+        float(np.mean(heading[rows] ** 2)),
+        float(np.mean(c[rows, 8])),
+        k,
+    )

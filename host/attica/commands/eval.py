@@ -145,7 +145,7 @@ def _peers(spec: str | None) -> list[Any]:
 
 def run(args: argparse.Namespace) -> int:
     """``attica eval``."""
-    from attica.evaluate import format_summary, format_tables, load_trials, run_methods
+    from attica.evaluate import format_stated, format_summary, format_tables, load_trials, run_methods
     from attica.evaluate.parallel import DASK_HINT
 
     if args.suite:
@@ -213,6 +213,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(methods)} methods x {len(recs)} trials in {time.perf_counter() - t0:.1f} s ({where})\n")
     print(format_tables(report, wide=args.wide))
     print(format_summary(report))
+    stated = format_stated(report)
+    if stated:
+        print(f"\n{stated}")
     if out is not None:
         data = {
             "command": " ".join(["attica", *sys.argv[1:]]) if sys.argv[1:2] == ["eval"] else "attica eval"

@@ -37,7 +37,7 @@ from attica.evaluate.core import (
 )
 from attica.evaluate.estimate import Estimate
 from attica.evaluate.parallel import TrialPool
-from attica.evaluate.tables import format_notes, format_summary, format_tables
+from attica.evaluate.tables import format_notes, format_stated, format_summary, format_tables
 
 __all__ = [
     "DATA_SUFFIXES",
@@ -56,6 +56,7 @@ __all__ = [
     "attica_method",
     "method_kind",
     "format_notes",
+    "format_stated",
     "format_summary",
     "format_tables",
     "grid_search",

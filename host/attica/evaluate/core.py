@@ -32,7 +32,7 @@ from attica.evaluate.estimate import Estimate
 from attica.evaluate.parallel import TrialPool
 from attica.evaluate.trace import Trace
 from attica.kinds import KINDS, uses_mag
-from attica.metrics import Errors
+from attica.metrics import Errors, Stated
 from attica.outputs import OUT_BIAS
 from attica.settings import FilterKind, Preset, make_settings, preset_settings
 
@@ -207,8 +207,9 @@ class AtticaRun:
         return self.estimate(rec).q
 
     def estimate(self, rec: Recording) -> Estimate:
-        """The C filter run over the recording in batch: quaternions, flags, gyro bias."""
+        """The C filter run over the recording in batch: quaternions, flags, gyro bias, covariance."""
         from attica import native
+        from attica.data.covariance import COVARIANCE, orientation_covariance
 
         settings = preset_settings(self.kind, self.preset, dt=1.0 / rec.rate)
         if self.overrides:  # a time constant set here takes over from the preset's per-sample gain
@@ -224,6 +225,7 @@ class AtticaRun:
             np.asarray(out["q"], dtype=np.float64),
             flags=np.asarray(out["flags"], dtype=np.uint32),
             gyro_bias=bias if has_bias else None,
+            cov=orientation_covariance(self.kind, out) if self.kind in COVARIANCE else None,
         )
 
 
@@ -296,6 +298,8 @@ class TrialScore:
     seconds: float
     notes: tuple[str, ...] = ()
     """What the method did to this trial's input or scoring (a peer started late, a sample held ...)."""
+    stated: Stated | None = None
+    """The method's stated orientation covariance against its errors (None: it states none)."""
 
 
 @dataclass
@@ -317,6 +321,19 @@ class MethodResult:
     def score(self, group: str | None = None) -> float:
         """Mean of the method's score metric (total for 9-axis, inclination for 6-axis)."""
         return self.mean(self.method.score_metric, group)
+
+    def stated_ratio(self, angle: str) -> float:
+        """Mean squared error over mean stated variance of ``tilt`` or ``heading``, pooled over the trials.
+
+        Each trial counts alike (the means of its rows); 1 is a consistent covariance, above 1 an
+        optimistic one. NaN when the method states no covariance or a trial compared no row.
+        """
+        rows = [t.stated for t in self.trials]
+        if not rows or any(r is None for r in rows):
+            return float("nan")
+        mse = [getattr(r, f"{angle}_mse") for r in rows if r is not None]
+        var = [getattr(r, f"{angle}_var") for r in rows if r is not None]
+        return float(np.mean(mse) / np.mean(var))
 
 
 @dataclass
@@ -361,9 +378,19 @@ class Report:
                 },
                 "groups": {g: {k: clean(r.mean(k, g)) for k in METRICS} for g in self.groups},
                 "mean": {k: clean(r.mean(k)) for k in METRICS},
+                **(
+                    {"stated_ratio": {a: clean(r.stated_ratio(a)) for a in _stated_angles(m)}}
+                    if any(t.stated is not None for t in r.trials)
+                    else {}
+                ),
                 "seconds": round(sum(t.seconds for t in r.trials), 3),
             }
         return {"trials": self.trials, "groups": self.groups, "methods": methods}
+
+
+def _stated_angles(m: Method) -> tuple[str, ...]:
+    """The angles whose stated variance is compared: the heading only where the method observes it."""
+    return ("tilt", "heading") if m.nine_axis else ("tilt",)
 
 
 def _groups_of(recs: Sequence[Recording]) -> list[str]:
@@ -451,7 +478,7 @@ def _fill(
         outcomes = pool.run(methods, recs, curves, done)
     for res, row in zip(report.results, outcomes, strict=True):
         for rec, o in zip(recs, row, strict=True):
-            res.trials.append(TrialScore(rec.name, rec.groups, o.errors, o.seconds, o.notes))
+            res.trials.append(TrialScore(rec.name, rec.groups, o.errors, o.seconds, o.notes, o.stated))
             if o.trace is not None:
                 report.traces[(res.method.name, rec.name)] = o.trace
     return report

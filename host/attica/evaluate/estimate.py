@@ -35,6 +35,10 @@ class Estimate:
         Gyro-bias estimate in rad/s, sensor frame; None when the method does not estimate one.
     notes : tuple of str
         What was done to the input or the scoring that a reader of the tables must know.
+    cov : ndarray, float64, shape (N, 9), or None
+        The orientation covariance the method states (row-major 3x3 about the earth's east, north, up
+        axes, rad^2, as :func:`attica.data.covariance.orientation_covariance` writes it; element 0 -1
+        where there is no estimate); None when the method states none.
 
     """
 
@@ -43,6 +47,7 @@ class Estimate:
     flags: NDArray[np.uint32] | None = None
     gyro_bias: NDArray[np.floating] | None = None
     notes: tuple[str, ...] = ()
+    cov: F64 | None = None
 
 
 def as_estimate(out: F64 | Estimate, n: int, who: str = "method") -> Estimate:
@@ -61,6 +66,8 @@ def as_estimate(out: F64 | Estimate, n: int, who: str = "method") -> Estimate:
     for what, arr in (("scored", est.scored), ("flags", est.flags), ("gyro_bias", est.gyro_bias)):
         if arr is not None and np.shape(arr)[0] != n:
             raise ValueError(f"{who}: {what} has {np.shape(arr)[0]} rows, expected {n}")
+    if est.cov is not None and np.shape(est.cov) != (n, 9):
+        raise ValueError(f"{who}: cov has shape {np.shape(est.cov)}, expected ({n}, 9)")
     if q is est.q:
         return est
-    return Estimate(q, est.scored, est.flags, est.gyro_bias, est.notes)
+    return Estimate(q, est.scored, est.flags, est.gyro_bias, est.notes, est.cov)

@@ -37,7 +37,7 @@ import numpy as np
 from attica.data import Recording
 from attica.evaluate.estimate import as_estimate
 from attica.evaluate.trace import Trace, make_trace
-from attica.metrics import Errors, evaluate
+from attica.metrics import Errors, Stated, evaluate, stated
 
 if TYPE_CHECKING:
     from attica.evaluate.core import Method
@@ -65,12 +65,16 @@ def default_jobs() -> int:
 
 @dataclass(frozen=True)
 class Outcome:
-    """One method on one trial: the BROAD errors, run time, notes and (optionally) the plot trace."""
+    """One method on one trial: the BROAD errors, run time, notes, plot trace and stated covariance.
+
+    The trace only when asked for; the stated covariance against the errors for a method that states one.
+    """
 
     errors: Errors
     seconds: float
     notes: tuple[str, ...] = ()
     trace: Trace | None = None
+    stated: Stated | None = None
 
 
 def score_trial(method: Method, rec: Recording, curves: bool = False) -> Outcome:
@@ -91,7 +95,8 @@ def score_trial(method: Method, rec: Recording, curves: bool = False) -> Outcome
     if est.scored is not None:
         scored = np.asarray(est.scored, dtype=np.bool_) & (True if scored is None else scored)
     errors = evaluate(est.q, rec.quat_true, scored)
-    return Outcome(errors, seconds, tuple(est.notes), make_trace(est, rec) if curves else None)
+    cov = None if est.cov is None else stated(est.q, rec.quat_true, est.cov, scored)
+    return Outcome(errors, seconds, tuple(est.notes), make_trace(est, rec) if curves else None, cov)
 
 
 # --- worker processes ----------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import numpy as np
 
 from attica.evaluate.core import MethodResult, Report
 
-__all__ = ["TABLE_WIDTH", "format_notes", "format_summary", "format_tables"]
+__all__ = ["TABLE_WIDTH", "format_notes", "format_stated", "format_summary", "format_tables"]
 
 TABLE_WIDTH = 110
 """Columns a table may use unless ``wide``."""
@@ -106,6 +106,29 @@ def format_tables(report: Report, width: int | None = TABLE_WIDTH, wide: bool = 
     if notes:
         lines += [notes, ""]
     return "\n".join(lines)
+
+
+def format_stated(report: Report) -> str:
+    """Each method's stated orientation covariance against its errors; empty when no method states one.
+
+    Per method the mean squared error over the mean stated variance, pooled over the trials
+    (:meth:`MethodResult.stated_ratio`): the tilt for every method, the heading for 9-axis ones (a 6-axis
+    method states its heading as unknown).
+    """
+    rows = [r for r in report.results if any(t.stated is not None for t in r.trials)]
+    if not rows:
+        return ""
+    width = max([24, *(len(r.method.name) for r in rows)])
+    out = [
+        "stated orientation covariance (sensor_msgs/Imu's) against the errors: mean squared error",
+        "over mean stated variance, pooled over the trials (1 consistent, above 1 optimistic, below 1",
+        "conservative)",
+        f"{'method':<{width}} {'tilt':>7} {'heading':>7}",
+    ]
+    for r in rows:
+        head = _fmt(r.stated_ratio("heading")) if r.method.nine_axis else "      -"
+        out.append(f"{r.method.name:<{width}} {_fmt(r.stated_ratio('tilt'))} {head}")
+    return "\n".join(out)
 
 
 def format_notes(report: Report, width: int = TABLE_WIDTH) -> str:
