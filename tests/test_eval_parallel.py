@@ -50,7 +50,8 @@ def trial_dir(tmp_path_factory: pytest.TempPathFactory, recs: list[Recording]) -
 
 
 def _methods() -> list[Method]:
-    methods = [attica_method(k) for k in (FilterKind.ARS, FilterKind.MARS, FilterKind.MEKF)]
+    # covariance: the stated figures too are compared across processes (_numbers)
+    methods = [attica_method(k, covariance=True) for k in (FilterKind.ARS, FilterKind.MARS, FilterKind.MEKF)]
     if importlib.util.find_spec("vqf") is not None:
         from attica.evaluate import peer_methods
 
@@ -64,7 +65,7 @@ def _numbers(report: Report) -> list[Any]:
     for r in report.results:
         for t in r.trials:
             out.append((r.method.name, t.trial, t.errors.total, t.errors.heading, t.errors.inclination))
-            out.append((t.errors.n, t.notes))
+            out.append((t.errors.n, t.notes, t.stated))
     return out
 
 

@@ -15,17 +15,33 @@ One deliberate difference: BROAD's ``nanmean`` would also skip samples where the
 filter that fails would look perfect. :func:`evaluate` instead returns NaN if any scored sample (in
 ``movement``, truth known) has a non-finite (or zero) estimate. And a pure 180 deg tilt error
 (``e_w = e_z = 0``) has heading error 0 here, where BROAD's ``0/0`` gives NaN and skips the sample.
+
+Beside the errors, :func:`stated` compares a method's stated orientation covariance (``sensor_msgs/Imu``'s)
+with them over the same rows: mean squared error against mean stated variance (:func:`pooled_ratio`
+over recordings; 1 is consistent, above 1 optimistic).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["Errors", "Stated", "error_angles", "error_quat", "evaluate", "quat_mul", "rmse_deg", "stated"]
+__all__ = [
+    "STATED_ANGLES",
+    "Errors",
+    "Stated",
+    "error_angles",
+    "error_quat",
+    "evaluate",
+    "pooled_ratio",
+    "quat_mul",
+    "rmse_deg",
+    "stated",
+]
 
 F64 = NDArray[np.float64]
 
@@ -232,48 +248,82 @@ def evaluate(q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike | None = N
     return Errors(rmse_deg(total), rmse_deg(heading), rmse_deg(inclination), count)
 
 
+STATED_ANGLES = ("inclination", "heading")
+"""The angles whose stated variance :func:`stated` compares with the error."""
+
+
 @dataclass(frozen=True)
 class Stated:
-    """A stated orientation covariance against the errors over one recording's scored rows (rad^2).
+    """A stated orientation covariance against the errors over one recording's compared rows (rad^2).
 
     Attributes
     ----------
-    tilt_mse, tilt_var : float
+    inclination_mse, inclination_var : float
         Mean squared inclination error, and mean stated tilt variance: the sum of the variances about
         the earth's two horizontal axes (what the inclination error squared is, to first order).
     heading_mse, heading_var : float
         Mean squared heading error, and mean stated variance about the vertical (meaningful for a
         9-axis method; a 6-axis one states its unobserved heading as unknown).
     n : int
-        Rows compared (scored, truth known, an estimate with a stated covariance).
+        Rows compared.
 
     """
 
-    tilt_mse: float
-    tilt_var: float
+    inclination_mse: float
+    inclination_var: float
     heading_mse: float
     heading_var: float
     n: int = 0
+
+    def ratio(self, angle: str) -> float:
+        """Mean squared error over mean stated variance of ``angle`` (:data:`STATED_ANGLES`)."""
+        return pooled_ratio([self], angle)
+
+
+def pooled_ratio(rows: Sequence[Stated], angle: str) -> float:
+    """Mean squared error over mean stated variance of ``angle``, each recording with rows counting alike.
+
+    1 is a consistent covariance, above 1 an optimistic one; NaN when no recording compared a row (or
+    one's figures are NaN: a failed estimate).
+
+    Raises
+    ------
+    ValueError
+        For an angle not in :data:`STATED_ANGLES`.
+
+    """
+    if angle not in STATED_ANGLES:
+        raise ValueError(f"angle must be one of {', '.join(STATED_ANGLES)}, not {angle!r}")
+    used = [r for r in rows if r.n > 0]
+    if not used:
+        return float("nan")
+    mse = float(np.mean([getattr(r, f"{angle}_mse") for r in used]))
+    var = float(np.mean([getattr(r, f"{angle}_var") for r in used]))
+    return mse / var if var > 0.0 else float("nan")
 
 
 def stated(q_est: ArrayLike, q_true: ArrayLike, cov: ArrayLike, movement: ArrayLike | None = None) -> Stated:
     """The errors against the stated orientation covariance (``sensor_msgs/Imu``'s, about ENU's axes).
 
+    The rows compared are those :func:`evaluate` scores (in ``movement``, truth known) whose covariance
+    is stated: not element 0 = -1 ("no orientation estimate"), not all zeros ("covariance unknown"),
+    finite. As in :func:`evaluate`, a scored row whose estimate is not finite makes every figure NaN
+    (a filter that fails must not look consistent).
+
     Parameters
     ----------
     q_est, q_true : array_like, shape (N, 4)
-        Estimated and true orientation, ``w, x, y, z`` sensor-to-ENU; rows with a NaN truth are skipped.
+        Estimated and true orientation, ``w, x, y, z`` sensor-to-ENU.
     cov : array_like, shape (N, 9)
         Row-major 3x3 orientation covariance about the earth's east, north, up axes, rad^2, as
-        :func:`attica.data.covariance.orientation_covariance` writes it; rows whose element 0 is -1 (no
-        estimate) or not finite are skipped.
+        :func:`attica.data.covariance.orientation_covariance` writes it.
     movement : array_like of bool, shape (N,), optional
         Rows that count; all when None.
 
     Returns
     -------
     Stated
-        Means over the rows compared; NaN when there is none.
+        Means over the rows compared; NaN (n 0) when there is none.
 
     Raises
     ------
@@ -287,19 +337,20 @@ def stated(q_est: ArrayLike, q_true: ArrayLike, cov: ArrayLike, movement: ArrayL
     n = true.shape[0]
     if est.shape != true.shape or c.shape != (n, 9):
         raise ValueError(f"q_est {est.shape}, q_true {true.shape} and cov {c.shape} do not match (N, 4/9)")
-    rows = np.ones(n, np.bool_)
+    rows = ~np.isnan(true).any(axis=1)
     if movement is not None:
         mov = np.asarray(movement)
         if mov.dtype != np.bool_ or mov.shape != (n,):
             raise ValueError(f"movement must be boolean of shape ({n},), got {mov.dtype} {mov.shape}")
         rows &= mov
+    nan = float("nan")
+    if not np.all(np.isfinite(est[rows])):
+        return Stated(nan, nan, nan, nan, 0)
     _, heading, inclination = error_angles(est, true)
     tilt_var = c[:, 0] + c[:, 4]
-    rows &= np.isfinite(inclination) & np.isfinite(heading) & (c[:, 0] >= 0.0)
-    rows &= np.isfinite(tilt_var) & np.isfinite(c[:, 8])
+    rows &= np.isfinite(c).all(axis=1) & (c[:, 0] != -1.0) & np.any(c != 0.0, axis=1)
     k = int(rows.sum())
     if k == 0:
-        nan = float("nan")
         return Stated(nan, nan, nan, nan, 0)
     return Stated(
         float(np.mean(inclination[rows] ** 2)),

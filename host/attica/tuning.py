@@ -25,7 +25,7 @@ from attica.settings import FilterKind, Preset
 if TYPE_CHECKING:
     from attica.evaluate.parallel import TrialPool
 
-__all__ = ["GridResult", "LeaveOneOut", "grid_points", "grid_scores", "leave_one_out"]
+__all__ = ["GridResult", "LeaveOneOut", "grid_points", "grid_scores", "grid_search", "leave_one_out"]
 
 METRICS = ("total", "heading", "inclination")
 
@@ -158,3 +158,24 @@ def grid_scores(
         for j, t in enumerate(res.trials):
             errors[i, j] = (t.errors.total, t.errors.heading, t.errors.inclination)
     return GridResult(points, [r.name for r in recs], errors, "total" if nine else "inclination")
+
+
+def grid_search(
+    kind: FilterKind,
+    recs: Sequence[Recording],
+    grid: dict[str, list[Any]] | None = None,
+    progress: bool = True,
+    jobs: int = 1,
+) -> list[tuple[dict[str, Any], Errors]]:
+    """Score every point of ``grid`` (default :data:`GRIDS`), applied to the default settings.
+
+    Returns ``(overrides, mean errors over trials)`` sorted best first (9-axis kinds by total error, the
+    others by inclination error): one parameter set for all trials, as BROAD's authors tune. ``jobs``:
+    worker processes, as for :func:`run_methods`.
+    """
+    from attica.evaluate.core import GRIDS
+    from attica.evaluate.parallel import TrialPool
+
+    g = grid if grid is not None else GRIDS[kind]
+    with TrialPool(jobs) as pool:
+        return grid_scores(kind, recs, g, progress=progress, pool=pool).ranked()

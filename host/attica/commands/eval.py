@@ -289,7 +289,9 @@ def _attica(
     from attica.evaluate import VARIANTS, attica_method, method_kind
 
     variant = name if name in VARIANTS else ""
-    return attica_method(method_kind(name), preset, overrides, variant=variant, calibration=calibration)
+    return attica_method(
+        method_kind(name), preset, overrides, variant=variant, calibration=calibration, covariance=True
+    )
 
 
 def _check_settings(overrides: dict[str, dict[str, Any]], rate: float) -> None:

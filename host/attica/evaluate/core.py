@@ -31,10 +31,11 @@ from attica.data import Recording, load_recording
 from attica.evaluate.estimate import Estimate
 from attica.evaluate.parallel import TrialPool
 from attica.evaluate.trace import Trace
-from attica.kinds import KINDS, uses_mag
-from attica.metrics import Errors, Stated
+from attica.kinds import KINDS, info, uses_mag
+from attica.metrics import STATED_ANGLES, Errors, Stated, pooled_ratio
 from attica.outputs import OUT_BIAS
 from attica.settings import FilterKind, Preset, make_settings, preset_settings
+from attica.tuning import grid_search
 
 __all__ = [
     "GRIDS",
@@ -193,14 +194,15 @@ class Method:
 class AtticaRun:
     """The ``run`` of :func:`attica_method`: a module-level class, so that it pickles for worker processes.
 
-    Calling it returns the quaternions; :meth:`estimate` also the filter's flags and (when it estimates
-    one) gyro bias.
+    Calling it returns the quaternions; :meth:`estimate` also the filter's flags, (when it estimates one)
+    gyro bias and, with ``covariance``, the orientation covariance it states (:attr:`Estimate.cov`).
     """
 
     kind: FilterKind
     preset: Preset
     overrides: dict[str, Any]
     calibration: Any = None
+    covariance: bool = False
 
     def __call__(self, rec: Recording) -> F64:
         """The quaternions ``(N, 4)`` float64 of the C filter run over the recording in batch."""
@@ -221,11 +223,12 @@ class AtticaRun:
         out = f.run(rec.gyr, rec.acc, rec.mag, check_units=False, steps=steps)
         bias = np.asarray(out["gyro_bias"])
         has_bias = bool(np.all(out["valid"] & OUT_BIAS)) and bool(np.any(bias != 0.0))
+        states = self.covariance and self.kind in COVARIANCE
         return Estimate(
             np.asarray(out["q"], dtype=np.float64),
             flags=np.asarray(out["flags"], dtype=np.uint32),
             gyro_bias=bias if has_bias else None,
-            cov=orientation_covariance(self.kind, out) if self.kind in COVARIANCE else None,
+            cov=orientation_covariance(self.kind, out) if states else None,
         )
 
 
@@ -235,11 +238,15 @@ def attica_method(
     overrides: dict[str, Any] | None = None,
     variant: str = "",
     calibration: Any = None,
+    covariance: bool = False,
 ) -> Method:
     """An attica C filter (through the cffi binding) with a preset and optional setting overrides.
 
     ``variant`` names an entry of :data:`VARIANTS` (its overrides apply first, its name and axes are used).
     ``calibration`` (a :class:`~attica.calibration.Calibration`) sets the filter's input/output stages.
+    ``covariance``: its estimates carry the orientation covariance the kind states, which the evaluation
+    then compares with the errors (:attr:`TrialScore.stated`; ``attica eval`` asks for it, the grids
+    and the suite do not).
     """
     nine = uses_mag(kind)
     if variant:
@@ -247,7 +254,10 @@ def attica_method(
         overrides = {**base, **(overrides or {})}
     p = Preset.parse(preset)
     extra = dict(overrides or {})
-    run = AtticaRun(kind, p, extra, calibration)
+    switch = info(kind).mag_switch
+    if switch is not None and switch in extra:  # the mekf's use_mag set: the axes follow it
+        nine = bool(extra[switch])
+    run = AtticaRun(kind, p, extra, calibration, covariance)
     label = variant or kind.label
     name = label if p == Preset.DEFAULT else f"{label}@{p.label}"
     shown = {k: v for k, v in extra.items() if not variant or k not in VARIANTS[variant][1]}
@@ -323,17 +333,12 @@ class MethodResult:
         return self.mean(self.method.score_metric, group)
 
     def stated_ratio(self, angle: str) -> float:
-        """Mean squared error over mean stated variance of ``tilt`` or ``heading``, pooled over the trials.
+        """The stated covariance of ``angle`` against the errors, pooled over the trials that compared rows.
 
-        Each trial counts alike (the means of its rows); 1 is a consistent covariance, above 1 an
-        optimistic one. NaN when the method states no covariance or a trial compared no row.
+        :func:`attica.metrics.pooled_ratio` of the trials' :attr:`TrialScore.stated`; NaN when the
+        method states no covariance.
         """
-        rows = [t.stated for t in self.trials]
-        if not rows or any(r is None for r in rows):
-            return float("nan")
-        mse = [getattr(r, f"{angle}_mse") for r in rows if r is not None]
-        var = [getattr(r, f"{angle}_var") for r in rows if r is not None]
-        return float(np.mean(mse) / np.mean(var))
+        return pooled_ratio([t.stated for t in self.trials if t.stated is not None], angle)
 
 
 @dataclass
@@ -373,6 +378,7 @@ class Report:
                         **{k: clean(getattr(t.errors, k)) for k in METRICS},
                         "n": t.errors.n,
                         **({"notes": list(t.notes)} if t.notes else {}),
+                        **({"stated": _stated_dict(m, t.stated, clean)} if t.stated is not None else {}),
                     }
                     for t in r.trials
                 },
@@ -390,7 +396,12 @@ class Report:
 
 def _stated_angles(m: Method) -> tuple[str, ...]:
     """The angles whose stated variance is compared: the heading only where the method observes it."""
-    return ("tilt", "heading") if m.nine_axis else ("tilt",)
+    return STATED_ANGLES if m.nine_axis else STATED_ANGLES[:1]
+
+
+def _stated_dict(m: Method, st: Stated, clean: Callable[[float], float | None]) -> dict[str, Any]:
+    """One trial's stated covariance against its errors, for ``results.json``."""
+    return {**{a: clean(st.ratio(a)) for a in _stated_angles(m)}, "n": st.n}
 
 
 def _groups_of(recs: Sequence[Recording]) -> list[str]:
@@ -482,26 +493,3 @@ def _fill(
             if o.trace is not None:
                 report.traces[(res.method.name, rec.name)] = o.trace
     return report
-
-
-# --- grid search ------------------------------------------------------------------------------------------
-
-
-def grid_search(
-    kind: FilterKind,
-    recs: Sequence[Recording],
-    grid: dict[str, list[Any]] | None = None,
-    progress: bool = True,
-    jobs: int = 1,
-) -> list[tuple[dict[str, Any], Errors]]:
-    """Score every point of ``grid`` (default :data:`GRIDS`), applied to the default settings.
-
-    Returns ``(overrides, mean errors over trials)`` sorted best first (9-axis kinds by total error, the
-    others by inclination error): one parameter set for all trials, as BROAD's authors tune. ``jobs``:
-    worker processes, as for :func:`run_methods`.
-    """
-    from attica.tuning import grid_scores
-
-    g = grid if grid is not None else GRIDS[kind]
-    with TrialPool(jobs) as pool:
-        return grid_scores(kind, recs, g, progress=progress, pool=pool).ranked()

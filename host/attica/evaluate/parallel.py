@@ -95,8 +95,8 @@ def score_trial(method: Method, rec: Recording, curves: bool = False) -> Outcome
     if est.scored is not None:
         scored = np.asarray(est.scored, dtype=np.bool_) & (True if scored is None else scored)
     errors = evaluate(est.q, rec.quat_true, scored)
-    cov = None if est.cov is None else stated(est.q, rec.quat_true, est.cov, scored)
-    return Outcome(errors, seconds, tuple(est.notes), make_trace(est, rec) if curves else None, cov)
+    st = None if est.cov is None else stated(est.q, rec.quat_true, est.cov, scored)
+    return Outcome(errors, seconds, tuple(est.notes), make_trace(est, rec) if curves else None, st)
 
 
 # --- worker processes ----------------------------------------------------------------------------------

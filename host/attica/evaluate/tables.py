@@ -112,22 +112,25 @@ def format_stated(report: Report) -> str:
     """Each method's stated orientation covariance against its errors; empty when no method states one.
 
     Per method the mean squared error over the mean stated variance, pooled over the trials
-    (:meth:`MethodResult.stated_ratio`): the tilt for every method, the heading for 9-axis ones (a 6-axis
-    method states its heading as unknown).
+    (:meth:`MethodResult.stated_ratio`): the inclination for every method, the heading for 9-axis ones
+    (a 6-axis method states its heading as unknown: ``-``). Methods that state none (the peers) are not
+    listed.
     """
     rows = [r for r in report.results if any(t.stated is not None for t in r.trials)]
     if not rows:
         return ""
     width = max([24, *(len(r.method.name) for r in rows)])
+    head = f"{'stated covariance':<{width}} {'incl':>7} {'heading':>7}"
     out = [
-        "stated orientation covariance (sensor_msgs/Imu's) against the errors: mean squared error",
-        "over mean stated variance, pooled over the trials (1 consistent, above 1 optimistic, below 1",
-        "conservative)",
-        f"{'method':<{width}} {'tilt':>7} {'heading':>7}",
+        "orientation covariance stated (sensor_msgs/Imu's) against the errors: mean squared error over",
+        "mean stated variance, pooled over the trials; 1 consistent, above 1 optimistic, below 1",
+        "conservative (attica's kinds; the peers state none; -: a 6-axis heading, stated as unknown)",
+        head,
+        "-" * len(head),
     ]
     for r in rows:
-        head = _fmt(r.stated_ratio("heading")) if r.method.nine_axis else "      -"
-        out.append(f"{r.method.name:<{width}} {_fmt(r.stated_ratio('tilt'))} {head}")
+        heading = _fmt(r.stated_ratio("heading")) if r.method.nine_axis else "      -"
+        out.append(f"{r.method.name:<{width}} {_fmt(r.stated_ratio('inclination'))} {heading}")
     return "\n".join(out)
 
 
