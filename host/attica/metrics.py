@@ -199,6 +199,35 @@ class Errors:
         }
 
 
+def _scored(
+    q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike | None
+) -> tuple[F64, F64, NDArray[np.bool_]]:
+    """Estimate and truth as (N, 4) float64 and the rows scored: in ``movement``, truth finite.
+
+    Raises
+    ------
+    ValueError
+        On shape mismatches or a non-boolean ``movement``.
+
+    """
+    est = _quats(q_est, "q_est")
+    true = _quats(q_true, "q_true")
+    if est.shape != true.shape:
+        raise ValueError(f"q_est shape {est.shape} does not match q_true shape {true.shape}")
+    n = true.shape[0]
+    if movement is None:
+        scored = np.ones(n, dtype=np.bool_)
+    else:
+        mov = np.asarray(movement)
+        if mov.dtype != np.bool_:
+            raise ValueError(f"movement must be boolean, got {mov.dtype}")
+        if mov.shape != (n,):
+            raise ValueError(f"movement shape {mov.shape} does not match {n} samples")
+        scored = mov.copy()
+    scored &= np.all(np.isfinite(true), axis=1)
+    return est, true, scored
+
+
 def evaluate(q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike | None = None) -> Errors:
     """BROAD error RMSEs of an estimate against ground truth.
 
@@ -223,21 +252,7 @@ def evaluate(q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike | None = N
         On shape mismatches or a non-boolean ``movement``.
 
     """
-    est = _quats(q_est, "q_est")
-    true = _quats(q_true, "q_true")
-    if est.shape != true.shape:
-        raise ValueError(f"q_est shape {est.shape} does not match q_true shape {true.shape}")
-    n = true.shape[0]
-    if movement is None:
-        scored = np.ones(n, dtype=np.bool_)
-    else:
-        mov = np.asarray(movement)
-        if mov.dtype != np.bool_:
-            raise ValueError(f"movement must be boolean, got {mov.dtype}")
-        if mov.shape != (n,):
-            raise ValueError(f"movement shape {mov.shape} does not match {n} samples")
-        scored = mov.copy()
-    scored &= np.all(np.isfinite(true), axis=1)
+    est, true, scored = _scored(q_est, q_true, movement)
     count = int(np.count_nonzero(scored))
     nan = float("nan")
     if count == 0 or not np.all(np.isfinite(est[scored])):
@@ -331,18 +346,10 @@ def stated(q_est: ArrayLike, q_true: ArrayLike, cov: ArrayLike, movement: ArrayL
         On shape mismatches or a non-boolean ``movement``.
 
     """
-    est = _quats(q_est, "q_est")
-    true = _quats(q_true, "q_true")
+    est, true, rows = _scored(q_est, q_true, movement)
     c = np.asarray(cov, dtype=np.float64)
-    n = true.shape[0]
-    if est.shape != true.shape or c.shape != (n, 9):
-        raise ValueError(f"q_est {est.shape}, q_true {true.shape} and cov {c.shape} do not match (N, 4/9)")
-    rows = ~np.isnan(true).any(axis=1)
-    if movement is not None:
-        mov = np.asarray(movement)
-        if mov.dtype != np.bool_ or mov.shape != (n,):
-            raise ValueError(f"movement must be boolean of shape ({n},), got {mov.dtype} {mov.shape}")
-        rows &= mov
+    if c.shape != (true.shape[0], 9):
+        raise ValueError(f"cov has shape {c.shape}, expected ({true.shape[0]}, 9)")
     nan = float("nan")
     if not np.all(np.isfinite(est[rows])):
         return Stated(nan, nan, nan, nan, 0)
