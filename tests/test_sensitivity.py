@@ -108,7 +108,7 @@ def _doc_table(title: str) -> list[list[str]]:
 
 TABLES = {
     "mekf6, `tau_acc_lp`": ("mekf6", "tau_acc_lp", "1.25,1.45,1.6"),
-    "mekf, `mag_noise`": ("mekf", "mag_noise", "0.3,0.6"),
+    "mekf, `mag_noise`": ("mekf", "mag_noise", "0.2,0.3,0.6,0.9"),
     "mars, `tau_mag`": ("mars", "tau_mag", "10,20"),
     "mekf6, `tau_acc_lp_no_rest`": ("mekf6", "tau_acc_lp_no_rest", "0,1.25"),
     "mekf, `tau_acc_lp_no_rest`": ("mekf", "tau_acc_lp_no_rest", "0,1.25"),
