@@ -5,7 +5,9 @@
   Python and minutes long, are not rerun here);
 - "In sample and leave-one-trial-out": each filter's grid size, its defaults in sample, the grid's best
   point in sample and the leave-one-trial-out mean (3 decimals), from ``attica.tuning`` as ``attica eval
-  --grid`` computes them (225 grid points x 20 trials: about a minute on one core).
+  --grid`` computes them (225 grid points x 20 trials: about a minute on one core);
+- "Per group" and "Per trial": attica's columns and the C peers' (VQF, Fusion; the judged metric, 2
+  decimals); until stop 48 no test read them, and the mekf's columns had gone stale.
 
 Until session 9 no test read these tables and several figures elsewhere on the page had gone stale.
 """
@@ -90,3 +92,29 @@ def test_the_in_sample_and_leave_one_out_table(broad: list[Any], name: str) -> N
     assert _number(cells[3]) == f"{defaults:.3f}", (name, cells[3])
     assert _number(cells[4]) == f"{loo.in_sample:.3f}", (name, cells[4])
     assert _number(cells[5]) == f"{loo.mean:.3f}", (name, cells[5])
+
+
+GROUP_COLUMNS = ("ars", "kf", "ekf", "mekf6", "mars", "mekf", "vqf9", "vqf6", "fusion9")
+"""The columns of the per-group and per-trial tables checked (madgwick9, from ahrs, is pure Python)."""
+
+
+def test_the_per_group_and_per_trial_tables(broad: list[Any]) -> None:
+    groups = markdown_table(DOCS.read_text(encoding="utf-8"), "## Per group", "group")
+    trials = markdown_table(DOCS.read_text(encoding="utf-8"), "## Per trial", "trial")
+    assert groups[0][1:] == trials[0][1:], "the two tables have the same columns"
+    methods = [_method(n) for n in GROUP_COLUMNS[:6]]
+    peers = all(importlib.util.find_spec(m) is not None for m in ("vqf", "imufusion"))
+    if peers:
+        methods += [m for m in peer_methods(list(GROUP_COLUMNS[6:])) if m.name in GROUP_COLUMNS]
+    rep = run_methods(methods, broad, progress=False)
+    assert sorted(trials[1]) == sorted(t.trial for t in rep.results[0].trials), "every trial, once"
+    for m in methods:
+        col = groups[0].index(m.name)
+        r = rep.result(m.name)
+        for t in r.trials:
+            assert trials[1][t.trial][col] == f"{getattr(t.errors, m.score_metric):.2f}", (m.name, t.trial)
+        for label, cells in groups[1].items():
+            name = label.strip("*")
+            want = r.score() if name.startswith("average") else r.score(name)
+            assert cells[col] == f"{want:.2f}", (m.name, label)
+    need(peers, "vqf and imufusion (pip install '.[peers]'): their columns not checked")
