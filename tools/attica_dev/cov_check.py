@@ -10,6 +10,9 @@ variances about the earth's axes):
 - tilt: the inclination error squared against the sum of the two horizontal axes' variances;
 - heading (the 9-axis methods, mars and mekf): the heading error squared against the vertical axis's.
 
+The comparison per recording is ``attica eval``'s (:func:`attica.metrics.stated`, which its
+``stated_ratio`` pools); this tool adds the leave-one-out, the per-trial spread and the simulator.
+
 ars and mars state a documented model of their fixed-gain corrections (docs/filters.md, "Covariance
 of the complementary filters"), whose default densities were chosen from the pooled in-sample ratios
 here; the Kalman kinds (kf, ekf, mekf) state their own P, which follows from the settings chosen for
@@ -27,7 +30,6 @@ ratios. docs/accuracy.md quotes this output (tests/test_cov_model.py recomputes 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,24 +38,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from attica import metrics, native
-from attica.data.covariance import orientation_covariance
+from attica import metrics
 from attica.data.recording import Recording
-from attica.evaluate import load_trials
-from attica.settings import FilterKind, Preset, preset_settings
+from attica.evaluate import VARIANTS, attica_method, load_trials, method_kind
 
 F64 = NDArray[np.float64]
 
-METHODS: dict[str, tuple[FilterKind, dict[str, Any]]] = {
-    "ars": (FilterKind.ARS, {}),
-    "kf": (FilterKind.KF, {}),
-    "ekf": (FilterKind.EKF, {}),
-    "mekf6": (FilterKind.MEKF, {"use_mag": False}),
-    "mars": (FilterKind.MARS, {}),
-    "mekf": (FilterKind.MEKF, {}),
-}
-"""The methods measured: name -> (kind, settings other than the defaults); mekf6 is the 6-axis mekf of
-``attica eval``."""
+METHODS = ("ars", "kf", "ekf", "mekf6", "mars", "mekf")
+"""The methods measured, as ``attica eval`` names them (mekf6: the mekf with ``use_mag`` off)."""
 
 NINE_AXIS = ("mars", "mekf")
 """The methods whose heading is measured (the others' is not observed: pi^2/3, unknown)."""
@@ -95,38 +87,33 @@ class Consistency:
 
 def measure(recs: Sequence[Recording], name: str) -> dict[str, Consistency]:
     """Run method ``name`` (:data:`METHODS`) on ``recs``: its tilt's and (9-axis) heading's consistency."""
-    rows: dict[str, list[tuple[float, float]]] = {"tilt": [], "heading": []}
-    for rec in recs:
-        incl, head, cov = _run(name, rec)
-        scored = np.ones(len(rec), np.bool_) if rec.movement is None else rec.movement.copy()
-        _add(rows, incl, head, cov, scored)
-    return _result(name, rows)
+    return _result(name, [_stated(name, rec, rec.movement) for rec in recs])
 
 
-def _run(name: str, rec: Recording, **over: Any) -> tuple[F64, F64, F64]:
-    """(inclination, heading errors (rad), (N, 9) orientation covariance) of ``name`` on ``rec``."""
-    kind, own = METHODS[name]
-    s = dataclasses.replace(preset_settings(kind, Preset.DEFAULT, dt=1.0 / rec.rate), **own, **over)
-    out = native.Filter(kind, settings=s).run(
-        rec.gyr, rec.acc, rec.mag, check_units=False, steps=rec.steps if rec.lost else None
-    )
-    assert rec.quat_true is not None, rec.name
-    _, heading, inclination = metrics.error_angles(out["q"].astype(np.float64), rec.quat_true)
-    return inclination, heading, orientation_covariance(kind, out)
+def _stated(name: str, rec: Recording, scored: Any, **over: Any) -> metrics.Stated:
+    """``name`` (defaults and ``over``) on ``rec``: its stated covariance against its errors over ``scored``.
+
+    As ``attica eval`` computes it (:func:`attica.metrics.stated` of the estimate's covariance).
+    """
+    variant = name if name in VARIANTS else ""
+    m = attica_method(method_kind(name), overrides=over, variant=variant, covariance=True)
+    assert m.estimate is not None and rec.quat_true is not None, rec.name
+    est = m.estimate(rec)
+    assert est.cov is not None, name
+    return metrics.stated(est.q, rec.quat_true, est.cov, scored)
 
 
-def _add(rows: dict[str, list[tuple[float, float]]], incl: F64, head: F64, cov: F64, scored: Any) -> None:
-    scored = scored & np.isfinite(incl)
-    tilt = cov[scored, 0] + cov[scored, 4]  # the variances about the earth's x and y axes
-    rows["tilt"].append((float(np.mean(incl[scored] ** 2)), float(np.mean(tilt))))
-    rows["heading"].append((float(np.mean(head[scored] ** 2)), float(np.mean(cov[scored, 8]))))
-
-
-def _result(name: str, rows: dict[str, list[tuple[float, float]]]) -> dict[str, Consistency]:
-    names = ("tilt", "heading") if name in NINE_AXIS else ("tilt",)
-    return {
-        n: Consistency(np.array([r[0] for r in rows[n]]), np.array([r[1] for r in rows[n]])) for n in names
+def _result(name: str, rows: Sequence[metrics.Stated]) -> dict[str, Consistency]:
+    out = {
+        "tilt": Consistency(
+            np.array([r.inclination_mse for r in rows]), np.array([r.inclination_var for r in rows])
+        )
     }
+    if name in NINE_AXIS:
+        out["heading"] = Consistency(
+            np.array([r.heading_mse for r in rows]), np.array([r.heading_var for r in rows])
+        )
+    return out
 
 
 def simulated(name: str, seeds: Sequence[int] = (1, 2, 3)) -> dict[str, dict[str, Consistency]]:
@@ -136,12 +123,11 @@ def simulated(name: str, seeds: Sequence[int] = (1, 2, 3)) -> dict[str, dict[str
 
     out = {}
     for cond in CONDITIONS:
-        rows: dict[str, list[tuple[float, float]]] = {"tilt": [], "heading": []}
         over = {"gyro_range": cond.gyro_range} if cond.gyro_range > 0 else {}
+        rows = []
         for seed in seeds:
             rec, _ = simulate_with_truth(cond.config(seed))
-            incl, head, cov = _run(name, rec, **over)
-            _add(rows, incl, head, cov, rec.t >= max(CONVERGENCE, cond.score_from))
+            rows.append(_stated(name, rec, rec.t >= max(CONVERGENCE, cond.score_from), **over))
         out[cond.name] = _result(name, rows)
     return out
 
@@ -158,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     recs = load_trials(args.data)
-    print("method angle    RMS error  model RMS  pooled  held out (pooled)  per trial min-median-max")
+    print("method angle    RMS error stated RMS pooled  held out (pooled)  per trial min-median-max")
     for name in METHODS:
         for angle, c in measure(recs, name).items():
             held = c.held_out()
