@@ -28,8 +28,9 @@
  *     motion the estimate's tilt follows u closely, so the lag (the gyro errors u cannot follow) and the
  *     linear acceleration left in u are the two errors traded. Until the first rest (step 0's zero-rate
  *     update) has measured the gyro bias, the section runs at tau_acc_lp_no_rest instead: a bias learnt
- *     from the accel alone drifts more within the lag, so a shorter one pays (docs/accuracy.md). The residual is the horizontal part of
- *     the shortest rotation taking u to z = (0, 0, 1) in half-angle form, y = 2 (c_x, c_y) with
+ *     from the accel alone drifts more within the lag, so a shorter one pays (docs/accuracy.md). The
+ *     residual is the horizontal part of the shortest rotation taking u to z = (0, 0, 1) in half-angle
+ *     form, y = 2 (c_x, c_y) with
  *     (c_w, c_x, c_y, 0) = att_i_align_up(u): to first order u = z - dtheta x z, so y = (dtheta_x,
  *     dtheta_y), H = [I2 0]; unlike the raw (u_x, u_y) it grows monotonically up to a half turn
  *     (|y| = 2 sin(angle / 2)).

@@ -1040,15 +1040,14 @@ static ATT_ALWAYS_INLINE void att_mekf_lowpass(att_vec3_t u, float k, float k2, 
 /*
  * The low-pass gain during a recovery (step 6): the running mean of att_i_recovery_lp_gain (att_core.h)
  * until it is below the floor over 2 sqrt(2) (ATT_MEKF_REC_MEAN_END), then the floor: after a clipping
- * gyro sample the low-pass's own gain k (k_lp, or k_lp_no_rest before the first rest); in the recovery
- * of the start k_lp_rec, the fast exponential window, since there the gyro bias is not known yet and the
- * samples of a long mean would be turned by it. *k2: the second stage's gain (1 while the mean runs,
- * then the floor).
+ * gyro sample the low-pass's gain of the moment st->k_lp (k_lp, or k_lp_no_rest before the first rest);
+ * in the recovery of the start k_lp_rec, the fast exponential window, since there the gyro bias is not
+ * known yet and the samples of a long mean would be turned by it. *k2: the second stage's gain (1 while
+ * the mean runs, then the floor).
  */
-static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float k,
-                                                    float *k2)
+static ATT_ALWAYS_INLINE float att_mekf_rec_lp_gain(const att_mekf_coeffs_t *c, att_mekf_state_t *st, float *k2)
 {
-    const float floor = st->rec_clip ? k : c->k_lp_rec;
+    const float floor = st->rec_clip ? st->k_lp : c->k_lp_rec;
     *k2 = floor;
     return att_i_recovery_lp_gain(&st->rec_lp_n, floor, ATT_MEKF_REC_MEAN_END * floor, k2);
 }
@@ -1079,7 +1078,7 @@ static ATT_NOINLINE uint32_t att_mekf_accel(const att_mekf_coeffs_t *c, att_mekf
             lp2 = u;
         }
         float k2 = st->k_lp;
-        const float k1 = rec ? att_mekf_rec_lp_gain(c, st, st->k_lp, &k2) : st->k_lp;
+        const float k1 = rec ? att_mekf_rec_lp_gain(c, st, &k2) : st->k_lp;
         att_mekf_lowpass(u, k1, k2, &lp1, &lp2);
         u = lp2;
     }
